@@ -1,0 +1,284 @@
+"""The pad contact model of FORMATS.md, in two forms.
+
+A flat pad of radius ``R`` is pressed along the tool z-axis.  Its face is a plane that sinks to
+depth ``s`` below the TCP; a surface point within ``R`` of the tool axis, at height ``z`` along tool
+z, is in contact where ``h = s - z > 0`` and carries pressure ``k·h``.  ``s`` is set by the force
+balance ``F = k ∫ h dA``.
+
+* :func:`mesh_contact` evaluates the model exactly on surface samples (a fine mesh) for many
+  poses at once; the simulator uses it.
+* :func:`local_patch` evaluates it on the local quadric ``z = (k1 x² + k2 y²) / 2`` given by the
+  principal curvatures; planners use it for swath widths, default spacings and the coverage bound.
+
+Both solve the force balance exactly for their geometry; tests check them against each other and
+against the analytic flat, sphere and cylinder answers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .tool import Tool
+
+
+# ----------------------------------------------------------------------------------------------
+# Exact force balance over discrete samples
+# ----------------------------------------------------------------------------------------------
+def solve_sink(z: np.ndarray, weight: np.ndarray, group: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Solve ``sum_j weight_j · max(s_g − z_j, 0) = target_g`` for ``s_g`` in every group.
+
+    Parameters
+    ----------
+    z : (N,) float
+        Height of each sample along tool z, m.
+    weight : (N,) float
+        Area of each sample, m².
+    group : (N,) int
+        Group (pose) index of each sample, ``0 <= group < G``.
+    target : (G,) float
+        Required ``F / k`` per group, m³.
+
+    Returns
+    -------
+    (G,) float
+        The sink depth ``s`` per group, m; NaN for a group with no samples (or no area).
+
+    Notes
+    -----
+    The left side is piecewise linear and increasing in ``s`` with breakpoints at the sorted ``z``;
+    after one lexsort the bracketing breakpoint of every group is found with cumulative sums, so the
+    solve is exact and vectorised.
+    """
+    G = len(target)
+    s = np.full(G, np.nan)
+    if len(z) == 0:
+        return s
+    order = np.lexsort((z, group))
+    z, w, g = z[order], weight[order], group[order]
+    counts = np.bincount(g, minlength=G)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    cw = np.cumsum(w)
+    cwz = np.cumsum(w * z)
+    base_w = np.repeat(np.concatenate([[0.0], cw])[starts], counts)
+    base_wz = np.repeat(np.concatenate([[0.0], cwz])[starts], counts)
+    W = cw - base_w            # within-group cumulative area up to and including each sample
+    WZ = cwz - base_wz
+    f = z * W - WZ             # force/k if the plane sat exactly at this sample's height
+    below = f <= target[g]
+    n_below = np.bincount(g, weights=below.astype(float), minlength=G).astype(int)
+    has = (counts > 0) & (n_below > 0)
+    last = starts[has] + n_below[has] - 1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s[has] = (target[has] + WZ[last]) / W[last]
+    return s
+
+
+@dataclass(frozen=True)
+class MeshContact:
+    """Contact between the pad and surface samples for a batch of poses (sparse, pair list).
+
+    Attributes
+    ----------
+    pose : (N,) int
+        Pose index of each contact pair (within the batch).
+    sample : (N,) int
+        Surface-sample index of each pair.
+    pressure : (N,) float
+        Contact pressure, Pa (> 0).
+    radius : (N,) float
+        Distance of the sample from the tool axis, m.
+    sink : (P,) float
+        Pad-face depth ``s`` per pose, m (NaN where the pad touches nothing).
+    """
+
+    pose: np.ndarray
+    sample: np.ndarray
+    pressure: np.ndarray
+    radius: np.ndarray
+    sink: np.ndarray
+
+
+def mesh_contact(points: np.ndarray, normals: np.ndarray, areas: np.ndarray, tree,
+                 positions: np.ndarray, axes: np.ndarray, tool: Tool) -> MeshContact:
+    """Pad contact on surface samples for poses ``positions`` ``(P, 3)`` with tool z ``axes`` ``(P, 3)``.
+
+    Parameters
+    ----------
+    points, normals : (S, 3) float
+        Surface samples (m) and their unit normals toward the tool.
+    areas : (S,) float
+        Area each sample stands for, m².
+    tree : scipy.spatial.cKDTree
+        KD-tree over ``points``.
+    positions : (P, 3) float
+        TCP positions, m.
+    axes : (P, 3) float
+        Unit tool z-axes (pointing into the part).
+    tool : Tool
+
+    Returns
+    -------
+    MeshContact
+        Only pairs with positive pressure are kept.  Samples whose normal faces away from the tool
+        (the far side of a thin part) never touch the pad.
+    """
+    R = tool.pad_radius
+    P = len(positions)
+    # A sphere of radius sqrt(2)·R holds every point of the pad cylinder with |z| <= R.
+    lists = tree.query_ball_point(positions, np.sqrt(2.0) * R, return_sorted=False)
+    counts = np.fromiter((len(l) for l in lists), dtype=np.int64, count=P)
+    if counts.sum() == 0:
+        empty = np.zeros(0)
+        return MeshContact(empty.astype(int), empty.astype(int), empty, empty, np.full(P, np.nan))
+    sample = np.fromiter((i for l in lists for i in l), dtype=np.int64, count=int(counts.sum()))
+    pose = np.repeat(np.arange(P), counts)
+    rel = points[sample] - positions[pose]
+    a = axes[pose]
+    z = np.einsum("ij,ij->i", rel, a)
+    r2 = np.einsum("ij,ij->i", rel, rel) - z * z
+    keep = (r2 <= R * R) & (np.einsum("ij,ij->i", normals[sample], a) < 0.0)
+    pose, sample, z, r2 = pose[keep], sample[keep], z[keep], r2[keep]
+    target = np.full(P, tool.force / tool.k)
+    sink = solve_sink(z, areas[sample], pose, target)
+    h = sink[pose] - z
+    touch = h > 0
+    return MeshContact(pose[touch], sample[touch], tool.k * h[touch], np.sqrt(np.maximum(r2[touch], 0.0)), sink)
+
+
+# ----------------------------------------------------------------------------------------------
+# Local quadric model from principal curvatures
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LocalPatch:
+    """The pad's contact patch on local quadrics ``z = (k1 x² + k2 y²)/2`` (x along ``d1``).
+
+    Along each ray from the pad centre at angle ``phi`` from ``d1`` the contact is the radial
+    interval ``[rho_in, rho_out]`` (empty where ``rho_in >= rho_out``).
+
+    Attributes
+    ----------
+    sink : (n,) float
+        Pad-face depth ``s``, m.
+    phi : (a,) float
+        Ray angles over ``[0, 2π)``, rad.
+    rho_in, rho_out : (n, a) float
+        Contact interval along each ray, m.
+    """
+
+    sink: np.ndarray
+    phi: np.ndarray
+    rho_in: np.ndarray
+    rho_out: np.ndarray
+
+    def width_across(self, psi) -> np.ndarray:
+        """Extent (m) of the patch along the tangent direction at angle ``psi`` from ``d1``.
+
+        For a pass whose feed direction is at angle ``θ`` from ``d1`` the swath width is
+        ``width_across(θ + π/2)``.  ``psi`` is a scalar or an ``(n,)`` array.
+        """
+        psi = np.broadcast_to(np.asarray(psi, float), self.sink.shape)
+        proj = np.cos(self.phi[None, :] - psi[:, None])
+        present = self.rho_out > self.rho_in
+        # The extreme projections lie on the outer boundary of a ray (or at the inner end when the
+        # ray points against the direction).
+        hi = np.where(proj >= 0, self.rho_out * proj, self.rho_in * proj)
+        lo = np.where(proj >= 0, self.rho_in * proj, self.rho_out * proj)
+        hi = np.where(present, hi, -np.inf).max(axis=1)
+        lo = np.where(present, lo, np.inf).min(axis=1)
+        return np.where(np.isfinite(hi) & np.isfinite(lo), hi - lo, 0.0)
+
+    def max_width(self, n_directions: int = 36) -> np.ndarray:
+        """Widest swath (m) over all feed directions, ``(n,)``."""
+        psis = np.linspace(0.0, np.pi, n_directions, endpoint=False)
+        return np.max([self.width_across(p) for p in psis], axis=0)
+
+    def min_width(self, n_directions: int = 36) -> np.ndarray:
+        """Narrowest swath (m) over all feed directions, ``(n,)``."""
+        psis = np.linspace(0.0, np.pi, n_directions, endpoint=False)
+        return np.min([self.width_across(p) for p in psis], axis=0)
+
+    @property
+    def contact_area(self) -> np.ndarray:
+        """Area (m²) of the contact patch, ``(n,)``."""
+        dphi = 2 * np.pi / len(self.phi)
+        return 0.5 * dphi * np.clip(self.rho_out**2 - self.rho_in**2, 0.0, None).sum(axis=1)
+
+
+def local_patch(k1, k2, tool: Tool, *, n_rays: int = 180, chunk: int = 20000) -> LocalPatch:
+    """Solve the pad contact on local quadrics with principal curvatures ``k1, k2`` (1/m).
+
+    Positive curvature bends away from the tool (convex).  Exact for the quadric, to the angular
+    resolution ``2π / n_rays``.
+
+    Parameters
+    ----------
+    k1, k2 : (n,) float or scalars
+        Principal curvatures, 1/m.
+    tool : Tool
+    n_rays : int
+        Number of rays over the full circle (even).
+
+    Returns
+    -------
+    LocalPatch
+    """
+    k1 = np.atleast_1d(np.asarray(k1, float))
+    k2 = np.atleast_1d(np.asarray(k2, float))
+    n = len(k1)
+    phi = (np.arange(n_rays) + 0.5) * (2 * np.pi / n_rays)
+    sink = np.empty(n)
+    rho_in = np.empty((n, n_rays))
+    rho_out = np.empty((n, n_rays))
+    for lo in range(0, n, chunk):
+        hi = min(lo + chunk, n)
+        s, ri, ro = _solve_quadric(k1[lo:hi], k2[lo:hi], phi, tool)
+        sink[lo:hi], rho_in[lo:hi], rho_out[lo:hi] = s, ri, ro
+    return LocalPatch(sink, phi, rho_in, rho_out)
+
+
+def _ray_interval(a: np.ndarray, s: np.ndarray, R: float) -> tuple[np.ndarray, np.ndarray]:
+    """Contact interval on rays where ``z = a ρ²`` (``a = κ_φ/2``) for plane depth ``s``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lim = np.sqrt(np.where(a != 0, s / a, np.inf))
+    # convex ray (a > 0): contact from 0 to min(R, sqrt(s/a)) if s > 0
+    # concave ray (a < 0): contact from sqrt(s/a) (if s < 0) to R
+    # flat ray: all of [0, R] if s > 0
+    rho_out = np.where(a > 0, np.where(s > 0, np.minimum(R, np.nan_to_num(lim, nan=0.0)), 0.0),
+                       np.where((a < 0) | (s > 0), R, 0.0))
+    rho_in = np.where((a < 0) & (s < 0), np.minimum(np.nan_to_num(lim, nan=R), R), 0.0)
+    return rho_in, rho_out
+
+
+def _solve_quadric(k1, k2, phi, tool: Tool):
+    R = tool.pad_radius
+    a = 0.5 * (k1[:, None] * np.cos(phi) ** 2 + k2[:, None] * np.sin(phi) ** 2)   # (n, rays)
+    dphi = 2 * np.pi / len(phi)
+    target = tool.force / tool.k
+
+    def volume(s):
+        ri, ro = _ray_interval(a, s[:, None], R)
+        prim = lambda r: s[:, None] * r**2 / 2 - a * r**4 / 4   # ∫ (s - a ρ²) ρ dρ
+        vol = np.where(ro > ri, prim(ro) - prim(ri), 0.0).sum(axis=1) * dphi
+        area = np.where(ro > ri, (ro**2 - ri**2) / 2, 0.0).sum(axis=1) * dphi
+        return vol, area
+
+    lo = np.minimum(0.0, a.min(axis=1)) * R * R
+    hi = tool.flat_depression + np.maximum(0.0, a.max(axis=1)) * R * R
+    s = np.clip(np.full(len(k1), tool.flat_depression), lo, hi)
+    for _ in range(60):
+        vol, area = volume(s)
+        err = vol - target
+        lo = np.where(err < 0, s, lo)
+        hi = np.where(err >= 0, s, hi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            newton = s - err / area
+        inside = (newton > lo) & (newton < hi) & np.isfinite(newton)
+        s_new = np.where(inside, newton, 0.5 * (lo + hi))
+        if np.all(np.abs(s_new - s) <= 1e-12 + 1e-10 * np.abs(s)):
+            s = s_new
+            break
+        s = s_new
+    ri, ro = _ray_interval(a, s[:, None], R)
+    return s, ri, ro

@@ -1,0 +1,104 @@
+"""Pure, vectorised geometry on triangle meshes (no state, no caching)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def face_normals_and_areas(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals ``(m, 3)`` (right-hand winding) and areas ``(m,)`` in m² of each triangle."""
+    tri = vertices[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(cross, axis=1)
+    normals = np.divide(cross, norm[:, None], out=np.zeros_like(cross), where=norm[:, None] > 0)
+    return normals, 0.5 * norm
+
+
+def vertex_areas(n_vertices: int, faces: np.ndarray, face_areas: np.ndarray) -> np.ndarray:
+    """Area ``(n,)`` in m² attributed to each vertex: a third of each incident triangle."""
+    return np.bincount(faces.ravel(), weights=np.repeat(face_areas / 3.0, 3), minlength=n_vertices)
+
+
+def vertex_normals(n_vertices: int, faces: np.ndarray, face_normals: np.ndarray,
+                   face_areas: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals ``(n, 3)``; a vertex with no faces gets ``(0, 0, 0)``."""
+    weighted = np.repeat(face_normals * face_areas[:, None], 3, axis=0)
+    acc = np.zeros((n_vertices, 3))
+    np.add.at(acc, faces.ravel(), weighted)
+    return normalize(acc)
+
+
+def normalize(v: np.ndarray) -> np.ndarray:
+    """Rows of ``v`` scaled to unit length; zero rows stay zero."""
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.divide(v, norm, out=np.zeros_like(v, dtype=float), where=norm > 0)
+
+
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """Edges ``(b, 2)`` used by exactly one face, oriented as in that face."""
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    key = np.sort(edges, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return edges[counts[inverse.ravel()] == 1]
+
+
+def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
+    """Closed boundary loops as vertex-index arrays, longest first.
+
+    Edges are chained head to tail; at a vertex where the boundary touches itself (a bow-tie) the
+    chain takes the first unused edge, so every boundary edge ends up in exactly one loop.
+    """
+    edges = boundary_edges(faces)
+    if len(edges) == 0:
+        return []
+    out_edges: dict[int, list[int]] = {}
+    for i, a in enumerate(edges[:, 0]):
+        out_edges.setdefault(int(a), []).append(i)
+    used = np.zeros(len(edges), dtype=bool)
+    loops = []
+    for start in range(len(edges)):
+        if used[start]:
+            continue
+        loop = []
+        e = start
+        while e is not None and not used[e]:
+            used[e] = True
+            loop.append(int(edges[e, 0]))
+            nxt = [j for j in out_edges.get(int(edges[e, 1]), []) if not used[j]]
+            e = nxt[0] if nxt else None
+        loops.append(np.asarray(loop))
+    loops.sort(key=len, reverse=True)
+    return loops
+
+
+def smooth_vertex_normals(vertices: np.ndarray, normals: np.ndarray, areas: np.ndarray,
+                          radius: float, tree=None) -> np.ndarray:
+    """Average unit normals over a ball of ``radius`` (m) around each vertex, area-weighted.
+
+    Neighbours whose normal points away (negative dot product) are ignored, so the two sides of a
+    thin part are not mixed.  ``radius <= 0`` returns ``normals`` unchanged.
+    """
+    if radius <= 0:
+        return normals
+    from scipy.spatial import cKDTree
+
+    tree = tree if tree is not None else cKDTree(vertices)
+    pairs = tree.query_pairs(radius, output_type="ndarray")
+    acc = normals * areas[:, None]
+    if len(pairs):
+        i, j = pairs[:, 0], pairs[:, 1]
+        same_side = np.einsum("ij,ij->i", normals[i], normals[j]) > 0
+        i, j = i[same_side], j[same_side]
+        np.add.at(acc, i, normals[j] * areas[j, None])
+        np.add.at(acc, j, normals[i] * areas[i, None])
+    return normalize(acc)
+
+
+def principal_axes(vertices: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid ``(3,)`` and principal axes ``(3, 3)`` (rows, largest spread first) of a point set."""
+    w = np.ones(len(vertices)) if weights is None else weights
+    centroid = np.average(vertices, axis=0, weights=w)
+    d = vertices - centroid
+    cov = (d * w[:, None]).T @ d / w.sum()
+    evals, evecs = np.linalg.eigh(cov)
+    return centroid, evecs[:, ::-1].T

@@ -1,0 +1,193 @@
+"""The :class:`Surface` record: a triangulated open surface with normals toward the tool."""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from ..errors import InputError
+from . import geometry
+from .curvature import PrincipalCurvature, principal_curvatures
+
+
+class Surface:
+    """A part surface to be finished: triangles in the part frame, normals toward the tool side.
+
+    The record is immutable: arrays are copied and made read-only on construction, and every
+    derived array is computed once on first use (``cached_property``) by a pure function.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Vertex positions, metres, part frame.
+    faces : (m, 3) int
+        Triangles as vertex indices; winding sets the normal (right-hand rule), which must point
+        toward the side the tool works on.
+    name : str
+        A label for reports.
+    normal_smoothing : float
+        Radius (m) over which vertex normals are averaged to give the smooth normals the tool is
+        aligned with (0 = plain area-weighted vertex normals).  Default 2 mm: it removes scan noise
+        yet stays far below any pad radius.
+    curvature_neighbours : int
+        Neighbourhood size (points) of the quadric curvature fit.
+
+    Raises
+    ------
+    InputError
+        On wrong shapes, non-finite coordinates, out-of-range indices or zero total area.
+    """
+
+    def __init__(self, vertices, faces, *, name: str = "", normal_smoothing: float = 2e-3,
+                 curvature_neighbours: int = 24):
+        v = np.array(vertices, dtype=float)
+        f = np.array(faces)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3:
+            raise InputError(f"expected vertices of shape (n>=3, 3), got {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3 or len(f) < 1:
+            raise InputError(f"expected faces of shape (m>=1, 3), got {f.shape}")
+        if not np.issubdtype(f.dtype, np.integer):
+            if not np.all(np.equal(np.mod(f, 1), 0)):
+                raise InputError("face indices must be integers")
+        f = f.astype(np.int64)
+        if not np.isfinite(v).all():
+            bad = int((~np.isfinite(v)).any(axis=1).sum())
+            raise InputError(f"{bad} vertices have NaN or infinite coordinates; repair or re-export the mesh")
+        if f.min() < 0 or f.max() >= len(v):
+            raise InputError(f"face indices must lie in 0..{len(v) - 1}, got {f.min()}..{f.max()}")
+        v.setflags(write=False)
+        f.setflags(write=False)
+        self.vertices = v
+        self.faces = f
+        self.name = name
+        self.normal_smoothing = float(normal_smoothing)
+        self.curvature_neighbours = int(curvature_neighbours)
+        if not self.area > 0:
+            raise InputError("the mesh has no area (all triangles are degenerate)")
+
+    def __repr__(self) -> str:
+        return f"Surface({self.name!r}, {len(self.vertices)} vertices, {len(self.faces)} faces, area={self.area:.4g} m²)"
+
+    # --- per-face -----------------------------------------------------------------------------
+    @cached_property
+    def _face_normals_areas(self):
+        return geometry.face_normals_and_areas(self.vertices, self.faces)
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        """(m, 3) unit facet normals, toward the tool."""
+        return _ro(self._face_normals_areas[0])
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        """(m,) facet areas, m²."""
+        return _ro(self._face_normals_areas[1])
+
+    @cached_property
+    def area(self) -> float:
+        """Total area, m²."""
+        return float(self.face_areas.sum())
+
+    # --- per-vertex ---------------------------------------------------------------------------
+    @cached_property
+    def vertex_areas(self) -> np.ndarray:
+        """(n,) area attributed to each vertex (a third of each incident face), m²."""
+        return _ro(geometry.vertex_areas(len(self.vertices), self.faces, self.face_areas))
+
+    @cached_property
+    def vertex_normals(self) -> np.ndarray:
+        """(n, 3) area-weighted unit vertex normals (unsmoothed)."""
+        return _ro(geometry.vertex_normals(len(self.vertices), self.faces, self.face_normals, self.face_areas))
+
+    @cached_property
+    def normals(self) -> np.ndarray:
+        """(n, 3) smooth unit vertex normals toward the tool: vertex normals averaged over
+        ``normal_smoothing`` metres.  Tool z is aligned with minus these (interpolated)."""
+        return _ro(geometry.smooth_vertex_normals(self.vertices, self.vertex_normals, self.vertex_areas,
+                                                  self.normal_smoothing, self.kdtree))
+
+    @cached_property
+    def curvature(self) -> PrincipalCurvature:
+        """Principal curvatures (1/m, positive = convex toward the tool) and directions per vertex."""
+        return principal_curvatures(self.vertices, self.normals, neighbours=self.curvature_neighbours,
+                                    tree=self.kdtree)
+
+    # --- topology and bounds --------------------------------------------------------------------
+    @cached_property
+    def boundary_loops(self) -> list[np.ndarray]:
+        """Closed boundary loops (vertex indices), longest first; empty for a closed surface."""
+        return geometry.boundary_loops(self.faces)
+
+    @cached_property
+    def edge_lengths(self) -> np.ndarray:
+        """(3m,) length of each face edge (shared edges appear twice), m."""
+        tri = self.vertices[self.faces]
+        return np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2).ravel()
+
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) axis-aligned bounding box corners, m."""
+        return _ro(np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)]))
+
+    @cached_property
+    def principal_axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Area-weighted centroid ``(3,)`` and principal axes ``(3, 3)``, rows, largest spread first."""
+        return geometry.principal_axes(self.vertices, self.vertex_areas)
+
+    # --- queries --------------------------------------------------------------------------------
+    @cached_property
+    def kdtree(self):
+        """A ``scipy.spatial.cKDTree`` over the vertices."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.vertices)
+
+    @cached_property
+    def trimesh(self):
+        """A ``trimesh.Trimesh`` view (no processing) for proximity and slicing queries."""
+        import trimesh
+
+        return trimesh.Trimesh(self.vertices, self.faces, process=False, validate=False)
+
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Closest points on the surface to ``points`` ``(k, 3)``.
+
+        Returns
+        -------
+        closest : (k, 3) float
+            The nearest surface points, m.
+        distance : (k,) float
+            Distances, m.
+        face : (k,) int
+            The face each closest point lies on.
+        """
+        closest, distance, face = self.trimesh.nearest.on_surface(np.asarray(points, float))
+        return closest, distance, face
+
+    def interpolate_normals(self, points: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """Smooth unit normals ``(k, 3)`` at ``points`` lying on faces ``face``: barycentric
+        interpolation of :attr:`normals` between the face's vertices."""
+        import trimesh
+
+        tri = self.vertices[self.faces[face]]
+        bary = trimesh.triangles.points_to_barycentric(tri, points)
+        bary = np.clip(bary, 0.0, None)
+        bary /= np.maximum(bary.sum(axis=1, keepdims=True), 1e-300)
+        n = np.einsum("ki,kij->kj", bary, self.normals[self.faces[face]])
+        return geometry.normalize(n)
+
+    def subdivided(self, max_edge: float) -> "Surface":
+        """A copy whose edges are all at most ``max_edge`` metres (same shape, finer sampling)."""
+        import trimesh
+
+        if self.edge_lengths.max() <= max_edge:
+            return self
+        v, f = trimesh.remesh.subdivide_to_size(self.vertices, self.faces, max_edge=max_edge, max_iter=20)
+        return Surface(v, f, name=self.name, normal_smoothing=self.normal_smoothing,
+                       curvature_neighbours=self.curvature_neighbours)
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
