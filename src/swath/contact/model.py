@@ -124,16 +124,17 @@ def mesh_contact(points: np.ndarray, normals: np.ndarray, areas: np.ndarray, tre
         Only pairs with positive pressure are kept.  Samples whose normal faces away from the tool
         (the far side of a thin part) never touch the pad.
     """
+    from scipy.spatial import cKDTree
+
     R = tool.pad_radius
     P = len(positions)
-    # A sphere of radius sqrt(2)·R holds every point of the pad cylinder with |z| <= R.
-    lists = tree.query_ball_point(positions, np.sqrt(2.0) * R, return_sorted=False)
-    counts = np.fromiter((len(l) for l in lists), dtype=np.int64, count=P)
-    if counts.sum() == 0:
+    # A ball of radius 1.118·R holds every point of the pad cylinder with |z| <= R/2; points farther
+    # above the pad face would be inside the tool body, farther below cannot touch.
+    coo = cKDTree(positions).sparse_distance_matrix(tree, np.hypot(R, 0.5 * R), output_type="coo_matrix")
+    if coo.nnz == 0:
         empty = np.zeros(0)
         return MeshContact(empty.astype(int), empty.astype(int), empty, empty, np.full(P, np.nan))
-    sample = np.fromiter((i for l in lists for i in l), dtype=np.int64, count=int(counts.sum()))
-    pose = np.repeat(np.arange(P), counts)
+    pose, sample = coo.row.astype(np.int64), coo.col.astype(np.int64)
     rel = points[sample] - positions[pose]
     a = axes[pose]
     z = np.einsum("ij,ij->i", rel, a)

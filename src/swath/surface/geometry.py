@@ -23,9 +23,12 @@ def vertex_normals(n_vertices: int, faces: np.ndarray, face_normals: np.ndarray,
                    face_areas: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals ``(n, 3)``; a vertex with no faces gets ``(0, 0, 0)``."""
     weighted = np.repeat(face_normals * face_areas[:, None], 3, axis=0)
-    acc = np.zeros((n_vertices, 3))
-    np.add.at(acc, faces.ravel(), weighted)
-    return normalize(acc)
+    return normalize(scatter_add(faces.ravel(), weighted, n_vertices))
+
+
+def scatter_add(index: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """Sum rows of ``values`` ``(k, d)`` into ``n`` bins by ``index`` ``(k,)`` (a fast ``np.add.at``)."""
+    return np.stack([np.bincount(index, weights=values[:, j], minlength=n) for j in range(values.shape[1])], axis=1)
 
 
 def normalize(v: np.ndarray) -> np.ndarray:
@@ -83,14 +86,12 @@ def smooth_vertex_normals(vertices: np.ndarray, normals: np.ndarray, areas: np.n
     from scipy.spatial import cKDTree
 
     tree = tree if tree is not None else cKDTree(vertices)
-    pairs = tree.query_pairs(radius, output_type="ndarray")
-    acc = normals * areas[:, None]
-    if len(pairs):
-        i, j = pairs[:, 0], pairs[:, 1]
-        same_side = np.einsum("ij,ij->i", normals[i], normals[j]) > 0
-        i, j = i[same_side], j[same_side]
-        np.add.at(acc, i, normals[j] * areas[j, None])
-        np.add.at(acc, j, normals[i] * areas[i, None])
+    # All ordered pairs within the radius, each vertex with itself included.
+    coo = tree.sparse_distance_matrix(tree, radius, output_type="coo_matrix")
+    i, j = coo.row, coo.col
+    same_side = np.einsum("ij,ij->i", normals[i], normals[j]) > 0
+    i, j = i[same_side], j[same_side]
+    acc = scatter_add(i, normals[j] * areas[j, None], len(vertices))
     return normalize(acc)
 
 

@@ -1,0 +1,53 @@
+"""Tool orientation along contact passes (FORMATS.md tool frame)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..surface.geometry import normalize
+
+
+def pass_tangents(points: np.ndarray) -> np.ndarray:
+    """Unit travel directions ``(k, 3)`` along a polyline ``(k, 3)``: central differences inside,
+    one-sided at the ends."""
+    return normalize(np.gradient(points, axis=0))
+
+
+def tool_frames(normals: np.ndarray, tangents: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(k, 3, 3)`` (columns x, y, z of the tool in the part frame).
+
+    z = −normal (into the part); x = the travel direction projected onto the plane normal to z;
+    y = z × x.  Where the travel direction is parallel to the normal (degenerate), the previous x is
+    kept (or any perpendicular for the first sample).
+    """
+    z = -normalize(normals)
+    x = tangents - np.einsum("ij,ij->i", tangents, z)[:, None] * z
+    xn = np.linalg.norm(x, axis=1)
+    bad = xn < 1e-9
+    x = np.divide(x, xn[:, None], out=np.zeros_like(x), where=~bad[:, None])
+    if bad.any():
+        for i in np.flatnonzero(bad):
+            prev = x[i - 1] if i > 0 else np.array([1.0, 0.0, 0.0])
+            cand = prev - np.dot(prev, z[i]) * z[i]
+            if np.linalg.norm(cand) < 1e-9:
+                cand = np.cross(z[i], [0.0, 1.0, 0.0] if abs(z[i, 1]) < 0.9 else [1.0, 0.0, 0.0])
+            x[i] = cand / np.linalg.norm(cand)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=2)
+
+
+def quaternions_from_frames(frames: np.ndarray) -> np.ndarray:
+    """Unit quaternions ``(k, 4)``, scalar first, of rotation matrices ``(k, 3, 3)``, with signs
+    chosen so consecutive quaternions lie in the same hemisphere (no sign flips in the file)."""
+    q = Rotation.from_matrix(frames).as_quat(scalar_first=True)
+    return make_continuous(q)
+
+
+def make_continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs of quaternions ``(k, 4)`` so each has a non-negative dot with its predecessor."""
+    if len(q) < 2:
+        return q
+    dots = np.einsum("ij,ij->i", q[1:], q[:-1])
+    flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
+    return q * flips[:, None]

@@ -1,0 +1,36 @@
+"""Exact analytic test surfaces (meshes whose vertices lie exactly on the shape)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swath.examples import grid_faces
+from swath.surface import Surface
+
+
+def sphere_cap(radius: float, half_angle: float, n: int = 120) -> Surface:
+    """A spherical cap around +z (outward normals), vertices exactly on the sphere."""
+    u = np.linspace(-half_angle, half_angle, n)
+    U, V = np.meshgrid(u, u, indexing="ij")
+    # Gnomonic-like grid: directions (tan U, tan V, 1) normalised, exactly on the sphere.
+    d = np.stack([np.tan(U), np.tan(V), np.ones_like(U)], -1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    return Surface((radius * d).reshape(-1, 3), grid_faces(n, n), name="sphere")
+
+
+def cylinder_patch(radius: float, half_angle: float, length: float, n_theta: int = 200, n_len: int = 60,
+                   concave: bool = False) -> Surface:
+    """An open patch of a cylinder along y, seen from +z (convex) or from inside (concave)."""
+    th = np.linspace(-half_angle, half_angle, n_theta)
+    ys = np.linspace(-length / 2, length / 2, n_len)
+    T, Y = np.meshgrid(th, ys, indexing="ij")
+    sign = -1.0 if concave else 1.0
+    v = np.stack([radius * np.sin(T), Y, sign * radius * np.cos(T)], -1).reshape(-1, 3)
+    f = grid_faces(n_theta, n_len)
+    s = Surface(v, f)
+    # Orient toward the tool: +z on the convex cap, toward the axis (−z side) from inside.
+    top = np.argmin(np.abs(v[:, 0]) + np.abs(v[:, 1]))
+    want = 1.0 if not concave else 1.0
+    if s.vertex_normals[top, 2] * want < 0:
+        s = Surface(v, f[:, ::-1])
+    return s
