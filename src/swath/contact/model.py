@@ -139,7 +139,7 @@ def mesh_contact(points: np.ndarray, normals: np.ndarray, areas: np.ndarray, tre
     a = axes[pose]
     z = np.einsum("ij,ij->i", rel, a)
     r2 = np.einsum("ij,ij->i", rel, rel) - z * z
-    keep = (r2 <= R * R) & (np.einsum("ij,ij->i", normals[sample], a) < 0.0)
+    keep = (r2 <= R * R * (1 + 1e-9)) & (np.einsum("ij,ij->i", normals[sample], a) < 0.0)
     pose, sample, z, r2 = pose[keep], sample[keep], z[keep], r2[keep]
     target = np.full(P, tool.force / tool.k)
     sink = solve_sink(z, areas[sample], pose, target)
