@@ -1,0 +1,66 @@
+"""The ``report`` stage: ``metrics.json``, PNG figures and one self-contained ``report.html``.
+
+* :func:`write_report` — everything into one output directory;
+* :func:`write_metrics_json` — the figures and settings as JSON, units in every key name;
+* :func:`plots.write_plots` — removal map, feed/contact and depth-histogram PNGs;
+* :func:`write_report_html` — an offline HTML page with tables, a 3D view and the figures.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from ..errors import InputError
+from .html import write_report_html
+from .metrics import format_value, key_unit, to_jsonable, write_metrics_json
+from .plots import write_plots
+
+log = logging.getLogger(__name__)
+
+__all__ = ["write_report", "write_metrics_json", "write_report_html", "write_plots", "format_value",
+           "key_unit", "to_jsonable"]
+
+
+def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=None, metrics=None,
+                 settings=None, title=None) -> dict[str, Path]:
+    """Write ``metrics.json``, the PNG figures and ``report.html`` into ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        An existing directory; files in it with the same names are replaced (each atomically).
+    surface : Surface
+        The part.
+    toolpath : ToolPath, optional
+        Passes in processing order.
+    trajectory : Trajectory, optional
+        Timed samples (needed for ``feed_contact.png`` and the air moves in 3D).
+    removal : RemovalMap, optional
+        Removal depth on the sampled surface, m (needed for the removal figures).
+    metrics : dict, optional
+        Figures with units in their key names; default ``removal.metrics``.
+    settings : dict, optional
+        Job settings with units in their key names (``pad_radius_m``, ``force_n``, ...).
+    title : str, optional
+        Report title; default ``"swath report — <part name>"``.
+
+    Returns
+    -------
+    dict of str -> Path
+        ``"metrics"``, ``"html"`` and one entry per PNG (``"removal_map"``, ``"feed_contact"``,
+        ``"depth_histogram"``), each the written file.
+    """
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        raise InputError(f"report directory {out_dir} does not exist; create it first or choose another --out")
+    if metrics is None:
+        metrics = dict(removal.metrics) if removal is not None else {}
+    settings = dict(settings or {})
+    paths = {"metrics": write_metrics_json(out_dir / "metrics.json", metrics, settings)}
+    pngs = write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal)
+    paths.update(pngs)
+    paths["html"] = write_report_html(out_dir / "report.html", surface=surface, toolpath=toolpath,
+                                      trajectory=trajectory, removal=removal, metrics=metrics,
+                                      settings=settings, title=title, images=pngs)
+    return paths

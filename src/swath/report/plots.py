@@ -1,0 +1,370 @@
+"""Static PNG figures of a finishing job (matplotlib, Agg canvas, no display needed).
+
+* :func:`removal_map_figure` — the removal depth over the part seen along its principal normal
+  axis, with the passes drawn on top in processing order;
+* :func:`feed_contact_figure` — commanded feed and contact state against time;
+* :func:`depth_histogram_figure` — how removal depth is spread over the covered area.
+
+:func:`write_plots` writes all three; each figure can also be written alone with :func:`save_png`
+or rendered to bytes with :func:`png_bytes` (for embedding).  Figures are built on
+``matplotlib.figure.Figure`` with an Agg canvas, never through ``pyplot``, so no GUI backend or
+global figure state is touched.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.atomic import atomic_file
+
+log = logging.getLogger(__name__)
+
+#: File names :func:`write_plots` uses, by figure.
+PNG_NAMES = {
+    "removal_map": "removal_map.png",
+    "feed_contact": "feed_contact.png",
+    "depth_histogram": "depth_histogram.png",
+}
+
+#: Faces drawn at most in the removal map (larger sampled surfaces are decimated for drawing).
+MAX_PLOT_FACES = 200_000
+
+#: Depths under this fraction of the peak are drawn grey ("no removal") in maps.
+NO_REMOVAL_FRACTION = 0.01
+
+_DEPTH_CMAP = "viridis"
+_PASS_CMAP = "cool"
+
+
+# --- geometry helpers shared with the HTML report ------------------------------------------------
+@dataclass(frozen=True)
+class ViewFrame:
+    """A right-handed frame for looking at a surface along its principal normal axis.
+
+    Attributes
+    ----------
+    origin : (3,) float
+        Area-weighted centroid of the surface, m.
+    axes : (3, 3) float
+        Rows u, v, w: u and v span the plane of largest spread (u the longest), w is the normal
+        axis, oriented so that most of the surface faces a viewer on the +w side.
+    """
+
+    origin: np.ndarray
+    axes: np.ndarray
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """(k, 3) coordinates of ``points`` (k, 3) in the frame (u, v, w), m."""
+        return (np.asarray(points, float) - self.origin) @ self.axes.T
+
+
+def view_frame(surface) -> ViewFrame:
+    """The :class:`ViewFrame` of ``surface`` (from :attr:`Surface.principal_axes`)."""
+    origin, axes = surface.principal_axes
+    # Eigenvectors have arbitrary signs: make each in-plane axis point along + its largest component,
+    # so a part aligned with the x-y plane is drawn unmirrored (u = +x, v = +y).
+    u, v = (a * (1.0 if a[np.argmax(np.abs(a))] > 0 else -1.0) for a in axes[:2])
+    w = np.cross(u, v)
+    facing = float(np.sum(surface.face_areas * (surface.face_normals @ w)))
+    if facing < 0:                      # look at the side the normals point to; keep right-handed
+        v, w = -v, -w
+    return ViewFrame(np.asarray(origin, float), np.stack([u, v, w]))
+
+
+def cluster_decimate(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray, weights: np.ndarray,
+                     *, max_faces: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Coarsen a triangle mesh for display by vertex clustering on a cubic grid.
+
+    Vertices in the same grid cell merge into one, placed at their weighted mean and carrying
+    the weighted mean of ``values``; faces that collapse are dropped.  The cell size grows until
+    at most ``max_faces`` faces remain.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Mesh vertices, m.
+    faces : (m, 3) int
+        Triangles.
+    values : (n,) float
+        A per-vertex quantity to carry over (e.g. removal depth, m).
+    weights : (n,) float
+        Vertex weights for the averages (e.g. vertex areas, m²); all positive.
+    max_faces : int
+        Face budget.
+
+    Returns
+    -------
+    vertices : (n', 3) float
+    faces : (m', 3) int
+    values : (n',) float
+    """
+    vertices = np.asarray(vertices, float)
+    faces = np.asarray(faces)
+    if len(faces) <= max_faces:
+        return vertices, faces, np.asarray(values, float)
+    if max_faces < 1:
+        raise InputError(f"max_faces must be at least 1, got {max_faces}")
+    w = np.maximum(np.asarray(weights, float), 1e-300)
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    lo = vertices.min(axis=0)
+    cell = np.sqrt(2.0 * area / max_faces)         # a grid of this pitch holds ~max_faces triangles
+    for _ in range(40):
+        key = np.floor((vertices - lo) / cell).astype(np.int64)
+        _, label = np.unique(key, axis=0, return_inverse=True)
+        label = label.ravel()
+        f = label[faces]
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)[1]
+        f = f[np.sort(first)]                     # unique triangles, original winding and order
+        if len(f) <= max_faces:
+            break
+        cell *= 1.15
+    k = label.max() + 1
+    wsum = np.bincount(label, weights=w, minlength=k)
+    v_new = np.stack([np.bincount(label, weights=w * vertices[:, i], minlength=k) for i in range(3)], 1) / wsum[:, None]
+    val_new = np.bincount(label, weights=w * np.asarray(values, float), minlength=k) / wsum
+    used = np.zeros(k, bool)
+    used[f.ravel()] = True
+    remap = np.cumsum(used) - 1
+    return v_new[used], remap[f], val_new[used]
+
+
+def covered_mask(removal, *, min_depth: float | None = None) -> np.ndarray:
+    """(n,) bool: samples of ``removal.surface`` with removal depth above ``min_depth`` (m).
+
+    ``min_depth`` defaults to ``removal.metrics['coverage_threshold_m']`` when the simulator
+    reports one, else 0 (any removal counts).
+    """
+    if min_depth is None:
+        min_depth = float((removal.metrics or {}).get("coverage_threshold_m", 0.0) or 0.0)
+    depth = np.asarray(removal.depth, float)
+    return np.isfinite(depth) & (depth > min_depth)
+
+
+def _check_removal(removal) -> np.ndarray:
+    depth = np.asarray(removal.depth, float)
+    n = len(removal.surface.vertices)
+    if depth.shape != (n,):
+        raise InputError(f"removal depth must have one value per sampled vertex, shape ({n},), got {depth.shape}")
+    return depth
+
+
+# --- figures -------------------------------------------------------------------------------------
+def _new_figure(width_in: float, height_in: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACES):
+    """The removal depth map seen along the surface's principal normal axis.
+
+    Parameters
+    ----------
+    removal : RemovalMap
+        Sampled surface and removal depth per vertex, m.
+    toolpath : ToolPath, optional
+        Passes to draw on top, coloured by processing order.
+    max_faces : int
+        Larger sampled surfaces are coarsened by vertex clustering before drawing.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib as mpl
+    from matplotlib.collections import LineCollection
+    from matplotlib.tri import Triangulation
+
+    surf = removal.surface
+    depth = _check_removal(removal)
+    frame = view_frame(surf)
+    verts, faces, d = cluster_decimate(surf.vertices, surf.faces, np.nan_to_num(depth), surf.vertex_areas,
+                                       max_faces=max_faces)
+    uvw = frame.project(verts)
+    # Painter's order: faces nearer the viewer (+w) drawn last, so overlapping sheets look right.
+    faces = faces[np.argsort(uvw[faces, 2].mean(axis=1), kind="stable")]
+    d_um = d * 1e6
+
+    fig = _new_figure(9.0, 6.5)
+    ax = fig.add_subplot()
+    cmap = mpl.colormaps[_DEPTH_CMAP].with_extremes(under="#d9d9d9")
+    top = float(np.max(d_um)) if len(d_um) else 0.0
+    top = top if top > 0 else 1.0
+    # The scale starts at zero; depths under 1 % of the peak are grey ("no removal"), as in the
+    # HTML 3D view.
+    shown = np.where(d_um < NO_REMOVAL_FRACTION * top, -1.0, d_um)      # -1: the colormap's grey "under"
+    tpc = ax.tripcolor(Triangulation(uvw[:, 0], uvw[:, 1], faces), shown, shading="gouraud", cmap=cmap,
+                       vmin=0.0, vmax=top, rasterized=True)
+    cb = fig.colorbar(tpc, ax=ax, shrink=0.85, pad=0.01, extend="min")
+    cb.set_label(f"removal depth (µm); grey = none (under {NO_REMOVAL_FRACTION:.0%} of the peak)")
+
+    if toolpath is not None and len(toolpath.passes):
+        n_pass = len(toolpath.passes)
+        segs, order = [], []
+        for i, p in enumerate(toolpath.passes):
+            q = frame.project(p.points)[:, :2]
+            segs.append(np.stack([q[:-1], q[1:]], axis=1))
+            order.append(np.full(len(q) - 1, i + 1))
+        norm = mpl.colors.Normalize(1, max(n_pass, 2))
+        lc = LineCollection(np.concatenate(segs), cmap=_PASS_CMAP, norm=norm, linewidths=1.1, alpha=0.9)
+        lc.set_array(np.concatenate(order))
+        ax.add_collection(lc)
+        start = frame.project(toolpath.passes[0].points[:1])[0]
+        ax.plot(start[0], start[1], "o", ms=6, mfc="white", mec="black", zorder=5)
+        ax.annotate("start", (start[0], start[1]), xytext=(4, 4), textcoords="offset points", fontsize=8)
+        cb2 = fig.colorbar(lc, ax=ax, shrink=0.85, pad=0.01)
+        cb2.set_label("pass order (1 = first)")
+        if n_pass <= 12:
+            cb2.set_ticks(np.arange(1, n_pass + 1))
+
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("along 1st principal axis (m)")
+    ax.set_ylabel("along 2nd principal axis (m)")
+    name = getattr(surf, "name", "") or "part"
+    ax.set_title(f"Removal depth on {name}, seen along the surface normal axis")
+    return fig
+
+
+def feed_contact_figure(trajectory):
+    """Commanded feed (mm/s) and contact state against time.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        Timed samples with ``t`` (s), ``feed`` (m/s) and ``contact``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    t = np.asarray(trajectory.t, float)
+    feed = np.asarray(trajectory.feed, float) * 1e3
+    contact = np.asarray(trajectory.contact, bool)
+    fig = _new_figure(9.0, 5.0)
+    ax_f, ax_c = fig.subplots(2, 1, sharex=True, height_ratios=[3, 1])
+    if len(t):
+        ax_f.fill_between(t, 0, 1, where=contact, step="post", transform=ax_f.get_xaxis_transform(),
+                          color="tab:orange", alpha=0.15, linewidth=0, label="in contact")
+        ax_f.step(t, feed, where="post", color="tab:blue", lw=1.0, label="commanded feed")
+        ax_c.fill_between(t, 0, contact.astype(float), step="post", color="tab:orange", alpha=0.8, linewidth=0)
+        duration = t[-1] - t[0]
+        in_contact = float(np.sum(np.diff(t)[contact[:-1] & contact[1:]])) if len(t) > 1 else 0.0
+        share = in_contact / duration * 100 if duration > 0 else 0.0
+        ax_f.set_title(f"Feed and contact over the cycle ({duration:.1f} s, {share:.0f} % of the time in contact)")
+    ax_f.set_ylabel("feed (mm/s)")
+    ax_f.set_ylim(bottom=0)
+    ax_f.legend(loc="upper right", fontsize=8)
+    ax_f.grid(alpha=0.3)
+    ax_c.set_yticks([0, 1], ["air", "contact"])
+    ax_c.set_ylim(-0.05, 1.05)
+    ax_c.set_xlabel("time (s)")
+    return fig
+
+
+def depth_histogram_figure(removal, *, min_depth: float | None = None, bins: int = 50):
+    """Histogram of removal depth (µm) over the covered samples, weighted by surface area.
+
+    Parameters
+    ----------
+    removal : RemovalMap
+        Sampled surface and removal depth per vertex, m.
+    min_depth : float, optional
+        Depth above which a sample counts as covered, m (see :func:`covered_mask`).
+    bins : int
+        Number of histogram bins.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    depth = _check_removal(removal)
+    mask = covered_mask(removal, min_depth=min_depth)
+    area = np.asarray(removal.surface.vertex_areas, float)
+    fig = _new_figure(8.0, 4.8)
+    ax = fig.add_subplot()
+    if mask.any():
+        d_um = depth[mask] * 1e6
+        w = area[mask] / area.sum() * 100.0          # % of the whole surface area
+        ax.hist(d_um, bins=bins, weights=w, color="tab:green", alpha=0.8, edgecolor="white", linewidth=0.4)
+        mean = float(np.average(d_um, weights=area[mask]))
+        std = float(np.sqrt(np.average((d_um - mean) ** 2, weights=area[mask])))
+        ax.axvline(mean, color="black", lw=1.4, label=f"mean {mean:.3g} µm")
+        for x in (mean - std, mean + std):
+            ax.axvline(x, color="black", lw=1.0, ls="--")
+        ax.plot([], [], color="black", ls="--", label=f"±1 std ({std:.3g} µm, CoV {std / mean * 100:.1f} %)")
+        ax.legend(fontsize=8)
+        covered = area[mask].sum() / area.sum() * 100
+        ax.set_title(f"Removal depth over the covered area ({covered:.1f} % of the surface)")
+    else:
+        ax.text(0.5, 0.5, "no sample received any removal", ha="center", va="center", transform=ax.transAxes)
+        ax.set_title("Removal depth over the covered area")
+    ax.set_xlim(left=0)                              # spread is read against the full depth scale
+    ax.set_xlabel("removal depth (µm)")
+    ax.set_ylabel("share of surface area (%)")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+# --- output --------------------------------------------------------------------------------------
+def png_bytes(fig, *, dpi: int = 110) -> bytes:
+    """The figure rendered as PNG bytes."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def save_png(fig, path, *, dpi: int = 110) -> Path:
+    """Write the figure as a PNG atomically; returns ``path``."""
+    path = Path(path)
+    data = png_bytes(fig, dpi=dpi)
+    with atomic_file(path, "wb") as fh:
+        fh.write(data)
+    return path
+
+
+def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: int = 110) -> dict[str, Path]:
+    """Write the PNG figures whose inputs are given into ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Existing (or creatable) directory.
+    toolpath : ToolPath, optional
+        Drawn on the removal map.
+    trajectory : Trajectory, optional
+        Needed for ``feed_contact.png``.
+    removal : RemovalMap, optional
+        Needed for ``removal_map.png`` and ``depth_histogram.png``.
+    dpi : int
+        Resolution, dots per inch.
+
+    Returns
+    -------
+    dict of str -> Path
+        Written files by figure name (keys of :data:`PNG_NAMES`).
+    """
+    out_dir = Path(out_dir)
+    figs = {}
+    if removal is not None:
+        figs["removal_map"] = lambda: removal_map_figure(removal, toolpath)
+        figs["depth_histogram"] = lambda: depth_histogram_figure(removal)
+    if trajectory is not None and len(trajectory):
+        figs["feed_contact"] = lambda: feed_contact_figure(trajectory)
+    written = {}
+    for name in PNG_NAMES:
+        if name in figs:
+            written[name] = save_png(figs[name](), out_dir / PNG_NAMES[name], dpi=dpi)
+            log.debug("wrote %s", written[name])
+    return written
