@@ -258,28 +258,35 @@ def _solve_quadric(k1, k2, phi, tool: Tool):
     dphi = 2 * np.pi / len(phi)
     target = tool.force / tool.k
 
-    def volume(s):
+    def volume(a, s):
         ri, ro = _ray_interval(a, s[:, None], R)
         prim = lambda r: s[:, None] * r**2 / 2 - a * r**4 / 4   # ∫ (s - a ρ²) ρ dρ
         vol = np.where(ro > ri, prim(ro) - prim(ri), 0.0).sum(axis=1) * dphi
         area = np.where(ro > ri, (ro**2 - ri**2) / 2, 0.0).sum(axis=1) * dphi
         return vol, area
 
+    # Safeguarded Newton on the increasing volume(s): bracket [lo, hi], Newton step when it stays
+    # inside, bisection otherwise.  Rows leave the working set as soon as they converge.
     lo = np.minimum(0.0, a.min(axis=1)) * R * R
     hi = tool.flat_depression + np.maximum(0.0, a.max(axis=1)) * R * R
     s = np.clip(np.full(len(k1), tool.flat_depression), lo, hi)
-    for _ in range(60):
-        vol, area = volume(s)
-        err = vol - target
-        lo = np.where(err < 0, s, lo)
-        hi = np.where(err >= 0, s, hi)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            newton = s - err / area
-        inside = (newton > lo) & (newton < hi) & np.isfinite(newton)
-        s_new = np.where(inside, newton, 0.5 * (lo + hi))
-        if np.all(np.abs(s_new - s) <= 1e-12 + 1e-10 * np.abs(s)):
-            s = s_new
+    active = np.arange(len(k1))
+    for _ in range(100):
+        if len(active) == 0:
             break
-        s = s_new
+        sa, la, ha, aa = s[active], lo[active], hi[active], a[active]
+        vol, area = volume(aa, sa)
+        err = vol - target
+        la = np.where(err < 0, sa, la)
+        ha = np.where(err >= 0, sa, ha)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            newton = sa - err / area
+        inside = (newton > la) & (newton < ha) & np.isfinite(newton)
+        s_new = np.where(inside, newton, 0.5 * (la + ha))
+        # Converged when the force balance holds to 1e-9 or the step is at round-off.
+        done = (np.abs(err) <= 1e-9 * target) | (np.abs(s_new - sa) <= 1e-13 + 1e-10 * np.abs(sa))
+        s[active] = np.where(np.abs(err) <= 1e-9 * target, sa, s_new)
+        lo[active], hi[active] = la, ha
+        active = active[~done]
     ri, ro = _ray_interval(a, s[:, None], R)
     return s, ri, ro

@@ -96,10 +96,30 @@ def smooth_vertex_normals(vertices: np.ndarray, normals: np.ndarray, areas: np.n
 
 
 def principal_axes(vertices: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Centroid ``(3,)`` and principal axes ``(3, 3)`` (rows, largest spread first) of a point set."""
+    """Centroid ``(3,)`` and principal axes ``(3, 3)`` (rows, largest spread first) of a weighted point set."""
     w = np.ones(len(vertices)) if weights is None else weights
     centroid = np.average(vertices, axis=0, weights=w)
     d = vertices - centroid
     cov = (d * w[:, None]).T @ d / w.sum()
     evals, evecs = np.linalg.eigh(cov)
     return centroid, evecs[:, ::-1].T
+
+
+def area_principal_axes(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Area centroid ``(3,)`` and principal axes ``(3, 3)`` (rows, largest spread first) of a mesh.
+
+    Uses the exact second moment of each triangle, ``∫ x xᵀ dA = A/12 (a aᵀ + b bᵀ + c cᵀ + s sᵀ)``
+    with ``s = a + b + c``, so the result does not depend on how the surface is triangulated
+    (lumped vertex areas follow the diagonals of a grid and tilt the axes).
+    """
+    v = np.asarray(vertices, float)
+    origin = v.mean(axis=0)
+    tri = v[faces] - origin
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    ssum = tri.sum(axis=1)
+    second = (np.einsum("f,fki,fkj->ij", area, tri, tri) + np.einsum("f,fi,fj->ij", area, ssum, ssum)) / 12.0
+    total = area.sum()
+    mean = (area[:, None] * ssum).sum(axis=0) / (3.0 * total)
+    cov = second / total - np.outer(mean, mean)
+    _, vecs = np.linalg.eigh(cov)
+    return origin + mean, vecs[:, ::-1].T

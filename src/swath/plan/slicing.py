@@ -1,0 +1,356 @@
+"""Slice a triangle mesh with parallel planes into clean polylines, and resample them on the surface.
+
+The slicer is topological, not geometric, which is what makes it unable to hang or to chain the
+wrong points together:
+
+* every vertex is classed *below* a plane (signed height ``h < d``) or *not below* (``h >= d``) —
+  a vertex exactly on the plane counts as above (a symbolic perturbation of the plane), so a plane
+  through vertices or along edges needs no special case;
+* a face is cut when its vertices are not all on one side; it is then cut on exactly two of its
+  edges, and contributes one segment joining the two *edge crossings*;
+* a crossing is identified by (plane, undirected edge), so the two faces sharing an edge share
+  the crossing exactly — chaining is a graph walk over these ids, with no distance tolerance;
+* every crossing on an interior manifold edge has two segments, on a boundary edge one (the chain
+  ends where the slice leaves the surface or crosses a hole), on a non-manifold edge more: the
+  chain is split there (a branch point).
+
+Positions come last: a crossing on edge ``(a, b)`` is ``a + t (b − a)`` (exactly ``a`` or ``b``
+when the plane passes through it).  Several crossings can then coincide (a plane through a vertex
+gives one crossing per edge at that vertex); the zero-length segments between them are dropped
+after chaining.  Each remaining segment lies in one face, so any point interpolated along it lies
+exactly on the mesh, in that face.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+log = logging.getLogger("swath.plan")
+
+#: Segments shorter than this (m) are merged away after chaining: far below any feature that
+#: matters to a pad, far above the round-off of metre-scale coordinates.
+MERGE_TOLERANCE = 1e-7
+
+
+@dataclass(frozen=True, eq=False)
+class SlicePolyline:
+    """One chained piece of a plane's intersection with a mesh.
+
+    Attributes
+    ----------
+    points : (k, 3) float
+        Crossing points in order along the slice, m, k >= 2; consecutive points are more than
+        the merge tolerance apart.  A closed polyline repeats its first point at the end.
+    faces : (k - 1,) int
+        The face each segment ``points[i] → points[i + 1]`` lies in.
+    values : (k, q) float or None
+        Per-vertex values (e.g. smooth normals) interpolated linearly along the mesh edges to
+        the points; linear interpolation along a segment then equals barycentric interpolation
+        in its face.
+    plane : int
+        Index of the cutting plane in the ``offsets`` given to :func:`slice_mesh`.
+    closed : bool
+        True when the slice is a closed loop on the surface.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    values: np.ndarray | None
+    plane: int
+    closed: bool
+
+    @property
+    def length(self) -> float:
+        """Polyline length, m."""
+        return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
+
+    def reversed(self) -> "SlicePolyline":
+        """The same polyline run the other way."""
+        vals = None if self.values is None else self.values[::-1].copy()
+        return SlicePolyline(self.points[::-1].copy(), self.faces[::-1].copy(), vals, self.plane, self.closed)
+
+    def rolled(self, start: int) -> "SlicePolyline":
+        """A closed polyline restarted at point ``start`` (same loop, same direction)."""
+        if not self.closed:
+            raise InputError("only a closed polyline can be restarted at another point")
+        k = len(self.points) - 1
+        idx = (np.arange(k + 1) + start) % k
+        vals = None if self.values is None else self.values[idx]
+        return SlicePolyline(self.points[idx], self.faces[(np.arange(k) + start) % k], vals, self.plane, True)
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceSamples:
+    """Points on a mesh with the face each lies in.
+
+    Attributes
+    ----------
+    points : (k, 3) float
+        Positions, m.
+    faces : (k,) int
+        Face containing each point.
+    values : (k, q) float or None
+        Interpolated per-vertex values at the points.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    values: np.ndarray | None
+
+
+def mesh_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Undirected edges of a triangle mesh.
+
+    Parameters
+    ----------
+    faces : (m, 3) int
+
+    Returns
+    -------
+    edges : (e, 2) int
+        Vertex pairs, smaller index first.
+    face_edges : (m, 3) int
+        Edge id of face edges ``(v0, v1), (v1, v2), (v2, v0)``.
+    """
+    f = np.asarray(faces, np.int64)
+    pairs = np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2)
+    pairs = np.sort(pairs, axis=1)
+    n = np.int64(pairs.max() + 1) if len(pairs) else np.int64(1)
+    keys, inverse = np.unique(pairs[:, 0] * n + pairs[:, 1], return_inverse=True)
+    edges = np.stack([keys // n, keys % n], axis=1)
+    return edges, inverse.reshape(-1, 3)
+
+
+def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, values: np.ndarray | None = None,
+               merge_tolerance: float = MERGE_TOLERANCE) -> list[SlicePolyline]:
+    """Intersect a triangle mesh with the planes ``x · normal = offset`` and chain the result.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Mesh vertices, m.
+    faces : (m, 3) int
+        Triangles.
+    normal : (3,) float
+        Common plane normal (any length, not zero).
+    offsets : (p,) float
+        Plane offsets along the unit normal, m (any order; may repeat).
+    values : (n, q) float, optional
+        Per-vertex values to interpolate to the slice points (e.g. smooth normals).
+    merge_tolerance : float
+        Segments this short or shorter (m) are merged into their neighbours after chaining.
+
+    Returns
+    -------
+    list of SlicePolyline
+        Ordered by plane index, each with at least one segment longer than ``merge_tolerance``.
+        Chains are split at boundary edges (holes, the surface border) and at non-manifold edges.
+
+    Raises
+    ------
+    InputError
+        On malformed arrays or a zero normal.
+
+    Notes
+    -----
+    Fully vectorised over planes and faces; the cost is ``O(m log m)`` plus the number of cut
+    faces.  It never iterates to convergence, so it cannot hang.
+    """
+    V = np.asarray(vertices, float)
+    F = np.asarray(faces, np.int64)
+    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
+        raise InputError(f"expected vertices (n, 3) and faces (m, 3), got {V.shape} and {F.shape}")
+    c = np.asarray(normal, float).reshape(-1)
+    if c.shape != (3,) or not np.isfinite(c).all() or np.linalg.norm(c) == 0:
+        raise InputError(f"the plane normal must be a finite, non-zero 3-vector, got {normal!r}")
+    c = c / np.linalg.norm(c)
+    off = np.asarray(offsets, float).reshape(-1)
+    if not np.isfinite(off).all():
+        raise InputError("plane offsets must be finite")
+    vals = None
+    if values is not None:
+        vals = np.asarray(values, float)
+        vals = vals.reshape(len(vals), -1)
+        if len(vals) != len(V):
+            raise InputError(f"values must have one row per vertex ({len(V)}), got {len(vals)}")
+    if len(F) == 0 or len(off) == 0:
+        return []
+
+    plane_order = np.argsort(off, kind="stable")
+    d_sorted = off[plane_order]
+    h = V @ c
+    edges, face_edges = mesh_edges(F)
+    n_edges = len(edges)
+
+    # --- (face, plane) pairs: plane d cuts face f iff min h < d <= max h ----------------------------
+    hf = h[F]
+    j0 = np.searchsorted(d_sorted, hf.min(axis=1), side="right")
+    j1 = np.searchsorted(d_sorted, hf.max(axis=1), side="right")
+    count = j1 - j0
+    total = int(count.sum())
+    if total == 0:
+        return []
+    pair_face = np.repeat(np.arange(len(F)), count)
+    first = np.repeat(np.cumsum(count) - count, count)
+    pair_plane = j0[pair_face] + (np.arange(total) - first)          # index into d_sorted
+    d = d_sorted[pair_plane]
+    below = hf[pair_face] < d[:, None]                                # (P, 3)
+    cut = below != np.roll(below, -1, axis=1)                         # edge slot e = (v_e, v_e+1)
+    slot = np.nonzero(cut)[1].reshape(-1, 2)                          # exactly two cut edges per face
+    edge_id = face_edges[pair_face[:, None], slot]                    # (P, 2)
+
+    # --- crossing nodes: unique (plane, edge) ------------------------------------------------------
+    key = pair_plane[:, None] * np.int64(n_edges) + edge_id
+    node_key, ends = np.unique(key.ravel(), return_inverse=True)
+    ends = ends.reshape(-1, 2)
+    node_plane = node_key // n_edges
+    node_edge = node_key % n_edges
+    a, b = edges[node_edge, 0], edges[node_edge, 1]
+    dn = d_sorted[node_plane]
+    t = (dn - h[a]) / (h[b] - h[a])                                   # one end below, one not: h[a] != h[b]
+    t = np.clip(t, 0.0, 1.0)
+    pts = V[a] + t[:, None] * (V[b] - V[a])
+    pts = np.where((t == 0.0)[:, None], V[a], np.where((t == 1.0)[:, None], V[b], pts))
+    node_vals = None if vals is None else vals[a] + t[:, None] * (vals[b] - vals[a])
+
+    # --- segments: drop duplicates (duplicate faces), split at branch nodes ------------------------
+    seg_face = pair_face
+    _, keep = np.unique(ends.min(axis=1) * np.int64(len(node_key)) + ends.max(axis=1), return_index=True)
+    keep.sort()
+    ends, seg_face = ends[keep], seg_face[keep]
+    n_nodes = len(node_key)
+    degree = np.bincount(ends.ravel(), minlength=n_nodes)
+    branch = degree[ends] > 2
+    node_src = np.arange(n_nodes)
+    if branch.any():
+        new = n_nodes + np.arange(int(branch.sum()))
+        node_src = np.concatenate([node_src, ends[branch]])
+        ends = ends.copy()
+        ends[branch] = new
+        n_nodes = len(node_src)
+        log.debug("slice: split chains at %d branch crossings (non-manifold edges)", int(branch.sum()))
+
+    chains, closed, chain_faces = _chain(ends, seg_face, n_nodes)
+
+    # --- positions, tiny-segment merging, records --------------------------------------------------
+    out = []
+    for nodes, is_closed, sf in zip(chains, closed, chain_faces):
+        src = node_src[nodes]
+        p = pts[src]
+        seg_len = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        long = seg_len > merge_tolerance
+        if not long.any():
+            continue
+        keep_pt = np.concatenate([[True], long])
+        plane = int(plane_order[node_plane[src[0]]])
+        v = None if node_vals is None else node_vals[src][keep_pt]
+        out.append(SlicePolyline(p[keep_pt], sf[long], v, plane, bool(is_closed)))
+    out.sort(key=lambda pl: pl.plane)
+    return out
+
+
+def _chain(ends: np.ndarray, seg_face: np.ndarray, n_nodes: int):
+    """Order the segments of a graph whose nodes have degree <= 2 into chains.
+
+    Returns lists of node sequences, closed flags and per-segment faces.  Closed loops are cut at
+    their lowest-numbered segment (which becomes the closing segment); one depth-first traversal
+    from a virtual root joined to one end of every chain then visits each chain in order.
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components, depth_first_order
+
+    S = len(ends)
+    adj = sp.coo_matrix((np.ones(2 * S), (np.r_[ends[:, 0], ends[:, 1]], np.r_[ends[:, 1], ends[:, 0]])),
+                        shape=(n_nodes, n_nodes)).tocsr()
+    _, label = connected_components(adj, directed=False)
+    degree = np.bincount(ends.ravel(), minlength=n_nodes)
+    n_comp = int(label.max()) + 1
+    seg_label = label[ends[:, 0]]
+    open_ends = np.bincount(label, weights=(degree == 1), minlength=n_comp)
+    has_seg = np.bincount(seg_label, minlength=n_comp) > 0
+    is_loop = has_seg & (open_ends == 0)
+
+    # Cut each loop at its first segment.
+    comp_first_seg = np.full(n_comp, -1)
+    first_idx = np.unique(seg_label, return_index=True)
+    comp_first_seg[first_idx[0]] = first_idx[1]
+    cut = comp_first_seg[is_loop]
+    keep = np.ones(S, bool)
+    keep[cut] = False
+    kept = ends[keep]
+
+    # Start of each chain: the loop's cut segment's first node, or the lowest-numbered open end.
+    start = np.full(n_comp, -1)
+    start[np.nonzero(is_loop)[0]] = ends[cut, 0]
+    openers = np.nonzero(degree == 1)[0]
+    lab_open = label[openers]
+    uniq_lab, first_open = np.unique(lab_open, return_index=True)
+    start[uniq_lab] = openers[first_open]
+    comps = np.nonzero(has_seg)[0]
+    root = n_nodes
+    rows = np.r_[kept[:, 0], kept[:, 1], np.full(len(comps), root)]
+    cols = np.r_[kept[:, 1], kept[:, 0], start[comps]]
+    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_nodes + 1, n_nodes + 1)).tocsr()
+    order = depth_first_order(g, root, directed=True, return_predecessors=False)[1:]
+    lab = label[order]
+    breaks = np.nonzero(lab[1:] != lab[:-1])[0] + 1
+    chains = np.split(order, breaks)
+
+    # Face of each consecutive pair, looked up by the sorted node pair.
+    seg_key = np.minimum(ends[:, 0], ends[:, 1]) * np.int64(n_nodes) + np.maximum(ends[:, 0], ends[:, 1])
+    key_order = np.argsort(seg_key)
+    sorted_keys = seg_key[key_order]
+    loop_of = dict(zip(np.nonzero(is_loop)[0].tolist(), cut.tolist()))
+    faces_out, closed_out, chains_out = [], [], []
+    for ch in chains:
+        comp = int(label[ch[0]])
+        if comp in loop_of:
+            ch = np.append(ch, ch[0])
+        u, v = ch[:-1], ch[1:]
+        k = np.minimum(u, v) * np.int64(n_nodes) + np.maximum(u, v)
+        faces_out.append(seg_face[key_order[np.searchsorted(sorted_keys, k)]])
+        closed_out.append(comp in loop_of)
+        chains_out.append(ch)
+    return chains_out, closed_out, faces_out
+
+
+def resample(polyline: SlicePolyline, spacing: float) -> SurfaceSamples:
+    """Resample a slice polyline at uniform arc length, keeping every point on the mesh.
+
+    Parameters
+    ----------
+    polyline : SlicePolyline
+    spacing : float
+        Largest arc-length step, m; the step used is ``length / ceil(length / spacing)``.
+
+    Returns
+    -------
+    SurfaceSamples
+        ``ceil(length / spacing) + 1`` points from the first point to the last (both kept exactly),
+        each interpolated along a slice segment and tagged with that segment's face, so it lies on
+        the mesh; values are interpolated the same way.
+    """
+    if not (np.isfinite(spacing) and spacing > 0):
+        raise InputError(f"resampling spacing must be positive and finite, got {spacing!r} m")
+    p = polyline.points
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    length = cum[-1]
+    n = max(int(np.ceil(length / spacing)), 1) + 1
+    s = np.linspace(0.0, length, n)
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.clip(np.where(seg[i] > 0, (s - cum[i]) / seg[i], 0.0), 0.0, 1.0)
+    pts = p[i] + u[:, None] * (p[i + 1] - p[i])
+    pts[0], pts[-1] = p[0], p[-1]
+    vals = None
+    if polyline.values is not None:
+        w = polyline.values
+        vals = w[i] + u[:, None] * (w[i + 1] - w[i])
+        vals[0], vals[-1] = w[0], w[-1]
+    return SurfaceSamples(pts, polyline.faces[i], vals)
