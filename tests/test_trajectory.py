@@ -68,7 +68,7 @@ def test_csv_round_trip_and_header(tmp_path):
     path = tmp_path / "trajectory.csv"
     tr.write_csv(path)
     header = path.read_text().splitlines()[0].split(",")
-    assert tuple(header[:9]) == CSV_COLUMNS and header[9:] == ["feed", "pass"]
+    assert tuple(header[:9]) == CSV_COLUMNS and header[9:] == ["feed", "pass", "wx", "wy", "wz"]
     back = read_csv(path)
     assert np.allclose(back.t, tr.t, atol=1e-6)
     assert np.allclose(back.position, tr.position, atol=1e-7)

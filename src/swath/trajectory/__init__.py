@@ -1,6 +1,15 @@
-"""The ``trajectory`` stage: time a ToolPath into TCP poses and write trajectory.csv."""
+"""The ``trajectory`` stage: time a ToolPath into TCP poses and write trajectory.csv.
 
-from .timing import FeedLimit, LinkSettings, time_path
-from .trajectory import CSV_COLUMNS, Trajectory, read_csv
+``time_path(toolpath, [FeedLimit(v), CentripetalLimit(a_c), AngularSpeedLimit(w), TangentialAccelLimit(a_t),
+FeedProfile(speeds)], links=LinkSettings(...))`` returns a :class:`Trajectory`; see
+:mod:`.timing` for how passes are timed, :mod:`.links` for air moves and :mod:`.trajectory` for the
+columns of ``trajectory.csv``.
+"""
 
-__all__ = ["CSV_COLUMNS", "FeedLimit", "LinkSettings", "Trajectory", "read_csv", "time_path"]
+from .constraints import AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile, TangentialAccelLimit
+from .links import LinkSettings
+from .timing import time_path
+from .trajectory import CSV_COLUMNS, EXTRA_COLUMNS, Trajectory, read_csv
+
+__all__ = ["AngularSpeedLimit", "CSV_COLUMNS", "CentripetalLimit", "EXTRA_COLUMNS", "FeedLimit", "FeedProfile",
+           "LinkSettings", "TangentialAccelLimit", "Trajectory", "read_csv", "time_path"]

@@ -1,4 +1,10 @@
-"""Tool orientation along contact passes (FORMATS.md tool frame)."""
+"""Tool orientation along contact passes (FORMATS.md tool frame).
+
+:func:`tool_frames` builds the frame ``(x, y, z) = (T, −B, −n)`` from the surface normal ``n`` and a
+travel direction ``T`` — the Darboux frame ``(T, B = n × T, n)`` of the pass relabelled so that z
+points into the part and ``y = z × x``.  :func:`swath.trajectory.time_path` passes a travel
+direction smoothed over ``heading_scale`` (:func:`swath.trajectory.geometry.smoothed_directions`).
+"""
 
 from __future__ import annotations
 

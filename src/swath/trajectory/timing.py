@@ -1,22 +1,62 @@
-"""Time a ToolPath into a Trajectory: contact passes at the feed, links through the air between them.
+"""Time a ToolPath into a Trajectory: contact passes under speed limits, links through the air.
 
 The call shape follows toppra: a path, a list of constraint objects, and the result is again a
 path (here a :class:`Trajectory`)::
 
-    trajectory = time_path(toolpath, [FeedLimit(0.05)], links=LinkSettings(clearance=0.02))
+    trajectory = time_path(toolpath, [FeedLimit(0.05), CentripetalLimit(2.0), AngularSpeedLimit(1.0),
+                                      TangentialAccelLimit(1.0)], links=LinkSettings(clearance=0.02))
+
+Contact passes
+--------------
+Each pass is densified onto the surface and resampled at equal arc-length steps ``h``
+(``h ≤ 1 mm`` and ``h ≤ 0.95 · feed · 20 ms``, and fine enough that the surface normal turns by
+at most 2° per step, down to 0.1 mm — a sharp leading edge is sampled at about 0.2 mm, so that
+interpolating between samples follows the surface's own normal field).  On that grid:
+
+1. the tool frame follows FORMATS.md and the Darboux frame of the pass: ``z = −n`` (the smooth
+   surface normal), ``x`` = the travel direction in the tangent plane, ``y = z × x``.  The travel
+   direction is averaged over a Gaussian window of ``heading_scale`` (default 5 mm), so that where
+   a pass turns sharply (the corner of a zig-zag) the tool turns about its axis over about
+   ±2·heading_scale instead of spinning on the spot; on smooth passes it is the tangent.
+2. every constraint caps the speed at each grid point (see :mod:`.constraints`): the feed, a feed
+   profile, ``sqrt(a_c / κ)`` with the path curvature κ read at the limit's ``scale``, and
+   ``ω_max / ρ`` with ρ the frame's rotation per metre on the grid steps either side;
+3. a tangential acceleration limit turns the caps into the largest profile whose ``v²`` changes by
+   at most ``2·a_t·Δs`` per step (forward and backward sweep, rest at the pass ends by default);
+4. between grid points ``v²`` is linear in arc length (constant acceleration), which gives the
+   time of every step; steps longer than 19 ms are split in time, so samples stay within 2 mm and
+   20 ms (FORMATS.md) with a 5 % margin at any speed.
+
+Angular velocity
+----------------
+``ω`` (the ``wx, wy, wz`` columns) is the discrete derivative of the written frames:
+``Ω_j = log(R[j+1] R[j]ᵀ) / Δs_j`` per grid step (rad/m, part frame, ``Δs_j`` the chord) times the
+speed; at grid points the mean of the two adjacent steps.  Between grid points the frame turns
+uniformly in arc length (slerp), so integrating the written ω reproduces the written quaternions.
+It equals the Darboux formula ``v·(τ_g T − κ_n B + κ_g n)`` (:func:`.geometry.darboux`) wherever
+the heading is not smoothed — ``tests/test_timing_limits.py`` checks one against the other on a
+helix on a cylinder (κ_g = 0, κ_n = −cos²α/R, τ_g = sinα cosα/R).
+
+Links
+-----
+Approach, retract and air moves are rounded and timed with toppra (:mod:`.links`).
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import minimum_filter1d
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InputError
 from ..plan.toolpath import Pass, ToolPath
-from .orientation import make_continuous, pass_tangents, quaternions_from_frames, tool_frames
+from .constraints import (CONSTRAINT_TYPES, AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile,
+                          TangentialAccelLimit)
+from .geometry import path_curvature, resample_uniform, rotation_steps, smoothed_directions
+from .links import AirGuard, LinkSettings, time_link
+from .orientation import make_continuous, quaternions_from_frames, tool_frames
 from .trajectory import Trajectory
 
 log = logging.getLogger(__name__)
@@ -25,237 +65,283 @@ log = logging.getLogger(__name__)
 MAX_CONTACT_STEP = 2e-3
 #: ... and at most this long apart (s).
 MAX_CONTACT_DT = 0.02
+#: Safety factor on both, so rounding in the CSV never crosses them.
+_MARGIN = 0.95
+#: Largest grid step along contact passes (m): also bounds the chord error to h²κ/8.
+GRID_STEP = 1e-3
+#: Largest turn of the surface normal between grid points (rad); passes where the normal turns
+#: faster are sampled more finely, down to MIN_GRID_STEP (m).
+MAX_NORMAL_TURN = np.deg2rad(2.0)
+MIN_GRID_STEP = 1e-4
+
+__all__ = ["FeedLimit", "FeedProfile", "CentripetalLimit", "AngularSpeedLimit", "TangentialAccelLimit",
+           "LinkSettings", "time_path", "speed_profile", "MAX_CONTACT_STEP", "MAX_CONTACT_DT"]
 
 
-@dataclass(frozen=True)
-class FeedLimit:
-    """Constant feed (TCP speed along contact passes), m/s."""
-
-    speed: float = 0.05
-
-    def __post_init__(self):
-        if not (np.isfinite(self.speed) and self.speed > 0):
-            raise InputError(f"feed must be a positive speed, got {self.speed!r} m/s")
-
-
-@dataclass(frozen=True)
-class LinkSettings:
-    """How the tool moves between passes.
-
-    Attributes
-    ----------
-    clearance : float
-        Lift off the surface along its normal before an air move, m (default 20 mm); air moves keep at
-        least half of it from the surface.
-    speed : float
-        Top TCP speed on links, m/s (default 0.25 m/s).
-    acceleration : float
-        TCP acceleration on links (trapezoidal speed profile), m/s² (default 1 m/s²).
-    step : float
-        Sample spacing on links, m (default 5 mm).
-    """
-
-    clearance: float = 0.02
-    speed: float = 0.25
-    acceleration: float = 1.0
-    step: float = 5e-3
-
-    def __post_init__(self):
-        for name in ("clearance", "speed", "acceleration", "step"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise InputError(f"link {name} must be positive, got {v!r}")
-
-
-def time_path(toolpath: ToolPath, constraints=(FeedLimit(),), *, links: LinkSettings = LinkSettings()) -> Trajectory:
+def time_path(toolpath: ToolPath, constraints=(FeedLimit(),), *, links: LinkSettings = LinkSettings(),
+              heading_scale: float = 5e-3) -> Trajectory:
     """Turn ``toolpath`` into timed TCP poses.
-
-    Contact passes run at the feed of the :class:`FeedLimit` in ``constraints``, sampled at most
-    2 mm and 20 ms apart (passes are densified on the surface if their points are sparser).  Each
-    pass is entered by an approach along the surface normal and left by a retract; air moves between
-    passes keep clear of the part.  The tool frame follows FORMATS.md: z = −normal, x = travel.
 
     Parameters
     ----------
     toolpath : ToolPath
+        The passes to time, in order.
     constraints : sequence
-        Constraint objects; here :class:`FeedLimit` (required).
+        Constraint objects: exactly one :class:`FeedLimit`, and at most one each of
+        :class:`FeedProfile`, :class:`CentripetalLimit`, :class:`AngularSpeedLimit` and
+        :class:`TangentialAccelLimit`.
     links : LinkSettings
+        Clearance, speed (m/s), acceleration (m/s²) and sample step (m) of the air links.
+    heading_scale : float
+        Gaussian scale, m, over which the tool's x-axis (heading) follows the travel direction
+        (default 5 mm; 0 = the raw chord direction).
 
     Returns
     -------
     Trajectory
-        With ``feed`` (m/s) and ``pass_index`` per sample.
+        With ``feed`` (commanded speed, m/s), ``pass_index`` and the extra columns ``wx, wy, wz``
+        (angular velocity of the tool frame, rad/s, part frame).
+
+    Raises
+    ------
+    InputError
+        On unknown or repeated constraints, a missing feed, an empty tool path, a feed profile that
+        does not match the passes, or a negative ``heading_scale``.
     """
-    feeds = [c for c in constraints if isinstance(c, FeedLimit)]
-    unknown = [c for c in constraints if not isinstance(c, FeedLimit)]
-    if unknown:
-        raise InputError(f"time_path does not know the constraint(s) {unknown}; supported: FeedLimit")
-    if len(feeds) != 1:
-        raise InputError("time_path needs exactly one FeedLimit (the feed along contact passes)")
-    feed = feeds[0].speed
+    cons = _collect(constraints)
+    feed = cons[FeedLimit].speed
     if not toolpath.passes:
         raise InputError("the tool path has no passes to time")
+    if not (np.isfinite(heading_scale) and heading_scale >= 0):
+        raise InputError(f"heading_scale must be a length >= 0 in m, got {heading_scale!r}")
+    profile = cons.get(FeedProfile)
+    if profile is not None:
+        profile.check(toolpath.passes)
+    angular = cons.get(AngularSpeedLimit)
+    omega_max = angular.omega_max if angular else None
     surface = toolpath.surface
-    # 5 % below the FORMATS.md limits so rounding in the CSV never crosses them.
-    step = 0.95 * min(MAX_CONTACT_STEP, feed * MAX_CONTACT_DT)
-    guard = _AirGuard(surface, links.clearance)
+    step = min(GRID_STEP, _MARGIN * feed * MAX_CONTACT_DT, _MARGIN * MAX_CONTACT_STEP)
+    guard = AirGuard(surface, links.clearance)
 
-    # Each piece: positions, quaternions, contact, feed, pass index, and the time of each sample
-    # relative to the start of the piece's route.  Links do not repeat the pass endpoints.
-    passes = [_densify(p, surface, step) for p in toolpath.passes]
-    frames = [quaternions_from_frames(tool_frames(p.normals, pass_tangents(p.points))) for p in passes]
-    out = {k: [] for k in ("pos", "quat", "contact", "feed", "pass", "t")}
+    timed = [_time_pass(p, surface, step, cons, heading_scale,
+                        None if profile is None else profile.speeds[i]) for i, p in enumerate(toolpath.passes)]
+    out = {k: [] for k in ("pos", "quat", "contact", "feed", "pass", "t", "omega")}
     clock = 0.0
+    methods = {"toppra": 0, "trapezoid": 0, "none": 0}
 
-    def emit(pos, quat, contact, feed_v, pass_i, t_rel, duration):
+    def emit(pos, quat, contact, speed, pass_i, omega, t_rel, duration):
         nonlocal clock
-        out["pos"].append(pos), out["quat"].append(quat), out["contact"].append(contact)
-        out["feed"].append(feed_v), out["pass"].append(pass_i), out["t"].append(clock + t_rel)
+        out["pos"].append(pos), out["quat"].append(quat), out["contact"].append(np.full(len(pos), contact))
+        out["feed"].append(speed), out["pass"].append(np.full(len(pos), pass_i)), out["omega"].append(omega)
+        out["t"].append(clock + t_rel)
         clock += duration
 
-    first, last = passes[0], passes[-1]
-    above = first.points[0] + links.clearance * first.normals[0]
-    emit(*_link_piece(np.array([above, first.points[0]]), frames[0][0], frames[0][0], links, include_end=False))
-    for i, (p, q) in enumerate(zip(passes, frames)):
-        n = len(p.points)
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.points, axis=0), axis=1))])
-        emit(p.points, q, np.ones(n, bool), np.full(n, feed), np.full(n, i), s / feed, s[-1] / feed)
-        if i + 1 < len(passes):
-            nxt = passes[i + 1]
-            route = guard.route(p.points[-1], p.normals[-1], nxt.points[0], nxt.normals[0])
-            emit(*_link_piece(route, q[-1], frames[i + 1][0], links, include_start=False, include_end=False))
-    above = last.points[-1] + links.clearance * last.normals[-1]
-    emit(*_link_piece(np.array([last.points[-1], above]), frames[-1][-1], frames[-1][-1], links,
-                      include_start=False))
+    def emit_link(route, q_from, q_to, **kw):
+        lp = time_link(route, q_from, q_to, links, omega_max=omega_max, **kw)
+        methods[lp.method] += 1
+        emit(lp.position, lp.quaternion, False, lp.speed, -1, lp.omega, lp.t, lp.duration)
+
+    first, last = timed[0], timed[-1]
+    above = first["position"][0] + links.clearance * first["normal_start"]
+    emit_link(np.array([above, first["position"][0]]), first["quaternion"][0], first["quaternion"][0],
+              include_end=False)
+    for i, tp in enumerate(timed):
+        emit(tp["position"], tp["quaternion"], True, tp["speed"], i, tp["omega"], tp["t"], tp["t"][-1])
+        if i + 1 < len(timed):
+            nxt = timed[i + 1]
+            route = guard.route(tp["position"][-1], tp["normal_end"], nxt["position"][0], nxt["normal_start"])
+            emit_link(route, tp["quaternion"][-1], nxt["quaternion"][0], include_start=False, include_end=False)
+    above = last["position"][-1] + links.clearance * last["normal_end"]
+    emit_link(np.array([last["position"][-1], above]), last["quaternion"][-1], last["quaternion"][-1],
+              include_start=False)
+    if methods["trapezoid"]:
+        log.warning("%d of %d links were timed with the trapezoidal fallback", methods["trapezoid"],
+                    sum(methods.values()))
 
     t = np.concatenate(out["t"])
+    omega = np.concatenate(out["omega"])
+    meta = {"feed_m_per_s": feed, "clearance_m": links.clearance, "link_speed_m_per_s": links.speed,
+            "link_accel_m_per_s2": links.acceleration, "tool_tilt": "none (z = -surface normal)",
+            "heading_scale_m": heading_scale, "contact_grid_step_m": step,
+            "angular_velocity": "discrete derivative of the tool frames (part frame)",
+            "link_timing": methods, "constraints": [_describe(c) for c in cons.values()]}
     return Trajectory(t=t - t[0], position=np.concatenate(out["pos"]),
                       quaternion=make_continuous(np.concatenate(out["quat"])),
                       contact=np.concatenate(out["contact"]), feed=np.concatenate(out["feed"]),
                       pass_index=np.concatenate(out["pass"]).astype(int),
-                      metadata={"feed_m_per_s": feed, "clearance_m": links.clearance,
-                                "link_speed_m_per_s": links.speed, "tool_tilt": "none (z = -surface normal)"})
+                      extra={"wx": omega[:, 0], "wy": omega[:, 1], "wz": omega[:, 2]}, metadata=meta)
 
 
-def _densify(p: Pass, surface, step: float) -> Pass:
-    """Insert points so consecutive points are at most ``step`` apart, projected back on the surface."""
+def _collect(constraints) -> dict:
+    """Constraints by type; checks that they are known, not repeated, and that a feed is given."""
+    if isinstance(constraints, CONSTRAINT_TYPES):
+        constraints = [constraints]
+    cons = {}
+    for c in constraints:
+        kind = type(c)
+        if kind not in CONSTRAINT_TYPES:
+            names = ", ".join(k.__name__ for k in CONSTRAINT_TYPES)
+            raise InputError(f"time_path does not know the constraint {c!r}; supported: {names}")
+        if kind in cons:
+            raise InputError(f"time_path got two {kind.__name__} constraints; give each kind at most once")
+        cons[kind] = c
+    if FeedLimit not in cons:
+        raise InputError("time_path needs exactly one FeedLimit (the feed along contact passes)")
+    return cons
+
+
+def _describe(c) -> dict:
+    d = {"type": type(c).__name__}
+    if isinstance(c, FeedProfile):
+        d["passes"] = len(c.speeds)
+    else:
+        d.update({k: v for k, v in vars(c).items()})
+    return d
+
+
+def speed_profile(caps: np.ndarray, s: np.ndarray, accel: float | None, *, rest_at_ends: bool = True) -> np.ndarray:
+    """The fastest speed profile under pointwise caps whose ``v²`` changes by at most
+    ``2·accel·Δs`` between samples: a forward and a backward sweep, each a running minimum.
+
+    Parameters
+    ----------
+    caps : (n,) float
+        Speed caps at the samples, m/s.
+    s : (n,) float
+        Arc length of the samples, m, increasing.
+    accel : float or None
+        Tangential acceleration limit, m/s² (None: no limit, the caps are returned).
+    rest_at_ends : bool
+        Start and end at rest.
+
+    Returns
+    -------
+    (n,) float
+        Speeds, m/s.
+    """
+    c2 = np.square(np.asarray(caps, float))
+    if accel is None:
+        return np.sqrt(c2)
+    if rest_at_ends:
+        c2 = c2.copy()
+        c2[0] = c2[-1] = 0.0
+    s = np.asarray(s, float)
+    ramp = 2.0 * accel * (s - s[0])
+    fwd = ramp + np.minimum.accumulate(c2 - ramp)
+    back = 2.0 * accel * (s[-1] - s[::-1])
+    bwd = (back + np.minimum.accumulate(c2[::-1] - back))[::-1]
+    return np.sqrt(np.clip(np.minimum(fwd, bwd), 0.0, None))
+
+
+def _time_pass(p: Pass, surface, step: float, cons: dict, heading_scale: float, speeds) -> dict:
+    """Sample and time one contact pass (see the module notes)."""
+    s, pts, nrm, u = _grid(p, surface, step)
+    s, pts, nrm, u = _refine(s, pts, nrm, u, surface)
+    h = float(s[1] - s[0]) if len(s) > 1 else 0.0
+    frames = tool_frames(nrm, smoothed_directions(pts, max(h, 1e-12), heading_scale))
+    quat = quaternions_from_frames(frames)
+    if h <= 1e-12:                                   # a pass of zero length: touch and go
+        k = len(pts)
+        return {"position": pts, "quaternion": quat, "speed": np.zeros(k), "omega": np.zeros((k, 3)),
+                "t": np.zeros(k), "normal_start": nrm[0], "normal_end": nrm[-1]}
+    # The grid is uniform up to the projection of refined points; time with the true chords.
+    ds = np.maximum(np.linalg.norm(np.diff(pts, axis=0), axis=1), 1e-12)
+    s = np.concatenate([[0.0], np.cumsum(ds)])
+    Omega = rotation_steps(frames) / ds[:, None]                            # (n−1, 3) rad/m
+    rho = np.linalg.norm(Omega, axis=1)
+
+    caps = np.full(len(s), cons[FeedLimit].speed)
+    if speeds is not None:
+        caps = np.minimum(caps, np.interp(u, np.arange(len(speeds)), speeds))
+    cl = cons.get(CentripetalLimit)
+    if cl is not None:
+        kappa = path_curvature(pts, h, cl.scale)
+        cap_c = np.sqrt(cl.a_max / np.maximum(kappa, 1e-12))
+        caps = np.minimum(caps, minimum_filter1d(cap_c, 3, mode="nearest"))
+    al = cons.get(AngularSpeedLimit)
+    if al is not None:
+        rho_node = np.maximum(np.concatenate([[0.0], rho]), np.concatenate([rho, [0.0]]))
+        caps = np.minimum(caps, al.omega_max / np.maximum(rho_node, 1e-12))
+    tl = cons.get(TangentialAccelLimit)
+    v = speed_profile(caps, s, tl.a_t if tl else None, rest_at_ends=tl.rest_at_ends if tl else False)
+
+    # Time each grid step (constant acceleration), then split steps longer than the time limit.
+    dt = 2.0 * ds / np.maximum(v[:-1] + v[1:], 1e-300)
+    acc = (v[1:] ** 2 - v[:-1] ** 2) / (2.0 * ds)
+    n_sub = np.maximum(np.ceil(dt / (_MARGIN * MAX_CONTACT_DT) - 1e-9).astype(int), 1)
+    j = np.repeat(np.arange(len(dt)), n_sub)
+    k = np.arange(len(j)) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub)
+    tau = k * dt[j] / n_sub[j]
+    frac = np.clip((v[j] * tau + 0.5 * acc[j] * tau**2) / ds[j], 0.0, 1.0)
+    frac[k == 0] = 0.0
+    t_grid = np.concatenate([[0.0], np.cumsum(dt)])
+    t_out = np.concatenate([t_grid[j] + tau, t_grid[-1:]])
+    speed = np.concatenate([v[j] + acc[j] * tau, v[-1:]])
+    pos = np.concatenate([pts[j] + frac[:, None] * (pts[j + 1] - pts[j]), pts[-1:]])
+    rot = Slerp(np.arange(len(s), dtype=float), Rotation.from_quat(quat, scalar_first=True))(
+        np.concatenate([j + frac, [len(s) - 1.0]]))
+    # Rotation per metre at each sample: its grid step's, or the mean of both at a grid point.
+    node = np.vstack([Omega[:1], 0.5 * (Omega[:-1] + Omega[1:]), Omega[-1:]])
+    rate = np.concatenate([np.where((k == 0)[:, None], node[j], Omega[j]), node[-1:]])
+    return {"position": pos, "quaternion": rot.as_quat(scalar_first=True), "speed": speed,
+            "omega": rate * speed[:, None], "t": t_out, "normal_start": nrm[0], "normal_end": nrm[-1]}
+
+
+def _grid(p: Pass, surface, step: float):
+    """Arc length, points, unit normals and fractional original index on a uniform grid of
+    spacing at most ``step`` (m) along pass ``p`` (densified onto the surface first)."""
+    dense, u = _densify(p, surface, step)
+    n_grid = max(int(np.ceil(dense.length / step - 1e-9)), 2) + 1          # at least 3 grid points
+    s, pts, nrm, u = resample_uniform(dense.points, dense.length / (n_grid - 1) if dense.length > 0 else step,
+                                      dense.normals, u)
+    nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    return s, pts, nrm, u
+
+
+def _refine(s, pts, nrm, u, surface):
+    """Where the surface normal turns by more than MAX_NORMAL_TURN per grid step (a sharp leading
+    edge), refine the whole grid uniformly so that it does not, down to MIN_GRID_STEP, and take the
+    new points in those fast-turning stretches from the surface itself (projection and its smooth
+    normals): interpolating between samples then follows the surface's own normal field there.
+    Elsewhere the new points are interpolated along the grid."""
+    if len(s) < 2:
+        return s, pts, nrm, u
+    turn = np.arccos(np.clip(np.einsum("ij,ij->i", nrm[1:], nrm[:-1]), -1.0, 1.0))     # per step
+    h = s[1] - s[0]
+    if turn.max() <= MAX_NORMAL_TURN or h <= MIN_GRID_STEP:
+        return s, pts, nrm, u
+    fine = max(h * MAX_NORMAL_TURN / turn.max(), MIN_GRID_STEP)
+    s2, pts2, nrm2, u2 = resample_uniform(pts, fine, nrm, u)
+    step_of = np.clip(np.searchsorted(s, s2, side="right") - 1, 0, len(turn) - 1)
+    fast = turn > 0.5 * MAX_NORMAL_TURN
+    fast = fast | np.concatenate([[False], fast[:-1]]) | np.concatenate([fast[1:], [False]])
+    sel = fast[step_of]
+    if sel.any():
+        closest, _, face = surface.closest_points(pts2[sel])
+        pts2[sel] = closest
+        nrm2[sel] = surface.interpolate_normals(closest, face)
+    nrm2 /= np.maximum(np.linalg.norm(nrm2, axis=1, keepdims=True), 1e-300)
+    return s2, pts2, nrm2, u2
+
+
+def _densify(p: Pass, surface, step: float) -> tuple[Pass, np.ndarray]:
+    """Insert points so consecutive points are at most ``step`` apart, projected back on the surface.
+
+    Returns the densified pass and, per point, its fractional index in the original pass."""
     seg = np.linalg.norm(np.diff(p.points, axis=0), axis=1)
     if seg.max(initial=0.0) <= step * 1.0001:
-        return p
+        return p, np.arange(len(p.points), dtype=float)
     n_sub = np.maximum(np.ceil(seg / step).astype(int), 1)
     frac = np.concatenate([np.arange(k) / k for k in n_sub])
     seg_id = np.repeat(np.arange(len(seg)), n_sub)
     pts = p.points[seg_id] + frac[:, None] * (p.points[seg_id + 1] - p.points[seg_id])
     pts = np.vstack([pts, p.points[-1:]])
-    new = frac > 0
-    new = np.concatenate([new, [False]])
+    u = np.concatenate([seg_id + frac, [len(p.points) - 1.0]])
+    new = np.concatenate([frac > 0, [False]])
     out_pts, out_n = pts.copy(), np.empty_like(pts)
     out_n[~new] = p.normals[np.concatenate([seg_id[frac == 0], [len(p.points) - 1]])]
     if new.any():
         closest, _, face = surface.closest_points(pts[new])
         out_pts[new] = closest
         out_n[new] = surface.interpolate_normals(closest, face)
-    return Pass(out_pts, out_n)
-
-
-def _trapezoid_times(s: np.ndarray, vmax: float, amax: float) -> np.ndarray:
-    """Times at arc lengths ``s`` (increasing from 0) for a rest-to-rest trapezoidal speed profile."""
-    L = s[-1]
-    if L <= 0:
-        return np.zeros_like(s)
-    s_acc = vmax * vmax / (2 * amax)
-    if 2 * s_acc > L:              # triangular profile
-        s_acc = L / 2
-        vmax = np.sqrt(amax * L)
-    t_acc = vmax / amax
-    t_cruise = (L - 2 * s_acc) / vmax
-    t = np.where(s < s_acc, np.sqrt(2 * np.maximum(s, 0) / amax),
-                 np.where(s <= L - s_acc, t_acc + (s - s_acc) / vmax,
-                          t_acc + t_cruise + t_acc - np.sqrt(2 * np.maximum(L - s, 0) / amax)))
-    return t
-
-
-def _link_piece(route: np.ndarray, q_from: np.ndarray, q_to: np.ndarray, links: LinkSettings, *,
-                include_start: bool = True, include_end: bool = True):
-    """Sample a link polyline ``route`` (r, 3) and time it with a trapezoidal profile."""
-    seg = np.linalg.norm(np.diff(route, axis=0), axis=1)
-    pieces = []
-    for a, b, L in zip(route[:-1], route[1:], seg):
-        n = max(int(np.ceil(L / links.step)), 1)
-        pieces.append(a + np.linspace(0, 1, n, endpoint=False)[:, None] * (b - a))
-    pts = np.vstack(pieces + [route[-1:]])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    t = _trapezoid_times(s, links.speed, links.acceleration)
-    speed = np.gradient(s, t, edge_order=1) if len(t) > 1 and t[-1] > 0 else np.zeros_like(s)
-    speed = np.nan_to_num(np.clip(speed, 0, links.speed))
-    frac = s / s[-1] if s[-1] > 0 else np.zeros_like(s)
-    key = Rotation.from_quat(np.array([q_from, q_to]), scalar_first=True)
-    q = Slerp([0.0, 1.0], key)(frac).as_quat(scalar_first=True)
-    keep = np.ones(len(pts), bool)
-    keep[0] &= include_start
-    keep[-1] &= include_end
-    n = int(keep.sum())
-    # Time is measured from the route's start; the piece lasts until the route's end.
-    return pts[keep], q[keep], np.zeros(n, bool), speed[keep], np.full(n, -1), t[keep], float(t[-1])
-
-
-class _AirGuard:
-    """Finds air routes between passes that keep clear of the part."""
-
-    def __init__(self, surface, clearance: float):
-        self.surface = surface
-        self.clearance = clearance
-        lo, hi = surface.bounds
-        self.center = 0.5 * (lo + hi)
-        self.radius = 0.5 * float(np.linalg.norm(hi - lo)) + 2 * clearance
-
-    def _clear(self, route: np.ndarray) -> bool:
-        seg = np.linalg.norm(np.diff(route, axis=0), axis=1)
-        pts = [a + np.linspace(0, 1, max(int(np.ceil(L / (0.25 * self.clearance))), 1), endpoint=False)[:, None] * (b - a)
-               for a, b, L in zip(route[:-1], route[1:], seg)]
-        pts = np.vstack(pts + [route[-1:]])
-        _, dist, _ = self.surface.closest_points(pts)
-        return bool(dist.min() >= 0.5 * self.clearance * 0.999)
-
-    def route(self, p_end, n_end, p_start, n_start) -> np.ndarray:
-        """Waypoints from ``p_end`` (leaving along ``n_end``) to ``p_start`` (arriving along ``n_start``)."""
-        c = self.clearance
-        up_a, up_b = p_end + c * n_end, p_start + c * n_start
-        direct = np.array([p_end, up_a, up_b, p_start])
-        if self._clear(direct[1:3]):
-            return direct
-        mid = 0.5 * (up_a + up_b)
-        dirs = []
-        avg = n_end + n_start
-        if np.linalg.norm(avg) > 0.3:
-            dirs.append(avg / np.linalg.norm(avg))
-        out = mid - self.center
-        if np.linalg.norm(out) > 1e-9:
-            dirs.append(out / np.linalg.norm(out))
-        for u in dirs:
-            h = c
-            while h < 4 * self.radius:
-                route = np.array([p_end, up_a, up_a + h * u, up_b + h * u, up_b, p_start])
-                if self._clear(route[1:5]):
-                    return route
-                h *= 2
-        # Guaranteed fallback: out to a sphere around the whole part, along it, and back in.
-        return np.vstack([[p_end, up_a], self._sphere_arc(up_a, up_b), [up_b, p_start]])
-
-    def _sphere_arc(self, a, b) -> np.ndarray:
-        ua = a - self.center
-        ub = b - self.center
-        ua /= max(np.linalg.norm(ua), 1e-12)
-        ub /= max(np.linalg.norm(ub), 1e-12)
-        ang = np.arccos(np.clip(np.dot(ua, ub), -1, 1))
-        n = max(int(np.ceil(ang / 0.1)), 1) + 1
-        if ang > np.pi - 1e-3:   # antipodal: go round via any perpendicular
-            perp = np.cross(ua, [1.0, 0, 0] if abs(ua[0]) < 0.9 else [0, 1.0, 0])
-            ub_mid = perp / np.linalg.norm(perp)
-            return np.vstack([self._sphere_arc(a, self.center + ub_mid * self.radius)[:-1],
-                              self._sphere_arc(self.center + ub_mid * self.radius, b)])
-        w = np.linspace(0, 1, n)[:, None]
-        dirs = np.sin((1 - w) * ang) * ua + np.sin(w * ang) * ub
-        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-        return self.center + self.radius * dirs
+    return Pass(out_pts, out_n), u

@@ -1,4 +1,27 @@
-"""The :class:`Trajectory` record and the ``trajectory.csv`` format of FORMATS.md."""
+"""The :class:`Trajectory` record and the ``trajectory.csv`` format of FORMATS.md.
+
+``trajectory.csv`` has the nine FORMATS.md columns ``t,x,y,z,qw,qx,qy,qz,contact`` and then these
+extra columns, in this order:
+
+========  ==========================================================================================
+column    meaning
+========  ==========================================================================================
+``feed``  commanded TCP speed along the path at the sample, m/s: on contact passes the timed speed
+          (the feed, or less where a limit slows the tool); on approach, retract and air moves the
+          link speed (0 at rest)
+``pass``  index (0-based) of the contact pass the sample belongs to; ``-1`` on approach, retract and
+          air moves
+``wx``    angular velocity of the tool frame about the part frame's x-axis, rad/s (``ω = v · Ω``,
+          with ``Ω`` the frame's rotation per metre of travel; see :mod:`swath.trajectory.timing`)
+``wy``    the same about the part frame's y-axis, rad/s
+``wz``    the same about the part frame's z-axis, rad/s
+========  ==========================================================================================
+
+The angular velocity is expressed in the part frame (not the tool frame): between two samples
+the orientation advances as ``R(t + dt) ≈ exp([ω]× dt) R(t)``.  Trajectories made by
+:func:`swath.trajectory.time_path` always carry ``wx, wy, wz``; :func:`read_csv` reads any
+further columns into :attr:`Trajectory.extra`.
+"""
 
 from __future__ import annotations
 
@@ -17,6 +40,9 @@ CSV_COLUMNS = ("t", "x", "y", "z", "qw", "qx", "qy", "qz", "contact")
 EXTRA_COLUMNS = {
     "feed": "commanded TCP speed along the path, m/s",
     "pass": "index of the contact pass this sample belongs to (0-based), -1 on links",
+    "wx": "angular velocity of the tool frame about the part x-axis, rad/s (part frame)",
+    "wy": "angular velocity of the tool frame about the part y-axis, rad/s (part frame)",
+    "wz": "angular velocity of the tool frame about the part z-axis, rad/s (part frame)",
 }
 
 
@@ -109,7 +135,7 @@ class Trajectory:
         buf = _io.StringIO()
         buf.write(header + "\n")
         extra = np.column_stack([self.extra[k] for k in extra_names]) if extra_names else np.zeros((len(self), 0))
-        fmt_num = "%.6f,%.7f,%.7f,%.7f,%.9f,%.9f,%.9f,%.9f"
+        fmt_num = "%.9f,%.7f,%.7f,%.7f,%.9f,%.9f,%.9f,%.9f"
         for row, c, f, p, e in zip(num, self.contact, self.feed, self.pass_index, extra):
             line = fmt_num % tuple(row) + f",{int(c)},{f:.6g},{int(p)}"
             if len(e):
