@@ -208,3 +208,26 @@ def test_surface_arrays_are_accepted_read_only():
     s = Surface(v, f)
     out = slice_mesh(s.vertices, s.faces, [1, 0, 0], [0.4], values=s.normals)
     assert len(out) == 1 and out[0].values.shape == (len(out[0].points), 3)
+
+
+def test_level_sets_of_a_distance_field_are_circles():
+    from swath.examples import flat_plate
+    from swath.plan.slicing import level_sets
+
+    s = flat_plate(spacing=2e-3)
+    centre = np.array([0.2, 0.15, 0.0])
+    field = np.linalg.norm(s.vertices - centre, axis=1)
+    lines = level_sets(s.vertices, s.faces, field, [0.05, 0.1])
+    assert [pl.plane for pl in lines] == [0, 1]
+    assert all(pl.closed for pl in lines)
+    for pl, r in zip(lines, (0.05, 0.1)):
+        d = np.linalg.norm(pl.points - centre, axis=1)
+        # linear interpolation of |x - c| over 2 mm triangles: chord error below 0.1 mm
+        assert np.allclose(d, r, atol=1e-4)
+        assert np.linalg.norm(np.diff(pl.points, axis=0), axis=1).sum() == pytest.approx(2 * np.pi * r, rel=2e-3)
+    # a face mask stops the level set at the mask's border: keep the half x < 0.2
+    half = s.vertices[s.faces].mean(axis=1)[:, 0] < 0.2
+    cut = level_sets(s.vertices, s.faces, field, [0.05], face_mask=half)
+    assert len(cut) == 1 and not cut[0].closed
+    assert cut[0].points[:, 0].max() <= 0.2 + 1e-9
+    assert np.all(half[cut[0].faces])

@@ -181,9 +181,51 @@ def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, valu
     if len(F) == 0 or len(off) == 0:
         return []
 
+    return level_sets(V, F, V @ c, off, values=vals, merge_tolerance=merge_tolerance)
+
+
+def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, levels, *,
+               values: np.ndarray | None = None, face_mask: np.ndarray | None = None,
+               merge_tolerance: float = MERGE_TOLERANCE) -> list[SlicePolyline]:
+    """Level sets ``field = level`` of a per-vertex scalar field, chained into polylines.
+
+    The field is interpolated linearly over each triangle; a plane slice is the level set of
+    ``field = x · normal`` (:func:`slice_mesh`), a geodesic-parallel pass the level set of a distance
+    field.  The same topological rules apply (see the module notes), so it cannot hang.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    field : (n,) float
+        Scalar value at each vertex.
+    levels : (p,) float
+        Levels to extract (the ``plane`` index of each polyline refers to this array).
+    values : (n, q) float, optional
+        Per-vertex values interpolated to the points.
+    face_mask : (m,) bool, optional
+        Only faces where this is true are cut (the level set stops at the mask's border).
+    merge_tolerance : float
+        Segments this short or shorter (m) are merged away.
+
+    Returns
+    -------
+    list of SlicePolyline
+    """
+    V = np.asarray(vertices, float)
+    F = np.asarray(faces, np.int64)
+    h = np.asarray(field, float).reshape(-1)
+    if len(h) != len(V) or not np.isfinite(h).all():
+        raise InputError(f"the field must hold one finite value per vertex ({len(V)}), got shape {h.shape}")
+    off = np.asarray(levels, float).reshape(-1)
+    vals = None if values is None else np.asarray(values, float).reshape(len(V), -1)
+    if face_mask is not None:
+        keep_faces = np.flatnonzero(np.asarray(face_mask, bool))
+        F = F[keep_faces]
+    if len(F) == 0 or len(off) == 0:
+        return []
     plane_order = np.argsort(off, kind="stable")
     d_sorted = off[plane_order]
-    h = V @ c
     edges, face_edges = mesh_edges(F)
     n_edges = len(edges)
 
@@ -235,6 +277,8 @@ def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, valu
         n_nodes = len(node_src)
         log.debug("slice: split chains at %d branch crossings (non-manifold edges)", int(branch.sum()))
 
+    if face_mask is not None:
+        seg_face = keep_faces[seg_face]
     chains, closed, chain_faces = _chain(ends, seg_face, n_nodes)
 
     # --- positions, tiny-segment merging, records --------------------------------------------------
