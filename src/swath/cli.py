@@ -36,9 +36,14 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--motion", default="orbital", choices=["orbital", "rotary"], help="pad motion")
     p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s")
     p.add_argument("--spacing", help="pass spacing, e.g. 60mm (default: full coverage from the contact model)")
-    p.add_argument("--angle", default="0deg", help="pass direction from the part's principal axis, e.g. 30deg")
+    p.add_argument("--angle", default="auto",
+                   help="pass direction from the part's principal axis, e.g. 30deg (default auto: the direction "
+                        "with the shortest full-coverage path)")
     p.add_argument("--point-spacing", default="1mm", help="spacing of points along passes")
     p.add_argument("--clearance", default="20mm", help="lift off the surface for air moves")
+    p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes, e.g. 2m/s2")
+    p.add_argument("--max-angular", help="limit on the tool's angular speed, e.g. 1rad/s")
+    p.add_argument("--max-accel", help="limit on tangential acceleration along passes, e.g. 1m/s2")
     p.add_argument("--out", required=True, help="output directory (written atomically)")
 
 
@@ -87,7 +92,8 @@ def _settings_from_args(args) -> "JobSettings":
     from .job import settings_from_mapping
 
     keys = ["part", "out", "units", "side", "all_pieces", "force_units", "planner", "pad_radius", "force",
-            "depression", "stiffness", "motion", "feed", "spacing", "angle", "point_spacing", "clearance"]
+            "depression", "stiffness", "motion", "feed", "spacing", "angle", "point_spacing", "clearance",
+            "max_centripetal", "max_angular", "max_accel"]
     values = {k: getattr(args, k) for k in keys if hasattr(args, k)}
     return settings_from_mapping(values)
 

@@ -46,9 +46,12 @@ class JobSettings:
     motion: str = "orbital"
     feed: float = 0.05
     spacing: float | None = None
-    angle: float = 0.0
+    angle: float | None = None
     point_spacing: float = 1e-3
     clearance: float = 0.02
+    max_centripetal: float | None = None
+    max_angular: float | None = None
+    max_accel: float | None = None
     sample_spacing: float | None = None
     planner_options: dict = field(default_factory=dict)
 
@@ -57,6 +60,25 @@ class JobSettings:
 
         return Tool(pad_radius=self.pad_radius, force=self.force, depression=self.depression,
                     stiffness=self.stiffness, motion=self.motion)
+
+    def constraints(self) -> list:
+        """The trajectory constraints: the feed and whichever limits are set."""
+        from .trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit
+
+        out = [FeedLimit(self.feed)]
+        if self.max_centripetal is not None:
+            out.append(CentripetalLimit(self.max_centripetal))
+        if self.max_angular is not None:
+            out.append(AngularSpeedLimit(self.max_angular))
+        if self.max_accel is not None:
+            out.append(TangentialAccelLimit(self.max_accel))
+        return out
+
+    def links(self):
+        """How the tool moves between passes."""
+        from .trajectory import LinkSettings
+
+        return LinkSettings(clearance=self.clearance)
 
     def as_record(self) -> dict:
         """Settings with units in the key names, for metrics.json and the report."""
@@ -67,6 +89,8 @@ class JobSettings:
             "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
             "motion": self.motion, "feed_m_per_s": self.feed, "spacing_m": self.spacing,
             "angle_rad": self.angle, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
+            "max_centripetal_m_per_s2": self.max_centripetal, "max_angular_rad_per_s": self.max_angular,
+            "max_accel_m_per_s2": self.max_accel,
             **{f"planner_{k}": v for k, v in self.planner_options.items()},
         }
 
@@ -83,6 +107,9 @@ _QUANTITY_FIELDS = {
     "point_spacing": "length", "point-spacing": "length",
     "clearance": "length",
     "sample_spacing": "length", "sample-spacing": "length",
+    "max_centripetal": "acceleration", "max-centripetal": "acceleration",
+    "max_angular": "angular_speed", "max-angular": "angular_speed",
+    "max_accel": "acceleration", "max-accel": "acceleration",
 }
 _PLAIN_FIELDS = {"part", "out", "units", "side", "all_pieces", "all-pieces", "force_units", "force-units",
                  "planner", "motion"}
@@ -101,6 +128,9 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
         name = key.replace("-", "_")
         if key in _QUANTITY_FIELDS:
             kind = _QUANTITY_FIELDS[key]
+            if kind == "angle" and str(value).strip().lower() == "auto":
+                kwargs[name] = None
+                continue
             kwargs[name] = parse_quantity(value, kind, default_unit="deg" if kind == "angle" else None)
         elif key in _PLAIN_FIELDS:
             kwargs[name] = value
@@ -177,7 +207,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from .io.atomic import atomic_directory
     from .report import write_report
     from .simulate import simulate_removal
-    from .trajectory import FeedLimit, LinkSettings, time_path
+    from .trajectory import time_path
 
     say = progress or (lambda stage, done, total: None)
     timings = {}
@@ -196,7 +226,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     say("timing trajectory", 0, 1)
-    trajectory = time_path(toolpath, [FeedLimit(settings.feed)], links=LinkSettings(clearance=settings.clearance))
+    trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
     timings["trajectory_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

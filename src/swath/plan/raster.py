@@ -29,7 +29,11 @@ MIN_PASS_FRACTION = 0.25
 MAX_PLANES = 20000
 
 
-def raster(surface, tool, *, spacing: float | None = None, angle: float = 0.0, direction=None,
+#: Feed angles (rad, from the first principal axis) tried when the direction is left to swath.
+AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
+
+
+def raster(surface, tool, *, spacing: float | None = None, angle: float | None = None, direction=None,
            point_spacing: float = 1e-3, min_pass_length: float | None = None) -> ToolPath:
     """Cover a surface with parallel plane slices, visited in snake order.
 
@@ -44,9 +48,12 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float = 0.0, d
         the surface under the contact model (:func:`swath.plan.widths.raster_spacing`): the 0.2 %
         area-percentile of the contact chord across the slice, times the slope factor ``|n × c|``
         (clipped at 0.5), with curvature read at pad scale.
-    angle : float
+    angle : float, optional
         Rotation of the feed direction from the surface's first principal axis (largest spread)
-        about its third axis (the normal of the best-fit plane), rad.
+        about its third axis (the normal of the best-fit plane), rad.  Default (None): chosen
+        among :data:`AUTO_ANGLES` by :func:`choose_angle` — the direction whose planes cross the
+        part's curvature, so the equal spacing wastes least (the shortest predicted path whose
+        predicted gap stays within 0.5 %; near-ties go to the principal axis).
     direction : (3,) float, optional
         Feed direction in the part frame; overrides ``angle``.  Only its component in the
         best-fit plane matters.
@@ -89,17 +96,22 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float = 0.0, d
         min_pass_length = MIN_PASS_FRACTION * tool.pad_radius
     elif not (_is_number(min_pass_length) and math.isfinite(min_pass_length) and min_pass_length >= 0):
         raise InputError(f"min_pass_length must be a finite length >= 0 m, got {min_pass_length!r}")
-    if not (_is_number(angle) and math.isfinite(angle)):
+    if angle is not None and not (_is_number(angle) and math.isfinite(angle)):
         raise InputError(f"angle must be a finite number of radians, got {angle!r}")
 
-    feed, cross = feed_and_cross(surface, angle=angle, direction=direction)
-
     choice = None
+    direction_rule = "given direction" if direction is not None else "given angle"
+    if angle is None and direction is None:
+        angle, choice, direction_rule = choose_angle(surface, tool, spacing=spacing)
+    feed, cross = feed_and_cross(surface, angle=angle or 0.0, direction=direction)
+
     if spacing is None:
-        choice = raster_spacing(surface, tool, cross)
+        if choice is None:
+            choice = raster_spacing(surface, tool, cross)
         spacing, rule = choice.spacing, choice.rule
     else:
         rule = "given"
+        choice = None
 
     offsets, margin = plane_offsets(surface.vertices @ cross, spacing)
     slices = slice_mesh(surface.vertices, surface.faces, cross, offsets, values=surface.normals)
@@ -117,7 +129,8 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float = 0.0, d
 
     passes = _snake(kept, feed, cross, surface, point_spacing)
     metadata = dict(
-        spacing_m=float(spacing), angle_rad=float(angle), feed_direction=feed.tolist(),
+        spacing_m=float(spacing), angle_rad=float(angle or 0.0), direction_rule=direction_rule,
+        feed_direction=feed.tolist(),
         cross_direction=cross.tolist(), n_planes=int(len(offsets)), n_passes=len(passes),
         dropped_fragments=dropped, dropped_length_m=dropped_length, point_spacing_m=float(point_spacing),
         min_pass_length_m=float(min_pass_length), margin_m=float(margin), spacing_rule=rule,
@@ -165,6 +178,54 @@ def feed_and_cross(surface, *, angle: float = 0.0, direction=None) -> tuple[np.n
     cross = normalize(np.cross(a2, feed))
     feed = np.cross(cross, a2)
     return feed, cross
+
+
+def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANGLES,
+                 max_gap: float = 5e-3):
+    """Pick the raster feed angle (rad from the first principal axis) for ``surface``.
+
+    For each candidate angle the cutting planes' spacing is the default full-coverage spacing
+    (:func:`raster_spacing`) or the given ``spacing``; the predicted contact length is
+    ``Σ a |n × c| / d`` (slices ``d`` apart lie ``d / |n × c|`` apart on the surface) and the predicted
+    gap the area share left between swaths.  The shortest candidate whose gap is at most
+    ``max_gap`` wins; if none qualifies, the one with the smallest gap.
+
+    Returns
+    -------
+    angle : float
+        rad.
+    choice : SpacingChoice or None
+        The default-spacing computation for the winner (None when ``spacing`` was given).
+    rule : str
+        A one-line description of the decision, for metadata.
+    """
+    from .widths import effective_widths, gap_fraction, pad_scale_samples
+
+    samples = pad_scale_samples(surface, tool)
+    rows = []
+    for a in angles:
+        _, cross = feed_and_cross(surface, angle=a)
+        if spacing is None:
+            ch = raster_spacing(surface, tool, cross, samples=samples)
+            d, gap = ch.spacing, ch.gap_fraction
+        else:
+            ch = None
+            w_eff, _ = effective_widths(samples, tool, cross)
+            d, gap = spacing, gap_fraction(w_eff, samples.areas, spacing)
+        slope = np.linalg.norm(np.cross(samples.normals, cross), axis=1)
+        length = float(np.sum(samples.areas * slope) / d)
+        rows.append((a, ch, d, gap, length))
+    ok = [r for r in rows if r[3] <= max_gap]
+    if ok:
+        # Near-ties (within 2 %) go to the earlier candidate: the principal axis first.
+        shortest = min(r[4] for r in ok)
+        best = next(r for r in ok if r[4] <= 1.02 * shortest)
+    else:
+        best = min(rows, key=lambda r: r[3])
+    summary = ", ".join(f"{math.degrees(r[0]):.0f} deg: {r[4]:.2f} m, gap {100 * r[3]:.2f}%" for r in rows)
+    rule = f"auto: shortest predicted path with gap <= {100 * max_gap:.1f}% among ({summary})"
+    log.info("raster direction %s", rule)
+    return float(best[0]), best[1], rule
 
 
 def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, float]:

@@ -291,16 +291,11 @@ def raster_spacing(surface, tool, cross_direction, *, percentile: float = SPACIN
         raise InputError(f"percentile must lie in [0, 1), got {percentile!r}")
     if not (0.0 <= slope_floor <= 1.0):
         raise InputError(f"slope_floor must lie in [0, 1], got {slope_floor!r}")
-    c = np.asarray(cross_direction, float)
-    c = c / np.linalg.norm(c)
     s = samples if samples is not None else pad_scale_samples(surface, tool)
-    # The slice through a point runs along n × c; the swath is measured across it.
-    feed = np.cross(s.normals, c)
-    slope = np.linalg.norm(feed, axis=1)
-    w = patch_widths(s.curvature, s.normals, feed, tool)
+    w_eff, slope = effective_widths(s, tool, cross_direction)
+    w = w_eff / np.maximum(slope, 1e-300)
     d = area_percentile(w * np.maximum(slope, slope_floor), s.areas, percentile)
-    w_eff = w * slope
-    gap = float(np.sum(s.areas * np.clip(1.0 - w_eff / d, 0.0, None)) / s.areas.sum())
+    gap = gap_fraction(w_eff, s.areas, d)
     steep = float(s.areas[slope < slope_floor].sum() / s.areas.sum())
     rule = (f"{percentile:.1%} area-percentile of the contact chord across the slice times max(|n x c|, "
             f"{slope_floor:g}), local contact model with curvature fitted over the pad radius on samples "
@@ -309,6 +304,31 @@ def raster_spacing(surface, tool, cross_direction, *, percentile: float = SPACIN
     log.info("raster default spacing %.1f mm (narrowest effective chord %.1f mm, predicted gap %.3f%%)",
              d * 1e3, w_eff.min() * 1e3, 100 * gap)
     return SpacingChoice(float(d), float(w_eff.min()), gap, steep, rule)
+
+
+def effective_widths(samples: PadSamples, tool, cross_direction) -> tuple[np.ndarray, np.ndarray]:
+    """Effective swath widths of plane slices with normal ``cross_direction`` at pad-scale samples.
+
+    Returns
+    -------
+    w_eff : (s,) float
+        Contact chord across the slice times the slope factor ``|n × c|``, m: the plane spacing that
+        just covers each sample.
+    slope : (s,) float
+        ``|n × c|`` at each sample.
+    """
+    c = np.asarray(cross_direction, float)
+    c = c / np.linalg.norm(c)
+    # The slice through a point runs along n × c; the swath is measured across it.
+    feed = np.cross(samples.normals, c)
+    slope = np.linalg.norm(feed, axis=1)
+    w = patch_widths(samples.curvature, samples.normals, feed, tool)
+    return w * slope, slope
+
+
+def gap_fraction(w_eff: np.ndarray, areas: np.ndarray, spacing: float) -> float:
+    """Predicted area share left between swaths at plane ``spacing`` (m): ``Σ a max(0, 1 − w_eff/d) / A``."""
+    return float(np.sum(areas * np.clip(1.0 - w_eff / spacing, 0.0, None)) / areas.sum())
 
 
 def area_percentile(values: np.ndarray, areas: np.ndarray, fraction: float) -> float:

@@ -1,0 +1,95 @@
+"""The swath command line: outputs, TOML jobs, unit suffixes, and refusals that leave nothing behind."""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from swath.cli import main
+from swath.job import load_job_toml, settings_from_mapping
+from swath.errors import InputError
+from swath.trajectory import CSV_COLUMNS, read_csv
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "swath.cli", *args], capture_output=True, text=True, timeout=300)
+
+
+def test_plan_writes_trajectory_metrics_and_report(tmp_path):
+    out = tmp_path / "out"
+    r = run_cli("plan", "example:plate", "--spacing", "60mm", "--feed", "80mm/s", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "coverage" in r.stdout and "loading part" in r.stderr      # progress on stderr
+    assert {p.name for p in out.iterdir()} >= {"trajectory.csv", "metrics.json", "report.html"}
+    tr = read_csv(out / "trajectory.csv")
+    assert (out / "trajectory.csv").read_text().split("\n", 1)[0].split(",")[:9] == list(CSV_COLUMNS)
+    speed = np.linalg.norm(np.diff(tr.position, axis=0), axis=1) / np.diff(tr.t)
+    both = tr.contact[1:] & tr.contact[:-1]
+    assert np.allclose(speed[both], 0.08, rtol=0.01)
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["settings"]["spacing_m"] == pytest.approx(0.06)
+    assert m["metrics"]["coverage_fraction"] > 0.99
+    assert m["metrics"]["contact_length_m"] == pytest.approx(tr.contact_length, rel=1e-6)
+
+
+def test_bad_input_exits_2_with_one_line_and_no_output(tmp_path):
+    bad = tmp_path / "empty.stl"
+    bad.write_bytes(b"")
+    out = tmp_path / "out"
+    r = run_cli("plan", str(bad), "--out", str(out))
+    assert r.returncode == 2
+    lines = [l for l in r.stderr.splitlines() if l.startswith("swath: error:")]
+    assert len(lines) == 1 and "empty" in lines[0]
+    assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]
+
+
+def test_failure_keeps_an_existing_output_directory_intact(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("old results")
+    assert main(["-q", "plan", "example:plate", "--feed=-5mm/s", "--out", str(out)]) == 2
+    assert (out / "keep.txt").read_text() == "old results"
+
+
+@pytest.mark.parametrize("flag,value,fragment", [
+    ("--pad-radius", "38.1 furlongs", "unknown unit"),
+    ("--force", "20mm", "unknown unit 'mm' for a force"),
+    ("--planner", "spiral", "unknown planner 'spiral'"),
+    ("--units", "ft", "unknown length unit"),
+])
+def test_bad_settings_are_refused_by_name(tmp_path, capsys, flag, value, fragment):
+    part = "example:plate" if flag != "--units" else str(tmp_path / "x.stl")
+    if flag == "--units":
+        import trimesh
+        trimesh.creation.box([0.1, 0.1, 0.01]).export(part)
+    code = main(["plan", part, flag, value, "--out", str(tmp_path / "o")])
+    assert code == 2
+    assert fragment in capsys.readouterr().err
+
+
+def test_quantities_accept_unit_suffixes():
+    s = settings_from_mapping({"part": "example:plate", "out": "o", "pad_radius": "3in", "force": "0.02kN",
+                               "feed": "3m/min", "angle": "90", "depression": "0.5mm",
+                               "max_centripetal": "2m/s2", "max_angular": "57.29578deg/s"})
+    assert s.pad_radius == pytest.approx(0.0762) and s.force == pytest.approx(20.0)
+    assert s.feed == pytest.approx(0.05) and s.angle == pytest.approx(math.pi / 2)
+    assert s.depression == pytest.approx(5e-4) and s.max_angular == pytest.approx(1.0, rel=1e-6)
+    assert settings_from_mapping({"part": "example:plate", "out": "o", "angle": "auto"}).angle is None
+    with pytest.raises(InputError, match="unknown job setting 'colour'"):
+        settings_from_mapping({"part": "example:plate", "out": "o", "colour": "red"})
+
+
+def test_toml_job_runs_relative_to_its_file(tmp_path):
+    job = tmp_path / "job.toml"
+    job.write_text('part = "example:plate"\nout = "result"\nspacing = "70mm"\nfeed = "100mm/s"\nangle = "0deg"\n')
+    s = load_job_toml(job)
+    assert s.out == str(tmp_path / "result") and s.spacing == pytest.approx(0.07)
+    assert main(["-q", "run", str(job)]) == 0
+    assert (tmp_path / "result" / "report.html").exists()
+    bad = tmp_path / "bad.toml"
+    bad.write_text("part = [unclosed\n")
+    assert main(["-q", "run", str(bad)]) == 2
