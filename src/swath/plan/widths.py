@@ -145,6 +145,21 @@ def max_swath_widths(surface, tool, *, n_directions: int = 36, n_rays: int = 180
     return patch.max_width(n_directions)[inverse]
 
 
+def coverage_lower_bound(surface, tool, *, samples: PadSamples | None = None) -> float:
+    """``L* = ∫ dA / w_max`` (m): the contact path no plan can undercut, with ``w_max`` the widest
+    contact chord over all feed directions at each point.
+
+    Evaluated on :func:`pad_scale_samples` (curvature read over the pad): curvature noise of a scan
+    would otherwise narrow ``w_max`` and inflate the bound past what any plan can reach.  Reading
+    curvature at pad scale can only widen ``w_max`` at sharp features, so the result stays a
+    lower bound.
+    """
+    s = samples if samples is not None else pad_scale_samples(surface, tool)
+    patch, inverse = _unique_patches(s.curvature.k1, s.curvature.k2, tool, 180)
+    w = _rows(patch, inverse, lambda p, rows: p.max_width(36))
+    return float(np.sum(s.areas / np.maximum(w, 1e-9)))
+
+
 def _unique_patches(k1, k2, tool, n_rays):
     """Solve the local model once per distinct rounded curvature pair; returns the patch of the
     distinct pairs and the row of each input point."""

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..contact import Tool, local_patch, mesh_contact
+from ..contact import Tool, mesh_contact
+from ..plan.widths import coverage_lower_bound
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
@@ -89,7 +90,8 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     if not (np.isfinite(spacing) and spacing > 0):
         raise InputError(f"sample spacing must be positive, got {sample_spacing!r} m")
     samples = surface.subdivided(spacing)
-    pts, nrm, area = samples.vertices, samples.normals, samples.vertex_areas
+    # float32 copies for the pad queries (see mesh_contact); areas and depths stay float64.
+    pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
     tree = samples.kdtree
     idx, dwell = _integration_poses(trajectory, 0.5 * spacing)
     axes = trajectory.tool_z()
@@ -132,15 +134,6 @@ def _integration_poses(trajectory, max_travel: float) -> tuple[np.ndarray, np.nd
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     rep = idx[starts + counts // 2]
     return rep, sums
-
-
-def coverage_lower_bound(surface, tool: Tool) -> float:
-    """``L* = ∫ dA / w_max`` (m): the shortest contact path that could cover ``surface``, with
-    ``w_max`` the widest contact chord at each point (local quadric contact model)."""
-    c = surface.curvature
-    w = local_patch(c.k1, c.k2, tool, n_rays=90).max_width(n_directions=18)
-    w = np.maximum(w, 1e-6)
-    return float(np.sum(surface.vertex_areas / w))
 
 
 def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
