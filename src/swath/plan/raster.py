@@ -53,7 +53,7 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float | None =
         about its third axis (the normal of the best-fit plane), rad.  Default (None): chosen
         among :data:`AUTO_ANGLES` by :func:`choose_angle` — the direction whose planes cross the
         part's curvature, so the equal spacing wastes least (the shortest predicted path whose
-        predicted gap stays within 0.5 %; near-ties go to the principal axis).
+        predicted gap stays within 0.1 %; near-ties go to the principal axis).
     direction : (3,) float, optional
         Feed direction in the part frame; overrides ``angle``.  Only its component in the
         best-fit plane matters.
@@ -181,7 +181,7 @@ def feed_and_cross(surface, *, angle: float = 0.0, direction=None) -> tuple[np.n
 
 
 def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANGLES,
-                 max_gap: float = 5e-3):
+                 max_gap: float = 1e-3):
     """Pick the raster feed angle (rad from the first principal axis) for ``surface``.
 
     For each candidate angle the cutting planes' spacing is the default full-coverage spacing
