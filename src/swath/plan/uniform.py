@@ -1,0 +1,480 @@
+"""Contact-aware uniform-coverage planner (Jaeger, ch. 4), on meshes.
+
+Each pass is laid along the previous pass's ribbon boundary, so that neighbouring swaths meet
+with a set overlap wherever the pad's real contact width changes with curvature:
+
+1. A seed curve is chosen: part of the boundary on one side of the region (default), a slice
+   through the middle, or a polyline the user gives.
+2. From the latest passes a geodesic distance field ``d`` is computed over the surface (heat
+   method, :mod:`potpourri3d`).  At every surface point the pad's swath width ``w_here`` across the
+   would-be pass (whose feed runs along the level sets of ``d``) comes from the local contact model
+   (principal curvatures and the solved sink at the set force), and ``w_prev`` is the width of the
+   previous pass at its nearest point.
+3. The next pass is the zero level set of
+   ``g = d − (1 − overlap) · (w_prev + w_here) / 2``:
+   its near ribbon edge meets the previous ribbon edge with ``overlap`` of the local width.  Jaeger
+   finds this point by bisection along a cross curve from each base point of the previous pass;
+   here the same condition is solved on every mesh edge (the zero crossing of ``g``), which gives
+   the passes everywhere at once and breaks them cleanly at holes and ragged boundaries.
+4. Passes are smoothed, projected back on the surface, and repeated until no uncovered area
+   remains; the last pass is pulled in so its ribbon reaches the far boundary.  Passes are
+   finally ordered zig-zag (each starts at the end nearest the previous one's end); the trajectory
+   stage adds the short cross-over links.
+
+The pass direction is free: :func:`uniform` tries several seed directions and keeps the one with
+the shortest predicted cycle time (see ``direction``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import InfeasibleError, InputError
+from ..surface.curvature import PrincipalCurvature
+from ..surface.geometry import normalize
+from .raster import feed_and_cross
+from .slicing import level_sets, resample, slice_mesh
+from .toolpath import Pass, ToolPath
+from .widths import _rows, _unique_patches
+
+log = logging.getLogger("swath.plan")
+
+#: Candidate seed directions (rad from the first principal axis) for ``direction="auto"``.
+AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
+
+
+class WidthModel:
+    """Swath widths from the local contact model at the vertices of a working mesh.
+
+    The contact patch is solved once per distinct (rounded) curvature pair; widths across any
+    feed direction are then read from it.
+    """
+
+    def __init__(self, curvature: PrincipalCurvature, normals: np.ndarray, tool):
+        self.curvature = curvature
+        self.normals = normals
+        self.patch, self.inverse = _unique_patches(curvature.k1, curvature.k2, tool, 180)
+
+    def across(self, idx: np.ndarray, feed: np.ndarray) -> np.ndarray:
+        """Width (m) of the swath at vertices ``idx`` ``(k,)`` for feed directions ``feed`` ``(k, 3)``."""
+        n = self.normals[idx]
+        t = feed - np.einsum("ij,ij->i", feed, n)[:, None] * n
+        cross = np.cross(n, normalize(t))
+        psi = np.arctan2(np.einsum("ij,ij->i", cross, self.curvature.d2[idx]),
+                         np.einsum("ij,ij->i", cross, self.curvature.d1[idx]))
+        return _rows(self.patch, self.inverse[idx], lambda p, rows: p.width_across(psi[rows]))
+
+
+def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boundary",
+            point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
+            feed: float = 0.05, max_angular: float = 1.0, max_centripetal: float = 2.0,
+            work_spacing: float | None = None) -> ToolPath:
+    """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
+
+    Parameters
+    ----------
+    surface : Surface
+        The part surface (normals toward the tool).
+    tool : Tool
+        The pad; its contact model sets the swath widths.
+    overlap : float
+        Overlap of neighbouring swaths as a fraction of the local width (default 0.1 = 10 %).
+    direction : "auto", float or (3,) array
+        Seed direction: the passes run along the feed direction at this angle (rad) from the
+        surface's first principal axis (or along this vector, projected into the best-fit plane); ``"auto"`` (default) plans with each of
+        :data:`AUTO_DIRECTIONS` and keeps the one with the shortest predicted cycle time, counting
+        the slow-downs the tool's angular-speed and centripetal limits force (``feed``,
+        ``max_angular``, ``max_centripetal``).  The candidates are recorded in the metadata.
+    seed : "boundary", "middle" or (k, 3) array
+        The seed curve: the boundary on the low side across the feed direction, a slice through the
+        middle (passes grow to both sides), or a polyline on the surface (m).
+    point_spacing : float
+        Arc-length step between pass points, m (default 1 mm).
+    min_pass_length : float, optional
+        Pieces shorter than this are dropped, m (default R/4).
+    max_passes : int
+        Safety limit on the number of pass generations.
+    feed, max_angular, max_centripetal : float
+        Feed (m/s) and limits (rad/s, m/s²) used to predict cycle times for ``direction="auto"``.
+    work_spacing : float, optional
+        Edge length (m) the surface is subdivided to for the distance fields (default from the part
+        size, between R/12 and R/4).
+
+    Returns
+    -------
+    ToolPath
+        ``metadata``: overlap_fraction, direction_rad, direction_rule, seed, n_passes, work_spacing_m,
+        candidates (per direction: length_m, cycle_time_s) for ``"auto"``.
+    """
+    if not (isinstance(overlap, (int, float)) and 0.0 <= overlap < 0.9):
+        raise InputError(f"overlap must be a fraction in [0, 0.9), e.g. 0.1 for 10 %, got {overlap!r}")
+    if not (np.isfinite(point_spacing) and point_spacing > 0):
+        raise InputError(f"point_spacing must be a positive length in metres, got {point_spacing!r}")
+    R = tool.pad_radius
+    min_pass_length = 0.25 * R if min_pass_length is None else float(min_pass_length)
+    ctx = _Context(surface, tool, work_spacing)
+
+    if isinstance(direction, str):
+        if direction != "auto":
+            raise InputError(f"direction must be 'auto' or an angle in radians, got {direction!r}")
+        return _auto(ctx, overlap=overlap, seed=seed, point_spacing=point_spacing,
+                     min_pass_length=min_pass_length, max_passes=max_passes, feed=feed,
+                     max_angular=max_angular, max_centripetal=max_centripetal)
+    if isinstance(direction, (int, float)) and math.isfinite(direction):
+        return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
+                     min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
+    vec = np.asarray(direction, float).reshape(-1) if not isinstance(direction, (int, float)) else None
+    if vec is None or vec.shape != (3,) or not np.isfinite(vec).all():
+        raise InputError(f"direction must be 'auto', a finite angle in radians or a 3-vector, got {direction!r}")
+    return _plan(ctx, vec, overlap=overlap, seed=seed, point_spacing=point_spacing,
+                 min_pass_length=min_pass_length, max_passes=max_passes, rule="given vector")
+
+
+class _Context:
+    """The working mesh, its distance solver and width model, shared by all candidate directions."""
+
+    def __init__(self, surface, tool, work_spacing):
+        import potpourri3d as pp3d
+
+        t0 = time.perf_counter()
+        R = tool.pad_radius
+        if work_spacing is None:
+            work_spacing = float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
+        self.surface = surface
+        self.tool = tool
+        self.work_spacing = float(work_spacing)
+        self.work = surface.subdivided(self.work_spacing)
+        W = self.work
+        self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
+        # Curvature from the part's own vertices (nearest one to each working vertex): vertices added
+        # on flat facets by the subdivision would read the faceting, not the surface.
+        nearest = surface.kdtree.query(W.vertices)[1]
+        c = surface.curvature
+        self.widths = WidthModel(PrincipalCurvature(c.k1[nearest], c.k2[nearest], c.d1[nearest], c.d2[nearest]),
+                                 W.normals, tool)
+        self.tree = W.kdtree
+        self._pts32 = W.vertices.astype(np.float32)
+        self._nrm32 = W.normals.astype(np.float32)
+        # Per-face gradient operator pieces (for the direction of the distance field).
+        tri = W.vertices[W.faces]
+        self.face_n = W.face_normals
+        self.face_a = W.face_areas
+        e = [tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2], tri[:, 1] - tri[:, 0]]
+        self.grad_basis = [np.cross(self.face_n, ei) / (2.0 * np.maximum(self.face_a, 1e-300))[:, None] for ei in e]
+        log.info("uniform: working mesh %d vertices (edges <= %.1f mm), set up in %.2f s", len(W.vertices),
+                 1e3 * self.work_spacing, time.perf_counter() - t0)
+
+    def distance(self, sources: np.ndarray) -> np.ndarray:
+        """Geodesic distance (m) from the vertex set ``sources`` to every working vertex.
+
+        The heat method recovers distance up to a constant; it is fixed so the sources sit at 0
+        (their median), and the field is clipped at 0.
+        """
+        src = np.unique(sources)
+        d = np.asarray(self.solver.compute_distance_multisource(src.tolist()), float)
+        return np.maximum(d - np.median(d[src]), 0.0)
+
+    def frontier(self, covered: np.ndarray) -> np.ndarray:
+        """Covered vertices with an uncovered neighbour: the edge of the covered region."""
+        F = self.work.faces
+        c = covered[F]
+        mixed = c.any(axis=1) & ~c.all(axis=1)
+        v = F[mixed][c[mixed]]
+        return np.unique(v)
+
+    def gradient_directions(self, d: np.ndarray) -> np.ndarray:
+        """Unit tangent direction of increasing ``d`` at each vertex ``(n, 3)``."""
+        W = self.work
+        F = W.faces
+        g = sum(d[F[:, i]][:, None] * self.grad_basis[i] for i in range(3))
+        acc = np.zeros((len(W.vertices), 3))
+        for i in range(3):
+            acc += np.stack([np.bincount(F[:, i], weights=g[:, j] * self.face_a, minlength=len(acc))
+                             for j in range(3)], axis=1)
+        n = W.normals
+        acc -= np.einsum("ij,ij->i", acc, n)[:, None] * n
+        return normalize(acc)
+
+    def nearest_vertices(self, points: np.ndarray) -> np.ndarray:
+        return self.tree.query(points)[1]
+
+    def touched(self, pts: np.ndarray) -> np.ndarray:
+        """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``.
+
+        The mesh contact model (:func:`swath.contact.mesh_contact`) at poses at most R/8 apart, with
+        the pad-face depth capped at that of the local contact model (principal curvatures at the
+        pose): where the pad overhangs the part's edge the real pad sinks deeper and reaches farther,
+        and passes laid along that wider edge would bow outward more with every generation.  The cap
+        only ever shrinks the region counted as covered, so the simulator agrees with it.
+        """
+        from ..contact import mesh_contact
+
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        n = max(int(np.ceil(cum[-1] / (self.tool.pad_radius / 8))), 1) + 1
+        idx = np.unique(np.searchsorted(cum, np.linspace(0, cum[-1], n)).clip(0, len(pts) - 1))
+        closest, _, face = self.work.closest_points(pts[idx])
+        axes = -self.work.interpolate_normals(closest, face)
+        W = self.work
+        mc = mesh_contact(self._pts32, self._nrm32, W.vertex_areas, self.tree, closest, axes, self.tool)
+        cap = np.minimum(mc.sink, self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]])
+        height = mc.sink[mc.pose] - mc.pressure / self.tool.k        # sample height along tool z
+        sample = mc.sample[height < cap[mc.pose]]
+        out = np.zeros(len(W.vertices), bool)
+        out[sample] = True
+        return out
+
+
+def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length, max_passes, rule,
+          extra_meta=None) -> ToolPath:
+    """One uniform plan with the feed at ``angle`` (rad from the first principal axis, or a 3-vector)."""
+    t0 = time.perf_counter()
+    W, tool = ctx.work, ctx.tool
+    R = tool.pad_radius
+    if isinstance(angle, np.ndarray):
+        feed_dir, cross = feed_and_cross(ctx.surface, direction=angle)
+        a0 = ctx.surface.principal_axes[1][0]
+        angle = math.atan2(float(np.cross(a0, feed_dir) @ np.cross(feed_dir, cross)), float(a0 @ feed_dir))
+    else:
+        feed_dir, cross = feed_and_cross(ctx.surface, angle=angle)
+    step = min(2e-3, 0.5 * ctx.work_spacing)
+
+    generations = []          # each: list of (points (k,3), widths (k,))
+    covered = np.zeros(len(W.vertices), bool)
+    current = _seed_curves(ctx, seed, cross, step)
+    reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
+    if isinstance(seed, str) and seed == "middle":
+        first = [_finish_piece(ctx, p, step) for p in current]
+        first = [c for c in first if c is not None and _length(c[0]) >= min_pass_length]
+        if not first:
+            raise InfeasibleError("the middle slice of the surface is shorter than min_pass_length")
+        generations.append(first)
+        for pts, _ in first:
+            covered |= ctx.touched(pts)
+        sources = None
+    else:
+        sources = np.vstack(current)
+
+    for _ in range(max_passes):
+        # Distance from what is covered so far (or from the seed before the first pass).
+        src = ctx.nearest_vertices(sources) if sources is not None else ctx.frontier(covered)
+        if len(src) == 0:
+            break
+        d = ctx.distance(src)
+        if sources is None:
+            d[covered] = 0.0
+        left = (d > 0) & ~covered
+        if _area(W, left) <= 1e-4 * W.area:
+            break
+        band = np.flatnonzero((d <= 2.5 * R) & left)
+        w_here = np.full(len(W.vertices), 2 * R)
+        if len(band):
+            gdir = ctx.gradient_directions(d)
+            w_here[band] = ctx.widths.across(band, np.cross(W.normals[band], gdir[band]))
+        g = d - reach * w_here
+        pieces = level_sets(W.vertices, W.faces, g, [0.0])
+        if not pieces:
+            # The far boundary is nearer than a full step: pull the last pass in so its ribbon
+            # reaches the boundary.
+            d_far = float(np.max(d[left]))
+            w_left = float(np.median(w_here[left]))
+            level = max(d_far - reach * w_left, 0.5 * d_far)
+            pieces = level_sets(W.vertices, W.faces, d - level, [0.0])
+        new = [_finish_piece(ctx, p, step) for p in pieces]
+        new = [c for c in new if c is not None and _length(c[0]) >= min_pass_length]
+        log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
+                  len(pieces), len(new), _area(W, left))
+        if not new:
+            break
+        generations.append(new)
+        gained = np.zeros(len(W.vertices), bool)
+        for pts, _ in new:
+            gained |= ctx.touched(pts)
+        if not (gained & ~covered).any():
+            log.warning("uniform: a pass generation covered nothing new; stopping")
+            break
+        covered |= gained
+        sources = None
+    else:
+        log.warning("uniform: stopped after max_passes=%d generations", max_passes)
+
+    passes_pts = [p for gen in generations for p, _ in gen]
+    if not passes_pts:
+        raise InfeasibleError("uniform found no pass: the surface is narrower than the shortest allowed pass "
+                              f"({min_pass_length * 1e3:.1f} mm) in every direction tried")
+    ordered = _zigzag(passes_pts)
+    passes = [_on_surface_pass(ctx.surface, p, point_spacing) for p in ordered]
+    # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
+    # capped as in _Context.touched); the simulator's figure is the one to trust.
+    covered_pred = float(W.vertex_areas[covered].sum() / W.area)
+    meta = dict(overlap_fraction=float(overlap), direction_rad=float(angle), direction_rule=rule,
+                predicted_coverage_fraction=covered_pred,
+                feed_direction=feed_dir.tolist(), seed=seed if isinstance(seed, str) else "polyline",
+                n_passes=len(passes), n_generations=len(generations), work_spacing_m=ctx.work_spacing,
+                point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
+                plan_time_s=time.perf_counter() - t0)
+    if extra_meta:
+        meta.update(extra_meta)
+    log.info("uniform %s: direction %.0f deg, %d passes in %d generations, %.2f m, %.1f s", ctx.surface.name,
+             math.degrees(angle), len(passes), len(generations), sum(p.length for p in passes), meta["plan_time_s"])
+    return ToolPath(ctx.surface, passes, "uniform", meta)
+
+
+def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, feed, max_angular, max_centripetal):
+    from ..trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, time_path
+
+    limits = [FeedLimit(feed), AngularSpeedLimit(max_angular), CentripetalLimit(max_centripetal)]
+    results = []
+    for a in AUTO_DIRECTIONS:
+        try:
+            tp = _plan(ctx, float(a), overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
+                       min_pass_length=min_pass_length, max_passes=max_passes, rule="candidate")
+        except InfeasibleError as exc:
+            log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), exc)
+            continue
+        cycle = time_path(tp, limits).duration
+        results.append((float(a), tp.contact_length, cycle, tp.metadata["predicted_coverage_fraction"]))
+        log.info("uniform candidate %.0f deg: %.2f m in contact, predicted cycle %.1f s", math.degrees(a),
+                 tp.contact_length, cycle)
+    if not results:
+        raise InfeasibleError("uniform found no feasible direction; check min_pass_length and the part size")
+    # A direction must cover (a pad riding on the crests of waves narrower than itself leaves the
+    # troughs untouched, so passes along the waves can miss area); among those that cover, the
+    # shortest cycle wins.
+    top = max(r[3] for r in results)
+    good = [r for r in results if r[3] >= min(0.995, top - 0.002)]
+    best = min(good, key=lambda r: r[2])
+    candidates = [dict(direction_deg=math.degrees(a), length_m=L, cycle_time_s=c, predicted_coverage_fraction=cv)
+                  for a, L, c, cv in results]
+    rule = (f"auto: shortest predicted cycle time at feed {feed * 1e3:.0f} mm/s with angular speed <= "
+            f"{max_angular:g} rad/s and centripetal acceleration <= {max_centripetal:g} m/s2, among the "
+            f"directions whose predicted coverage is at least {100 * min(0.995, top - 0.002):.1f} %")
+    return _plan(ctx, best[0], overlap=overlap, seed=seed, point_spacing=point_spacing,
+                 min_pass_length=min_pass_length, max_passes=max_passes, rule=rule,
+                 extra_meta={"candidates": candidates})
+
+
+# ----------------------------------------------------------------------------------------------
+# pieces
+# ----------------------------------------------------------------------------------------------
+def _seed_curves(ctx, seed, cross, step) -> list[np.ndarray]:
+    """Seed polylines (each (k, 3), on the working mesh)."""
+    W = ctx.work
+    if isinstance(seed, str):
+        h = W.vertices @ cross
+        if seed == "boundary":
+            if not W.boundary_loops:
+                raise InfeasibleError("the surface has no boundary to seed from; use seed='middle'")
+            return [_boundary_seed(W, np.cross(cross, _mean_normal(W)), h, ctx.tool.pad_radius)]
+        if seed == "middle":
+            mid = 0.5 * (h.min() + h.max())
+            lines = slice_mesh(W.vertices, W.faces, cross, [mid])
+            return [resample(pl, step).points for pl in lines]
+        raise InputError(f"seed must be 'boundary', 'middle' or a (k, 3) polyline, got {seed!r}")
+    pts = np.asarray(seed, float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2 or not np.isfinite(pts).all():
+        raise InputError(f"a seed polyline must be a finite (k>=2, 3) array of points in metres, got {pts.shape}")
+    closest, dist, _ = W.closest_points(pts)
+    if dist.max() > ctx.tool.pad_radius:
+        raise InputError(f"the seed polyline lies up to {dist.max() * 1e3:.1f} mm off the surface; "
+                         "give points on the surface")
+    return [closest]
+
+
+def _mean_normal(W) -> np.ndarray:
+    return normalize((W.face_normals * W.face_areas[:, None]).sum(axis=0)[None])[0]
+
+
+def _boundary_seed(W, feed, h, R) -> np.ndarray:
+    """The stretch of boundary on the low side across the feed that runs along the feed.
+
+    Starting from the boundary vertex lowest in ``h`` (the coordinate across the feed), the loop is
+    followed both ways while its tangent (smoothed over about R/2) stays within 50 degrees of the
+    feed direction: the whole straight edge of a panel, the trailing edge of a blade, and only the
+    near-parallel part of a ragged scan edge.
+    """
+    loops = W.boundary_loops
+    k = int(np.argmin([h[l].min() for l in loops]))
+    loop = loops[k]
+    pts = W.vertices[loop]
+    seg = np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=1)
+    span = max(3, int(np.ceil(0.5 * R / max(np.median(seg), 1e-9))))
+    tangent = normalize(np.roll(pts, -span, axis=0) - np.roll(pts, span, axis=0))
+    local = normalize(np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0))
+    # Both the smoothed and the local tangent must run along the feed: smoothing alone would
+    # carry the run a little way round a corner.
+    cos50 = np.cos(np.radians(50.0))
+    along = (np.abs(tangent @ feed) >= cos50) & (np.abs(local @ feed) >= cos50)
+    n = len(loop)
+    start = int(np.argmin(h[loop]))
+    lo = hi = start
+    while along[(lo - 1) % n] and (hi - lo) < n - 1:
+        lo -= 1
+    while along[(hi + 1) % n] and (hi - lo) < n - 1:
+        hi += 1
+    run = [(i % n) for i in range(lo, hi + 1)]
+    return pts[run] if len(run) >= 2 else pts[[start, (start + 1) % n]]
+
+
+def _finish_piece(ctx, pl, step):
+    """Resample, smooth and project a pass piece; return (points, widths) or None."""
+    pts = pl if isinstance(pl, np.ndarray) else resample(pl, step).points
+    if len(pts) < 3:
+        return None
+    pts = _smooth(pts, window=max(3, int(round(0.25 * ctx.tool.pad_radius / step))))
+    pts, _, _ = ctx.work.closest_points(pts)
+    tangents = normalize(np.gradient(pts, axis=0))
+    idx = ctx.nearest_vertices(pts)
+    w = ctx.widths.across(idx, tangents)
+    return pts, w
+
+
+def _smooth(pts, window):
+    """Moving-average smoothing of a polyline ``(k, 3)`` with its ends held."""
+    k = len(pts)
+    if k < 5 or window < 3:
+        return pts
+    window = min(window | 1, k - (1 - k % 2))
+    if window < 3:
+        return pts
+    kernel = np.ones(window) / window
+    half = window // 2
+    padded = np.vstack([np.repeat(pts[:1], half, 0), pts, np.repeat(pts[-1:], half, 0)])
+    out = np.stack([np.convolve(padded[:, j], kernel, mode="valid") for j in range(3)], axis=1)
+    out[0], out[-1] = pts[0], pts[-1]
+    return out
+
+
+def _length(pts) -> float:
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
+
+
+def _area(W, mask) -> float:
+    return float(W.vertex_areas[mask].sum())
+
+
+def _zigzag(polylines: list[np.ndarray]) -> list[np.ndarray]:
+    """Order passes greedily: keep generation order, start each at the end nearest the last end."""
+    out = [polylines[0]]
+    for p in polylines[1:]:
+        end = out[-1][-1]
+        if np.linalg.norm(p[-1] - end) < np.linalg.norm(p[0] - end):
+            p = p[::-1]
+        out.append(p)
+    return out
+
+
+def _on_surface_pass(surface, pts, point_spacing) -> Pass:
+    """Resample a pass at ``point_spacing`` and put every point on ``surface`` with its smooth normal."""
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    n = max(int(np.ceil(cum[-1] / point_spacing)), 1) + 1
+    s = np.linspace(0.0, cum[-1], n)
+    res = np.stack([np.interp(s, cum, pts[:, j]) for j in range(3)], axis=1)
+    closest, _, face = surface.closest_points(res)
+    return Pass(closest, surface.interpolate_normals(closest, face))

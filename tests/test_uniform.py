@@ -1,0 +1,112 @@
+"""The contact-aware uniform-coverage planner (Jaeger ch. 4)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from swath.contact import Tool, local_patch
+from swath.errors import InputError
+from swath.examples import blade, doubly_curved_panel, flat_plate
+from swath.plan.raster import raster
+from swath.plan.uniform import uniform
+from swath.simulate import simulate_removal
+from swath.trajectory import FeedLimit, time_path
+
+from shapes import cylinder_patch
+
+TOOL = Tool()
+R = TOOL.pad_radius
+
+
+def coverage(tp, surface):
+    tr = time_path(tp, [FeedLimit(0.05)])
+    return simulate_removal(tr, surface, TOOL).metrics
+
+
+def test_flat_plate_passes_are_straight_and_090_pad_widths_apart():
+    s = flat_plate()
+    tp = uniform(s, TOOL, direction=0.0)
+    # positions at mid-length (the swath widens where the pad overhangs the plate's ends)
+    ys = sorted(float(np.mean(p.points[np.abs(p.points[:, 0] - 0.2) < 0.05, 1])) for p in tp.passes)
+    for p in tp.passes:                                   # straight, along x
+        assert np.ptp(p.points[:, 1]) < 2e-3
+    gaps = np.diff(ys)
+    # 10 % overlap: the next centre lies 0.4 w beyond the covered edge w/2 away -> 0.9 w apart
+    assert np.allclose(gaps[:-1], 0.9 * 2 * R, atol=3.5e-3)
+    assert ys[0] == pytest.approx(0.4 * 2 * R, abs=3.5e-3)   # first pass reaches over the seed edge
+    m = coverage(tp, s)
+    assert m["coverage_fraction"] > 0.995
+
+
+def test_convex_cylinder_spacing_follows_the_contact_chord():
+    r = 0.08
+    s = cylinder_patch(r, 1.3, 0.3, n_theta=260, n_len=80)
+    tp = uniform(s, TOOL, direction=0.0)                  # passes along the axis (y)
+    # pass positions at mid-length (near the patch ends the overhanging pad sinks deeper, its
+    # swath widens and the passes bow outward)
+    mids = [p.points[np.abs(p.points[:, 1]) < 0.02] for p in tp.passes]
+    angles = sorted(float(np.mean(np.arctan2(m[:, 0], m[:, 2]))) for m in mids if len(m))
+    gaps = r * np.diff(angles)
+    w = local_patch(1 / r, 0.0, TOOL).width_across(0.0)[0]      # chord across the axis
+    inner = gaps[1:-1]
+    assert len(inner) >= 2
+    assert np.allclose(inner, 0.9 * w, rtol=0.15)
+    assert w < 0.75 * 2 * R                              # the curvature really narrows the swath
+    assert coverage(tp, s)["coverage_fraction"] > 0.995
+
+
+def test_blade_along_the_span_is_3x_shorter_than_full_coverage_raster():
+    b = blade(span=0.2)
+    span = np.array([0.0, 1.0, 0.0])                    # passes along the span, the thesis's setting
+    uni = uniform(b, TOOL, direction=span)
+    ras = raster(b, TOOL, direction=span)                # same direction, full-coverage spacing
+    assert ras.contact_length / uni.contact_length >= 3.0
+    m = coverage(uni, b)
+    assert m["coverage_fraction"] >= 0.995
+
+
+def test_auto_direction_picks_the_shortest_cycle_and_is_efficient():
+    s = doubly_curved_panel(size_x=0.3, size_y=0.25)
+    tp = uniform(s, TOOL)
+    cands = tp.metadata["candidates"]
+    assert len(cands) >= 4
+    top = max(c["predicted_coverage_fraction"] for c in cands)
+    best = min(c["cycle_time_s"] for c in cands if c["predicted_coverage_fraction"] >= min(0.995, top - 0.002))
+    chosen = [c for c in cands if math.isclose(math.radians(c["direction_deg"]), tp.metadata["direction_rad"])]
+    assert chosen and chosen[0]["cycle_time_s"] == pytest.approx(best)
+    m = coverage(tp, s)
+    assert m["coverage_fraction"] >= 0.995
+    assert m["efficiency"] >= 0.8
+
+
+def test_middle_seed_grows_both_ways():
+    s = flat_plate()
+    tp = uniform(s, TOOL, direction=0.0, seed="middle")
+    ys = sorted(float(np.mean(p.points[:, 1])) for p in tp.passes)
+    assert min(abs(y - 0.15) for y in ys) < 2e-3             # the middle slice is a pass
+    assert ys[0] < 0.1 and ys[-1] > 0.2
+    assert coverage(tp, s)["coverage_fraction"] > 0.995
+
+
+def test_points_on_surface_with_tool_normals():
+    s = doubly_curved_panel(size_x=0.3, size_y=0.25)
+    tp = uniform(s, TOOL, direction=0.0)
+    for p in tp.passes:
+        c, d, f = s.closest_points(p.points)
+        assert d.max() < 1e-4
+        n = s.interpolate_normals(c, f)
+        assert np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", n, p.normals), -1, 1))).max() < 1.0
+        assert np.linalg.norm(np.diff(p.points, axis=0), axis=1).max() <= 1e-3 * 1.01
+
+
+@pytest.mark.parametrize("kwargs,fragment", [
+    (dict(overlap=0.95), "overlap must be a fraction"),
+    (dict(direction="sideways"), "direction must be 'auto'"),
+    (dict(direction=[1.0, 0.0]), "direction must be 'auto'"),
+    (dict(seed="corner"), "seed must be"),
+    (dict(seed=np.array([[0.0, 0.0, 1.0], [0.1, 0.0, 1.0]])), "off the surface"),
+])
+def test_bad_settings_are_refused(kwargs, fragment):
+    with pytest.raises(InputError, match=fragment):
+        uniform(flat_plate(), TOOL, **kwargs)
