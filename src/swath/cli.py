@@ -2,8 +2,12 @@
 
     swath plan PART [--units mm] [--planner raster] [--pad-radius 38.1mm] [--force 20N]
                [--depression 1mm] [--feed 50mm/s] [--spacing 60mm] [--angle 0deg] --out DIR
+    swath plan SCAN --fit [--parameterization auto] [--surface-spacing 3mm] ... --out DIR
+    swath plan patch.json ... --out DIR   # a patch written by swath fit
     swath demo --out DIR              # the same on the built-in helicopter-blade section
     swath run job.toml                # settings from a TOML file
+    swath fit SCAN [--units mm] [--parameterization auto|projection|lscm|rows] [--spacing 2mm] --out DIR
+    swath register CAD SCAN [--units mm] [--scan-units mm] [--table] --out DIR
 
 Errors caused by the input exit with status 2 and one line on stderr; no half-written output is
 left behind.
@@ -16,9 +20,12 @@ import logging
 import sys
 import time
 
-from .errors import SwathError
+from .errors import InputError, SwathError
 
 log = logging.getLogger("swath")
+
+#: Scan parameterisations of ``--parameterization`` (as :data:`swath.surface.fit.PARAMETERIZATIONS`).
+PARAMETERIZATIONS = ("auto", "projection", "lscm", "rows")
 
 
 def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = True) -> None:
@@ -27,7 +34,16 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
         p.add_argument("--side", help="for a closed solid: the direction the tool comes from, e.g. +z")
         p.add_argument("--all-pieces", action="store_true", help="keep every piece of a multi-piece mesh")
         p.add_argument("--force-units", action="store_true", help="accept a part size outside 5 mm .. 20 m")
-    p.add_argument("--planner", default="raster", help="path planner (default raster)")
+        p.add_argument("--fit", action="store_true",
+                       help="PART is a scan (point cloud or mesh): fit a B-spline patch and plan on it")
+        p.add_argument("--parameterization", choices=PARAMETERIZATIONS,
+                       help="with --fit: how the scan is parameterised (default auto)")
+        p.add_argument("--surface-spacing",
+                       help="triangle size of a fitted or saved patch to plan on, e.g. 3mm "
+                            "(default: the patch's extent / 150, within 2..5 mm)")
+    p.add_argument("--planner", default="raster",
+                   help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
+                        "or equidistant (geodesic-parallel passes); default raster")
     p.add_argument("--pad-radius", default="38.1mm", help="pad radius, e.g. 38.1mm (default: 3-inch pad)")
     p.add_argument("--force", default="20N", help="normal force, e.g. 20N")
     g = p.add_mutually_exclusive_group()
@@ -41,6 +57,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                         "with the shortest full-coverage path)")
     p.add_argument("--point-spacing", default="1mm", help="spacing of points along passes")
     p.add_argument("--clearance", default="20mm", help="lift off the surface for air moves")
+    p.add_argument("--direction", dest="angle", default=argparse.SUPPRESS,
+                   help="same as --angle (the uniform planner's seed direction): auto or an angle")
+    p.add_argument("--overlap", help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
     p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes, e.g. 2m/s2")
     p.add_argument("--max-angular", help="limit on the tool's angular speed, e.g. 1rad/s")
     p.add_argument("--max-accel", help="limit on tangential acceleration along passes, e.g. 1m/s2")
@@ -54,8 +73,42 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("plan", help="plan a part: trajectory.csv, metrics.json, report.html")
-    p.add_argument("part", help="mesh file (STL, PLY, OBJ) or example:NAME (blade, plate, panel)")
+    p.add_argument("part", help="mesh file (STL, PLY, OBJ), patch.json from swath fit, example:NAME (blade, "
+                                "plate, panel), or with --fit a scan (point cloud PLY/XYZ/PCD or mesh)")
     _add_plan_options(p)
+
+    f = sub.add_parser("fit", help="fit a B-spline patch to a scan: patch.json, surface.ply, fit.json, fit.html")
+    f.add_argument("scan", help="point cloud (XYZ/TXT/CSV/PTS, PCD, PLY without faces) or mesh (STL, OBJ, PLY)")
+    f.add_argument("--units", default="m", help="unit of the scan file: m, mm, cm or in (default m)")
+    f.add_argument("--parameterization", default="auto", choices=PARAMETERIZATIONS,
+                   help="auto (projection if it does not fold, else LSCM on a mesh), projection, lscm (mesh "
+                        "scans; patches that wrap), rows (a cloud in scan order; rows split at jumps and turns)")
+    f.add_argument("--spacing", "--surface-spacing", dest="spacing",
+                   help="triangle size of surface.ply, e.g. 2mm (default: extent / 150, within 2..5 mm)")
+    f.add_argument("--side", help="direction the tool comes from, e.g. +z: the patch normal faces it "
+                                  "(default: the scan's normals or winding, else the convex side)")
+    f.add_argument("--force-units", action="store_true", help="accept a scan size outside 5 mm .. 20 m")
+    f.add_argument("--out", required=True, help="output directory (written atomically)")
+
+    g = sub.add_parser("register", help="register a CAD mesh onto a scan: transform.json (cad2scan), residuals.csv")
+    g.add_argument("cad", help="nominal CAD surface: mesh (STL, PLY, OBJ) or patch.json")
+    g.add_argument("scan", help="the measured scan: mesh (all its pieces are used) or point cloud")
+    g.add_argument("--units", default="m", help="unit of the CAD file (default m)")
+    g.add_argument("--scan-units", help="unit of the scan file (default: --units)")
+    g.add_argument("--table", action="store_true",
+                   help="the part rests on a table in both frames: solve the turn about the table normal and "
+                        "the shift along the table and in height, perimeter weighted")
+    g.add_argument("--keep-height", action="store_true",
+                   help="with --table: the table is at the same height in both frames (3 DOF)")
+    g.add_argument("--table-normal", default="+z", help="with --table: the table normal, e.g. +z or 0,0,1")
+    g.add_argument("--all-pieces", action="store_true",
+                   help="keep every piece of a multi-piece CAD mesh (default the largest)")
+    g.add_argument("--side", help="for a closed CAD solid: the direction the tool comes from, e.g. +z")
+    g.add_argument("--trim", default="0.9",
+                   help="fraction of correspondences kept each ICP step, 0.2..1 (lower for partial overlap)")
+    g.add_argument("--max-iterations", default="100", help="ICP steps per stage (default 100)")
+    g.add_argument("--force-units", action="store_true", help="accept sizes outside 5 mm .. 20 m")
+    g.add_argument("--out", required=True, help="output directory (written atomically)")
 
     d = sub.add_parser("demo", help="plan the built-in helicopter-blade section")
     d.add_argument("--part", default="example:blade", help="built-in part (example:blade, example:plate, example:panel)")
@@ -93,7 +146,7 @@ def _settings_from_args(args) -> "JobSettings":
 
     keys = ["part", "out", "units", "side", "all_pieces", "force_units", "planner", "pad_radius", "force",
             "depression", "stiffness", "motion", "feed", "spacing", "angle", "point_spacing", "clearance",
-            "max_centripetal", "max_angular", "max_accel"]
+            "max_centripetal", "max_angular", "max_accel", "overlap", "fit", "parameterization", "surface_spacing"]
     values = {k: getattr(args, k) for k in keys if hasattr(args, k)}
     return settings_from_mapping(values)
 
@@ -104,10 +157,26 @@ def main(argv=None) -> int:
     level = logging.ERROR if args.quiet else (logging.DEBUG if args.verbose else logging.WARNING)
     logging.basicConfig(level=level, format="swath: %(levelname)s: %(message)s")
     try:
+        progress = _Progress(args.quiet)
+        if args.command == "fit":
+            from .fitjob import run_fit
+
+            settings = _fit_settings_from_args(args)
+            doc = run_fit(settings, progress=progress)
+            if not args.quiet:
+                print(_fit_summary(settings, doc))
+            return 0
+        if args.command == "register":
+            from .fitjob import run_register
+
+            settings = _register_settings_from_args(args)
+            doc = run_register(settings, progress=progress)
+            if not args.quiet:
+                print(_register_summary(settings, doc))
+            return 0
         from .job import load_job_toml, run_job
 
         settings = load_job_toml(args.job) if args.command == "run" else _settings_from_args(args)
-        progress = _Progress(args.quiet)
         metrics = run_job(settings, progress=progress)
         if not args.quiet:
             print(_summary(settings, metrics))
@@ -118,6 +187,63 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("swath: interrupted; no output was written", file=sys.stderr)
         return 130
+
+
+def _fit_settings_from_args(args):
+    from .fitjob import FitSettings
+    from .units import length_unit_factor, parse_quantity
+
+    length_unit_factor(args.units)                 # refuses an unknown unit by name
+    spacing = None
+    if args.spacing is not None:
+        spacing = parse_quantity(args.spacing, "length")
+        if not spacing > 0:
+            raise InputError(f"--spacing must be a positive length, got {args.spacing!r}")
+    return FitSettings(scan=args.scan, out=args.out, units=args.units, parameterization=args.parameterization,
+                       spacing=spacing, side=args.side, force_units=args.force_units)
+
+
+def _register_settings_from_args(args):
+    from .fitjob import RegisterSettings
+    from .units import length_unit_factor
+
+    for unit in (args.units, args.scan_units):
+        if unit is not None:
+            length_unit_factor(unit)
+    try:
+        trim = float(args.trim)
+    except ValueError:
+        raise InputError(f"--trim must be a number in 0.2..1, got {args.trim!r}") from None
+    try:
+        max_iterations = int(args.max_iterations)
+    except ValueError:
+        raise InputError(f"--max-iterations must be a whole number, got {args.max_iterations!r}") from None
+    return RegisterSettings(cad=args.cad, scan=args.scan, out=args.out, units=args.units,
+                            scan_units=args.scan_units, table=args.table, keep_height=args.keep_height,
+                            table_normal=args.table_normal, all_pieces=args.all_pieces, side=args.side,
+                            trim=trim, max_iterations=max_iterations, force_units=args.force_units)
+
+
+def _fit_summary(settings, doc: dict) -> str:
+    f = doc["figures"]
+    dropped = f" ({f['n_dropped']} stray points dropped)" if f["n_dropped"] else ""
+    return (
+        f"wrote {settings.out}/patch.json, surface.ply, fit.json, fit.html\n"
+        f"  {doc['parameterization']} parameterisation, control net {f['n_ctrl_u']}x{f['n_ctrl_v']}; "
+        f"rms {f['rms_m'] * 1e3:.3g} mm, max {f['max_error_m'] * 1e3:.3g} mm over {f['n_points']} points{dropped}; "
+        f"surface {doc['surface']['n_vertices']} vertices at {doc['surface']['spacing_m'] * 1e3:.3g} mm"
+    )
+
+
+def _register_summary(settings, doc: dict) -> str:
+    import numpy as np
+
+    m = np.asarray(doc["cad2scan"])
+    q = doc["quality"]
+    return (f"cad2scan ({doc['method']}): rotation {q['rotation_deg']:.3f} deg, translation "
+            f"{np.round(m[:3, 3] * 1e3, 2).tolist()} mm; rms {doc['rms_m'] * 1e3:.3g} mm, inliers "
+            f"{100 * doc['inlier_fraction']:.1f} %, {doc['iterations']} iterations, "
+            f"{'converged' if doc['converged'] else 'NOT converged'} -> {settings.out}/transform.json")
 
 
 def _summary(settings, m: dict) -> str:

@@ -22,6 +22,7 @@ log = logging.getLogger(__name__)
 #: Planner name -> "module:function"; every planner has the call shape f(surface, tool, **options).
 PLANNERS = {
     "raster": "swath.plan.raster:raster",
+    "uniform": "swath.plan.uniform:uniform",
 }
 
 
@@ -29,7 +30,10 @@ PLANNERS = {
 class JobSettings:
     """Every setting of a job, SI units.
 
-    ``part`` is a mesh file path or ``example:NAME`` for a built-in part (``example:blade``).
+    ``part`` is a mesh file path, ``example:NAME`` for a built-in part (``example:blade``), a
+    B-spline patch saved by ``swath fit`` (``patch.json``), or, with ``fit``, a scan (point cloud
+    or mesh) to fit a B-spline patch to first.  A patch is planned on its triangulation at
+    ``surface_spacing`` (m; default its longest extent / 150, clipped to 2..5 mm).
     """
 
     part: str
@@ -52,8 +56,12 @@ class JobSettings:
     max_centripetal: float | None = None
     max_angular: float | None = None
     max_accel: float | None = None
+    overlap: float | None = None
     sample_spacing: float | None = None
     planner_options: dict = field(default_factory=dict)
+    fit: bool = False
+    parameterization: str = "auto"
+    surface_spacing: float | None = None
 
     def tool(self):
         from .contact import Tool
@@ -91,6 +99,8 @@ class JobSettings:
             "angle_rad": self.angle, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
             "max_centripetal_m_per_s2": self.max_centripetal, "max_angular_rad_per_s": self.max_angular,
             "max_accel_m_per_s2": self.max_accel,
+            "fit": self.fit, "fit_parameterization": self.parameterization,
+            "surface_spacing_m": self.surface_spacing,
             **{f"planner_{k}": v for k, v in self.planner_options.items()},
         }
 
@@ -107,12 +117,15 @@ _QUANTITY_FIELDS = {
     "point_spacing": "length", "point-spacing": "length",
     "clearance": "length",
     "sample_spacing": "length", "sample-spacing": "length",
+    "surface_spacing": "length", "surface-spacing": "length",
     "max_centripetal": "acceleration", "max-centripetal": "acceleration",
     "max_angular": "angular_speed", "max-angular": "angular_speed",
     "max_accel": "acceleration", "max-accel": "acceleration",
+    "overlap": "fraction",
+    "direction": "angle",
 }
 _PLAIN_FIELDS = {"part", "out", "units", "side", "all_pieces", "all-pieces", "force_units", "force-units",
-                 "planner", "motion"}
+                 "planner", "motion", "fit", "parameterization"}
 
 
 def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobSettings:
@@ -126,6 +139,8 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
         if value is None:
             continue
         name = key.replace("-", "_")
+        if name == "direction":          # the uniform planner's word for the pass angle
+            name = "angle"
         if key in _QUANTITY_FIELDS:
             kind = _QUANTITY_FIELDS[key]
             if kind == "angle" and str(value).strip().lower() == "auto":
@@ -148,6 +163,14 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
                 kwargs[k] = str(base_dir / p)
     if kwargs.get("planner", "raster") not in PLANNERS:
         raise InputError(f"unknown planner {kwargs['planner']!r}; choose one of {', '.join(PLANNERS)}")
+    if "parameterization" in kwargs:
+        from .surface.fit import PARAMETERIZATIONS
+
+        if kwargs["parameterization"] not in PARAMETERIZATIONS:
+            raise InputError(f"unknown parameterization {kwargs['parameterization']!r}; choose one of "
+                             f"{', '.join(PARAMETERIZATIONS)}")
+    if kwargs.get("surface_spacing") is not None and not kwargs["surface_spacing"] > 0:
+        raise InputError(f"surface_spacing must be a positive length, got {kwargs['surface_spacing']!r} m")
     return JobSettings(**kwargs)
 
 
@@ -167,15 +190,61 @@ def load_job_toml(path) -> JobSettings:
 
 
 def load_part(settings: JobSettings):
-    """The job's part as a Surface (built-in example or a mesh file)."""
-    from .examples import example_part
+    """The job's part as a Surface (built-in example, mesh file, saved patch, or fitted scan)."""
+    return load_part_info(settings)[0]
 
-    if settings.part.startswith("example:"):
-        return example_part(settings.part.split(":", 1)[1])
-    from .io.mesh import load_mesh
 
-    return load_mesh(settings.part, units=settings.units, side=settings.side, all_pieces=settings.all_pieces,
-                     force_units=settings.force_units)
+def load_part_info(settings: JobSettings, *, progress=None):
+    """The job's part as ``(Surface, info)``.
+
+    ``info`` is empty for a mesh or an example; for a patch (``patch.json``, or a scan fitted
+    with ``settings.fit``) it holds ``"patch"`` (the BSplinePatch), ``"footprint"`` (the scanned
+    area the surface is trimmed to, or None) and ``"metrics"`` (fit figures and the triangulation
+    spacing, units in the key names).
+    """
+    from pathlib import PurePath
+
+    from . import fitjob
+
+    say = progress or (lambda stage, done, total: None)
+    part = settings.part
+    if part.startswith("example:"):
+        from .examples import example_part
+
+        surface = example_part(part.split(":", 1)[1])
+        if not settings.fit:
+            return surface, {}
+        scan = fitjob.scan_from_surface(surface)
+    elif PurePath(part).suffix.lower() == ".json":
+        if settings.fit:
+            raise InputError(f"{PurePath(part).name} is already a fitted patch; drop --fit to plan on it")
+        patch, footprint = fitjob.load_patch(part)
+        surface, spacing = fitjob.patch_surface(patch, spacing=settings.surface_spacing, name=PurePath(part).stem,
+                                                footprint=footprint)
+        say(f"triangulated the patch at {spacing * 1e3:.3g} mm"
+            + ("" if footprint is None else ", trimmed to the scanned area"), 0, 1)
+        return surface, {"patch": patch, "footprint": footprint, "metrics": {"surface_spacing_m": spacing}}
+    elif settings.fit:
+        scan = fitjob.load_scan(part, units=settings.units, side=settings.side, force_units=settings.force_units)
+    else:
+        if fitjob.is_point_cloud_file(part):
+            raise InputError(f"{PurePath(part).name} is a point cloud, not a mesh; add --fit to plan on a B-spline "
+                             "patch fitted to it (or run `swath fit` and plan its patch.json)")
+        from .io.mesh import load_mesh
+
+        return load_mesh(part, units=settings.units, side=settings.side, all_pieces=settings.all_pieces,
+                         force_units=settings.force_units), {}
+    say(f"fitting a B-spline patch to {len(scan.points)} points ({settings.parameterization} parameterisation)", 0, 1)
+    patch, report = fitjob.fit_scan(scan, parameterization=settings.parameterization, side=settings.side)
+    u, v, _ = patch.project(scan.points)
+    footprint = fitjob.scan_footprint(patch, scan.points, u, v, faces=scan.faces, rms=report.rms)
+    surface, spacing = fitjob.patch_surface(patch, spacing=settings.surface_spacing, name=scan.name,
+                                            footprint=footprint)
+    say(f"fit rms {report.rms * 1e3:.3g} mm; triangulated the patch at {spacing * 1e3:.3g} mm, trimmed to the scan"
+        + ("" if settings.surface_spacing is not None else " (default: extent / 150 in 2..5 mm)"), 0, 1)
+    metrics = {"fit_rms_m": report.rms, "fit_max_error_m": report.max_error, "n_fit_points": report.n_points,
+               "n_fit_dropped": report.n_dropped, "fit_time_s": report.time, "surface_spacing_m": spacing}
+    return surface, {"patch": patch, "footprint": footprint, "metrics": metrics}
 
 
 def make_plan(surface, settings: JobSettings):
@@ -187,6 +256,16 @@ def make_plan(surface, settings: JobSettings):
     options = dict(settings.planner_options)
     if settings.planner == "raster":
         options.update(spacing=settings.spacing, angle=settings.angle, point_spacing=settings.point_spacing)
+    elif settings.planner == "uniform":
+        # The direction search predicts cycle times under the job's own feed and limits.
+        options.update(point_spacing=settings.point_spacing, feed=settings.feed,
+                       direction="auto" if settings.angle is None else settings.angle)
+        if settings.overlap is not None:
+            options["overlap"] = settings.overlap
+        if settings.max_angular is not None:
+            options["max_angular"] = settings.max_angular
+        if settings.max_centripetal is not None:
+            options["max_centripetal"] = settings.max_centripetal
     return planner(surface, settings.tool(), **options)
 
 
@@ -214,7 +293,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     say("loading part", 0, 1)
-    surface = load_part(settings)
+    surface, part_info = load_part_info(settings, progress=say)
     log.info("part %s", surface)
     timings["load_s"] = time.perf_counter() - t0
 
@@ -239,12 +318,17 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
                     and k.endswith(("_m", "_rad", "_s")) and k not in metrics})
     metrics.update(timings)
+    metrics.update(part_info.get("metrics", {}))
     record = settings.as_record()
     record.update({f"plan_{k}": v for k, v in toolpath.metadata.items()})
 
     say("writing report", 0, 1)
     with atomic_directory(settings.out) as tmp:
         trajectory.write_csv(tmp / "trajectory.csv")
+        if part_info.get("patch") is not None:
+            from .fitjob import save_patch
+
+            save_patch(part_info["patch"], tmp / "patch.json", part_info.get("footprint"))
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                      metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}")
     say("done", 1, 1)
