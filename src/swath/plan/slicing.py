@@ -186,7 +186,7 @@ def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, valu
 
 def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, levels, *,
                values: np.ndarray | None = None, face_mask: np.ndarray | None = None,
-               merge_tolerance: float = MERGE_TOLERANCE) -> list[SlicePolyline]:
+               merge_tolerance: float = MERGE_TOLERANCE, edges=None) -> list[SlicePolyline]:
     """Level sets ``field = level`` of a per-vertex scalar field, chained into polylines.
 
     The field is interpolated linearly over each triangle; a plane slice is the level set of
@@ -207,6 +207,9 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
         Only faces where this is true are cut (the level set stops at the mask's border).
     merge_tolerance : float
         Segments this short or shorter (m) are merged away.
+    edges : tuple, optional
+        ``mesh_edges(faces)`` if the caller extracts many level sets of one mesh (not with
+        ``face_mask``).
 
     Returns
     -------
@@ -226,7 +229,7 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
         return []
     plane_order = np.argsort(off, kind="stable")
     d_sorted = off[plane_order]
-    edges, face_edges = mesh_edges(F)
+    edges, face_edges = mesh_edges(F) if (edges is None or face_mask is not None) else edges
     n_edges = len(edges)
 
     # --- (face, plane) pairs: plane d cuts face f iff min h < d <= max h ----------------------------

@@ -38,7 +38,7 @@ from ..errors import InfeasibleError, InputError
 from ..surface.curvature import PrincipalCurvature
 from ..surface.geometry import normalize
 from .raster import feed_and_cross
-from .slicing import level_sets, resample, slice_mesh
+from .slicing import level_sets, mesh_edges, resample, slice_mesh
 from .toolpath import Pass, ToolPath
 from .widths import _rows, _unique_patches
 
@@ -158,6 +158,7 @@ class _Context:
         self.widths = WidthModel(PrincipalCurvature(c.k1[nearest], c.k2[nearest], c.d1[nearest], c.d2[nearest]),
                                  W.normals, tool)
         self.tree = W.kdtree
+        self.edges = mesh_edges(np.asarray(W.faces, np.int64))
         self._pts32 = W.vertices.astype(np.float32)
         self._nrm32 = W.normals.astype(np.float32)
         # Per-face gradient operator pieces (for the direction of the distance field).
@@ -203,6 +204,15 @@ class _Context:
     def nearest_vertices(self, points: np.ndarray) -> np.ndarray:
         return self.tree.query(points)[1]
 
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points ``(k, 3)`` dropped onto the tangent plane of their nearest working vertex, and that
+        vertex's smooth normal: within a micrometre of the surface for points already near it (the
+        working mesh is finer than R/4), and far cheaper than an exact closest-point query."""
+        idx = self.nearest_vertices(points)
+        n = self.work.normals[idx]
+        off = np.einsum("ij,ij->i", points - self.work.vertices[idx], n)
+        return points - off[:, None] * n, n
+
     def touched(self, pts: np.ndarray) -> np.ndarray:
         """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``.
 
@@ -218,8 +228,8 @@ class _Context:
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         n = max(int(np.ceil(cum[-1] / (self.tool.pad_radius / 8))), 1) + 1
         idx = np.unique(np.searchsorted(cum, np.linspace(0, cum[-1], n)).clip(0, len(pts) - 1))
-        closest, _, face = self.work.closest_points(pts[idx])
-        axes = -self.work.interpolate_normals(closest, face)
+        closest, normals = self.project(pts[idx])
+        axes = -normals
         W = self.work
         mc = mesh_contact(self._pts32, self._nrm32, W.vertex_areas, self.tree, closest, axes, self.tool)
         cap = np.minimum(mc.sink, self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]])
@@ -277,14 +287,14 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
             gdir = ctx.gradient_directions(d)
             w_here[band] = ctx.widths.across(band, np.cross(W.normals[band], gdir[band]))
         g = d - reach * w_here
-        pieces = level_sets(W.vertices, W.faces, g, [0.0])
+        pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
         if not pieces:
             # The far boundary is nearer than a full step: pull the last pass in so its ribbon
             # reaches the boundary.
             d_far = float(np.max(d[left]))
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
-            pieces = level_sets(W.vertices, W.faces, d - level, [0.0])
+            pieces = level_sets(W.vertices, W.faces, d - level, [0.0], edges=ctx.edges)
         new = [_finish_piece(ctx, p, step) for p in pieces]
         new = [c for c in new if c is not None and _length(c[0]) >= min_pass_length]
         log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
@@ -427,7 +437,7 @@ def _finish_piece(ctx, pl, step):
     if len(pts) < 3:
         return None
     pts = _smooth(pts, window=max(3, int(round(0.25 * ctx.tool.pad_radius / step))))
-    pts, _, _ = ctx.work.closest_points(pts)
+    pts, _ = ctx.project(pts)
     tangents = normalize(np.gradient(pts, axis=0))
     idx = ctx.nearest_vertices(pts)
     w = ctx.widths.across(idx, tangents)

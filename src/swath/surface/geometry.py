@@ -39,10 +39,11 @@ def normalize(v: np.ndarray) -> np.ndarray:
 
 def boundary_edges(faces: np.ndarray) -> np.ndarray:
     """Edges ``(b, 2)`` used by exactly one face, oriented as in that face."""
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    key = np.sort(edges, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return edges[counts[inverse.ravel()] == 1]
+    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]).astype(np.int64)
+    lo, hi = edges.min(axis=1), edges.max(axis=1)
+    key = lo * np.int64(edges.max() + 1) + hi          # one integer per undirected edge: a fast 1-D unique
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    return edges[counts[inverse] == 1]
 
 
 def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
