@@ -110,9 +110,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--force-units", action="store_true", help="accept sizes outside 5 mm .. 20 m")
     g.add_argument("--out", required=True, help="output directory (written atomically)")
 
-    d = sub.add_parser("demo", help="plan the built-in helicopter-blade section")
+    d = sub.add_parser("demo", help="plan the built-in helicopter-blade section with the uniform planner")
     d.add_argument("--part", default="example:blade", help="built-in part (example:blade, example:plate, example:panel)")
     _add_plan_options(d, with_part_options=False)
+    d.set_defaults(planner="uniform")
 
     r = sub.add_parser("run", help="run a TOML job file")
     r.add_argument("job", help="job file (TOML)")

@@ -247,8 +247,9 @@ def load_part_info(settings: JobSettings, *, progress=None):
     return surface, {"patch": patch, "footprint": footprint, "metrics": metrics}
 
 
-def make_plan(surface, settings: JobSettings):
-    """Run the job's planner on ``surface``; returns a ToolPath."""
+def make_plan(surface, settings: JobSettings, *, progress=None):
+    """Run the job's planner on ``surface``; returns a ToolPath.  ``progress(stage, done, total)``
+    hears about long planning steps."""
     import importlib
 
     module, func = PLANNERS[settings.planner].split(":")
@@ -258,7 +259,7 @@ def make_plan(surface, settings: JobSettings):
         options.update(spacing=settings.spacing, angle=settings.angle, point_spacing=settings.point_spacing)
     elif settings.planner == "uniform":
         # The direction search predicts cycle times under the job's own feed and limits.
-        options.update(point_spacing=settings.point_spacing, feed=settings.feed,
+        options.update(point_spacing=settings.point_spacing, feed=settings.feed, progress=progress,
                        direction="auto" if settings.angle is None else settings.angle)
         if settings.overlap is not None:
             options["overlap"] = settings.overlap
@@ -299,7 +300,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     say(f"planning ({settings.planner})", 0, 1)
-    toolpath = make_plan(surface, settings)
+    toolpath = make_plan(surface, settings, progress=say)
     timings["plan_s"] = time.perf_counter() - t0
     log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
 
@@ -320,7 +321,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics.update(timings)
     metrics.update(part_info.get("metrics", {}))
     record = settings.as_record()
-    record.update({f"plan_{k}": v for k, v in toolpath.metadata.items()})
+    record["plan"] = dict(toolpath.metadata)
 
     say("writing report", 0, 1)
     with atomic_directory(settings.out) as tmp:

@@ -73,7 +73,7 @@ class WidthModel:
 def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boundary",
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
             feed: float = 0.05, max_angular: float = 1.0, max_centripetal: float = 2.0,
-            work_spacing: float | None = None) -> ToolPath:
+            work_spacing: float | None = None, progress=None) -> ToolPath:
     """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
 
     Parameters
@@ -104,6 +104,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
     work_spacing : float, optional
         Edge length (m) the surface is subdivided to for the distance fields (default from the part
         size, between R/12 and R/4).
+    progress : callable, optional
+        ``progress(stage: str, done: int, total: int)``, called as candidate directions finish.
 
     Returns
     -------
@@ -124,7 +126,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
             raise InputError(f"direction must be 'auto' or an angle in radians, got {direction!r}")
         return _auto(ctx, overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, feed=feed,
-                     max_angular=max_angular, max_centripetal=max_centripetal)
+                     max_angular=max_angular, max_centripetal=max_centripetal, progress=progress)
     if isinstance(direction, (int, float)) and math.isfinite(direction):
         return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
@@ -335,12 +337,15 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     return ToolPath(ctx.surface, passes, "uniform", meta)
 
 
-def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, feed, max_angular, max_centripetal):
+def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, feed, max_angular, max_centripetal,
+          progress=None):
     from ..trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, time_path
 
     limits = [FeedLimit(feed), AngularSpeedLimit(max_angular), CentripetalLimit(max_centripetal)]
     results = []
-    for a in AUTO_DIRECTIONS:
+    say = progress or (lambda stage, done, total: None)
+    for k, a in enumerate(AUTO_DIRECTIONS):
+        say("planning (uniform): trying pass directions", k, len(AUTO_DIRECTIONS) + 1)
         try:
             tp = _plan(ctx, float(a), overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
                        min_pass_length=min_pass_length, max_passes=max_passes, rule="candidate")
@@ -359,6 +364,7 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, fee
     top = max(r[3] for r in results)
     good = [r for r in results if r[3] >= min(0.995, top - 0.002)]
     best = min(good, key=lambda r: r[2])
+    say("planning (uniform): trying pass directions", len(AUTO_DIRECTIONS), len(AUTO_DIRECTIONS) + 1)
     candidates = [dict(direction_deg=math.degrees(a), length_m=L, cycle_time_s=c, predicted_coverage_fraction=cv)
                   for a, L, c, cv in results]
     rule = (f"auto: shortest predicted cycle time at feed {feed * 1e3:.0f} mm/s with angular speed <= "

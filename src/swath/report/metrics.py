@@ -152,14 +152,15 @@ def to_jsonable(value):
 def keys_without_unit(values: dict, prefix: str = "") -> list[str]:
     """Names of numeric entries of ``values`` (searched recursively) whose name states no unit.
 
-    Strings, booleans and ``None`` need no unit and are never listed.
+    Strings, booleans, ``None`` and lists (direction vectors, per-candidate tables) are not scalar
+    figures and are never listed.
     """
     missing = []
     for key, v in values.items():
         name = f"{prefix}{key}"
         if isinstance(v, dict):
             missing += keys_without_unit(v, prefix=name + ".")
-        elif isinstance(v, (bool, np.bool_, str)) or v is None:
+        elif isinstance(v, (bool, np.bool_, str, list, tuple, np.ndarray)) or v is None:
             continue
         elif key_unit(key).kind == "unknown":
             missing.append(name)

@@ -154,7 +154,8 @@ def _integration_poses(trajectory, max_travel: float) -> tuple[np.ndarray, np.nd
 def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
     """Every figure of a plan, keys with units.
 
-    ``coverage_fraction`` is the area fraction the pressed pad touched; ``removal_cov`` the
+    ``coverage_fraction`` is the area fraction the pressed pad touched (``effective_coverage_fraction``:
+    the fraction that received at least 10 % of the median depth); ``removal_cov`` the
     area-weighted coefficient of variation of depth over the touched area; ``efficiency`` is
     ``L* / L_contact``.
     """
@@ -182,7 +183,7 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         "surface_area_m2": total,
         "covered_area_m2": covered_area,
         "coverage_fraction": covered_area / total if total > 0 else 0.0,
-        "coverage_fraction_above_10pct_of_median": effective,
+        "effective_coverage_fraction": effective,
         "removal_mean_m": mean,
         "removal_std_m": std,
         "removal_cov": std / mean if mean and mean > 0 else float("nan"),
@@ -198,5 +199,5 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         "efficiency": L_star / L_contact if L_contact > 0 else float("nan"),
         "n_passes": int(trajectory.pass_index.max() + 1) if len(trajectory) else 0,
         "n_samples": int(len(trajectory)),
-        "removal_samples": int(len(d)),
+        "n_removal_samples": int(len(d)),
     }
