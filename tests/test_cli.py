@@ -93,3 +93,15 @@ def test_toml_job_runs_relative_to_its_file(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("part = [unclosed\n")
     assert main(["-q", "run", str(bad)]) == 2
+
+
+@pytest.mark.parametrize("planner,extra", [("uniform", ["--direction", "0deg", "--overlap", "10%"]),
+                                           ("equidistant", ["--angle", "0deg"])])
+def test_every_planner_runs_through_the_cli(tmp_path, planner, extra):
+    out = tmp_path / planner
+    assert main(["-q", "plan", "example:plate", "--planner", planner, *extra, "--out", str(out)]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["settings"]["planner"] == planner
+    assert m["metrics"]["coverage_fraction"] > 0.995
+    # plate 0.4 x 0.3 m: 4 or 5 passes 0.4 m long, whichever planner
+    assert 1.5 < m["metrics"]["contact_length_m"] < 2.1

@@ -23,6 +23,7 @@ log = logging.getLogger(__name__)
 PLANNERS = {
     "raster": "swath.plan.raster:raster",
     "uniform": "swath.plan.uniform:uniform",
+    "equidistant": "swath.plan.equidistant:equidistant",
 }
 
 
@@ -255,7 +256,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None):
     module, func = PLANNERS[settings.planner].split(":")
     planner = getattr(importlib.import_module(module), func)
     options = dict(settings.planner_options)
-    if settings.planner == "raster":
+    if settings.planner in ("raster", "equidistant"):
         options.update(spacing=settings.spacing, angle=settings.angle, point_spacing=settings.point_spacing)
     elif settings.planner == "uniform":
         # The direction search predicts cycle times under the job's own feed and limits.

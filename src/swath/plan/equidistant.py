@@ -1,0 +1,1066 @@
+"""Equidistant (geodesic-parallel) passes: every pass the same distance *along the surface* from the next.
+
+A plane-slice raster keeps its planes a fixed distance apart in space, so on the surface its passes
+spread apart where the surface tilts away from the planes and crowd where it curves toward them.
+Here the passes are the level sets ``φ = (k + ½) d`` of the geodesic distance ``φ`` from a seed
+curve (Amersdorfer & Meurer's equidistance requirement, met on meshes with a distance field
+instead of their arc-length parameterisation, which :mod:`swath.plan.arclength` implements for
+B-spline patches):
+
+1. the mesh is refined (:func:`refine_mesh`, conforming edge bisection, no T-junctions) until no
+   edge is longer than ``max_edge`` (default ``min(R/8, d/4)``, 4.8 mm for a 3-inch pad, at most
+   about 100 000 vertices: crs_part_5's 0.4 m slivers end at 10–15 mm), carrying the smooth
+   normals along; vertices where two sheets touch (bow-ties, common in scans) are split;
+2. ``φ`` is solved on each connected piece from its seed — by default the side of its outer
+   boundary at the low end of the cross direction (raster's first plane), or a user polyline,
+   given to the solver as the vertices within 1.5 edges of it with their exact distance — with
+   potpourri3d's fast marching (``distance="fmm"``) or heat method (``distance="heat"``, also the
+   fallback where fast marching refuses a mesh);
+3. passes are the level sets of ``φ`` at ``d/2, 3d/2, …`` (:func:`swath.plan.slicing.level_sets`:
+   topological, cannot hang; a pass breaks where it leaves the surface or meets a hole);
+   fragments shorter than ``min_pass_length`` are dropped, the rest are snake-ordered and
+   resampled exactly on the mesh as in :func:`swath.plan.raster.raster`.
+
+The default spacing is the full-coverage contact chord across the pass direction; with no angle,
+direction or seed, the feed direction is chosen like raster's (shortest predicted path).
+
+Why fast marching by default.  Measured on the doubly curved panel's analytic surface (geodesics
+shot at right angles from each pass to the previous one), the gap between neighbouring passes
+varies by 0.48 % (default spacing, 67 mm), 0.57 % (50 mm) and 0.67 % (30 mm) with fast marching,
+and by 3.4 %, 4.1 % and 4.9 % with the heat method, whose distances also run 2–3 % long (its
+smoothing and boundary treatment; against libigl's exact polyhedral geodesics it is off by up to
+2.7 mm near the panel's sides, fast marching by 0.96 mm).  On the blade (an extrusion, measured
+exactly by unrolling it) fast marching gives 0.02 %.  Both solve 25 000 vertices in well under a
+second.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+import weakref
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..errors import InfeasibleError, InputError
+from ..surface.geometry import face_normals_and_areas, normalize
+from .raster import MIN_PASS_FRACTION, _is_number, _positive, _snake, feed_and_cross
+from .slicing import level_sets, mesh_edges
+from .toolpath import ToolPath
+from .widths import SPACING_PERCENTILE, area_percentile, pad_scale_samples, patch_widths
+
+log = logging.getLogger("swath.plan")
+
+#: Default longest edge of the mesh the distance field is solved on, as a fraction of the pad radius.
+EDGE_FRACTION = 1.0 / 8.0
+#: The field mesh is coarsened (``max_edge`` enlarged) so that it has about this many vertices at most.
+MAX_FIELD_VERTICES = 100_000
+#: Seed side: boundary whose tangent is within this angle of the feed direction (rad).
+SEED_ANGLE = math.radians(45.0)
+#: A user seed point farther than this from the surface is refused (m).
+SEED_TOLERANCE = 5e-3
+#: Distance methods accepted by :func:`equidistant`.
+DISTANCE_METHODS = ("fmm", "heat")
+
+
+# ----------------------------------------------------------------------------------------------
+# mesh helpers
+# ----------------------------------------------------------------------------------------------
+def refine_mesh(vertices: np.ndarray, faces: np.ndarray, max_edge: float, *, values: np.ndarray | None = None,
+                max_rounds: int = 40, max_vertices: int | None = None):
+    """Split edges until none is longer than ``max_edge``, keeping the mesh conforming.
+
+    Every edge longer than ``max_edge`` is cut at its midpoint in each round; a face then splits
+    into 4 (three cut edges), 3 (two; the quadrilateral left is cut along its shorter diagonal) or
+    2 (one) triangles, so neighbours always agree on the cut (no T-junctions, no cracks) and the
+    winding is kept.  The refined mesh is the same piecewise-flat surface: every new vertex lies
+    on an old edge, every new face inside an old face.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Vertices, m.
+    faces : (m, 3) int
+        Triangles.
+    max_edge : float
+        Longest edge wanted, m.
+    values : (n, q) float, optional
+        Per-vertex values carried along (linear along each split edge, hence barycentric within
+        each original face), e.g. smooth normals.
+    max_rounds : int
+        Upper bound on bisection rounds (each halves the longest edge at least every two rounds).
+    max_vertices : int, optional
+        Stop after the round in which the vertex count passes this (the result then still has
+        edges longer than ``max_edge``; the caller can check).
+
+    Returns
+    -------
+    vertices : (n', 3) float
+        The original vertices first (same indices), then the new ones.
+    faces : (m', 3) int
+    values : (n', q) float or None
+    parent : (m',) int
+        The original face each new face lies in.
+    """
+    V = np.asarray(vertices, float)
+    F = np.asarray(faces, np.int64)
+    vals = None if values is None else np.asarray(values, float).reshape(len(V), -1)
+    if not (_is_number(max_edge) and math.isfinite(max_edge) and max_edge > 0):
+        raise InputError(f"max_edge must be a positive length in metres, got {max_edge!r}")
+    parent = np.arange(len(F))
+    for _ in range(int(max_rounds)):
+        edges, face_edges = mesh_edges(F)
+        length = np.linalg.norm(V[edges[:, 0]] - V[edges[:, 1]], axis=1)
+        cut = length > max_edge
+        if not cut.any():
+            break
+        mid = np.full(len(edges), -1, np.int64)
+        mid[cut] = len(V) + np.arange(int(cut.sum()))
+        V = np.concatenate([V, 0.5 * (V[edges[cut, 0]] + V[edges[cut, 1]])])
+        if vals is not None:
+            vals = np.concatenate([vals, 0.5 * (vals[edges[cut, 0]] + vals[edges[cut, 1]])])
+        M = mid[face_edges]                   # midpoint on slot e = (v_e, v_e+1), or -1
+        is_cut = M >= 0
+        count = is_cut.sum(axis=1)
+        new_faces, new_parent = [F[count == 0]], [parent[count == 0]]
+        # four children
+        r = np.flatnonzero(count == 3)
+        v0, v1, v2 = F[r].T
+        m01, m12, m20 = M[r].T
+        new_faces.append(np.stack([np.stack([v0, m01, m20], 1), np.stack([v1, m12, m01], 1),
+                                   np.stack([v2, m20, m12], 1), np.stack([m01, m12, m20], 1)], 1).reshape(-1, 3))
+        new_parent.append(np.repeat(parent[r], 4))
+        # two children: slot e cut, (a, b) = its ends, c opposite
+        g = np.flatnonzero(count == 1)
+        e = np.argmax(is_cut[g], axis=1)
+        a, b, c, m = F[g, e], F[g, (e + 1) % 3], F[g, (e + 2) % 3], M[g, e]
+        new_faces.append(np.stack([np.stack([a, m, c], 1), np.stack([m, b, c], 1)], 1).reshape(-1, 3))
+        new_parent.append(np.repeat(parent[g], 2))
+        # three children: slot u = (a, b) uncut, c opposite; corner at c, then the quad's shorter diagonal
+        bl = np.flatnonzero(count == 2)
+        u = np.argmin(is_cut[bl], axis=1)
+        a, b, c = F[bl, u], F[bl, (u + 1) % 3], F[bl, (u + 2) % 3]
+        mbc, mca = M[bl, (u + 1) % 3], M[bl, (u + 2) % 3]
+        first = (np.linalg.norm(V[a] - V[mbc], axis=1) <= np.linalg.norm(V[b] - V[mca], axis=1))[:, None]
+        t1 = np.stack([c, mca, mbc], 1)
+        t2 = np.where(first, np.stack([a, b, mbc], 1), np.stack([a, b, mca], 1))
+        t3 = np.where(first, np.stack([a, mbc, mca], 1), np.stack([b, mbc, mca], 1))
+        new_faces.append(np.stack([t1, t2, t3], 1).reshape(-1, 3))
+        new_parent.append(np.repeat(parent[bl], 3))
+        F = np.concatenate(new_faces)
+        parent = np.concatenate(new_parent)
+        if max_vertices is not None and len(V) > max_vertices:
+            break
+    return V, F, vals, parent
+
+
+def locate_points(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray, *, tree=None, candidates: int = 16):
+    """The face holding each point (points on or near the mesh) and its barycentric coordinates.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    points : (k, 3) float
+        Query points, m.
+    tree : scipy.spatial.cKDTree, optional
+        Tree over the face centroids (built when not given).
+    candidates : int
+        Nearest face centroids tested per point.
+
+    Returns
+    -------
+    face : (k,) int
+    bary : (k, 3) float
+        Non-negative, summing to 1.
+    distance : (k,) float
+        Distance from each point to its located surface point, m.
+
+    Notes
+    -----
+    Each candidate face's barycentric coordinates of the point's projection are clipped to the
+    triangle; the candidate whose clipped point is nearest wins.  For a point on the mesh that is
+    its own face (distance ~1e-16), provided it is among the ``candidates`` nearest centroids,
+    which holds on any mesh without extreme slivers next to it.
+    """
+    from scipy.spatial import cKDTree
+
+    V = np.asarray(vertices, float)
+    F = np.asarray(faces, np.int64)
+    P = np.asarray(points, float).reshape(-1, 3)
+    k = min(int(candidates), len(F))
+    if tree is None:
+        tree = cKDTree(V[F].mean(axis=1))
+    _, cand = tree.query(P, k=k)
+    cand = cand.reshape(len(P), k)
+    tri = V[F[cand]]                                           # (k_pts, k, 3, 3)
+    e1, e2 = tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :]
+    w = P[:, None, :] - tri[..., 0, :]
+    d11, d12, d22 = (e1 * e1).sum(-1), (e1 * e2).sum(-1), (e2 * e2).sum(-1)
+    w1, w2 = (w * e1).sum(-1), (w * e2).sum(-1)
+    den = d11 * d22 - d12 ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b1 = np.where(den > 0, (d22 * w1 - d12 * w2) / den, 1.0 / 3.0)
+        b2 = np.where(den > 0, (d11 * w2 - d12 * w1) / den, 1.0 / 3.0)
+    bary = np.stack([1.0 - b1 - b2, b1, b2], axis=-1)
+    bary = np.clip(bary, 0.0, None)
+    bary /= np.maximum(bary.sum(-1, keepdims=True), 1e-300)
+    closest = np.einsum("pkj,pkjd->pkd", bary, tri)
+    dist = np.linalg.norm(closest - P[:, None, :], axis=-1)
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(P))
+    return cand[rows, best], bary[rows, best], dist[rows, best]
+
+
+def face_gradients(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> np.ndarray:
+    """Gradient ``(m, 3)`` of a piecewise-linear per-vertex field ``(n,)`` on each face (in the face plane)."""
+    V = np.asarray(vertices, float)
+    F = np.asarray(faces, np.int64)
+    tri = V[F]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area2 = np.linalg.norm(n, axis=1)
+    nh = normalize(n)
+    f = np.asarray(field, float)[F]
+    g = np.zeros((len(F), 3))
+    for i in range(3):                          # ∇φ = Σ φ_i (n̂ × e_i) / 2A, e_i opposite vertex i (CCW)
+        e = tri[:, (i + 2) % 3] - tri[:, (i + 1) % 3]
+        g += f[:, i, None] * np.cross(nh, e)
+    return np.divide(g, area2[:, None], out=np.zeros_like(g), where=area2[:, None] > 0)
+
+
+def split_nonmanifold_vertices(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Give every fan of faces round a vertex its own copy of the vertex.
+
+    A vertex where two sheets of faces touch only at that vertex (a bow-tie, common in scans)
+    makes a mesh non-manifold, which fast marching refuses.  Corners of the same vertex are
+    joined when their faces share an edge through it; each group of joined corners becomes one
+    vertex.  The geometry is unchanged.
+
+    Parameters
+    ----------
+    faces : (m, 3) int
+
+    Returns
+    -------
+    faces : (m, 3) int
+        Faces on the new vertex numbering.
+    source : (n',) int
+        The original vertex of each new vertex (``vertices[source]`` are the new positions).
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    F = np.asarray(faces, np.int64)
+    m = len(F)
+    _, face_edges = mesh_edges(F)
+    inc_edge = face_edges.ravel()
+    order = np.argsort(inc_edge, kind="stable")
+    e_sorted = inc_edge[order]
+    first = np.flatnonzero(np.r_[True, e_sorted[1:] != e_sorted[:-1]])
+    count = np.diff(np.r_[first, len(e_sorted)])
+    pairs = first[count == 2]
+    i1, i2 = order[pairs], order[pairs + 1]                 # incidences (face * 3 + slot)
+    f1, s1, f2, s2 = i1 // 3, i1 % 3, i2 // 3, i2 % 3
+    a, b = F[f1, s1], F[f1, (s1 + 1) % 3]
+    a_in_2 = np.where(F[f2, s2] == a, s2, (s2 + 1) % 3)
+    b_in_2 = np.where(F[f2, s2] == b, s2, (s2 + 1) % 3)
+    rows = np.r_[f1 * 3 + s1, f1 * 3 + (s1 + 1) % 3]
+    cols = np.r_[f2 * 3 + a_in_2, f2 * 3 + b_in_2]
+    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
+    _, corner_label = connected_components(g, directed=False)
+    # Joined corners share their vertex, so a corner group is one (vertex, fan) pair.
+    _, first_corner, inverse = np.unique(corner_label, return_index=True, return_inverse=True)
+    return inverse.reshape(m, 3), F.ravel()[first_corner]
+
+
+def _boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
+    """Boundary loops (vertex indices in order) of a mesh; as :func:`swath.surface.geometry.boundary_loops`,
+    with the boundary edges found by integer keys (fast on large meshes)."""
+    F = np.asarray(faces, np.int64)
+    edges, face_edges = mesh_edges(F)
+    count = np.bincount(face_edges.ravel(), minlength=len(edges))
+    directed = np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
+    on_boundary = count[face_edges.ravel()] == 1
+    bnd = directed[on_boundary]
+    if len(bnd) == 0:
+        return []
+    nxt: dict[int, list[int]] = {}
+    for i, a in enumerate(bnd[:, 0].tolist()):
+        nxt.setdefault(a, []).append(i)
+    used = np.zeros(len(bnd), bool)
+    loops = []
+    heads, tails = bnd[:, 0].tolist(), bnd[:, 1].tolist()
+    for start in range(len(bnd)):
+        if used[start]:
+            continue
+        loop, e = [], start
+        while e is not None and not used[e]:
+            used[e] = True
+            loop.append(heads[e])
+            cand = [j for j in nxt.get(tails[e], []) if not used[j]]
+            e = cand[0] if cand else None
+        loops.append(np.asarray(loop, np.int64))
+    loops.sort(key=len, reverse=True)
+    return loops
+
+
+def _components(n_vertices: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of the vertices (through faces): count and label per vertex."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
+    g = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices))
+    return connected_components(g, directed=False)
+
+
+# ----------------------------------------------------------------------------------------------
+# distance fields
+# ----------------------------------------------------------------------------------------------
+def distance_field(vertices: np.ndarray, faces: np.ndarray, *, source_vertices, source_distances=None,
+                   method: str = "fmm", solver=None) -> tuple[np.ndarray, str]:
+    """Geodesic distance ``(n,)`` (m) from sources on a connected triangle mesh.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    source_vertices : (s,) int
+        Source vertices.
+    source_distances : (s,) float, optional
+        Their initial distances, m (default 0): a curve between the vertices is given as the
+        vertices near it with their distance to it (:func:`polyline_band`).
+    method : {"fmm", "heat"}
+        potpourri3d's fast marching (``MeshFastMarchingDistanceSolver``) or heat method
+        (``MeshHeatMethodDistanceSolver``, robust intrinsic Laplacian, ``t = h²``).  Fast marching
+        refuses non-manifold meshes and leaves pieces without a source at infinity; it then falls
+        back to the heat method.  The heat method takes no initial distances: the sources nearest
+        the curve (the lowest 30 % of the initial distances) are used as distance 0.
+    solver : potpourri3d.MeshFastMarchingDistanceSolver, optional
+        A fast-marching solver already built on this mesh (saves its set-up on repeated solves).
+
+    Returns
+    -------
+    distance : (n,) float
+    method : str
+        The method that produced it.
+    """
+    import potpourri3d as pp3d
+
+    if method not in DISTANCE_METHODS:
+        raise InputError(f"distance method must be one of {', '.join(DISTANCE_METHODS)}, got {method!r}")
+    V = np.ascontiguousarray(vertices, float)
+    F = np.ascontiguousarray(faces, np.int64)
+    sv = np.asarray(source_vertices, np.int64).ravel()
+    sd = np.zeros(len(sv)) if source_distances is None else np.asarray(source_distances, float).ravel()
+    if len(sv) == 0 or len(sd) != len(sv):
+        raise InputError(f"a distance field needs sources with one distance each, got {len(sv)} and {len(sd)}")
+    if method == "fmm":
+        curves = [[(int(i), [])] for i in sv]
+        try:
+            fmm = solver if solver is not None else pp3d.MeshFastMarchingDistanceSolver(V, F)
+            d = np.asarray(fmm.compute_distance(curves, [[float(x)] for x in sd], False)).ravel()
+            if np.isfinite(d).all():
+                return d, "fmm"
+            log.info("fast marching left %d vertices without a distance; using the heat method",
+                     int((~np.isfinite(d)).sum()))
+        except RuntimeError as exc:
+            log.info("fast marching refused the mesh (%s); using the heat method", exc)
+    src = np.unique(sv[sd <= sd.min() + 0.3 * (sd.max() - sd.min())])
+    d = np.asarray(pp3d.MeshHeatMethodDistanceSolver(V, F, 1.0, True).compute_distance_multisource(src.tolist()))
+    d = d.ravel() - d.ravel()[src].min()
+    return d, "heat"
+
+
+def polyline_band(vertices: np.ndarray, polylines, radius: float, *, tree=None) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices within ``radius`` of polylines and their straight-line distance to the nearest one.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    polylines : list of (k, 3) float
+        Curves on (or very near) the surface, m; points at most about ``radius / 2`` apart.
+    radius : float
+        Band half-width, m; within a few mesh edges the straight-line distance to the curve is the
+        geodesic distance to far below a micrometre on any part a pad can follow.
+    tree : scipy.spatial.cKDTree, optional
+        Tree over ``vertices``.
+
+    Returns
+    -------
+    index : (s,) int
+        Vertices in the band.
+    distance : (s,) float
+        Their distance to the nearest polyline segment, m.
+    """
+    from scipy.spatial import cKDTree
+
+    V = np.asarray(vertices, float)
+    tree = cKDTree(V) if tree is None else tree
+    idx_all, d_all = [], []
+    for pl in polylines:
+        pl = np.asarray(pl, float).reshape(-1, 3)
+        near = tree.query_ball_point(pl, r=radius)
+        cand = np.unique(np.concatenate([np.asarray(c, np.int64) for c in near])) if len(pl) else np.zeros(0, np.int64)
+        if len(cand) == 0:
+            continue
+        q = V[cand]
+        _, j = cKDTree(pl).query(q)
+        d = np.linalg.norm(q - pl[j], axis=1)
+        for lo in (j - 1, j):                       # the two segments at the nearest point
+            ok = (lo >= 0) & (lo + 1 < len(pl))
+            a, b = pl[np.clip(lo, 0, len(pl) - 1)], pl[np.clip(lo + 1, 0, len(pl) - 1)]
+            ab = b - a
+            L2 = np.einsum("ij,ij->i", ab, ab)
+            t = np.clip(np.divide(np.einsum("ij,ij->i", q - a, ab), L2, out=np.zeros(len(q)), where=L2 > 0), 0, 1)
+            d = np.where(ok, np.minimum(d, np.linalg.norm(a + t[:, None] * ab - q, axis=1)), d)
+        idx_all.append(cand)
+        d_all.append(d)
+    if not idx_all:
+        return np.zeros(0, np.int64), np.zeros(0)
+    idx, d = np.concatenate(idx_all), np.concatenate(d_all)
+    order = np.lexsort((d, idx))
+    idx, d = idx[order], d[order]
+    first = np.r_[True, idx[1:] != idx[:-1]]
+    return idx[first], d[first]
+
+
+# ----------------------------------------------------------------------------------------------
+# seeds
+# ----------------------------------------------------------------------------------------------
+def boundary_seed(vertices: np.ndarray, loop: np.ndarray, feed: np.ndarray, cross: np.ndarray, *,
+                  window: float) -> np.ndarray:
+    """The boundary side at the low end of ``cross``: a run of a boundary loop roughly along ``feed``.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    loop : (b,) int
+        A closed boundary loop (vertex indices in order).
+    feed, cross : (3,) float
+        Unit feed and cross directions.
+    window : float
+        Arc-length half-window (m) over which the loop's tangent is averaged, so that a ragged
+        scan boundary has a direction; gaps shorter than half of it are bridged inside a run.
+
+    Returns
+    -------
+    (r,) int
+        Loop vertices in loop order: the run whose averaged tangent stays within
+        :data:`SEED_ANGLE` of the feed direction (measured in the feed-cross plane) and which
+        holds the lowest such vertex along ``cross``.  When no part of the loop runs along the feed, the vertices within a window
+        of the loop's lowest point.
+    """
+    loop = np.asarray(loop, np.int64)
+    P = np.asarray(vertices, float)[loop]
+    b = len(P)
+    seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    total = float(s[-1])
+    h = P @ np.asarray(cross, float)
+    if b < 3 or total <= 0:
+        return loop[[int(np.argmin(h))]]
+    w = min(float(window), 0.25 * total)
+    closed = np.vstack([P, P[:1]])
+
+    def at(x):
+        x = np.mod(x, total)
+        return np.stack([np.interp(x, s, closed[:, j]) for j in range(3)], axis=1)
+
+    feed, cross = np.asarray(feed, float), np.asarray(cross, float)
+
+    def runs_along(t):
+        # Angle to the feed measured in the (feed, cross) plane, so a boundary running down a
+        # slope along the feed still counts; one running mostly along the normal does not.
+        tf, tc = np.abs(t @ feed), np.abs(t @ cross)
+        return (tf * math.tan(SEED_ANGLE) >= tc) & (tf >= 0.25)
+
+    tangent = normalize(at(s[:-1] + w) - at(s[:-1] - w))
+    along = runs_along(tangent)
+    if not along.any():
+        d = np.abs(s[:-1] - s[int(np.argmin(h))])
+        return loop[np.minimum(d, total - d) <= w]
+    if along.all():
+        return loop
+    # Runs of `along` vertices, in loop order starting at a vertex that is not along the feed.
+    r0 = int(np.argmin(along))
+    order = (np.arange(b) + r0) % b
+    a = along[order].astype(int)
+    pos = np.mod(s[:-1][order] - s[r0], total)
+    edge = np.diff(np.concatenate([[0], a, [0]]))
+    starts, ends = list(np.flatnonzero(edge == 1)), list(np.flatnonzero(edge == -1) - 1)
+    bridge = 0.5 * w
+    runs = [[starts[0], ends[0]]]
+    for st, en in zip(starts[1:], ends[1:]):
+        if pos[st] - pos[runs[-1][1]] <= bridge:
+            runs[-1][1] = en
+        else:
+            runs.append([st, en])
+    spans = [np.arange(st, en + 1) for st, en in runs]
+    if len(spans) > 1 and total - pos[runs[-1][1]] + pos[runs[0][0]] <= bridge:   # wraps round
+        spans[0] = np.concatenate([np.arange(runs[-1][0], b), np.arange(0, runs[0][1] + 1)])
+        spans.pop()
+    lowest = int(np.argmin(np.where(a > 0, h[order], np.inf)))
+    span = order[next(sp for sp in spans if np.any(sp == lowest))]
+    # The averaged tangent blurs a corner over the window: extend the run edge by edge while the
+    # edges themselves still run along the feed (so it ends at the corner, not a window short).
+    edge_along = runs_along(normalize(np.roll(P, -1, axis=0) - P))
+    head, tail, grown = [], [], 0.0
+    i = int(span[-1])
+    while grown < w and edge_along[i] and len(span) + len(head) + len(tail) < b:
+        grown += seg[i]
+        i = (i + 1) % b
+        tail.append(i)
+    grown = 0.0
+    i = int(span[0])
+    while grown < w and edge_along[(i - 1) % b] and len(span) + len(head) + len(tail) < b:
+        i = (i - 1) % b
+        grown += seg[i]
+        head.append(i)
+    return loop[np.concatenate([head[::-1], span, tail]).astype(np.int64)]
+
+
+# ----------------------------------------------------------------------------------------------
+# the planner
+# ----------------------------------------------------------------------------------------------
+#: Feed angles (rad from the first principal axis) tried when no angle, direction or seed is given.
+AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
+#: Largest predicted gap (area share between swaths) an automatic direction may have.
+AUTO_MAX_GAP = 1e-3
+
+
+@dataclass(frozen=True)
+class _FieldMesh:
+    """The refined surface the distance fields are solved on (shared by every seed and direction)."""
+
+    vertices: np.ndarray        # (n, 3)
+    faces: np.ndarray           # (m, 3)
+    normals: np.ndarray         # (n, 3) the surface's smooth normals carried by refinement
+    label: np.ndarray           # (n,) connected piece of each vertex
+    n_components: int
+    outer_loops: dict           # piece -> its longest boundary loop
+    edge: float                 # longest edge bound, m
+
+
+@dataclass(frozen=True)
+class _Component:
+    vertices: np.ndarray        # (n_c, 3) refined, this piece only
+    faces: np.ndarray           # (m_c, 3)
+    normals: np.ndarray         # (n_c, 3)
+    field: np.ndarray           # (n_c,) distance from the seed, m
+    index: int
+
+
+@dataclass(frozen=True, eq=False)
+class _Fields:
+    components: list            # of _Component
+    skipped: int                # pieces without a seed
+    seed_length: float
+    methods: str
+    key: tuple                  # cache key
+
+
+#: Per surface (a Surface is immutable), the refined field meshes and the distance fields solved
+#: on them: planning the same part again (another spacing, the automatic direction's candidates)
+#: reuses them.  At most :data:`_CACHE_ENTRIES` entries per surface.
+_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_CACHE_ENTRIES = 24
+
+
+def _cached(surface, key, make):
+    store = _CACHE.setdefault(surface, {})
+    if key not in store:
+        if len(store) >= _CACHE_ENTRIES:
+            store.pop(next(iter(store)))
+        store[key] = make()
+    return store[key]
+
+
+def _field_mesh(surface, h: float, cap: int | None) -> _FieldMesh:
+    """Refine (enlarging the edge bound while over ``cap`` vertices), split bow-ties, label pieces."""
+
+    def make():
+        edge = h
+        V, F, normals, _ = refine_mesh(surface.vertices, surface.faces, edge, values=surface.normals,
+                                       max_vertices=cap)
+        while cap is not None and len(V) > cap:
+            edge *= 1.5
+            log.info("equidistant: field mesh edge enlarged to %.1f mm (over %d vertices)", edge * 1e3, cap)
+            V, F, normals, _ = refine_mesh(surface.vertices, surface.faces, edge, values=surface.normals,
+                                           max_vertices=cap)
+        F, source = split_nonmanifold_vertices(F)
+        V, normals = V[source], normals[source]
+        n_comp, label = _components(len(V), F)
+        outer: dict[int, tuple[float, np.ndarray]] = {}
+        for lp in _boundary_loops(F):
+            length = float(np.linalg.norm(V[np.roll(lp, -1)] - V[lp], axis=1).sum())
+            c = int(label[lp[0]])
+            if c not in outer or length > outer[c][0]:
+                outer[c] = (length, lp)
+        return _FieldMesh(V, F, normals, label, int(n_comp), {c: lp for c, (_, lp) in outer.items()}, float(edge))
+
+    return _cached(surface, ("mesh", h, cap), make)
+
+
+def _fields(surface, mesh: _FieldMesh, feed, cross, R, seed_pts, distance) -> _Fields:
+    """Seed every piece (boundary side or the user polyline) and solve its distance field."""
+    key = ("field", mesh.edge, tuple(np.round(feed, 12)), tuple(np.round(cross, 12)), R, distance,
+           None if seed_pts is None else seed_pts.tobytes())
+
+    def make():
+        V, F, label = mesh.vertices, mesh.faces, mesh.label
+        sources: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
+        seed_length = 0.0
+        if seed_pts is None:
+            if not mesh.outer_loops:
+                raise InputError(f"{surface.name or 'the surface'} has no boundary to start from (a closed "
+                                 "surface); give a seed polyline")
+            for c, lp in mesh.outer_loops.items():
+                run = boundary_seed(V, lp, feed, cross, window=R)
+                sources[c] = (run, None)
+                if len(run) > 1:
+                    seed_length += float(np.linalg.norm(np.diff(V[run], axis=0), axis=1).sum())
+        else:
+            dense = _densify(seed_pts, 0.5 * mesh.edge)
+            _, _, dist = locate_points(V, F, dense)
+            if dist.max() > SEED_TOLERANCE:
+                i = int(np.argmax(dist))
+                raise InputError(f"seed point {dense[i].round(4).tolist()} is {dist[i] * 1e3:.1f} mm from the "
+                                 f"surface (limit {SEED_TOLERANCE * 1e3:.0f} mm); give the seed in the part frame, "
+                                 "on the surface")
+            seed_length = float(np.linalg.norm(np.diff(dense, axis=0), axis=1).sum()) if len(dense) > 1 else 0.0
+            band, band_d = polyline_band(V, [dense], 1.5 * mesh.edge)
+            for c in np.unique(label[band]):
+                sel = label[band] == c
+                sources[int(c)] = (band[sel], band_d[sel])
+        skipped = mesh.n_components - len(sources)
+        if skipped:
+            log.warning("equidistant: %d of %d connected pieces of %s have no seed and get no passes", skipped,
+                        mesh.n_components, surface.name or "the surface")
+        components, methods = [], set()
+        face_label = label[F[:, 0]]
+        for c in sorted(sources):
+            vid = np.flatnonzero(label == c)
+            remap = np.full(len(V), -1, np.int64)
+            remap[vid] = np.arange(len(vid))
+            fc = remap[F[face_label == c]]
+            sv, sd = sources[c]
+            d, m = distance_field(V[vid], fc, source_vertices=remap[sv], source_distances=sd, method=distance)
+            methods.add(m)
+            components.append(_Component(V[vid], fc, mesh.normals[vid], d, c))
+        return _Fields(components, int(skipped), float(seed_length), "+".join(sorted(methods)), key)
+
+    return _cached(surface, key, make)
+
+
+def _samples(surface, tool):
+    """Pad-scale samples of the surface (cached per surface and pad radius)."""
+    return _cached(surface, ("samples", tool.pad_radius), lambda: pad_scale_samples(surface, tool))
+
+
+def _pass_widths(surface, fields: _Fields, samples, tool) -> tuple[np.ndarray, np.ndarray]:
+    """Contact chord ``(s,)`` (m) across the pass direction (the level-set tangent ``n × ∇φ``) at
+    the pad-scale samples on seeded pieces, and their areas ``(s,)``."""
+    from scipy.spatial import cKDTree
+
+    from ..surface.curvature import PrincipalCurvature
+    from ..surface.geometry import scatter_add
+
+    def feeds():
+        verts, grads = [], []
+        for c in fields.components:
+            g = face_gradients(c.vertices, c.faces, c.field)
+            a = face_normals_and_areas(c.vertices, c.faces)[1]
+            verts.append(c.vertices)
+            grads.append(scatter_add(c.faces.ravel(), np.repeat(g * a[:, None], 3, axis=0), len(c.vertices)))
+        dist, nearest = cKDTree(np.concatenate(verts)).query(samples.points)
+        g = np.concatenate(grads)[nearest]
+        g = g - np.einsum("ij,ij->i", g, samples.normals)[:, None] * samples.normals
+        ok = (np.linalg.norm(g, axis=1) > 0) & (dist < 2 * tool.pad_radius)
+        return np.cross(samples.normals[ok], normalize(g[ok])), ok
+
+    feed, ok = _cached(surface, ("feeds", tool.pad_radius) + fields.key, feeds)
+    if not ok.any():
+        raise InfeasibleError("no surface sample lies on a seeded piece of the surface; check the seed")
+    cv = samples.curvature
+    curv = PrincipalCurvature(cv.k1[ok], cv.k2[ok], cv.d1[ok], cv.d2[ok])
+    return patch_widths(curv, samples.normals[ok], feed, tool), samples.areas[ok]
+
+
+def _gap(w: np.ndarray, areas: np.ndarray, d: float) -> float:
+    """Predicted area share left between swaths at spacing ``d``: ``Σ a max(0, 1 − w/d) / Σ a``."""
+    return float(np.sum(areas * np.clip(1.0 - w / d, 0.0, None)) / areas.sum())
+
+
+def _spacing_rule(w, d, gap, samples) -> str:
+    return (f"{SPACING_PERCENTILE:.1%} area-percentile of the contact chord across the pass direction (level-set "
+            f"tangent of the distance field), local contact model with curvature fitted over the pad radius on "
+            f"samples {samples.spacing * 1e3:.1f} mm apart (narrowest chord {w.min() * 1e3:.1f} mm, predicted gap "
+            f"{gap:.2%}); levels spread evenly from the seed to the farthest point of each piece")
+
+
+def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle: float | None = None,
+                direction=None, point_spacing: float = 1e-3, min_pass_length: float | None = None,
+                max_edge: float | None = None, distance: str = "fmm", **patch_options) -> ToolPath:
+    """Cover a surface with geodesic-parallel passes, each the same distance along the surface from the next.
+
+    Parameters
+    ----------
+    surface : Surface or BSplinePatch
+        The part (normals toward the tool).  A :class:`~swath.surface.bspline.BSplinePatch` is
+        planned by :func:`swath.plan.arclength.equidistant_patch` (the paper's arc-length
+        method); ``patch_options`` go there.
+    tool : Tool
+        The pad; sets the default spacing, ``min_pass_length`` and ``max_edge``.
+    spacing : float, optional
+        Geodesic distance between neighbouring passes, m; the first pass lies ``spacing / 2``
+        from the seed.  Default: the full-coverage spacing of the contact model — the 0.2 %
+        area-percentile ``d`` of the contact chord across the pass direction (the level-set
+        tangent) on pad-scale samples, as for raster but without raster's slope factor (the
+        passes are spaced along the surface, not in space) — reduced on each piece to
+        ``D / ceil(D / d)`` (``D`` its largest distance from the seed) so the last pass also lies
+        half a spacing from the far edge.
+    seed : (k, 3) float, optional
+        A polyline in the part frame (m) to measure the distance from (on both sides when it
+        crosses the part).  Points are densified and placed on the surface; a point farther than
+        :data:`SEED_TOLERANCE` from the surface is refused.  Default: on each connected piece of
+        the surface, the side of its outer boundary at the low end of the cross direction
+        (raster's first plane), found as the boundary run whose tangent, averaged over ``R``, is
+        within 45° of the feed direction.
+    angle : float, optional
+        Rotation of the feed direction from the surface's first principal axis about the normal
+        of its best-fit plane, rad (as :func:`swath.plan.raster.raster`); it picks the seed side
+        and the travel direction of the first pass.  Default (None, and no ``direction`` or
+        ``seed``): chosen among :data:`AUTO_ANGLES` — the shortest predicted path (area over
+        spacing) whose predicted gap is at most :data:`AUTO_MAX_GAP`; near-ties (2 %) go to the
+        principal axis.
+    direction : (3,) float, optional
+        Feed direction in the part frame; overrides ``angle``.  With a ``seed`` and neither given,
+        the seed's first-to-last direction.
+    point_spacing : float
+        Arc-length step between pass points, m.
+    min_pass_length : float, optional
+        Level-set fragments shorter than this (m) are dropped; default ``R/4``.
+    max_edge : float, optional
+        The distance field is solved on the surface refined until no edge is longer than this, m.
+        Default ``min(R/8, spacing/4)`` (4.8 mm for a 3-inch pad), enlarged if the refined mesh
+        would exceed about :data:`MAX_FIELD_VERTICES` vertices.
+    distance : {"fmm", "heat"}
+        Distance solver (see the module notes); ``"fmm"`` falls back to ``"heat"`` on meshes it
+        refuses.
+
+    Returns
+    -------
+    ToolPath
+        Planner ``"equidistant"``.  Passes in snake order, piece by piece, level by level.  Points
+        lie exactly on the mesh, ``≤ point_spacing`` apart; normals are the surface's smooth vertex
+        normals interpolated barycentrically in the original face holding each point.
+        ``metadata``: spacing_m (the smallest used), level_spacing_m (per seeded piece),
+        spacing_rule, predicted_gap_fraction (default spacing), direction_rule, first_offset_m,
+        far_margin_m (largest distance from the last level to the farthest point of a piece),
+        n_levels, n_passes, pass_levels and pass_components (level and piece of each pass),
+        dropped_fragments, dropped_length_m, point_spacing_m, min_pass_length_m, field_edge_m,
+        field_vertices, distance_method, seed ("boundary" or "polyline"), seed_length_m,
+        n_components, components_without_seed, feed_direction, cross_direction, angle_rad.
+
+    Raises
+    ------
+    InputError
+        On bad numbers, an unknown distance method, a seed that is not an (k >= 1, 3) array on
+        the surface, or a surface with no boundary and no seed.
+    InfeasibleError
+        When no level set is long enough to become a pass.
+    """
+    from ..surface.bspline import BSplinePatch
+
+    if isinstance(surface, BSplinePatch):
+        from .arclength import equidistant_patch
+
+        if seed is not None or direction is not None or angle is not None or max_edge is not None \
+                or distance != "fmm":
+            raise InputError("seed, angle, direction, max_edge and distance apply to meshes; for a B-spline patch "
+                             "use boundary= and along= (see swath.plan.arclength.equidistant_patch)")
+        return equidistant_patch(surface, tool, spacing=spacing, point_spacing=point_spacing,
+                                 min_pass_length=min_pass_length, **patch_options)
+    if patch_options:
+        raise InputError(f"unknown options for a mesh: {', '.join(sorted(patch_options))}")
+
+    t_start = time.perf_counter()
+    R = tool.pad_radius
+    point_spacing = _positive("point_spacing", point_spacing)
+    if spacing is not None:
+        spacing = _positive("spacing", spacing)
+    if min_pass_length is None:
+        min_pass_length = MIN_PASS_FRACTION * R
+    elif not (_is_number(min_pass_length) and math.isfinite(min_pass_length) and min_pass_length >= 0):
+        raise InputError(f"min_pass_length must be a finite length >= 0 m, got {min_pass_length!r}")
+    if angle is not None and not (_is_number(angle) and math.isfinite(angle)):
+        raise InputError(f"angle must be a finite number of radians, got {angle!r}")
+    if distance not in DISTANCE_METHODS:
+        raise InputError(f"distance must be one of {', '.join(DISTANCE_METHODS)}, got {distance!r}")
+    seed_pts = None
+    direction_rule = "given direction" if direction is not None else "given angle"
+    if seed is not None:
+        seed_pts = np.asarray(seed, float)
+        if seed_pts.ndim != 2 or seed_pts.shape[1] != 3 or len(seed_pts) < 1 or not np.isfinite(seed_pts).all():
+            raise InputError(f"seed must be a finite (k, 3) polyline in metres, got shape {seed_pts.shape}")
+        if direction is None and angle is None and len(seed_pts) >= 2 and np.linalg.norm(seed_pts[-1] - seed_pts[0]) > 0:
+            direction = seed_pts[-1] - seed_pts[0]
+            direction_rule = "along the seed"
+
+    # --- field mesh (cached per surface) ------------------------------------------------------
+    if max_edge is None:
+        h = EDGE_FRACTION * R if spacing is None else min(EDGE_FRACTION * R, spacing / 4.0)
+        h_budget = math.sqrt(2.3 * surface.area / MAX_FIELD_VERTICES)
+        if h_budget > h:
+            log.info("equidistant: field mesh edge enlarged from %.1f to %.1f mm to stay near %d vertices",
+                     h * 1e3, h_budget * 1e3, MAX_FIELD_VERTICES)
+            h = h_budget
+        cap = int(1.3 * MAX_FIELD_VERTICES)
+    else:
+        h, cap = _positive("max_edge", max_edge), None
+    mesh = _field_mesh(surface, h, cap)
+
+    # --- direction, fields, spacing -------------------------------------------------------------
+    samples = None
+    if spacing is None or (angle is None and direction is None):
+        samples = _samples(surface, tool)
+    if angle is None and direction is None:
+        if seed_pts is None:
+            angle, direction_rule = _choose_angle(surface, tool, mesh, samples, spacing, R, distance)
+        else:
+            angle, direction_rule = 0.0, "principal axis (seed without extent)"
+    feed, cross = feed_and_cross(surface, angle=angle or 0.0, direction=direction)
+    fields = _fields(surface, mesh, feed, cross, R, seed_pts, distance)
+    components = fields.components
+
+    gap = None
+    if spacing is None:
+        w, areas = _pass_widths(surface, fields, samples, tool)
+        d = area_percentile(w, areas, SPACING_PERCENTILE)
+        gap = _gap(w, areas, d)
+        rule = _spacing_rule(w, d, gap, samples)
+        log.info("equidistant default spacing %.1f mm (narrowest chord %.1f mm, predicted gap %.3f%%)", d * 1e3,
+                 w.min() * 1e3, 100 * gap)
+    else:
+        d, rule = spacing, "given"
+
+    # --- level sets, fragments, snake order -----------------------------------------------------
+    passes, pass_levels, pass_comp, level_spacing = [], [], [], []
+    dropped, dropped_length, n_levels, far_margin = 0, 0.0, 0, 0.0
+    for comp in components:
+        top = float(comp.field.max())
+        if spacing is None:            # fit: D / ceil(D / d), first and last half a spacing from the ends
+            n = max(int(math.ceil(top / d)), 1)
+            step = top / n
+        else:
+            n = max(int(math.ceil(top / d - 0.5)), 0)
+            step = d
+        if n > 20000:
+            raise InputError(f"spacing {d * 1e3:.4g} mm would need {n} passes across {top * 1e3:.1f} mm; "
+                             "is the spacing in metres?")
+        levels = step * (np.arange(n) + 0.5)
+        level_spacing.append(float(step))
+        n_levels += n
+        if n:
+            far_margin = max(far_margin, top - levels[-1])
+        pls = level_sets(comp.vertices, comp.faces, comp.field, levels, values=comp.normals)
+        lengths = np.array([pl.length for pl in pls])
+        short = lengths < min_pass_length
+        dropped += int(short.sum())
+        dropped_length += float(lengths[short].sum())
+        kept = [pl for pl, s in zip(pls, short) if not s]
+        if not kept:
+            continue
+        fake = SimpleNamespace(face_normals=face_normals_and_areas(comp.vertices, comp.faces)[0])
+        comp_passes = _snake(kept, feed, cross, fake, point_spacing)
+        passes.extend(comp_passes)
+        pass_levels.extend(_snake_levels(kept))
+        pass_comp.extend([comp.index] * len(comp_passes))
+    if not passes:
+        raise InfeasibleError(
+            f"equidistant found no pass on {surface.name or 'the surface'}: {n_levels} levels at spacing "
+            f"{d * 1e3:.1f} mm, {dropped} level-set fragments, all shorter than min_pass_length="
+            f"{min_pass_length * 1e3:.1f} mm; lower the spacing or min_pass_length, or seed along the part")
+
+    used = min(level_spacing) if level_spacing else d
+    metadata = dict(
+        spacing_m=float(used), level_spacing_m=level_spacing, spacing_rule=rule, direction_rule=direction_rule,
+        first_offset_m=float(used / 2), far_margin_m=float(far_margin),
+        n_levels=int(n_levels), n_passes=len(passes), pass_levels=[int(x) for x in pass_levels],
+        pass_components=[int(x) for x in pass_comp], dropped_fragments=int(dropped),
+        dropped_length_m=float(dropped_length), point_spacing_m=float(point_spacing),
+        min_pass_length_m=float(min_pass_length), field_edge_m=float(mesh.edge),
+        field_vertices=int(len(mesh.vertices)), distance_method=fields.methods,
+        seed="boundary" if seed_pts is None else "polyline", seed_length_m=fields.seed_length,
+        n_components=mesh.n_components, components_without_seed=fields.skipped,
+        feed_direction=feed.tolist(), cross_direction=cross.tolist(), angle_rad=float(angle or 0.0),
+    )
+    if gap is not None:
+        metadata["predicted_gap_fraction"] = float(gap)
+    log.info("equidistant %s: spacing %.1f mm, %d levels, %d passes, %d fragments dropped, field %d vertices "
+             "(edge <= %.1f mm, %s), %.2f s", surface.name, used * 1e3, n_levels, len(passes), dropped,
+             len(mesh.vertices), mesh.edge * 1e3, fields.methods, time.perf_counter() - t_start)
+    return ToolPath(surface, passes, "equidistant", metadata)
+
+
+def _choose_angle(surface, tool, mesh, samples, spacing, R, distance) -> tuple[float, str]:
+    """The feed angle among :data:`AUTO_ANGLES` with the shortest predicted path ``Σ a / d`` (the
+    seeded area over the spacing; geodesic parallels ``d`` apart sweep each point once) whose
+    predicted gap is at most :data:`AUTO_MAX_GAP` (else the smallest gap); near-ties within 2 %
+    go to the earlier angle (the principal axis first)."""
+    rows = []
+    for a in AUTO_ANGLES:
+        feed, cross = feed_and_cross(surface, angle=a)
+        w, areas = _pass_widths(surface, _fields(surface, mesh, feed, cross, R, None, distance), samples, tool)
+        d = area_percentile(w, areas, SPACING_PERCENTILE) if spacing is None else spacing
+        rows.append((a, _gap(w, areas, d), float(areas.sum() / d)))
+    ok = [r for r in rows if r[1] <= AUTO_MAX_GAP]
+    if ok:
+        shortest = min(r[2] for r in ok)
+        best = next(r for r in ok if r[2] <= 1.02 * shortest)
+    else:
+        best = min(rows, key=lambda r: r[1])
+    summary = ", ".join(f"{math.degrees(r[0]):.0f} deg: {r[2]:.2f} m, gap {100 * r[1]:.2f}%" for r in rows)
+    rule = f"auto: shortest predicted path with gap <= {100 * AUTO_MAX_GAP:.1f}% among ({summary})"
+    log.info("equidistant direction %s", rule)
+    return float(best[0]), rule
+
+
+def _snake_levels(polylines) -> list[int]:
+    """Level index of each pass in the order :func:`swath.plan.raster._snake` emits them."""
+    by_level: dict[int, int] = {}
+    for pl in polylines:
+        by_level[pl.plane] = by_level.get(pl.plane, 0) + 1
+    return [lvl for lvl in sorted(by_level) for _ in range(by_level[lvl])]
+
+
+def _densify(points: np.ndarray, step: float) -> np.ndarray:
+    """A polyline ``(k, 3)`` with points inserted so that no segment is longer than ``step``."""
+    if len(points) < 2:
+        return points.copy()
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    n = np.maximum(np.ceil(seg / step).astype(int), 1)
+    t = np.concatenate([np.arange(k) / k for k in n])
+    i = np.repeat(np.arange(len(seg)), n)
+    out = points[i] + t[:, None] * (points[i + 1] - points[i])
+    return np.vstack([out, points[-1:]])
+
+
+# ----------------------------------------------------------------------------------------------
+# measuring the spacing of any tool path
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PassSpacing:
+    """Geodesic distances between neighbouring passes of a tool path.
+
+    Attributes
+    ----------
+    pairs : list of (int, int, (k,) float)
+        ``(component, level, gaps)``: for every point of the passes at ``level``, its geodesic
+        distance (m) to the passes at ``level + 1`` of the same piece.
+    mean : float
+        Mean of all gaps, m.
+    spread : float
+        ``(max − min) / mean`` over all gaps (0 = perfectly equidistant).
+    pair_spread : (p,) float
+        The same per neighbouring pair.
+    percentiles : (3,) float
+        5th, 50th and 95th percentile of all gaps, m.
+    robust_spread : float
+        ``(P95 − P5) / P50``: the spread without the few points (pass ends at ragged edges,
+        next to dropped fragments or holes) whose neighbour level has no pass beside them.
+    method : str
+        Distance solver used.
+    """
+
+    pairs: list
+    mean: float
+    spread: float
+    pair_spread: np.ndarray
+    percentiles: np.ndarray
+    robust_spread: float
+    method: str
+
+
+def pass_levels(toolpath) -> tuple[np.ndarray, np.ndarray]:
+    """(component, level) of each pass: from the metadata of an equidistant plan, from the plane
+    offsets of a raster plan, otherwise the pass order (one level per pass)."""
+    n = len(toolpath.passes)
+    md = toolpath.metadata
+    if "pass_levels" in md and len(md["pass_levels"]) == n:
+        return np.asarray(md.get("pass_components", [0] * n), int), np.asarray(md["pass_levels"], int)
+    if toolpath.planner == "raster" and "cross_direction" in md and "spacing_m" in md:
+        c = np.asarray(md["cross_direction"], float)
+        off = np.array([float(np.mean(p.points @ c)) for p in toolpath.passes])
+        return np.zeros(n, int), np.round((off - off.min()) / md["spacing_m"]).astype(int)
+    return np.zeros(n, int), np.arange(n)
+
+
+def pass_spacing(toolpath, *, max_edge: float = 3e-3, trim: float = 0.0, method: str = "fmm") -> PassSpacing:
+    """Measure the geodesic distance from every pass point to the passes of the next level.
+
+    Parameters
+    ----------
+    toolpath : ToolPath
+        Any plan on a mesh; levels come from :func:`pass_levels`.
+    max_edge : float
+        The surface is refined to this edge length (m) for the distance solves (fast-marching
+        error is about a tenth of it on smooth parts).
+    trim : float
+        Points within this arc length (m) of either end of a pass are not measured.
+    method : {"fmm", "heat"}
+
+    Returns
+    -------
+    PassSpacing
+    """
+    surface = toolpath.surface
+    V, F, _, _ = refine_mesh(surface.vertices, surface.faces, max_edge)
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(V[F].mean(axis=1))
+    vtree = cKDTree(V)
+    solver = None
+    if method == "fmm":
+        import potpourri3d as pp3d
+
+        try:
+            solver = pp3d.MeshFastMarchingDistanceSolver(V, F)
+        except RuntimeError:
+            solver = None
+    comps, levels = pass_levels(toolpath)
+    keys = {}
+    for i, (c, lv) in enumerate(zip(comps, levels)):
+        keys.setdefault((int(c), int(lv)), []).append(i)
+    pairs, used = [], set()
+    for (c, lv), idx in sorted(keys.items()):
+        nxt = keys.get((c, lv + 1))
+        if not nxt:
+            continue
+        band, band_d = polyline_band(V, [toolpath.passes[i].points for i in nxt], 1.5 * max_edge, tree=vtree)
+        d, m = distance_field(V, F, source_vertices=band, source_distances=band_d, method=method, solver=solver)
+        used.add(m)
+        pts = []
+        for i in idx:
+            p = toolpath.passes[i].points
+            if trim > 0:
+                s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+                p = p[(s >= trim) & (s <= s[-1] - trim)]
+            pts.append(p)
+        pts = np.concatenate(pts)
+        if len(pts) == 0:
+            continue
+        f, b, _ = locate_points(V, F, pts, tree=tree)
+        pairs.append((c, lv, np.einsum("ij,ij->i", d[F[f]], b)))
+    if not pairs:
+        raise InputError("the tool path has no neighbouring passes to measure")
+    allg = np.concatenate([g for _, _, g in pairs])
+    mean = float(allg.mean())
+    pair_spread = np.array([float(np.ptp(g) / g.mean()) for _, _, g in pairs])
+    pct = np.percentile(allg, [5, 50, 95])
+    return PassSpacing(pairs, mean, float(np.ptp(allg) / mean), pair_spread, pct, float((pct[2] - pct[0]) / pct[1]),
+                       "+".join(sorted(used)))
