@@ -329,3 +329,16 @@ def test_example_patches_match_the_example_meshes():
     P = pp.evaluate(np.repeat(g, 7), np.tile(g, 7))
     z = np.sqrt(0.35**2 - P[:, 0] ** 2) - 0.35 + np.sqrt(0.9**2 - P[:, 1] ** 2) - 0.9
     assert np.allclose(P[:, 2], z, atol=1e-14)
+
+
+def test_rows_fit_with_a_fixed_smoothing_length():
+    # The numeric-smoothing path of the skinning (no cross-validation) fits as well as GCV here.
+    from swath.surface.fit import fit_patch
+    from swath.surface.scansim import panel_patch, simulate_laser_scan
+
+    rng = np.random.default_rng(7)
+    scan = simulate_laser_scan(panel_patch(), row_spacing=4e-3, point_spacing=2e-3, rng=rng)
+    patch, report = fit_patch(scan.points, rows=scan.rows, parameterization="rows", smoothing=5e-3)
+    _, _, dist = patch.project(scan.true_points[::50])
+    assert report.rms < 3e-4
+    assert np.percentile(dist, 95) < 3e-4

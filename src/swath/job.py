@@ -7,7 +7,6 @@ atomically: it appears complete, or not at all.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import time

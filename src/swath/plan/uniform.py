@@ -32,7 +32,6 @@ import math
 import time
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import InfeasibleError, InputError
 from ..surface.curvature import PrincipalCurvature

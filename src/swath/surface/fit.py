@@ -487,6 +487,13 @@ def _gram(knots: np.ndarray, degree: int, order: int) -> np.ndarray:
     return G.reshape(n, n)
 
 
+def _spd_solve(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve ``A x = rhs`` for a symmetric positive-definite ``A`` ``(n, n)`` (Cholesky)."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    return cho_solve(cho_factor(A), rhs)
+
+
 def _lambda_grid(h_min: float, L: float) -> np.ndarray:
     """Candidate smoothing lengths, m, log-spaced over a generous range."""
     return np.geomspace(max(h_min, 1e-9) / 20.0, max(L, h_min) * 20.0, 90)
