@@ -9,19 +9,11 @@ import tracemalloc
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_MESHES = REPO.parent / "shared" / "meshes"
 sys.path.insert(0, str(REPO / "src"))
+sys.path.insert(0, str(REPO / "tests"))
 
-#: Shared meshes and the unit each is read in (the wavy sheet is unitless, read as inches).
-SHARED_MESH_UNITS = {
-    "snp_part_scan.ply": "m",
-    "noether_raw_mesh.ply": "m",
-    "bezier_dac_cad.ply": "m",
-    "bezier_dac_scan.ply": "m",
-    "noether_wavy_mesh_with_hole.ply": "in",
-    "bezier_complex_shape.ply": "m",
-    "crs_part_5.stl": "m",
-}
+# The shared meshes and the unit each is read in: one table, kept with the tests.
+from conftest import SHARED_MESH_UNITS, SHARED_MESHES  # noqa: E402
 
 
 def parts(include_shared: bool = True):

@@ -47,7 +47,7 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError
 from ..surface.geometry import face_normals_and_areas, normalize
-from .raster import MIN_PASS_FRACTION, _is_number, _positive, _snake, feed_and_cross
+from .raster import MIN_PASS_FRACTION, _is_number, _positive, feed_and_cross, snake_order
 from .slicing import level_sets, mesh_edges
 from .toolpath import ToolPath
 from .widths import SPACING_PERCENTILE, area_percentile, pad_scale_samples, patch_widths
@@ -876,7 +876,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         if not kept:
             continue
         fake = SimpleNamespace(face_normals=face_normals_and_areas(comp.vertices, comp.faces)[0])
-        comp_passes = _snake(kept, feed, cross, fake, point_spacing)
+        comp_passes = snake_order(kept, feed, cross, fake, point_spacing)
         passes.extend(comp_passes)
         pass_levels.extend(_snake_levels(kept))
         pass_comp.extend([comp.index] * len(comp_passes))
@@ -931,7 +931,7 @@ def _choose_angle(surface, tool, mesh, samples, spacing, R, distance) -> tuple[f
 
 
 def _snake_levels(polylines) -> list[int]:
-    """Level index of each pass in the order :func:`swath.plan.raster._snake` emits them."""
+    """Level index of each pass in the order :func:`swath.plan.raster.snake_order` emits them."""
     by_level: dict[int, int] = {}
     for pl in polylines:
         by_level[pl.plane] = by_level.get(pl.plane, 0) + 1

@@ -127,7 +127,7 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float | None =
             f"min_pass_length={min_pass_length * 1e3:.1f} mm (the part spans {along * 1e3:.1f} mm along the feed); "
             "lower min_pass_length or choose a feed direction along the part")
 
-    passes = _snake(kept, feed, cross, surface, point_spacing)
+    passes = snake_order(kept, feed, cross, surface, point_spacing)
     metadata = dict(
         spacing_m=float(spacing), angle_rad=float(angle or 0.0), direction_rule=direction_rule,
         feed_direction=feed.tolist(),
@@ -245,7 +245,7 @@ def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, floa
     return offsets, margin
 
 
-def _snake(polylines, feed, cross, surface, point_spacing) -> list[Pass]:
+def snake_order(polylines, feed, cross, surface, point_spacing) -> list[Pass]:
     """Orient and order fragments plane by plane, alternating the travel direction; resample."""
     by_plane: dict[int, list] = {}
     for pl in polylines:
