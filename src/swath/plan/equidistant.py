@@ -47,10 +47,10 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError
 from ..surface.geometry import face_normals_and_areas, normalize
-from .raster import MIN_PASS_FRACTION, _is_number, _positive, feed_and_cross, snake_order
+from .raster import MIN_PASS_FRACTION, _is_number, _positive, feed_and_cross, select_direction, snake_order
 from .slicing import level_sets, mesh_edges
 from .toolpath import ToolPath
-from .widths import SPACING_PERCENTILE, area_percentile, pad_scale_samples, patch_widths
+from .widths import SPACING_PERCENTILE, area_percentile, gap_fraction, pad_scale_samples, patch_widths
 
 log = logging.getLogger("swath.plan")
 
@@ -690,11 +690,6 @@ def _pass_widths(surface, fields: _Fields, samples, tool) -> tuple[np.ndarray, n
     return patch_widths(curv, samples.normals[ok], feed, tool), samples.areas[ok]
 
 
-def _gap(w: np.ndarray, areas: np.ndarray, d: float) -> float:
-    """Predicted area share left between swaths at spacing ``d``: ``Σ a max(0, 1 − w/d) / Σ a``."""
-    return float(np.sum(areas * np.clip(1.0 - w / d, 0.0, None)) / areas.sum())
-
-
 def _spacing_rule(w, d, gap, samples) -> str:
     return (f"{SPACING_PERCENTILE:.1%} area-percentile of the contact chord across the pass direction (level-set "
             f"tangent of the distance field), local contact model with curvature fitted over the pad radius on "
@@ -841,7 +836,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
     if spacing is None:
         w, areas = _pass_widths(surface, fields, samples, tool)
         d = area_percentile(w, areas, SPACING_PERCENTILE)
-        gap = _gap(w, areas, d)
+        gap = gap_fraction(w, areas, d)
         rule = _spacing_rule(w, d, gap, samples)
         log.info("equidistant default spacing %.1f mm (narrowest chord %.1f mm, predicted gap %.3f%%)", d * 1e3,
                  w.min() * 1e3, 100 * gap)
@@ -917,17 +912,9 @@ def _choose_angle(surface, tool, mesh, samples, spacing, R, distance) -> tuple[f
         feed, cross = feed_and_cross(surface, angle=a)
         w, areas = _pass_widths(surface, _fields(surface, mesh, feed, cross, R, None, distance), samples, tool)
         d = area_percentile(w, areas, SPACING_PERCENTILE) if spacing is None else spacing
-        rows.append((a, _gap(w, areas, d), float(areas.sum() / d)))
-    ok = [r for r in rows if r[1] <= AUTO_MAX_GAP]
-    if ok:
-        shortest = min(r[2] for r in ok)
-        best = next(r for r in ok if r[2] <= 1.02 * shortest)
-    else:
-        best = min(rows, key=lambda r: r[1])
-    summary = ", ".join(f"{math.degrees(r[0]):.0f} deg: {r[2]:.2f} m, gap {100 * r[1]:.2f}%" for r in rows)
-    rule = f"auto: shortest predicted path with gap <= {100 * AUTO_MAX_GAP:.1f}% among ({summary})"
-    log.info("equidistant direction %s", rule)
-    return float(best[0]), rule
+        rows.append((a, gap_fraction(w, areas, d), float(areas.sum() / d), None))
+    best, rule = select_direction(rows, AUTO_MAX_GAP, "equidistant")
+    return best[0], rule
 
 
 def _snake_levels(polylines) -> list[int]:

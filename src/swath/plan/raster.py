@@ -214,18 +214,29 @@ def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANG
             d, gap = spacing, gap_fraction(w_eff, samples.areas, spacing)
         slope = np.linalg.norm(np.cross(samples.normals, cross), axis=1)
         length = float(np.sum(samples.areas * slope) / d)
-        rows.append((a, ch, d, gap, length))
-    ok = [r for r in rows if r[3] <= max_gap]
+        rows.append((a, gap, length, ch))
+    best, rule = select_direction(rows, max_gap, "raster")
+    return best[0], best[3], rule
+
+
+def select_direction(rows, max_gap: float, planner: str):
+    """The direction rule shared by the planners that pick their own feed direction.
+
+    ``rows`` are ``(angle_rad, predicted_gap_fraction, predicted_length_m, payload)``.  The shortest
+    candidate whose gap is at most ``max_gap`` wins, near-ties (within 2 %) going to the earlier
+    candidate (the principal axis first); if none qualifies, the one with the smallest gap.
+    Returns the winning row and a one-line description for metadata.
+    """
+    ok = [r for r in rows if r[1] <= max_gap]
     if ok:
-        # Near-ties (within 2 %) go to the earlier candidate: the principal axis first.
-        shortest = min(r[4] for r in ok)
-        best = next(r for r in ok if r[4] <= 1.02 * shortest)
+        shortest = min(r[2] for r in ok)
+        best = next(r for r in ok if r[2] <= 1.02 * shortest)
     else:
-        best = min(rows, key=lambda r: r[3])
-    summary = ", ".join(f"{math.degrees(r[0]):.0f} deg: {r[4]:.2f} m, gap {100 * r[3]:.2f}%" for r in rows)
+        best = min(rows, key=lambda r: r[1])
+    summary = ", ".join(f"{math.degrees(r[0]):.0f} deg: {r[2]:.2f} m, gap {100 * r[1]:.2f}%" for r in rows)
     rule = f"auto: shortest predicted path with gap <= {100 * max_gap:.1f}% among ({summary})"
-    log.info("raster direction %s", rule)
-    return float(best[0]), best[1], rule
+    log.info("%s direction %s", planner, rule)
+    return (float(best[0]),) + tuple(best[1:]), rule
 
 
 def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, float]:
