@@ -268,11 +268,11 @@ def _toppra_squared_speeds(path: RoutePath, grid: np.ndarray, cap: np.ndarray, a
     return np.minimum(x, cap**2)
 
 
-def _grid(path: RoutePath, step: float) -> np.ndarray:
-    """Grid points on ``path``: every joint, plus equal steps ≤ ``step`` (m) and ≤ 10° on arcs."""
+def _grid(path: RoutePath, step: float, max_turn_deg: float = 10.0) -> np.ndarray:
+    """Arc lengths on ``path``: every joint, plus equal steps ≤ ``step`` (m) and ≤ ``max_turn_deg`` on arcs."""
     out = []
     for s0, L, r in zip(path.start, path.length, path.radius):
-        h = min(step, np.deg2rad(10.0) * r) if np.isfinite(r) else step
+        h = min(step, np.deg2rad(max_turn_deg) * r) if np.isfinite(r) else step
         n = max(int(np.ceil(L / h)), 1)
         out.append(s0 + L * np.arange(n) / n)
     out.append([path.total])
@@ -377,7 +377,7 @@ def time_link(route: np.ndarray, q_from: np.ndarray, q_to: np.ndarray, links: Li
     if x is None:
         path = route_path(route, blend=None)
         s_a, s_b, turn_cap = turning_span(path)
-    s = _samples(path, links.step)
+    s = _grid(path, links.step, 15.0)
     if method == "toppra":
         t, speed = _times_from_squared_speeds(grid, x, s)
         duration = float(t[-1])
@@ -400,18 +400,6 @@ def time_link(route: np.ndarray, q_from: np.ndarray, q_to: np.ndarray, links: Li
     keep[0] &= include_start
     keep[-1] &= include_end
     return LinkPiece(pos[keep], q[keep], speed[keep], omega[keep], t[keep], duration, method)
-
-
-def _samples(path: RoutePath, step: float) -> np.ndarray:
-    """Sample arc lengths on ``path``: every joint plus equal steps ≤ ``step`` (m), ≤ 15° on arcs."""
-    out = []
-    for s0, L, r in zip(path.start, path.length, path.radius):
-        h = min(step, np.deg2rad(15.0) * r) if np.isfinite(r) else step
-        n = max(int(np.ceil(L / h)), 1)
-        out.append(s0 + L * np.arange(n) / n)
-    out.append([path.total])
-    s = np.concatenate(out)
-    return s[np.concatenate([[True], np.diff(s) > 1e-12])]
 
 
 class AirGuard:
