@@ -717,7 +717,9 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         tangent) on pad-scale samples, as for raster but without raster's slope factor (the
         passes are spaced along the surface, not in space) — reduced on each piece to
         ``D / ceil(D / d)`` (``D`` its largest distance from the seed) so the last pass also lies
-        half a spacing from the far edge.
+        half a spacing from the far edge.  A given spacing is kept exactly; where it leaves more than
+        half a spacing beyond a piece's last level, one more level is pulled in to half a spacing
+        from the far edge (counted in ``metadata["pulled_in_levels"]``).
     seed : (k, 3) float, optional
         A polyline in the part frame (m) to measure the distance from (on both sides when it
         crosses the part).  Points are densified and placed on the surface; a point farther than
@@ -756,6 +758,8 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         ``metadata``: spacing_m (the smallest used), level_spacing_m (per seeded piece),
         spacing_rule, predicted_gap_fraction (default spacing), direction_rule, first_offset_m,
         far_margin_m (largest distance from the last level to the farthest point of a piece),
+        pulled_in_levels (how many pieces had their last level pulled in, given spacing only) and
+        pulled_in ([piece, level] of each such level),
         n_levels, n_passes, pass_levels and pass_components (level and piece of each pass),
         dropped_fragments, dropped_length_m, point_spacing_m, min_pass_length_m, field_edge_m,
         field_vertices, distance_method, seed ("boundary" or "polyline"), seed_length_m,
@@ -845,7 +849,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
 
     # --- level sets, fragments, snake order -----------------------------------------------------
     passes, pass_levels, pass_comp, level_spacing = [], [], [], []
-    dropped, dropped_length, n_levels, far_margin = 0, 0.0, 0, 0.0
+    dropped, dropped_length, n_levels, far_margin, pulled_in = 0, 0.0, 0, 0.0, []
     for comp in components:
         top = float(comp.field.max())
         if spacing is None:            # fit: D / ceil(D / d), first and last half a spacing from the ends
@@ -858,6 +862,12 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
             raise InputError(f"spacing {d * 1e3:.4g} mm would need {n} passes across {top * 1e3:.1f} mm; "
                              "is the spacing in metres?")
         levels = step * (np.arange(n) + 0.5)
+        if spacing is not None and n and top - levels[-1] > 0.5 * step * (1 + 1e-6):
+            # A given spacing rarely divides the piece: pull one last level in to half a spacing
+            # from the far edge so the edge is covered (the last gap is then shorter than the rest).
+            levels = np.append(levels, top - 0.5 * step)
+            n += 1
+            pulled_in.append([int(comp.index), n - 1])
         level_spacing.append(float(step))
         n_levels += n
         if n:
@@ -884,7 +894,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
     used = min(level_spacing) if level_spacing else d
     metadata = dict(
         spacing_m=float(used), level_spacing_m=level_spacing, spacing_rule=rule, direction_rule=direction_rule,
-        first_offset_m=float(used / 2), far_margin_m=float(far_margin),
+        first_offset_m=float(used / 2), far_margin_m=float(far_margin), pulled_in_levels=len(pulled_in), pulled_in=pulled_in,
         n_levels=int(n_levels), n_passes=len(passes), pass_levels=[int(x) for x in pass_levels],
         pass_components=[int(x) for x in pass_comp], dropped_fragments=int(dropped),
         dropped_length_m=float(dropped_length), point_spacing_m=float(point_spacing),
@@ -988,7 +998,8 @@ def pass_levels(toolpath) -> tuple[np.ndarray, np.ndarray]:
 
 
 def pass_spacing(toolpath, *, max_edge: float = 3e-3, trim: float = 0.0, method: str = "fmm") -> PassSpacing:
-    """Measure the geodesic distance from every pass point to the passes of the next level.
+    """Measure the geodesic distance from every pass point to the passes of the next level
+    (a level pulled in to a far edge, ``metadata["pulled_in"]``, is not measured against).
 
     Parameters
     ----------
@@ -1024,9 +1035,10 @@ def pass_spacing(toolpath, *, max_edge: float = 3e-3, trim: float = 0.0, method:
     for i, (c, lv) in enumerate(zip(comps, levels)):
         keys.setdefault((int(c), int(lv)), []).append(i)
     pairs, used = [], set()
+    pulled = {tuple(k) for k in toolpath.metadata.get("pulled_in", [])}
     for (c, lv), idx in sorted(keys.items()):
         nxt = keys.get((c, lv + 1))
-        if not nxt:
+        if not nxt or (c, lv + 1) in pulled:        # a pulled-in last level is closer on purpose
             continue
         band, band_d = polyline_band(V, [toolpath.passes[i].points for i in nxt], 1.5 * max_edge, tree=vtree)
         d, m = distance_field(V, F, source_vertices=band, source_distances=band_d, method=method, solver=solver)
