@@ -34,3 +34,12 @@ def cylinder_patch(radius: float, half_angle: float, length: float, n_theta: int
     if s.vertex_normals[top, 2] * want < 0:
         s = Surface(v, f[:, ::-1])
     return s
+
+
+def grooved_plate(width: float = 0.3, depth: float = 5e-3, sigma: float = 0.01, n: int = 151) -> Surface:
+    """A square plate ``width`` wide (m) with a Gaussian groove along x through its middle:
+    z = −depth · exp(−y² / (2 sigma²)); the bottom's radius of curvature is sigma² / depth."""
+    xs = np.linspace(-width / 2, width / 2, n)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    Z = -depth * np.exp(-Y ** 2 / (2 * sigma ** 2))
+    return Surface(np.stack([X, Y, Z], -1).reshape(-1, 3), grid_faces(n, n), name="grooved plate")

@@ -43,6 +43,9 @@ from .widths import _rows, _unique_patches
 
 log = logging.getLogger("swath.plan")
 
+#: About this many working-mesh vertices at most (the default working edge is coarsened to stay near it).
+MAX_WORK_VERTICES = 350_000
+
 #: Candidate seed directions (rad from the first principal axis) for ``direction="auto"``.
 AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 
@@ -102,7 +105,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
         Feed (m/s) and limits (rad/s, m/s²) used to predict cycle times for ``direction="auto"``.
     work_spacing : float, optional
         Edge length (m) the surface is subdivided to for the distance fields (default from the part
-        size, between R/12 and R/4).
+        size, between R/12 and R/4, coarsened if the mesh would exceed about
+        :data:`MAX_WORK_VERTICES` vertices).
     progress : callable, optional
         ``progress(stage: str, done: int, total: int)``, called as candidate directions finish.
 
@@ -144,12 +148,19 @@ class _Context:
 
         t0 = time.perf_counter()
         R = tool.pad_radius
-        if work_spacing is None:
+        given = work_spacing is not None
+        if not given:
             work_spacing = float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
         self.surface = surface
         self.tool = tool
+        self.work = surface.subdivided(work_spacing)
+        # Halving long thin CAD triangles makes far more vertices than an even mesh of the same edge
+        # length; the distance solver's set-up grows faster than linearly with them, so coarsen to
+        # stay near the budget (never past R/4, where the widths would blur).
+        while not given and len(self.work.vertices) > 1.3 * MAX_WORK_VERTICES and work_spacing < R / 4.0:
+            work_spacing = min(work_spacing * math.sqrt(len(self.work.vertices) / MAX_WORK_VERTICES), R / 4.0)
+            self.work = surface.subdivided(work_spacing)
         self.work_spacing = float(work_spacing)
-        self.work = surface.subdivided(self.work_spacing)
         W = self.work
         self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
         # Curvature from the part's own vertices (nearest one to each working vertex): vertices added
@@ -215,21 +226,28 @@ class _Context:
         return points - off[:, None] * n, n
 
     def touched(self, pts: np.ndarray) -> np.ndarray:
-        """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``.
-
-        The mesh contact model (:func:`swath.contact.mesh_contact`) at poses at most R/8 apart, with
-        the pad-face depth capped at that of the local contact model (principal curvatures at the
-        pose): where the pad overhangs the part's edge the real pad sinks deeper and reaches farther,
-        and passes laid along that wider edge would bow outward more with every generation.  The cap
-        only ever shrinks the region counted as covered, so the simulator agrees with it.
-        """
-        from ..contact import mesh_contact
-
+        """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``,
+        at poses at most R/8 apart (see :meth:`touched_at`)."""
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         n = max(int(np.ceil(cum[-1] / (self.tool.pad_radius / 8))), 1) + 1
         idx = np.unique(np.searchsorted(cum, np.linspace(0, cum[-1], n)).clip(0, len(pts) - 1))
-        closest, normals = self.project(pts[idx])
+        return self.touched_at(pts[idx])
+
+    def touched_at(self, poses: np.ndarray) -> np.ndarray:
+        """(n,) bool: working vertices the pressed pad touches at the pad centres ``poses`` ``(k, 3)``.
+
+        The mesh contact model (:func:`swath.contact.mesh_contact`), with the pad-face depth capped at
+        that of the local contact model (principal curvatures at the pose): where the pad overhangs
+        the part's edge the real pad sinks deeper and reaches farther, and passes laid along that
+        wider edge would bow outward more with every generation.  The cap only ever shrinks the
+        region counted as covered, so the simulator agrees with it.
+        """
+        from ..contact import mesh_contact
+
+        if len(poses) == 0:
+            return np.zeros(len(self.work.vertices), bool)
+        closest, normals = self.project(poses)
         axes = -normals
         W = self.work
         mc = mesh_contact(self._pts32, self._nrm32, W.vertex_areas, self.tree, closest, axes, self.tool)
@@ -318,7 +336,8 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     if not passes_pts:
         raise InfeasibleError("uniform found no pass: the surface is narrower than the shortest allowed pass "
                               f"({min_pass_length * 1e3:.1f} mm) in every direction tried")
-    ordered = _zigzag(passes_pts)
+    covered, touch_ups = _touch_up(ctx, passes_pts, covered, step, min_pass_length)
+    ordered = _zigzag(_insert_near(passes_pts, touch_ups))
     passes = [_on_surface_pass(ctx.surface, p, point_spacing) for p in ordered]
     # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
     # capped as in _Context.touched); the simulator's figure is the one to trust.
@@ -326,7 +345,8 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     meta = dict(overlap_fraction=float(overlap), direction_rad=float(angle), direction_rule=rule,
                 predicted_coverage_fraction=covered_pred,
                 feed_direction=feed_dir.tolist(), seed=seed if isinstance(seed, str) else "polyline",
-                n_passes=len(passes), n_generations=len(generations), work_spacing_m=ctx.work_spacing,
+                n_passes=len(passes), n_generations=len(generations), n_touch_up_passes=len(touch_ups),
+                work_spacing_m=ctx.work_spacing,
                 point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
                 plan_time_s=time.perf_counter() - t0)
     if extra_meta:
@@ -471,6 +491,129 @@ def _length(pts) -> float:
 
 def _area(W, mask) -> float:
     return float(W.vertex_areas[mask].sum())
+
+
+def _touch_up(ctx, passes: list[np.ndarray], covered: np.ndarray, step: float, min_pass_length: float,
+              rounds: int = 2) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Check the pockets the passes seem to miss, and cross the ones they really miss.
+
+    Where the surface is concave more tightly than the pad can follow (waves or dimples narrower
+    than the pad), the pad rides on the crests and touches a trough's bottom only with its rim, at
+    the moment its centre is about a pad radius away.  Those rim contacts are thin, so the pockets
+    left uncovered by the generation loop (whose poses are R/8 apart) are first re-checked with a pose
+    at every pass point (``step`` apart).  A pocket (at least 1 % and at most 100 % of the pad's area)
+    still untouched gets a short pass across it
+    along its most concave principal direction, reaching a pad radius beyond it on both sides, so
+    the rim sweeps its bottom on the way in and out; it is kept only if it touches new area.
+
+    Parameters
+    ----------
+    passes : list of (k, 3) float
+        The passes so far, points ``step`` apart, m.
+    covered : (n,) bool
+        Working vertices touched so far.
+
+    Returns
+    -------
+    covered : (n,) bool
+        Updated.
+    touch_ups : list of (k, 3) float
+        The added passes.
+    """
+    W, R = ctx.work, ctx.tool.pad_radius
+    min_area = max(1e-4 * W.area, 0.01 * math.pi * R * R)
+    blobs = _uncovered_pockets(W, covered, min_area)
+    big = [b for b in blobs if _area(W, b) > math.pi * R * R]
+    if big:           # larger than the pad: not a pocket between passes (max_passes, or passes dropped)
+        log.warning("uniform: %d uncovered regions larger than the pad (%.4f m2 in all) left as they are",
+                    len(big), sum(_area(W, b) for b in big))
+        blobs = [b for b in blobs if _area(W, b) <= math.pi * R * R]
+    if not blobs:
+        return covered, []
+    from scipy.spatial import cKDTree
+
+    near_tree = cKDTree(W.vertices[np.concatenate(blobs)])
+    for pts in passes:
+        close = np.isfinite(near_tree.query(pts, distance_upper_bound=1.2 * R)[0])
+        if close.any():
+            covered = covered | ctx.touched_at(pts[close])
+    added = []
+    c = ctx.widths.curvature
+    for _ in range(rounds):
+        blobs = [b for b in _uncovered_pockets(W, covered, min_area) if _area(W, b) <= math.pi * R * R]
+        if not blobs:
+            break
+        grew = False
+        for blob in blobs:
+            centre = W.vertices[blob].T @ W.vertex_areas[blob] / W.vertex_areas[blob].sum()
+            v = blob[np.argmin(np.linalg.norm(W.vertices[blob] - centre, axis=1))]
+            n = W.normals[v]
+            across = normalize((c.d2[v] - (c.d2[v] @ n) * n)[None])[0]
+            reach = float(np.max(np.linalg.norm(W.vertices[blob] - W.vertices[v], axis=1))) + 1.1 * R
+            pieces = slice_mesh(W.vertices, W.faces, np.cross(n, across), [float(W.vertices[v] @ np.cross(n, across))])
+            best = None
+            for pl in pieces:
+                pts = resample(pl, step).points
+                if len(pts) < 3:
+                    continue
+                dist = np.linalg.norm(pts - W.vertices[v], axis=1)
+                k = int(np.argmin(dist))
+                if best is None or dist[k] < best[1]:
+                    best = (pts, dist[k], k, dist)
+            if best is None or best[1] > ctx.work_spacing:
+                continue
+            pts, _, k, dist = best
+            lo, hi = k, k
+            while lo > 0 and dist[lo - 1] <= reach:
+                lo -= 1
+            while hi < len(pts) - 1 and dist[hi + 1] <= reach:
+                hi += 1
+            pts = pts[lo:hi + 1]
+            if _length(pts) < min_pass_length:
+                continue
+            pts, _ = ctx.project(pts)
+            gained = ctx.touched_at(pts) & ~covered
+            if _area(W, gained) <= 0.0:
+                continue
+            covered = covered | gained
+            added.append(pts)
+            grew = True
+        if not grew:
+            break
+    if added:
+        log.info("uniform: %d touch-up passes across pockets the passes missed (%.2f m)", len(added),
+                 sum(_length(p) for p in added))
+    return covered, added
+
+
+def _uncovered_pockets(W, covered: np.ndarray, min_area: float) -> list[np.ndarray]:
+    """Connected groups of uncovered working vertices, each of at least ``min_area`` (m²)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    free = ~covered
+    F = W.faces
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    e = e[free[e[:, 0]] & free[e[:, 1]]]
+    n = len(W.vertices)
+    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    label = np.where(free, label, -1)
+    ids = np.flatnonzero(free)
+    area = np.bincount(label[ids], weights=W.vertex_areas[ids], minlength=n)
+    order = np.argsort(label[ids], kind="stable")
+    groups = np.split(ids[order], np.flatnonzero(np.diff(label[ids][order])) + 1)
+    return [g for g in groups if len(g) and area[label[g[0]]] >= min_area]
+
+
+def _insert_near(passes: list[np.ndarray], extra: list[np.ndarray]) -> list[np.ndarray]:
+    """``passes`` with each of ``extra`` inserted right after the pass nearest to its middle."""
+    out = list(passes)
+    for e in extra:
+        mid = e[len(e) // 2]
+        k = int(np.argmin([np.min(np.linalg.norm(p - mid, axis=1)) for p in out]))
+        out.insert(k + 1, e)
+    return out
 
 
 def _zigzag(polylines: list[np.ndarray]) -> list[np.ndarray]:
