@@ -46,6 +46,10 @@ log = logging.getLogger("swath.plan")
 #: About this many working-mesh vertices at most (the default working edge is coarsened to stay near it).
 MAX_WORK_VERTICES = 350_000
 
+#: Passes are smoothed by a moving average this many pad radii long: level sets on the working mesh
+#: zig-zag at its edge scale, and every zig-zag turns the tool (slowing it under an angular-speed limit).
+SMOOTHING_WINDOW = 1.0
+
 #: Candidate seed directions (rad from the first principal axis) for ``direction="auto"``.
 AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 
@@ -461,7 +465,10 @@ def _finish_piece(ctx, pl, step):
     pts = pl if isinstance(pl, np.ndarray) else resample(pl, step).points
     if len(pts) < 3:
         return None
-    pts = _smooth(pts, window=max(3, int(round(0.25 * ctx.tool.pad_radius / step))))
+    # A short piece or a small loop would shrink under the full window: keep it to a sixth of the
+    # piece (a loop's radius), which moves a loop's points in by under 4 %.
+    window = min(SMOOTHING_WINDOW * ctx.tool.pad_radius, _length(pts) / 6.0) / step
+    pts = _smooth(pts, window=max(3, int(round(window))))
     pts, _ = ctx.project(pts)
     tangents = normalize(np.gradient(pts, axis=0))
     idx = ctx.nearest_vertices(pts)
@@ -470,7 +477,8 @@ def _finish_piece(ctx, pl, step):
 
 
 def _smooth(pts, window):
-    """Moving-average smoothing of a polyline ``(k, 3)`` with its ends held."""
+    """Moving-average smoothing of a polyline ``(k, 3)`` over ``window`` points: an open one with
+    its ends held, a closed one (ends within two point steps) all the way round."""
     k = len(pts)
     if k < 5 or window < 3:
         return pts
@@ -479,9 +487,15 @@ def _smooth(pts, window):
         return pts
     kernel = np.ones(window) / window
     half = window // 2
-    padded = np.vstack([np.repeat(pts[:1], half, 0), pts, np.repeat(pts[-1:], half, 0)])
+    steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    closed = np.linalg.norm(pts[-1] - pts[0]) <= 2.0 * np.median(steps)
+    if closed:
+        padded = np.vstack([pts[-half - 1:-1], pts, pts[1:half + 1]])
+    else:
+        padded = np.vstack([np.repeat(pts[:1], half, 0), pts, np.repeat(pts[-1:], half, 0)])
     out = np.stack([np.convolve(padded[:, j], kernel, mode="valid") for j in range(3)], axis=1)
-    out[0], out[-1] = pts[0], pts[-1]
+    if not closed:
+        out[0], out[-1] = pts[0], pts[-1]
     return out
 
 
