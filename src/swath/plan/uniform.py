@@ -536,12 +536,12 @@ def _touch_up(ctx, passes: list[np.ndarray], covered: np.ndarray, step: float, m
     """
     W, R = ctx.work, ctx.tool.pad_radius
     min_area = max(1e-4 * W.area, 0.01 * math.pi * R * R)
-    blobs = _uncovered_pockets(W, covered, min_area)
-    big = [b for b in blobs if _area(W, b) > math.pi * R * R]
+    pad_area = math.pi * R * R
+    big = _uncovered_pockets(ctx, covered, pad_area * (1 + 1e-9))
     if big:           # larger than the pad: not a pocket between passes (max_passes, or passes dropped)
         log.warning("uniform: %d uncovered regions larger than the pad (%.4f m2 in all) left as they are",
                     len(big), sum(_area(W, b) for b in big))
-        blobs = [b for b in blobs if _area(W, b) <= math.pi * R * R]
+    blobs = _uncovered_pockets(ctx, covered, min_area, pad_area)
     if not blobs:
         return covered, []
     from scipy.spatial import cKDTree
@@ -554,7 +554,7 @@ def _touch_up(ctx, passes: list[np.ndarray], covered: np.ndarray, step: float, m
     added = []
     c = ctx.widths.curvature
     for _ in range(rounds):
-        blobs = [b for b in _uncovered_pockets(W, covered, min_area) if _area(W, b) <= math.pi * R * R]
+        blobs = _uncovered_pockets(ctx, covered, min_area, pad_area)
         if not blobs:
             break
         grew = False
@@ -600,24 +600,23 @@ def _touch_up(ctx, passes: list[np.ndarray], covered: np.ndarray, step: float, m
     return covered, added
 
 
-def _uncovered_pockets(W, covered: np.ndarray, min_area: float) -> list[np.ndarray]:
-    """Connected groups of uncovered working vertices, each of at least ``min_area`` (m²)."""
+def _uncovered_pockets(ctx, covered: np.ndarray, min_area: float, max_area: float = math.inf) -> list[np.ndarray]:
+    """Connected groups of uncovered working vertices (edges of ``ctx.edges``) whose area is
+    within [``min_area``, ``max_area``] m²."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
+    W = ctx.work
     free = ~covered
-    F = W.faces
-    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    e = ctx.edges[0]
     e = e[free[e[:, 0]] & free[e[:, 1]]]
     n = len(W.vertices)
-    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    label = np.where(free, label, -1)
+    _, label = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)), directed=False)
     ids = np.flatnonzero(free)
     area = np.bincount(label[ids], weights=W.vertex_areas[ids], minlength=n)
     order = np.argsort(label[ids], kind="stable")
     groups = np.split(ids[order], np.flatnonzero(np.diff(label[ids][order])) + 1)
-    return [g for g in groups if len(g) and area[label[g[0]]] >= min_area]
+    return [g for g in groups if len(g) and min_area <= area[label[g[0]]] <= max_area]
 
 
 def _insert_near(passes: list[np.ndarray], extra: list[np.ndarray]) -> list[np.ndarray]:
