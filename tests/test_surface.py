@@ -101,3 +101,21 @@ def test_closest_points_and_interpolated_normals_on_sphere():
     assert np.allclose(np.linalg.norm(p, axis=1), 0.1, atol=2e-5)
     n = s.interpolate_normals(p, f)
     assert np.allclose(n, p / np.linalg.norm(p, axis=1, keepdims=True), atol=1e-3)
+
+
+def test_closest_points_far_from_origin_and_after_pickling():
+    """A plate placed 2 m out in a robot cell: a point 5 mm above it maps straight down, exactly;
+    the surface survives a pickle round trip (its libigl tree is rebuilt, not copied)."""
+    import pickle
+
+    plate = flat_plate()
+    offset = np.array([2.0, -1.5, 0.8])
+    moved = Surface(plate.vertices + offset, plate.faces)
+    lo, hi = plate.bounds
+    q = offset + np.array([[0.1234, 0.0456, 0.005], [hi[0] + 0.3, 0.1, 0.02]])   # second: beyond the edge
+    p, d, _ = moved.closest_points(q)
+    assert np.allclose(p[0], q[0] - [0, 0, 0.005], atol=1e-12)
+    assert d[0] == pytest.approx(0.005, abs=1e-12)
+    assert d[1] == pytest.approx(np.hypot(0.3, 0.02), abs=1e-9)
+    again = pickle.loads(pickle.dumps(moved))
+    assert np.array_equal(again.closest_points(q)[0], p)

@@ -66,6 +66,12 @@ class Surface:
         if not self.area > 0:
             raise InputError("the mesh has no area (all triangles are degenerate)")
 
+    def __getstate__(self) -> dict:
+        # The closest-point tree is a libigl object that cannot be pickled; it is rebuilt on use.
+        state = dict(self.__dict__)
+        state.pop("_closest_point_tree", None)
+        return state
+
     def __repr__(self) -> str:
         return f"Surface({self.name!r}, {len(self.vertices)} vertices, {len(self.faces)} faces, area={self.area:.4g} m²)"
 
