@@ -50,6 +50,13 @@ MAX_WORK_VERTICES = 350_000
 #: zig-zag at its edge scale, and every zig-zag turns the tool (slowing it under an angular-speed limit).
 SMOOTHING_WINDOW = 1.0
 
+#: A pass is cut where following it at the feed would turn the tool about its axis faster than
+#: ``max_angular`` / this fraction, i.e. where the angular-speed limit would slow the pad below this
+#: fraction of the feed.  A pad that slows in contact dwells, and a tight hook or a small loop of a
+#: level set (a pass turning round at a part edge, circling a bump) grinds a ring into the part; the
+#: pieces either side are kept and the tool turns in the air between them instead.
+SHARP_TURN_SPEED_FRACTION = 0.5
+
 #: Candidate seed directions (rad from the first principal axis) for ``direction="auto"``.
 AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 
@@ -106,7 +113,9 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
     max_passes : int
         Safety limit on the number of pass generations.
     feed, max_angular, max_centripetal : float
-        Feed (m/s) and limits (rad/s, m/s²) used to predict cycle times for ``direction="auto"``.
+        Feed (m/s) and limits (rad/s, m/s²) used to predict cycle times for ``direction="auto"``; a
+        pass is also cut where, at this feed, the tool would turn about its axis faster than
+        ``max_angular`` / :data:`SHARP_TURN_SPEED_FRACTION` (the tool would slow and dwell there).
     work_spacing : float, optional
         Edge length (m) the surface is subdivided to for the distance fields (default from the part
         size, between R/12 and R/4, coarsened if the mesh would exceed about
@@ -118,7 +127,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
     -------
     ToolPath
         ``metadata``: overlap_fraction, direction_rad, direction_rule, seed, n_passes, work_spacing_m,
-        candidates (per direction: length_m, cycle_time_s) for ``"auto"``.
+        n_touch_up_passes and touch_up_passes (their indices in ``passes``), candidates (per
+        direction: length_m, cycle_time_s) for ``"auto"``.
     """
     if not (isinstance(overlap, (int, float)) and 0.0 <= overlap < 0.9):
         raise InputError(f"overlap must be a fraction in [0, 0.9), e.g. 0.1 for 10 %, got {overlap!r}")
@@ -126,7 +136,10 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
         raise InputError(f"point_spacing must be a positive length in metres, got {point_spacing!r}")
     R = tool.pad_radius
     min_pass_length = 0.25 * R if min_pass_length is None else float(min_pass_length)
-    ctx = _Context(surface, tool, work_spacing)
+    if not (feed > 0 and max_angular > 0 and max_centripetal > 0):
+        raise InputError(f"feed, max_angular and max_centripetal must be positive (m/s, rad/s, m/s2), got "
+                         f"{feed!r}, {max_angular!r}, {max_centripetal!r}")
+    ctx = _Context(surface, tool, work_spacing, max_turn_curvature=max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
 
     if isinstance(direction, str):
         if direction != "auto":
@@ -147,7 +160,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
 class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
-    def __init__(self, surface, tool, work_spacing):
+    def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf):
         import potpourri3d as pp3d
 
         t0 = time.perf_counter()
@@ -157,6 +170,7 @@ class _Context:
             work_spacing = float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
         self.surface = surface
         self.tool = tool
+        self.max_turn_curvature = float(max_turn_curvature)   # 1/m, in the tangent plane
         self.work = surface.subdivided(work_spacing)
         # Halving long thin CAD triangles makes far more vertices than an even mesh of the same edge
         # length; the distance solver's set-up grows faster than linearly with them, so coarsen to
@@ -282,8 +296,9 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     current = _seed_curves(ctx, seed, cross, step)
     reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
     if isinstance(seed, str) and seed == "middle":
-        first = [_finish_piece(ctx, p, step) for p in current]
-        first = [c for c in first if c is not None and _length(c[0]) >= min_pass_length]
+        first = [c for p in current for c in _finish_piece(ctx, p, step) if _length(c[0]) >= min_pass_length]
+        first = first or [c for p in current for c in _finish_piece(ctx, p, step, cut=False)
+                          if _length(c[0]) >= min_pass_length]
         if not first:
             raise InfeasibleError("the middle slice of the surface is shorter than min_pass_length")
         generations.append(first)
@@ -318,8 +333,12 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
             pieces = level_sets(W.vertices, W.faces, d - level, [0.0], edges=ctx.edges)
-        new = [_finish_piece(ctx, p, step) for p in pieces]
-        new = [c for c in new if c is not None and _length(c[0]) >= min_pass_length]
+        new = [c for p in pieces for c in _finish_piece(ctx, p, step) if _length(c[0]) >= min_pass_length]
+        if not new:
+            # Every piece was a tight turn (a short seed stretch gives a first level set curled round
+            # it): a pass that makes the tool slow down beats no pass at all.
+            new = [c for p in pieces for c in _finish_piece(ctx, p, step, cut=False)
+                   if _length(c[0]) >= min_pass_length]
         log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
                   len(pieces), len(new), _area(W, left))
         if not new:
@@ -341,7 +360,9 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
         raise InfeasibleError("uniform found no pass: the surface is narrower than the shortest allowed pass "
                               f"({min_pass_length * 1e3:.1f} mm) in every direction tried")
     covered, touch_ups = _touch_up(ctx, passes_pts, covered, step, min_pass_length)
-    ordered = _zigzag(_insert_near(passes_pts, touch_ups))
+    merged = _insert_near(passes_pts, touch_ups)
+    touch_up_index = [i for i, q in enumerate(merged) if any(q is t for t in touch_ups)]
+    ordered = _zigzag(merged)
     passes = [_on_surface_pass(ctx.surface, p, point_spacing) for p in ordered]
     # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
     # capped as in _Context.touched); the simulator's figure is the one to trust.
@@ -350,6 +371,7 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
                 predicted_coverage_fraction=covered_pred,
                 feed_direction=feed_dir.tolist(), seed=seed if isinstance(seed, str) else "polyline",
                 n_passes=len(passes), n_generations=len(generations), n_touch_up_passes=len(touch_ups),
+                touch_up_passes=touch_up_index,
                 work_spacing_m=ctx.work_spacing,
                 point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
                 plan_time_s=time.perf_counter() - t0)
@@ -460,20 +482,73 @@ def _boundary_seed(W, feed, h, R) -> np.ndarray:
     return pts[run] if len(run) >= 2 else pts[[start, (start + 1) % n]]
 
 
-def _finish_piece(ctx, pl, step):
-    """Resample, smooth and project a pass piece; return (points, widths) or None."""
+def _finish_piece(ctx, pl, step, cut: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Resample, smooth and project a pass piece and (if ``cut``) cut it at sharp turns; return its
+    parts as (points (k, 3), widths (k,)) pairs."""
     pts = pl if isinstance(pl, np.ndarray) else resample(pl, step).points
     if len(pts) < 3:
-        return None
+        return []
     # A short piece or a small loop would shrink under the full window: keep it to a sixth of the
     # piece (a loop's radius), which moves a loop's points in by under 4 %.
     window = min(SMOOTHING_WINDOW * ctx.tool.pad_radius, _length(pts) / 6.0) / step
     pts = _smooth(pts, window=max(3, int(round(window))))
-    pts, _ = ctx.project(pts)
-    tangents = normalize(np.gradient(pts, axis=0))
-    idx = ctx.nearest_vertices(pts)
-    w = ctx.widths.across(idx, tangents)
-    return pts, w
+    pts, nrm = ctx.project(pts)
+    out = []
+    limit = ctx.max_turn_curvature if cut else math.inf
+    for part in _cut_sharp_turns(pts, nrm, limit, ctx.tool.pad_radius / 8):
+        if len(part) < 3:
+            continue
+        tangents = normalize(np.gradient(part, axis=0))
+        w = ctx.widths.across(ctx.nearest_vertices(part), tangents)
+        out.append((part, w))
+    return out
+
+
+def turn_curvature(pts: np.ndarray, normals: np.ndarray, arm: float) -> np.ndarray:
+    """(k,) curvature (1/m) of the polyline ``pts`` ``(k, 3)`` within the tangent planes ``normals``:
+    the turn between the chords to the points ``arm`` metres behind and ahead, over their mean
+    length.  This is the geodesic curvature a pass has on the surface; at feed v the tool turns
+    about its axis at v times it.  A closed polyline (ends within two steps) wraps round."""
+    k = len(pts)
+    steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    if k < 3 or steps.sum() <= 0:
+        return np.zeros(k)
+    m = max(1, int(round(arm / max(float(np.median(steps)), 1e-12))))
+    closed = np.linalg.norm(pts[-1] - pts[0]) <= 2.0 * np.median(steps)
+    i = np.arange(k)
+    if closed:
+        ring = k - 1                              # the last point repeats the first
+        back, ahead = pts[(i - m) % ring], pts[(i + m) % ring]
+    else:
+        back, ahead = pts[np.maximum(i - m, 0)], pts[np.minimum(i + m, k - 1)]
+    c1, c2 = pts - back, ahead - pts
+    c1 = c1 - np.einsum("ij,ij->i", c1, normals)[:, None] * normals
+    c2 = c2 - np.einsum("ij,ij->i", c2, normals)[:, None] * normals
+    l1, l2 = np.linalg.norm(c1, axis=1), np.linalg.norm(c2, axis=1)
+    ok = (l1 > 1e-12) & (l2 > 1e-12)
+    cos = np.einsum("ij,ij->i", c1, c2) / np.maximum(l1 * l2, 1e-300)
+    angle = np.arccos(np.clip(cos, -1.0, 1.0))
+    return np.where(ok, angle / np.maximum(0.5 * (l1 + l2), 1e-12), 0.0)
+
+
+def _cut_sharp_turns(pts, normals, max_curvature: float, arm: float) -> list[np.ndarray]:
+    """Split the polyline ``pts`` where it turns in its tangent plane by more than ``max_curvature``
+    (1/m, measured over chords ``arm`` long); the sharp stretches themselves are dropped."""
+    if not math.isfinite(max_curvature):
+        return [pts]
+    sharp = turn_curvature(pts, normals, arm) > max_curvature
+    if not sharp.any():
+        return [pts]
+    closed = len(pts) > 3 and np.linalg.norm(pts[-1] - pts[0]) <= 2.0 * np.median(
+        np.linalg.norm(np.diff(pts, axis=0), axis=1))
+    if closed:
+        # Start the loop at a sharp point so the smooth runs do not straddle the seam.
+        first = int(np.flatnonzero(sharp)[0])
+        pts = np.vstack([pts[first:-1], pts[:first + 1]])
+        sharp = np.concatenate([sharp[first:-1], sharp[:first + 1]])
+    keep = ~sharp
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(np.int8), [0]])))
+    return [pts[a:b] for a, b in zip(edges[::2], edges[1::2])]
 
 
 def _smooth(pts, window):
