@@ -334,22 +334,23 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
             level = max(d_far - reach * w_left, 0.5 * d_far)
             pieces = level_sets(W.vertices, W.faces, d - level, [0.0], edges=ctx.edges)
         new = [c for p in pieces for c in _finish_piece(ctx, p, step) if _length(c[0]) >= min_pass_length]
-        if not new:
-            # Every piece was a tight turn (a short seed stretch gives a first level set curled round
-            # it): a pass that makes the tool slow down beats no pass at all.
-            new = [c for p in pieces for c in _finish_piece(ctx, p, step, cut=False)
-                   if _length(c[0]) >= min_pass_length]
+        gained = _touched_by(ctx, new)
+        if not (gained & ~covered).any():
+            # Cutting at sharp turns left nothing that reaches new area (a short seed stretch gives a
+            # first level set curled round it; a pocket's level set is a small loop): a pass that
+            # makes the tool slow down beats none.
+            whole = [c for p in pieces for c in _finish_piece(ctx, p, step, cut=False)
+                     if _length(c[0]) >= min_pass_length]
+            gained_whole = _touched_by(ctx, whole)
+            log.debug("uniform generation %d: cut pieces gain nothing; whole pieces gain %.4f m2",
+                      len(generations), _area(W, gained_whole & ~covered))
+            new, gained = whole, gained_whole
         log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
                   len(pieces), len(new), _area(W, left))
-        if not new:
-            break
-        generations.append(new)
-        gained = np.zeros(len(W.vertices), bool)
-        for pts, _ in new:
-            gained |= ctx.touched(pts)
         if not (gained & ~covered).any():
             log.warning("uniform: a pass generation covered nothing new; stopping")
             break
+        generations.append(new)
         covered |= gained
         sources = None
     else:
@@ -572,6 +573,14 @@ def _smooth(pts, window):
     if not closed:
         out[0], out[-1] = pts[0], pts[-1]
     return out
+
+
+def _touched_by(ctx, pieces) -> np.ndarray:
+    """(n,) bool: working vertices the pad touches along any of ``pieces`` ((points, widths) pairs)."""
+    gained = np.zeros(len(ctx.work.vertices), bool)
+    for pts, _ in pieces:
+        gained |= ctx.touched(pts)
+    return gained
 
 
 def _length(pts) -> float:
