@@ -16,10 +16,12 @@ with a set overlap wherever the pad's real contact width changes with curvature:
    finds this point by bisection along a cross curve from each base point of the previous pass;
    here the same condition is solved on every mesh edge (the zero crossing of ``g``), which gives
    the passes everywhere at once and breaks them cleanly at holes and ragged boundaries.
-4. Passes are smoothed, projected back on the surface, and repeated until no uncovered area
-   remains; the last pass is pulled in so its ribbon reaches the far boundary.  Passes are
-   finally ordered zig-zag (each starts at the end nearest the previous one's end); the trajectory
-   stage adds the short cross-over links.
+4. Passes are smoothed, projected back on the surface, cut where they turn too tightly for the
+   tool to follow at speed (:data:`SHARP_TURN_SPEED_FRACTION`), and repeated until no uncovered
+   area remains; the last pass is pulled in so its ribbon reaches the far boundary.  Pockets the
+   pad rode over get short touch-up passes across them.  Passes are finally ordered zig-zag (each
+   starts at the end nearest the previous one's end); the trajectory stage adds the short
+   cross-over links.
 
 The pass direction is free: :func:`uniform` tries several seed directions and keeps the one with
 the shortest predicted cycle time (see ``direction``).
