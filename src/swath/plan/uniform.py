@@ -517,7 +517,7 @@ def turn_curvature(pts: np.ndarray, normals: np.ndarray, arm: float) -> np.ndarr
     if k < 3 or steps.sum() <= 0:
         return np.zeros(k)
     m = max(1, int(round(arm / max(float(np.median(steps)), 1e-12))))
-    closed = np.linalg.norm(pts[-1] - pts[0]) <= 2.0 * np.median(steps)
+    closed = _is_closed(pts)
     i = np.arange(k)
     if closed:
         ring = k - 1                              # the last point repeats the first
@@ -542,8 +542,7 @@ def _cut_sharp_turns(pts, normals, max_curvature: float, arm: float) -> list[np.
     sharp = turn_curvature(pts, normals, arm) > max_curvature
     if not sharp.any():
         return [pts]
-    closed = len(pts) > 3 and np.linalg.norm(pts[-1] - pts[0]) <= 2.0 * np.median(
-        np.linalg.norm(np.diff(pts, axis=0), axis=1))
+    closed = len(pts) > 3 and _is_closed(pts)
     if closed:
         # Start the loop at a sharp point so the smooth runs do not straddle the seam.
         first = int(np.flatnonzero(sharp)[0])
@@ -552,6 +551,12 @@ def _cut_sharp_turns(pts, normals, max_curvature: float, arm: float) -> list[np.
     keep = ~sharp
     edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(np.int8), [0]])))
     return [pts[a:b] for a, b in zip(edges[::2], edges[1::2])]
+
+
+def _is_closed(pts) -> bool:
+    """Whether the polyline ``pts`` ``(k, 3)`` is a loop: its ends within two median steps."""
+    steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    return bool(np.linalg.norm(pts[-1] - pts[0]) <= 2.0 * np.median(steps))
 
 
 def _smooth(pts, window):
@@ -565,8 +570,7 @@ def _smooth(pts, window):
         return pts
     kernel = np.ones(window) / window
     half = window // 2
-    steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    closed = np.linalg.norm(pts[-1] - pts[0]) <= 2.0 * np.median(steps)
+    closed = _is_closed(pts)
     if closed:
         padded = np.vstack([pts[-half - 1:-1], pts, pts[1:half + 1]])
     else:
