@@ -107,6 +107,8 @@ def test_points_on_surface_with_tool_normals():
     (dict(direction=[1.0, 0.0]), "direction must be 'auto'"),
     (dict(seed="corner"), "seed must be"),
     (dict(seed=np.array([[0.0, 0.0, 1.0], [0.1, 0.0, 1.0]])), "off the surface"),
+    (dict(feed=0.0), "must be positive"),
+    (dict(max_angular=-1.0), "must be positive"),
 ])
 def test_bad_settings_are_refused(kwargs, fragment):
     with pytest.raises(InputError, match=fragment):
