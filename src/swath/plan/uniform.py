@@ -298,9 +298,8 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     current = _seed_curves(ctx, seed, cross, step)
     reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
     if isinstance(seed, str) and seed == "middle":
-        first = [c for p in current for c in _finish_piece(ctx, p, step) if _length(c[0]) >= min_pass_length]
-        first = first or [c for p in current for c in _finish_piece(ctx, p, step, cut=False)
-                          if _length(c[0]) >= min_pass_length]
+        first = (_finished(ctx, current, step, min_pass_length)
+                 or _finished(ctx, current, step, min_pass_length, cut=False))
         if not first:
             raise InfeasibleError("the middle slice of the surface is shorter than min_pass_length")
         generations.append(first)
@@ -335,14 +334,13 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
             pieces = level_sets(W.vertices, W.faces, d - level, [0.0], edges=ctx.edges)
-        new = [c for p in pieces for c in _finish_piece(ctx, p, step) if _length(c[0]) >= min_pass_length]
+        new = _finished(ctx, pieces, step, min_pass_length)
         gained = _touched_by(ctx, new)
         if not (gained & ~covered).any():
             # Cutting at sharp turns left nothing that reaches new area (a short seed stretch gives a
             # first level set curled round it; a pocket's level set is a small loop): a pass that
             # makes the tool slow down beats none.
-            whole = [c for p in pieces for c in _finish_piece(ctx, p, step, cut=False)
-                     if _length(c[0]) >= min_pass_length]
+            whole = _finished(ctx, pieces, step, min_pass_length, cut=False)
             gained_whole = _touched_by(ctx, whole)
             log.debug("uniform generation %d: cut pieces gain nothing; whole pieces gain %.4f m2",
                       len(generations), _area(W, gained_whole & ~covered))
@@ -483,6 +481,11 @@ def _boundary_seed(W, feed, h, R) -> np.ndarray:
         hi += 1
     run = [(i % n) for i in range(lo, hi + 1)]
     return pts[run] if len(run) >= 2 else pts[[start, (start + 1) % n]]
+
+
+def _finished(ctx, pieces, step, min_length: float, cut: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`_finish_piece` over level-set ``pieces``, keeping the parts at least ``min_length`` m long."""
+    return [c for p in pieces for c in _finish_piece(ctx, p, step, cut) if _length(c[0]) >= min_length]
 
 
 def _finish_piece(ctx, pl, step, cut: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
