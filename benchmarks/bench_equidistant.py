@@ -67,7 +67,9 @@ def _simulate(tp, surface, tool, key) -> dict:
     from swath.simulate import simulate_removal
     from swath.trajectory import FeedLimit, time_path
 
-    tr = time_path(tp, [FeedLimit(0.05)])
+    from swath.order import order_toolpath
+
+    tr = time_path(order_toolpath(tp), [FeedLimit(0.05)])
     m = simulate_removal(tr, surface, tool).metrics
     return {f"{key}_cov_pct": 100 * m["coverage_fraction"], f"{key}_cv": m["removal_cov"],
             f"{key}_cycle": m["cycle_time_s"]}

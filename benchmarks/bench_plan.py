@@ -20,6 +20,7 @@ def main():
     args = ap.parse_args()
 
     from swath.contact import Tool
+    from swath.order import order_toolpath
     from swath.plan.raster import raster
     from swath.simulate import simulate_removal
     from swath.trajectory import FeedLimit, time_path
@@ -28,7 +29,7 @@ def main():
     rows = []
     for name, surface in parts(include_shared=not args.quick):
         with Measure() as mp:
-            tp = raster(surface, tool)
+            tp = order_toolpath(raster(surface, tool))
         with Measure() as mt:
             tr = time_path(tp, [FeedLimit(0.05)])
         with Measure() as ms:

@@ -24,11 +24,13 @@ COLUMNS = [("part", "s"), ("planner", "s"), ("passes", "d"), ("L_m", ".2f"), ("c
 
 
 def evaluate(tp, surface, tool, limits) -> dict:
-    """Time ``tp`` under ``limits``, simulate its removal, and return the table's plan columns."""
+    """Order ``tp`` (the planner's own order), time it under ``limits``, simulate its removal, and
+    return the table's plan columns."""
+    from swath.order import order_toolpath
     from swath.simulate import simulate_removal
     from swath.trajectory import time_path
 
-    tr = time_path(tp, limits)
+    tr = time_path(order_toolpath(tp), limits)
     m = simulate_removal(tr, surface, tool).metrics
     return dict(passes=len(tp.passes), L_m=m["contact_length_m"], coverage_pct=100 * m["coverage_fraction"],
                 cov=m["removal_cov"], Lstar_m=m["coverage_lower_bound_m"], eta=m["efficiency"],
@@ -48,22 +50,20 @@ def main():
     ap.add_argument("--skip-large", action="store_true", help="skip parts over 2 m² (crs_part_5)")
     args = ap.parse_args()
 
-    import importlib
-
+    from swath.cli.job import cycle_time_cost
     from swath.contact import Tool
-    from swath.job import PLANNERS as WHERE
+    from swath.plan import get_planner
+    from swath.trajectory import LinkSettings
 
     planners = args.planners.split(",")
     unknown = set(planners) - set(PLANNERS)
     if unknown:
         ap.error(f"unknown planners {sorted(unknown)}; choose from {PLANNERS}")
-    make = {}
-    for p in planners:
-        module, func = WHERE[p].split(":")
-        make[p] = getattr(importlib.import_module(module), func)
     only = set(args.only.split(",")) if args.only else None
     tool = Tool()
     limits = default_limits()
+    # uniform ranks its candidate directions by the cycle time under the very limits they are timed with
+    options = {"uniform": {"cost": cycle_time_cost(limits, LinkSettings())}}
     print("raster (baseline), uniform and equidistant at their defaults; 3-inch pad, 20 N, 1 mm depression, "
           "50 mm/s, <= 1 rad/s, <= 2 m/s2", flush=True)
     rows = []
@@ -73,7 +73,7 @@ def main():
         surface.normals, surface.curvature             # cached outside the timings
         for planner in planners:
             with Measure() as m:
-                tp = make[planner](surface, tool)
+                tp = get_planner(planner)(surface, tool, **options.get(planner, {}))
             rows.append(dict(part=name, planner=planner, plan_s=m.seconds, plan_MB=m.peak_mb,
                              **evaluate(tp, surface, tool, limits)))
             print_table(rows[-1:], COLUMNS)

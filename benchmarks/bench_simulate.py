@@ -14,6 +14,7 @@ from common import Measure, max_rss_mb, print_table
 def main():
     from swath.contact import Tool
     from swath.examples import doubly_curved_panel
+    from swath.order import order_toolpath
     from swath.plan.raster import raster
     from swath.simulate import simulate_removal
     from swath.trajectory import FeedLimit, time_path
@@ -22,7 +23,7 @@ def main():
     part = doubly_curved_panel(spacing=2.1e-3)                  # ~100k faces
     rows = []
     for spacing in (0.02, 0.0022):
-        tp = raster(part, tool, spacing=spacing, angle=0.0, point_spacing=1e-3)
+        tp = order_toolpath(raster(part, tool, spacing=spacing, direction=0.0, point_spacing=1e-3))
         tr = time_path(tp, [FeedLimit(0.05)])
         with Measure() as m:
             rm = simulate_removal(tr, part, tool)

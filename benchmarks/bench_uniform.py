@@ -25,13 +25,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.parse_args()
 
+    from swath.cli.job import cycle_time_cost
     from swath.contact import Tool
     from swath.examples import blade, doubly_curved_panel
     from swath.plan.raster import raster
     from swath.plan.uniform import uniform
+    from swath.trajectory import LinkSettings
 
     tool = Tool()
     limits = default_limits()
+    cost = cycle_time_cost(limits, LinkSettings())      # candidates ranked under the limits they are timed with
     cols = COLUMNS[:-1]
     b = blade()
 
@@ -51,15 +54,15 @@ def main():
     # 2. direction
     for part in (b, doubly_curved_panel()):
         t0 = time.perf_counter()
-        tp = uniform(part, tool)
+        tp = uniform(part, tool, cost=cost)
         plan_s = time.perf_counter() - t0
         cand = tp.metadata["candidates"]
         print(f"2. {part.name}: uniform candidates (predicted at 50 mm/s, <= 1 rad/s, <= 2 m/s2)")
-        print_table([dict(direction_deg=c["direction_deg"], length_m=c["length_m"], cycle_s=c["cycle_time_s"],
+        print_table([dict(direction_deg=c["direction_deg"], length_m=c["length_m"], cycle_s=c["cost"],
                           coverage_pct=100 * c["predicted_coverage_fraction"]) for c in cand],
                     [("direction_deg", ".0f"), ("length_m", ".2f"), ("cycle_s", ".1f"), ("coverage_pct", ".2f")])
         r = evaluate(tp, part, tool, limits)
-        best_fixed = min(c["cycle_time_s"] for c in cand)
+        best_fixed = min(c["cost"] for c in cand)
         print(f"   auto chose {np.degrees(tp.metadata['direction_rad']):.0f} deg: L {r['L_m']:.2f} m, coverage "
               f"{r['coverage_pct']:.2f} %, eta {r['eta']:.3f}, CoV {r['cov']:.3f}, cycle {r['cycle_s']:.1f} s "
               f"(best candidate {best_fixed:.1f} s), plan {plan_s:.0f} s\n", flush=True)

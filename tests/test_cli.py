@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from swath.cli import main
-from swath.job import load_job_toml, settings_from_mapping
+from swath.cli.job import load_job_toml, settings_from_mapping
 from swath.errors import InputError
 from swath.trajectory import CSV_COLUMNS, read_csv
 
@@ -20,7 +20,8 @@ def run_cli(*args):
 
 def test_plan_writes_trajectory_metrics_and_report(tmp_path):
     out = tmp_path / "out"
-    r = run_cli("plan", "example:plate", "--spacing", "60mm", "--feed", "80mm/s", "--out", str(out))
+    r = run_cli("plan", "example:plate", "--spacing", "60mm", "--feed", "80mm/s", "--max-accel", "none",
+                "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert "coverage" in r.stdout and "loading part" in r.stderr      # progress on stderr
     assert {p.name for p in out.iterdir()} >= {"trajectory.csv", "metrics.json", "report.html"}
@@ -76,11 +77,36 @@ def test_quantities_accept_unit_suffixes():
                                "feed": "3m/min", "angle": "90", "depression": "0.5mm",
                                "max_centripetal": "2m/s2", "max_angular": "57.29578deg/s"})
     assert s.pad_radius == pytest.approx(0.0762) and s.force == pytest.approx(20.0)
-    assert s.feed == pytest.approx(0.05) and s.angle == pytest.approx(math.pi / 2)
+    assert s.feed == pytest.approx(0.05) and s.direction == pytest.approx(math.pi / 2)
     assert s.depression == pytest.approx(5e-4) and s.max_angular == pytest.approx(1.0, rel=1e-6)
-    assert settings_from_mapping({"part": "example:plate", "out": "o", "angle": "auto"}).angle is None
+    assert settings_from_mapping({"part": "example:plate", "out": "o", "angle": "auto"}).direction is None
     with pytest.raises(InputError, match="unknown job setting 'colour'"):
         settings_from_mapping({"part": "example:plate", "out": "o", "colour": "red"})
+
+
+def test_default_limits_apply_and_can_be_turned_off():
+    base = {"part": "example:plate", "out": "o"}
+    s = settings_from_mapping(base)
+    assert (s.max_angular, s.max_centripetal, s.max_accel) == (1.0, 2.0, 1.0)
+    names = sorted(type(c).__name__ for c in s.constraints())
+    assert names == ["AngularSpeedLimit", "CentripetalLimit", "FeedLimit", "TangentialAccelLimit"]
+    off = settings_from_mapping({**base, "max_angular": "none", "max_accel": "off", "max_centripetal": "3m/s2"})
+    assert off.max_angular is None and off.max_accel is None and off.max_centripetal == pytest.approx(3.0)
+    assert sorted(type(c).__name__ for c in off.constraints()) == ["CentripetalLimit", "FeedLimit"]
+
+
+def test_written_trajectory_honours_the_limits_the_direction_was_chosen_under(tmp_path):
+    """The uniform planner ranks directions by the cycle time under the job's own limits, and the
+    written trajectory is timed under the same ones: peak in-contact angular speed <= limit + 3 %."""
+    out = tmp_path / "o"
+    assert main(["-q", "plan", "example:panel", "--planner", "uniform", "--max-angular", "0.8rad/s",
+                 "--out", str(out)]) == 0
+    tr = read_csv(out / "trajectory.csv")
+    omega = np.linalg.norm(np.stack([tr.extra["wx"], tr.extra["wy"], tr.extra["wz"]], axis=1), axis=1)
+    assert omega[tr.contact].max() <= 0.8 * 1.03
+    m = json.loads((out / "metrics.json").read_text())
+    assert "AngularSpeedLimit" in m["settings"]["plan"]["direction_rule"]
+    assert m["settings"]["max_angular_rad_per_s"] == pytest.approx(0.8)
 
 
 def test_toml_job_runs_relative_to_its_file(tmp_path):

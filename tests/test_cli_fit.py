@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from conftest import shared_mesh
 from swath.cli import main
 from swath.examples import doubly_curved_panel
-from swath.fitjob import infer_scan_rows
+from swath.cli.fitjob import infer_scan_rows
 from swath.io.mesh import load_mesh, save_surface_ply
 from swath.io.points import load_points
 from swath.surface import BSplinePatch, Surface
@@ -139,7 +139,7 @@ def test_fit_rows_parameterisation_on_a_zigzag_scan(tmp_path, truth, capsys):
 def test_fit_of_a_round_scan_is_trimmed_to_the_scanned_area(tmp_path, scan_files):
     """A disc cut out of the scan: the rectangular patch beyond the disc is not part of the
     surface, neither in surface.ply nor when planning on the saved patch.json."""
-    from swath.job import load_part, settings_from_mapping
+    from swath.cli.job import load_part, settings_from_mapping
 
     _, scan = scan_files
     radius = 0.07
@@ -325,7 +325,7 @@ def test_plan_refuses_a_point_cloud_without_fit_and_fit_on_a_patch(tmp_path, sca
 
 def test_job_settings_carry_the_fit_options():
     from swath.errors import InputError
-    from swath.job import settings_from_mapping
+    from swath.cli.job import settings_from_mapping
 
     s = settings_from_mapping({"part": "scan.xyz", "out": "o", "fit": True, "parameterization": "rows",
                                "surface_spacing": "3mm"})

@@ -14,12 +14,20 @@ from swath.contact import Tool
 from swath.errors import InfeasibleError, InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
 from swath.plan.arclength import ArcLengthMap, equidistant_patch
-from swath.plan.equidistant import (boundary_seed, distance_field, equidistant, locate_points, pass_levels,
-                                    pass_spacing, refine_mesh, split_nonmanifold_vertices)
+from swath.plan.equidistant import equidistant as plan_equidistant
+from swath.plan.equidistant import boundary_seed, pass_levels, pass_spacing
+from swath.surface.geodesic import distance_field, locate_points, refine_mesh
+from swath.surface.topology import split_nonmanifold_vertices
+from swath.order import order_toolpath
 from swath.plan.raster import raster
-from swath.plan.slicing import mesh_edges
+from swath.surface.topology import mesh_edges
 from swath.surface import Surface
 from swath.surface.bspline import BSplinePatch, clamped_knots, nurbs_cylinder
+
+
+def equidistant(*args, **kwargs):
+    """The equidistant planner followed by the order stage at the planner's own order."""
+    return order_toolpath(plan_equidistant(*args, **kwargs))
 
 TOOL = Tool()                     # R = 38.1 mm
 R = TOOL.pad_radius
@@ -98,7 +106,7 @@ def _panel_derivatives(x, y):
 def regular_levels(tp):
     """The plan without the level pulled in to the far edge (single-piece plans)."""
     last = tp.metadata["n_levels"] - tp.metadata["pulled_in_levels"]
-    return SimpleNamespace(passes=[p for p, k in zip(tp.passes, tp.metadata["pass_levels"]) if k < last])
+    return SimpleNamespace(passes=[p for p, k in zip(tp.passes, tp.levels.tolist()) if k < last])
 
 
 def panel_gaps(tp, step=2.5e-4):
@@ -264,7 +272,7 @@ def test_seed_polyline_gives_passes_on_both_sides_at_exact_offsets():
 
 def test_blade_passes_are_geodesically_equidistant_and_raster_is_not():
     s = blade()
-    tp = equidistant(s, TOOL, angle=0.0)                          # passes along the span, across the nose
+    tp = equidistant(s, TOOL, direction=0.0)                          # passes along the span, across the nose
     d = tp.metadata["spacing_m"]
     g = blade_gaps(tp)
     assert np.mean(g) == pytest.approx(d, rel=1e-3)
@@ -307,7 +315,7 @@ def test_panel_passes_are_geodesically_equidistant(spacing):
 
 def test_pass_spacing_measures_fast_marching_gaps():
     s = panel()
-    tp = equidistant(s, TOOL, spacing=0.1, angle=0.0)
+    tp = equidistant(s, TOOL, spacing=0.1, direction=0.0)
     ps = pass_spacing(tp)
     # four levels 0.1 m apart and one pulled in to the far edge, whose shorter gap is not measured
     assert tp.metadata["pulled_in_levels"] == 1 and len(tp.passes) == 5
@@ -320,7 +328,7 @@ def test_pass_spacing_measures_fast_marching_gaps():
 
 def test_heat_method_is_available_and_less_accurate():
     s = panel()
-    tp = equidistant(s, TOOL, spacing=0.05, distance="heat", angle=0.0)
+    tp = equidistant(s, TOOL, spacing=0.05, distance="heat", direction=0.0)
     assert tp.metadata["distance_method"] == "heat"
     assert 0.02 < spread(panel_gaps(regular_levels(tp))) < 0.1                    # measured 4.1 % (fast marching: 0.57 %)
 
@@ -348,10 +356,10 @@ def test_pieces_are_planned_one_after_the_other():
     tp = equidistant(s, TOOL, spacing=0.05)
     m = tp.metadata
     assert m["n_components"] == 2 and m["components_without_seed"] == 0
-    assert m["pass_components"] == sorted(m["pass_components"]) and len(set(m["pass_components"])) == 2
+    assert tp.regions.tolist() == sorted(tp.regions.tolist()) and len(set(tp.regions.tolist())) == 2
     # the two plates side by side spread most along y: passes run along y, 6 per plate
     assert m["feed_direction"] == pytest.approx([0, 1, 0], abs=1e-9)
-    assert len(tp.passes) == 12 and m["pass_components"].count(m["pass_components"][0]) == 6
+    assert len(tp.passes) == 12 and tp.regions.tolist().count(tp.regions.tolist()[0]) == 6
     assert sorted({round(float(p.points[0, 1]), 6) for p in tp.passes}) == [0.0, 0.2, 0.5, 0.7]
 
 
@@ -363,11 +371,11 @@ def test_shared_meshes_run_and_cover(name):
     s = load_shared(name)
     for spacing in (None, 0.05, 0.02):
         # the default plan chooses the direction; the given spacings keep the principal axis (time)
-        tp = equidistant(s, TOOL, spacing=spacing, point_spacing=5e-3, angle=None if spacing is None else 0.0)
+        tp = equidistant(s, TOOL, spacing=spacing, point_spacing=5e-3, direction=None if spacing is None else 0.0)
         m = tp.metadata
         d = m["spacing_m"]
         assert m["n_passes"] == len(tp.passes) >= 1 and m["n_levels"] >= 3
-        assert set(m["pass_levels"]) == set(range(m["n_levels"]))        # every level has a pass
+        assert set(tp.levels.tolist()) == set(range(m["n_levels"]))        # every level has a pass
         # the default fits the levels to each piece; a given spacing pulls the last level in
         assert 0 < m["far_margin_m"] <= d / 2 * (1 + 1e-6)
         # Geodesic parallels d apart sweep the area once: contact length x spacing ~ area
@@ -430,7 +438,7 @@ def test_general_patch_lines_follow_the_arc_length_to_1e6(rng, along):
     taus = np.array(tp.metadata["line_tau_m"])
     assert np.diff(taus) == pytest.approx(np.full(len(taus) - 1, 0.04), rel=1e-12)
     assert len(tp.passes) >= len(taus) - 1
-    for p, level in zip(tp.passes, tp.metadata["pass_levels"]):
+    for p, level in zip(tp.passes, tp.levels.tolist()):
         tau = taus[level]
         q = np.vstack([p.points[:-1:7], p.points[-1:]])
         uu, vv, dist = patch.project(q)

@@ -13,7 +13,7 @@ import pytest
 
 from swath.errors import InputError
 from swath.examples import doubly_curved_panel, flat_plate
-from swath.plan.toolpath import Pass, ToolPath
+from swath.core import Pass, ToolPath
 from swath.report import write_report
 from swath.report.html import MAX_VIEW_FACES, display_mesh, figure_3d, write_report_html
 from swath.report.metrics import format_value, key_unit, to_jsonable, write_metrics_json

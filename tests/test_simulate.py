@@ -9,7 +9,7 @@ from swath.contact import Tool
 from swath.examples import flat_plate
 from swath.plan import Pass, ToolPath
 from swath.simulate import coverage_lower_bound, simulate_removal
-from swath.trajectory import FeedLimit, time_path
+from swath.trajectory import FeedLimit, Trajectory, time_path
 
 
 def one_pass(surface, y, x0=0.0, x1=0.4):
@@ -73,3 +73,14 @@ def test_rotary_pad_removes_more_at_the_rim():
     off = rm.depth[mid][np.abs(y - 0.02) < 2e-3].mean()
     # rotary: ∫ ω r dt along the chord at offset y grows with y near the centre line
     assert off > centre
+
+
+def test_a_trajectory_that_never_touches_the_part_gives_zero_coverage_not_an_error():
+    s = flat_plate(size_x=0.3, size_y=0.2, spacing=5e-3)
+    tr = time_path(ToolPath(s, [one_pass(s, 0.15)], "test"), [FeedLimit(0.05)])
+    lifted = Trajectory(t=tr.t, position=tr.position + np.array([0.0, 0.0, 0.05]), quaternion=tr.quaternion,
+                        contact=np.zeros(len(tr), bool), feed=tr.feed, pass_index=np.full(len(tr), -1))
+    m = simulate_removal(lifted, s, Tool()).metrics
+    assert m["coverage_fraction"] == 0.0 and m["covered_area_m2"] == 0.0
+    assert m["contact_length_m"] == 0.0 and m["n_passes"] == 0
+    assert np.isnan(m["removal_cov"]) and np.isnan(m["removal_mean_m"])

@@ -7,7 +7,8 @@ import pytest
 
 from swath.errors import InputError
 from swath.examples import grid_faces
-from swath.plan.slicing import MERGE_TOLERANCE, mesh_edges, resample, slice_mesh
+from swath.plan.slicing import MERGE_TOLERANCE, resample, slice_mesh
+from swath.surface.topology import mesh_edges
 from swath.surface import Surface
 
 

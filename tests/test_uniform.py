@@ -9,10 +9,12 @@ from swath.contact import Tool, local_patch
 from swath.errors import InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
 from swath.plan.raster import raster
-from swath.plan.toolpath import ToolPath
+from swath.core import ToolPath
 from swath.plan.uniform import turn_curvature, uniform
 from swath.simulate import simulate_removal
-from swath.trajectory import FeedLimit, time_path
+from swath.cli.job import cycle_time_cost
+from swath.order import order_toolpath
+from swath.trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, LinkSettings, time_path
 
 from shapes import cylinder_patch, grooved_plate
 
@@ -69,13 +71,17 @@ def test_blade_along_the_span_is_3x_shorter_than_full_coverage_raster():
 
 def test_auto_direction_picks_the_shortest_cycle_and_is_efficient():
     s = doubly_curved_panel(size_x=0.3, size_y=0.25)
-    tp = uniform(s, TOOL)
+    limits = [FeedLimit(0.05), AngularSpeedLimit(1.0), CentripetalLimit(2.0)]
+    tp = uniform(s, TOOL, cost=cycle_time_cost(limits, LinkSettings()))
     cands = tp.metadata["candidates"]
     assert len(cands) >= 4
     top = max(c["predicted_coverage_fraction"] for c in cands)
-    best = min(c["cycle_time_s"] for c in cands if c["predicted_coverage_fraction"] >= min(0.995, top - 0.002))
+    best = min(c["cost"] for c in cands if c["predicted_coverage_fraction"] >= min(0.995, top - 0.002))
     chosen = [c for c in cands if math.isclose(math.radians(c["direction_deg"]), tp.metadata["direction_rad"])]
-    assert chosen and chosen[0]["cycle_time_s"] == pytest.approx(best)
+    assert chosen and chosen[0]["cost"] == pytest.approx(best)
+    # the chosen plan, ordered and timed as the job does, takes the cycle time it was chosen for
+    cycle = time_path(order_toolpath(tp), limits).duration
+    assert cycle == pytest.approx(best, rel=0.02)
     m = coverage(tp, s)
     assert m["coverage_fraction"] >= 0.995
     assert m["efficiency"] >= 0.8
@@ -103,8 +109,8 @@ def test_points_on_surface_with_tool_normals():
 
 @pytest.mark.parametrize("kwargs,fragment", [
     (dict(overlap=0.95), "overlap must be a fraction"),
-    (dict(direction="sideways"), "direction must be 'auto'"),
-    (dict(direction=[1.0, 0.0]), "direction must be 'auto'"),
+    (dict(direction="sideways"), "direction must be None"),
+    (dict(direction=[1.0, 0.0]), "direction must be None"),
     (dict(seed="corner"), "seed must be"),
     (dict(seed=np.array([[0.0, 0.0, 1.0], [0.1, 0.0, 1.0]])), "off the surface"),
     (dict(feed=0.0), "must be positive"),

@@ -37,9 +37,9 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError
 from ..surface.curvature import PrincipalCurvature
-from .raster import MIN_PASS_FRACTION, _is_number, _positive
-from .toolpath import Pass, ToolPath
-from .widths import SPACING_PERCENTILE, area_percentile, patch_widths
+from .common import MIN_PASS_FRACTION, is_number as _is_number, positive as _positive
+from ..core import Pass, ToolPath
+from ..contact.widths import SPACING_PERCENTILE, area_percentile, patch_widths
 
 log = logging.getLogger("swath.plan")
 
@@ -370,7 +370,7 @@ def equidistant_patch(patch, tool, *, spacing: float | None = None, boundary=Non
         predicted_gap_fraction (default spacing), method ``"arc-length"``, along, n_lines,
         line_tau_m, n_passes, n_links, link_length_m, dropped_fragments, dropped_length_m,
         point_spacing_m, min_pass_length_m, region_area_m2 (in ``(σ, τ)``), and, without
-        ``connect``, pass_levels / pass_components for :func:`swath.plan.equidistant.pass_spacing`.
+        ``connect`` (unconnected lines carry their line index as ``Pass.level``).
 
     Raises
     ------
@@ -458,7 +458,7 @@ def equidistant_patch(patch, tool, *, spacing: float | None = None, boundary=Non
 
     # --- interconnection paths ------------------------------------------------------------------
     rings = [np.asarray(region.exterior.coords)] + [np.asarray(r.coords) for r in region.interiors]
-    passes, levels = [], []
+    passes = []
     cur_pts, cur_nrm = [mapped[0][3]], [mapped[0][4]]
     n_links, link_length = 0, 0.0
     for prev, nxt in zip(mapped[:-1], mapped[1:]):
@@ -472,11 +472,9 @@ def equidistant_patch(patch, tool, *, spacing: float | None = None, boundary=Non
             n_links += 1
             link_length += float(np.linalg.norm(np.diff(lp, axis=0), axis=1).sum())
         else:
-            passes.append(Pass(np.concatenate(cur_pts), np.concatenate(cur_nrm)))
-            levels.append(prev[0])
+            passes.append(Pass(np.concatenate(cur_pts), np.concatenate(cur_nrm), level=-1 if connect else prev[0]))
             cur_pts, cur_nrm = [nxt[3]], [nxt[4]]
-    passes.append(Pass(np.concatenate(cur_pts), np.concatenate(cur_nrm)))
-    levels.append(mapped[-1][0])
+    passes.append(Pass(np.concatenate(cur_pts), np.concatenate(cur_nrm), level=-1 if connect else mapped[-1][0]))
 
     surface = patch.to_surface(spacing=surface_spacing)
     metadata = dict(
@@ -485,10 +483,8 @@ def equidistant_patch(patch, tool, *, spacing: float | None = None, boundary=Non
         link_length_m=float(link_length), dropped_fragments=int(dropped), dropped_length_m=float(dropped_length),
         point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
         region_area_m2=float(region.area),
+        order_hint="index",   # lines alternate and boundary arcs join them: the method's own order
     )
-    if not connect:
-        metadata["pass_levels"] = [int(x) for x in levels]
-        metadata["pass_components"] = [0] * len(passes)
     if gap is not None:
         metadata["predicted_gap_fraction"] = float(gap)
     log.info("equidistant_patch %s: along %s, spacing %.1f mm, %d lines, %d passes, %d links, %.2f s", patch.name,

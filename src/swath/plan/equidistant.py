@@ -41,16 +41,18 @@ import math
 import time
 import weakref
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
 from ..errors import InfeasibleError, InputError
 from ..surface.geometry import face_normals_and_areas, normalize
-from .raster import MIN_PASS_FRACTION, _is_number, _positive, feed_and_cross, select_direction, snake_order
-from .slicing import level_sets, mesh_edges
-from .toolpath import ToolPath
-from .widths import SPACING_PERCENTILE, area_percentile, gap_fraction, pad_scale_samples, patch_widths
+from .common import (MIN_PASS_FRACTION, feed_and_cross, is_number as _is_number, plane_passes, positive as _positive,
+                     select_direction, split_direction)
+from ..surface.geodesic import DISTANCE_METHODS, distance_field, face_gradients, locate_points, refine_mesh
+from ..surface.topology import boundary_loops, split_nonmanifold_vertices, vertex_components
+from .slicing import level_sets
+from ..core import ToolPath
+from ..contact.widths import SPACING_PERCENTILE, area_percentile, gap_fraction, pad_scale_samples, patch_widths
 
 log = logging.getLogger("swath.plan")
 
@@ -62,317 +64,6 @@ MAX_FIELD_VERTICES = 100_000
 SEED_ANGLE = math.radians(45.0)
 #: A user seed point farther than this from the surface is refused (m).
 SEED_TOLERANCE = 5e-3
-#: Distance methods accepted by :func:`equidistant`.
-DISTANCE_METHODS = ("fmm", "heat")
-
-
-# ----------------------------------------------------------------------------------------------
-# mesh helpers
-# ----------------------------------------------------------------------------------------------
-def refine_mesh(vertices: np.ndarray, faces: np.ndarray, max_edge: float, *, values: np.ndarray | None = None,
-                max_rounds: int = 40, max_vertices: int | None = None):
-    """Split edges until none is longer than ``max_edge``, keeping the mesh conforming.
-
-    Every edge longer than ``max_edge`` is cut at its midpoint in each round; a face then splits
-    into 4 (three cut edges), 3 (two; the quadrilateral left is cut along its shorter diagonal) or
-    2 (one) triangles, so neighbours always agree on the cut (no T-junctions, no cracks) and the
-    winding is kept.  The refined mesh is the same piecewise-flat surface: every new vertex lies
-    on an old edge, every new face inside an old face.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-        Vertices, m.
-    faces : (m, 3) int
-        Triangles.
-    max_edge : float
-        Longest edge wanted, m.
-    values : (n, q) float, optional
-        Per-vertex values carried along (linear along each split edge, hence barycentric within
-        each original face), e.g. smooth normals.
-    max_rounds : int
-        Upper bound on bisection rounds (each halves the longest edge at least every two rounds).
-    max_vertices : int, optional
-        Stop after the round in which the vertex count passes this (the result then still has
-        edges longer than ``max_edge``; the caller can check).
-
-    Returns
-    -------
-    vertices : (n', 3) float
-        The original vertices first (same indices), then the new ones.
-    faces : (m', 3) int
-    values : (n', q) float or None
-    parent : (m',) int
-        The original face each new face lies in.
-    """
-    V = np.asarray(vertices, float)
-    F = np.asarray(faces, np.int64)
-    vals = None if values is None else np.asarray(values, float).reshape(len(V), -1)
-    if not (_is_number(max_edge) and math.isfinite(max_edge) and max_edge > 0):
-        raise InputError(f"max_edge must be a positive length in metres, got {max_edge!r}")
-    parent = np.arange(len(F))
-    for _ in range(int(max_rounds)):
-        edges, face_edges = mesh_edges(F)
-        length = np.linalg.norm(V[edges[:, 0]] - V[edges[:, 1]], axis=1)
-        cut = length > max_edge
-        if not cut.any():
-            break
-        mid = np.full(len(edges), -1, np.int64)
-        mid[cut] = len(V) + np.arange(int(cut.sum()))
-        V = np.concatenate([V, 0.5 * (V[edges[cut, 0]] + V[edges[cut, 1]])])
-        if vals is not None:
-            vals = np.concatenate([vals, 0.5 * (vals[edges[cut, 0]] + vals[edges[cut, 1]])])
-        M = mid[face_edges]                   # midpoint on slot e = (v_e, v_e+1), or -1
-        is_cut = M >= 0
-        count = is_cut.sum(axis=1)
-        new_faces, new_parent = [F[count == 0]], [parent[count == 0]]
-        # four children
-        r = np.flatnonzero(count == 3)
-        v0, v1, v2 = F[r].T
-        m01, m12, m20 = M[r].T
-        new_faces.append(np.stack([np.stack([v0, m01, m20], 1), np.stack([v1, m12, m01], 1),
-                                   np.stack([v2, m20, m12], 1), np.stack([m01, m12, m20], 1)], 1).reshape(-1, 3))
-        new_parent.append(np.repeat(parent[r], 4))
-        # two children: slot e cut, (a, b) = its ends, c opposite
-        g = np.flatnonzero(count == 1)
-        e = np.argmax(is_cut[g], axis=1)
-        a, b, c, m = F[g, e], F[g, (e + 1) % 3], F[g, (e + 2) % 3], M[g, e]
-        new_faces.append(np.stack([np.stack([a, m, c], 1), np.stack([m, b, c], 1)], 1).reshape(-1, 3))
-        new_parent.append(np.repeat(parent[g], 2))
-        # three children: slot u = (a, b) uncut, c opposite; corner at c, then the quad's shorter diagonal
-        bl = np.flatnonzero(count == 2)
-        u = np.argmin(is_cut[bl], axis=1)
-        a, b, c = F[bl, u], F[bl, (u + 1) % 3], F[bl, (u + 2) % 3]
-        mbc, mca = M[bl, (u + 1) % 3], M[bl, (u + 2) % 3]
-        first = (np.linalg.norm(V[a] - V[mbc], axis=1) <= np.linalg.norm(V[b] - V[mca], axis=1))[:, None]
-        t1 = np.stack([c, mca, mbc], 1)
-        t2 = np.where(first, np.stack([a, b, mbc], 1), np.stack([a, b, mca], 1))
-        t3 = np.where(first, np.stack([a, mbc, mca], 1), np.stack([b, mbc, mca], 1))
-        new_faces.append(np.stack([t1, t2, t3], 1).reshape(-1, 3))
-        new_parent.append(np.repeat(parent[bl], 3))
-        F = np.concatenate(new_faces)
-        parent = np.concatenate(new_parent)
-        if max_vertices is not None and len(V) > max_vertices:
-            break
-    return V, F, vals, parent
-
-
-def locate_points(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray, *, tree=None, candidates: int = 16):
-    """The face holding each point (points on or near the mesh) and its barycentric coordinates.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-    faces : (m, 3) int
-    points : (k, 3) float
-        Query points, m.
-    tree : scipy.spatial.cKDTree, optional
-        Tree over the face centroids (built when not given).
-    candidates : int
-        Nearest face centroids tested per point.
-
-    Returns
-    -------
-    face : (k,) int
-    bary : (k, 3) float
-        Non-negative, summing to 1.
-    distance : (k,) float
-        Distance from each point to its located surface point, m.
-
-    Notes
-    -----
-    Each candidate face's barycentric coordinates of the point's projection are clipped to the
-    triangle; the candidate whose clipped point is nearest wins.  For a point on the mesh that is
-    its own face (distance ~1e-16), provided it is among the ``candidates`` nearest centroids,
-    which holds on any mesh without extreme slivers next to it.
-    """
-    from scipy.spatial import cKDTree
-
-    V = np.asarray(vertices, float)
-    F = np.asarray(faces, np.int64)
-    P = np.asarray(points, float).reshape(-1, 3)
-    k = min(int(candidates), len(F))
-    if tree is None:
-        tree = cKDTree(V[F].mean(axis=1))
-    _, cand = tree.query(P, k=k)
-    cand = cand.reshape(len(P), k)
-    tri = V[F[cand]]                                           # (k_pts, k, 3, 3)
-    e1, e2 = tri[..., 1, :] - tri[..., 0, :], tri[..., 2, :] - tri[..., 0, :]
-    w = P[:, None, :] - tri[..., 0, :]
-    d11, d12, d22 = (e1 * e1).sum(-1), (e1 * e2).sum(-1), (e2 * e2).sum(-1)
-    w1, w2 = (w * e1).sum(-1), (w * e2).sum(-1)
-    den = d11 * d22 - d12 ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b1 = np.where(den > 0, (d22 * w1 - d12 * w2) / den, 1.0 / 3.0)
-        b2 = np.where(den > 0, (d11 * w2 - d12 * w1) / den, 1.0 / 3.0)
-    bary = np.stack([1.0 - b1 - b2, b1, b2], axis=-1)
-    bary = np.clip(bary, 0.0, None)
-    bary /= np.maximum(bary.sum(-1, keepdims=True), 1e-300)
-    closest = np.einsum("pkj,pkjd->pkd", bary, tri)
-    dist = np.linalg.norm(closest - P[:, None, :], axis=-1)
-    best = np.argmin(dist, axis=1)
-    rows = np.arange(len(P))
-    return cand[rows, best], bary[rows, best], dist[rows, best]
-
-
-def face_gradients(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray) -> np.ndarray:
-    """Gradient ``(m, 3)`` of a piecewise-linear per-vertex field ``(n,)`` on each face (in the face plane)."""
-    V = np.asarray(vertices, float)
-    F = np.asarray(faces, np.int64)
-    tri = V[F]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area2 = np.linalg.norm(n, axis=1)
-    nh = normalize(n)
-    f = np.asarray(field, float)[F]
-    g = np.zeros((len(F), 3))
-    for i in range(3):                          # ∇φ = Σ φ_i (n̂ × e_i) / 2A, e_i opposite vertex i (CCW)
-        e = tri[:, (i + 2) % 3] - tri[:, (i + 1) % 3]
-        g += f[:, i, None] * np.cross(nh, e)
-    return np.divide(g, area2[:, None], out=np.zeros_like(g), where=area2[:, None] > 0)
-
-
-def split_nonmanifold_vertices(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Give every fan of faces round a vertex its own copy of the vertex.
-
-    A vertex where two sheets of faces touch only at that vertex (a bow-tie, common in scans)
-    makes a mesh non-manifold, which fast marching refuses.  Corners of the same vertex are
-    joined when their faces share an edge through it; each group of joined corners becomes one
-    vertex.  The geometry is unchanged.
-
-    Parameters
-    ----------
-    faces : (m, 3) int
-
-    Returns
-    -------
-    faces : (m, 3) int
-        Faces on the new vertex numbering.
-    source : (n',) int
-        The original vertex of each new vertex (``vertices[source]`` are the new positions).
-    """
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
-    F = np.asarray(faces, np.int64)
-    m = len(F)
-    _, face_edges = mesh_edges(F)
-    inc_edge = face_edges.ravel()
-    order = np.argsort(inc_edge, kind="stable")
-    e_sorted = inc_edge[order]
-    first = np.flatnonzero(np.r_[True, e_sorted[1:] != e_sorted[:-1]])
-    count = np.diff(np.r_[first, len(e_sorted)])
-    pairs = first[count == 2]
-    i1, i2 = order[pairs], order[pairs + 1]                 # incidences (face * 3 + slot)
-    f1, s1, f2, s2 = i1 // 3, i1 % 3, i2 // 3, i2 % 3
-    a, b = F[f1, s1], F[f1, (s1 + 1) % 3]
-    a_in_2 = np.where(F[f2, s2] == a, s2, (s2 + 1) % 3)
-    b_in_2 = np.where(F[f2, s2] == b, s2, (s2 + 1) % 3)
-    rows = np.r_[f1 * 3 + s1, f1 * 3 + (s1 + 1) % 3]
-    cols = np.r_[f2 * 3 + a_in_2, f2 * 3 + b_in_2]
-    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(3 * m, 3 * m))
-    _, corner_label = connected_components(g, directed=False)
-    # Joined corners share their vertex, so a corner group is one (vertex, fan) pair.
-    _, first_corner, inverse = np.unique(corner_label, return_index=True, return_inverse=True)
-    return inverse.reshape(m, 3), F.ravel()[first_corner]
-
-
-def _boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
-    """Boundary loops (vertex indices in order) of a mesh; as :func:`swath.surface.geometry.boundary_loops`,
-    with the boundary edges found by integer keys (fast on large meshes)."""
-    F = np.asarray(faces, np.int64)
-    edges, face_edges = mesh_edges(F)
-    count = np.bincount(face_edges.ravel(), minlength=len(edges))
-    directed = np.stack([F, np.roll(F, -1, axis=1)], axis=2).reshape(-1, 2)
-    on_boundary = count[face_edges.ravel()] == 1
-    bnd = directed[on_boundary]
-    if len(bnd) == 0:
-        return []
-    nxt: dict[int, list[int]] = {}
-    for i, a in enumerate(bnd[:, 0].tolist()):
-        nxt.setdefault(a, []).append(i)
-    used = np.zeros(len(bnd), bool)
-    loops = []
-    heads, tails = bnd[:, 0].tolist(), bnd[:, 1].tolist()
-    for start in range(len(bnd)):
-        if used[start]:
-            continue
-        loop, e = [], start
-        while e is not None and not used[e]:
-            used[e] = True
-            loop.append(heads[e])
-            cand = [j for j in nxt.get(tails[e], []) if not used[j]]
-            e = cand[0] if cand else None
-        loops.append(np.asarray(loop, np.int64))
-    loops.sort(key=len, reverse=True)
-    return loops
-
-
-def _components(n_vertices: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
-    """Connected components of the vertices (through faces): count and label per vertex."""
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]]])
-    g = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices))
-    return connected_components(g, directed=False)
-
-
-# ----------------------------------------------------------------------------------------------
-# distance fields
-# ----------------------------------------------------------------------------------------------
-def distance_field(vertices: np.ndarray, faces: np.ndarray, *, source_vertices, source_distances=None,
-                   method: str = "fmm", solver=None) -> tuple[np.ndarray, str]:
-    """Geodesic distance ``(n,)`` (m) from sources on a connected triangle mesh.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-    faces : (m, 3) int
-    source_vertices : (s,) int
-        Source vertices.
-    source_distances : (s,) float, optional
-        Their initial distances, m (default 0): a curve between the vertices is given as the
-        vertices near it with their distance to it (:func:`polyline_band`).
-    method : {"fmm", "heat"}
-        potpourri3d's fast marching (``MeshFastMarchingDistanceSolver``) or heat method
-        (``MeshHeatMethodDistanceSolver``, robust intrinsic Laplacian, ``t = h²``).  Fast marching
-        refuses non-manifold meshes and leaves pieces without a source at infinity; it then falls
-        back to the heat method.  The heat method takes no initial distances: the sources nearest
-        the curve (the lowest 30 % of the initial distances) are used as distance 0.
-    solver : potpourri3d.MeshFastMarchingDistanceSolver, optional
-        A fast-marching solver already built on this mesh (saves its set-up on repeated solves).
-
-    Returns
-    -------
-    distance : (n,) float
-    method : str
-        The method that produced it.
-    """
-    import potpourri3d as pp3d
-
-    if method not in DISTANCE_METHODS:
-        raise InputError(f"distance method must be one of {', '.join(DISTANCE_METHODS)}, got {method!r}")
-    V = np.ascontiguousarray(vertices, float)
-    F = np.ascontiguousarray(faces, np.int64)
-    sv = np.asarray(source_vertices, np.int64).ravel()
-    sd = np.zeros(len(sv)) if source_distances is None else np.asarray(source_distances, float).ravel()
-    if len(sv) == 0 or len(sd) != len(sv):
-        raise InputError(f"a distance field needs sources with one distance each, got {len(sv)} and {len(sd)}")
-    if method == "fmm":
-        curves = [[(int(i), [])] for i in sv]
-        try:
-            fmm = solver if solver is not None else pp3d.MeshFastMarchingDistanceSolver(V, F)
-            d = np.asarray(fmm.compute_distance(curves, [[float(x)] for x in sd], False)).ravel()
-            if np.isfinite(d).all():
-                return d, "fmm"
-            log.info("fast marching left %d vertices without a distance; using the heat method",
-                     int((~np.isfinite(d)).sum()))
-        except RuntimeError as exc:
-            log.info("fast marching refused the mesh (%s); using the heat method", exc)
-    src = np.unique(sv[sd <= sd.min() + 0.3 * (sd.max() - sd.min())])
-    d = np.asarray(pp3d.MeshHeatMethodDistanceSolver(V, F, 1.0, True).compute_distance_multisource(src.tolist()))
-    d = d.ravel() - d.ravel()[src].min()
-    return d, "heat"
 
 
 def polyline_band(vertices: np.ndarray, polylines, radius: float, *, tree=None) -> tuple[np.ndarray, np.ndarray]:
@@ -593,9 +284,9 @@ def _field_mesh(surface, h: float, cap: int | None) -> _FieldMesh:
                                            max_vertices=cap)
         F, source = split_nonmanifold_vertices(F)
         V, normals = V[source], normals[source]
-        n_comp, label = _components(len(V), F)
+        n_comp, label = vertex_components(len(V), F)
         outer: dict[int, tuple[float, np.ndarray]] = {}
-        for lp in _boundary_loops(F):
+        for lp in boundary_loops(F):
             length = float(np.linalg.norm(V[np.roll(lp, -1)] - V[lp], axis=1).sum())
             c = int(label[lp[0]])
             if c not in outer or length > outer[c][0]:
@@ -697,9 +388,8 @@ def _spacing_rule(w, d, gap, samples) -> str:
             f"{gap:.2%}); levels spread evenly from the seed to the farthest point of each piece")
 
 
-def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle: float | None = None,
-                direction=None, point_spacing: float = 1e-3, min_pass_length: float | None = None,
-                max_edge: float | None = None, distance: str = "fmm", **patch_options) -> ToolPath:
+def equidistant(surface, tool, *, spacing: float | None = None, seed=None, direction=None, point_spacing: float = 1e-3, min_pass_length: float | None = None,
+                max_edge: float | None = None, distance: str = "fmm", progress=None, **patch_options) -> ToolPath:
     """Cover a surface with geodesic-parallel passes, each the same distance along the surface from the next.
 
     Parameters
@@ -727,18 +417,17 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         the surface, the side of its outer boundary at the low end of the cross direction
         (raster's first plane), found as the boundary run whose tangent, averaged over ``R``, is
         within 45° of the feed direction.
-    angle : float, optional
-        Rotation of the feed direction from the surface's first principal axis about the normal
-        of its best-fit plane, rad (as :func:`swath.plan.raster.raster`); it picks the seed side
-        and the travel direction of the first pass.  Default (None, and no ``direction`` or
+    direction : None, float or (3,) float
+        Feed direction: an angle (rad) from the surface's first principal axis about the normal of
+        its best-fit plane (as :func:`swath.plan.raster.raster`), or a vector in the part frame; it
+        picks the seed side and the travel direction of the first pass.  Default (None, and no
         ``seed``): chosen among :data:`AUTO_ANGLES` — the shortest predicted path (area over
         spacing) whose predicted gap is at most :data:`AUTO_MAX_GAP`; near-ties (2 %) go to the
-        principal axis.
-    direction : (3,) float, optional
-        Feed direction in the part frame; overrides ``angle``.  With a ``seed`` and neither given,
-        the seed's first-to-last direction.
+        principal axis.  With a ``seed`` and no direction, the seed's first-to-last direction.
     point_spacing : float
         Arc-length step between pass points, m.
+    progress : callable, optional
+        Unused; accepted so every planner has the same call shape.
     min_pass_length : float, optional
         Level-set fragments shorter than this (m) are dropped; default ``R/4``.
     max_edge : float, optional
@@ -760,7 +449,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         far_margin_m (largest distance from the last level to the farthest point of a piece),
         pulled_in_levels (how many pieces had their last level pulled in, given spacing only) and
         pulled_in ([piece, level] of each such level),
-        n_levels, n_passes, pass_levels and pass_components (level and piece of each pass),
+        n_levels, n_passes (each pass carries its level and piece as ``Pass.level`` and ``Pass.region``),
         dropped_fragments, dropped_length_m, point_spacing_m, min_pass_length_m, field_edge_m,
         field_vertices, distance_method, seed ("boundary" or "polyline"), seed_length_m,
         n_components, components_without_seed, feed_direction, cross_direction, angle_rad.
@@ -778,7 +467,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
     if isinstance(surface, BSplinePatch):
         from .arclength import equidistant_patch
 
-        if seed is not None or direction is not None or angle is not None or max_edge is not None \
+        if seed is not None or direction is not None or max_edge is not None \
                 or distance != "fmm":
             raise InputError("seed, angle, direction, max_edge and distance apply to meshes; for a B-spline patch "
                              "use boundary= and along= (see swath.plan.arclength.equidistant_patch)")
@@ -796,8 +485,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         min_pass_length = MIN_PASS_FRACTION * R
     elif not (_is_number(min_pass_length) and math.isfinite(min_pass_length) and min_pass_length >= 0):
         raise InputError(f"min_pass_length must be a finite length >= 0 m, got {min_pass_length!r}")
-    if angle is not None and not (_is_number(angle) and math.isfinite(angle)):
-        raise InputError(f"angle must be a finite number of radians, got {angle!r}")
+    angle, direction = split_direction(direction)
     if distance not in DISTANCE_METHODS:
         raise InputError(f"distance must be one of {', '.join(DISTANCE_METHODS)}, got {distance!r}")
     seed_pts = None
@@ -848,7 +536,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         d, rule = spacing, "given"
 
     # --- level sets, fragments, snake order -----------------------------------------------------
-    passes, pass_levels, pass_comp, level_spacing = [], [], [], []
+    passes, level_spacing = [], []
     dropped, dropped_length, n_levels, far_margin, pulled_in = 0, 0.0, 0, 0.0, []
     for comp in components:
         top = float(comp.field.max())
@@ -880,11 +568,9 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
         kept = [pl for pl, s in zip(pls, short) if not s]
         if not kept:
             continue
-        fake = SimpleNamespace(face_normals=face_normals_and_areas(comp.vertices, comp.faces)[0])
-        comp_passes = snake_order(kept, feed, cross, fake, point_spacing)
+        comp_passes = plane_passes(kept, feed, face_normals_and_areas(comp.vertices, comp.faces)[0], point_spacing,
+                                   region=int(comp.index))
         passes.extend(comp_passes)
-        pass_levels.extend(_snake_levels(kept))
-        pass_comp.extend([comp.index] * len(comp_passes))
     if not passes:
         raise InfeasibleError(
             f"equidistant found no pass on {surface.name or 'the surface'}: {n_levels} levels at spacing "
@@ -895,8 +581,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, angle
     metadata = dict(
         spacing_m=float(used), level_spacing_m=level_spacing, spacing_rule=rule, direction_rule=direction_rule,
         first_offset_m=float(used / 2), far_margin_m=float(far_margin), pulled_in_levels=len(pulled_in), pulled_in=pulled_in,
-        n_levels=int(n_levels), n_passes=len(passes), pass_levels=[int(x) for x in pass_levels],
-        pass_components=[int(x) for x in pass_comp], dropped_fragments=int(dropped),
+        n_levels=int(n_levels), n_passes=len(passes), dropped_fragments=int(dropped),
         dropped_length_m=float(dropped_length), point_spacing_m=float(point_spacing),
         min_pass_length_m=float(min_pass_length), field_edge_m=float(mesh.edge),
         field_vertices=int(len(mesh.vertices)), distance_method=fields.methods,
@@ -925,14 +610,6 @@ def _choose_angle(surface, tool, mesh, samples, spacing, R, distance) -> tuple[f
         rows.append((a, gap_fraction(w, areas, d), float(areas.sum() / d), None))
     best, rule = select_direction(rows, AUTO_MAX_GAP, "equidistant")
     return best[0], rule
-
-
-def _snake_levels(polylines) -> list[int]:
-    """Level index of each pass in the order :func:`swath.plan.raster.snake_order` emits them."""
-    by_level: dict[int, int] = {}
-    for pl in polylines:
-        by_level[pl.plane] = by_level.get(pl.plane, 0) + 1
-    return [lvl for lvl in sorted(by_level) for _ in range(by_level[lvl])]
 
 
 def _densify(points: np.ndarray, step: float) -> np.ndarray:
@@ -984,12 +661,12 @@ class PassSpacing:
 
 
 def pass_levels(toolpath) -> tuple[np.ndarray, np.ndarray]:
-    """(component, level) of each pass: from the metadata of an equidistant plan, from the plane
+    """(component, level) of each pass: from the passes' own ``region`` and ``level``, from the plane
     offsets of a raster plan, otherwise the pass order (one level per pass)."""
     n = len(toolpath.passes)
     md = toolpath.metadata
-    if "pass_levels" in md and len(md["pass_levels"]) == n:
-        return np.asarray(md.get("pass_components", [0] * n), int), np.asarray(md["pass_levels"], int)
+    if n and all(p.level >= 0 for p in toolpath.passes):
+        return toolpath.regions, toolpath.levels
     if toolpath.planner == "raster" and "cross_direction" in md and "spacing_m" in md:
         c = np.asarray(md["cross_direction"], float)
         off = np.array([float(np.mean(p.points @ c)) for p in toolpath.passes])

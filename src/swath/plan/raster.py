@@ -16,15 +16,13 @@ import time
 import numpy as np
 
 from ..errors import InfeasibleError, InputError
-from ..surface.geometry import normalize
-from .slicing import resample, slice_mesh
-from .toolpath import Pass, ToolPath
-from .widths import raster_spacing
+from .common import check_min_pass_length, feed_and_cross, plane_passes, positive, select_direction, split_direction
+from .slicing import slice_mesh
+from ..core import ToolPath
+from ..contact.widths import raster_spacing
 
 log = logging.getLogger("swath.plan")
 
-#: Default shortest pass, as a fraction of the pad radius (see :func:`raster`).
-MIN_PASS_FRACTION = 0.25
 #: Refuse plans that would need more cutting planes than this (a spacing typo such as 1e-6).
 MAX_PLANES = 20000
 
@@ -33,8 +31,8 @@ MAX_PLANES = 20000
 AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
 
 
-def raster(surface, tool, *, spacing: float | None = None, angle: float | None = None, direction=None,
-           point_spacing: float = 1e-3, min_pass_length: float | None = None) -> ToolPath:
+def raster(surface, tool, *, spacing: float | None = None, direction=None, point_spacing: float = 1e-3,
+           min_pass_length: float | None = None, progress=None) -> ToolPath:
     """Cover a surface with parallel plane slices, visited in snake order.
 
     Parameters
@@ -48,15 +46,13 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float | None =
         the surface under the contact model (:func:`swath.plan.widths.raster_spacing`): the 0.2 %
         area-percentile of the contact chord across the slice, times the slope factor ``|n × c|``
         (clipped at 0.5), with curvature read at pad scale.
-    angle : float, optional
-        Rotation of the feed direction from the surface's first principal axis (largest spread)
-        about its third axis (the normal of the best-fit plane), rad.  Default (None): chosen
-        among :data:`AUTO_ANGLES` by :func:`choose_angle` — the direction whose planes cross the
-        part's curvature, so the equal spacing wastes least (the shortest predicted path whose
-        predicted gap stays within 0.1 %; near-ties go to the principal axis).
-    direction : (3,) float, optional
-        Feed direction in the part frame; overrides ``angle``.  Only its component in the
-        best-fit plane matters.
+    direction : None, float or (3,) float
+        Feed direction.  None (default): chosen among :data:`AUTO_ANGLES` by :func:`choose_angle`
+        — the direction whose planes cross the part's curvature, so the equal spacing wastes least
+        (the shortest predicted path whose predicted gap stays within 0.1 %; near-ties go to the
+        principal axis).  A number: the angle (rad) of the feed from the surface's first principal
+        axis (largest spread) about its third axis (the normal of the best-fit plane).  A vector:
+        the feed direction in the part frame (only its component in the best-fit plane matters).
     point_spacing : float
         Arc-length step between pass points, m (default 1 mm: ≤ 20 ms apart at 50 mm/s).
     min_pass_length : float, optional
@@ -67,12 +63,15 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float | None =
         plan) the area within 0.75 R of a dropped fragment and of no kept pass is at most 0.23 %
         (one fragment on bezier_complex_shape), typically below 0.05 %.
 
+    progress : callable, optional
+        Unused (raster is fast); accepted so every planner has the same call shape.
+
     Returns
     -------
     ToolPath
-        Passes in snake order: planes by increasing offset along the cross direction, travel
-        direction alternating from plane to plane (among planes that yield passes), several
-        fragments on a plane visited in order along the travel direction.  Points lie exactly on
+        Passes level by level (``Pass.level`` = plane index, increasing along the cross direction),
+        each running along the feed, several fragments on a plane in order along it; the ``order``
+        stage's ``snake`` method turns every other plane round (boustrophedon).  Points lie exactly on
         the mesh, ``≤ point_spacing`` apart along the pass; normals are the smooth vertex normals
         interpolated barycentrically in the face holding each point.
         ``metadata``: spacing_m, angle_rad, feed_direction, cross_direction, n_planes, n_passes,
@@ -89,21 +88,17 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float | None =
         When no slice fragment is long enough to become a pass.
     """
     t_start = time.perf_counter()
-    point_spacing = _positive("point_spacing", point_spacing)
+    point_spacing = positive("point_spacing", point_spacing)
     if spacing is not None:
-        spacing = _positive("spacing", spacing)
-    if min_pass_length is None:
-        min_pass_length = MIN_PASS_FRACTION * tool.pad_radius
-    elif not (_is_number(min_pass_length) and math.isfinite(min_pass_length) and min_pass_length >= 0):
-        raise InputError(f"min_pass_length must be a finite length >= 0 m, got {min_pass_length!r}")
-    if angle is not None and not (_is_number(angle) and math.isfinite(angle)):
-        raise InputError(f"angle must be a finite number of radians, got {angle!r}")
+        spacing = positive("spacing", spacing)
+    min_pass_length = check_min_pass_length(min_pass_length, tool.pad_radius)
+    angle, vector = split_direction(direction)
 
     choice = None
-    direction_rule = "given direction" if direction is not None else "given angle"
-    if angle is None and direction is None:
+    direction_rule = "given direction" if vector is not None else "given angle"
+    if angle is None and vector is None:
         angle, choice, direction_rule = choose_angle(surface, tool, spacing=spacing)
-    feed, cross = feed_and_cross(surface, angle=angle or 0.0, direction=direction)
+    feed, cross = feed_and_cross(surface, angle=angle or 0.0, direction=vector)
 
     if spacing is None:
         if choice is None:
@@ -127,7 +122,7 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float | None =
             f"min_pass_length={min_pass_length * 1e3:.1f} mm (the part spans {along * 1e3:.1f} mm along the feed); "
             "lower min_pass_length or choose a feed direction along the part")
 
-    passes = snake_order(kept, feed, cross, surface, point_spacing)
+    passes = plane_passes(kept, feed, surface.face_normals, point_spacing)
     metadata = dict(
         spacing_m=float(spacing), angle_rad=float(angle or 0.0), direction_rule=direction_rule,
         feed_direction=feed.tolist(),
@@ -149,37 +144,6 @@ def raster(surface, tool, *, spacing: float | None = None, angle: float | None =
     return ToolPath(surface, passes, "raster", metadata)
 
 
-def feed_and_cross(surface, *, angle: float = 0.0, direction=None) -> tuple[np.ndarray, np.ndarray]:
-    """Unit feed direction in the best-fit plane ``(3,)`` and the cutting-plane normal ``(3,)``.
-
-    The best-fit plane's normal (third principal axis) is oriented toward the tool (with the
-    area-weighted mean facet normal); the feed is the first principal axis rotated by ``angle``
-    about it, or ``direction`` projected into the plane; the cross direction is normal × feed.
-
-    The axes are :attr:`Surface.principal_axes` (exact triangle moments).
-    """
-    axes = surface.principal_axes[1]
-    a0, a2 = np.asarray(axes[0], float), np.asarray(axes[2], float)
-    mean_normal = (surface.face_normals * surface.face_areas[:, None]).sum(axis=0)
-    if a2 @ mean_normal < 0:
-        a2 = -a2
-    a1 = np.cross(a2, a0)
-    if direction is None:
-        feed = math.cos(angle) * a0 + math.sin(angle) * a1
-    else:
-        d = np.asarray(direction, float).reshape(-1)
-        if d.shape != (3,) or not np.isfinite(d).all() or np.linalg.norm(d) == 0:
-            raise InputError(f"direction must be a finite, non-zero 3-vector, got {direction!r}")
-        d = d / np.linalg.norm(d)
-        feed = d - (d @ a2) * a2
-        if np.linalg.norm(feed) < 1e-6:
-            raise InputError(f"direction {d.round(4).tolist()} is along the part's mean normal "
-                             f"{a2.round(4).tolist()}; give a direction along the surface")
-    cross = normalize(np.cross(a2, feed))
-    feed = np.cross(cross, a2)
-    return feed, cross
-
-
 def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANGLES,
                  max_gap: float = 1e-3):
     """Pick the raster feed angle (rad from the first principal axis) for ``surface``.
@@ -199,7 +163,7 @@ def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANG
     rule : str
         A one-line description of the decision, for metadata.
     """
-    from .widths import effective_widths, gap_fraction, pad_scale_samples
+    from ..contact.widths import effective_widths, gap_fraction, pad_scale_samples
 
     samples = pad_scale_samples(surface, tool)
     rows = []
@@ -219,26 +183,6 @@ def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANG
     return best[0], best[3], rule
 
 
-def select_direction(rows, max_gap: float, planner: str):
-    """The direction rule shared by the planners that pick their own feed direction.
-
-    ``rows`` are ``(angle_rad, predicted_gap_fraction, predicted_length_m, payload)``.  The shortest
-    candidate whose gap is at most ``max_gap`` wins, near-ties (within 2 %) going to the earlier
-    candidate (the principal axis first); if none qualifies, the one with the smallest gap.
-    Returns the winning row and a one-line description for metadata.
-    """
-    ok = [r for r in rows if r[1] <= max_gap]
-    if ok:
-        shortest = min(r[2] for r in ok)
-        best = next(r for r in ok if r[2] <= 1.02 * shortest)
-    else:
-        best = min(rows, key=lambda r: r[1])
-    summary = ", ".join(f"{math.degrees(r[0]):.0f} deg: {r[2]:.2f} m, gap {100 * r[1]:.2f}%" for r in rows)
-    rule = f"auto: shortest predicted path with gap <= {100 * max_gap:.1f}% among ({summary})"
-    log.info("%s direction %s", planner, rule)
-    return (float(best[0]),) + tuple(best[1:]), rule
-
-
 def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, float]:
     """Offsets ``(p,)`` of planes ``spacing`` apart centred on the extent of ``heights`` (m).
 
@@ -256,46 +200,3 @@ def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, floa
     return offsets, margin
 
 
-def snake_order(polylines, feed, cross, surface, point_spacing) -> list[Pass]:
-    """Orient and order fragments plane by plane, alternating the travel direction; resample."""
-    by_plane: dict[int, list] = {}
-    for pl in polylines:
-        by_plane.setdefault(pl.plane, []).append(pl)
-    passes = []
-    sign = 1.0
-    for plane in sorted(by_plane):
-        travel = sign * feed
-        oriented = [_orient(pl, travel, cross) for pl in by_plane[plane]]
-        oriented.sort(key=lambda pl: float(pl.points[0] @ travel))
-        for pl in oriented:
-            sm = resample(pl, point_spacing)
-            normals = normalize(sm.values)
-            bad = np.linalg.norm(normals, axis=1) < 0.5
-            if bad.any():   # opposite vertex normals across a fold: fall back to the facet normal
-                normals[bad] = surface.face_normals[sm.faces[bad]]
-            passes.append(Pass(sm.points, normals))
-        sign = -sign
-    return passes
-
-
-def _orient(pl, travel, cross):
-    """Run an open fragment along ``travel``; start a closed loop at its rearmost point and run it
-    counter-clockwise about ``cross`` (the plane normal), for a deterministic result."""
-    proj = pl.points @ travel
-    if not pl.closed:
-        return pl if proj[-1] >= proj[0] else pl.reversed()
-    pl = pl.rolled(int(np.argmin(proj[:-1])))
-    rel = pl.points - pl.points[0]
-    if np.cross(rel[:-1], rel[1:]).sum(axis=0) @ cross < 0:
-        pl = pl.reversed()
-    return pl
-
-
-def _is_number(x) -> bool:
-    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
-
-
-def _positive(name: str, value) -> float:
-    if not (_is_number(value) and math.isfinite(value) and value > 0):
-        raise InputError(f"{name} must be a positive, finite length in metres, got {value!r}")
-    return float(value)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..surface.topology import mesh_edges
 
 log = logging.getLogger("swath.plan")
 
@@ -101,29 +102,6 @@ class SurfaceSamples:
     points: np.ndarray
     faces: np.ndarray
     values: np.ndarray | None
-
-
-def mesh_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Undirected edges of a triangle mesh.
-
-    Parameters
-    ----------
-    faces : (m, 3) int
-
-    Returns
-    -------
-    edges : (e, 2) int
-        Vertex pairs, smaller index first.
-    face_edges : (m, 3) int
-        Edge id of face edges ``(v0, v1), (v1, v2), (v2, v0)``.
-    """
-    f = np.asarray(faces, np.int64)
-    pairs = np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2)
-    pairs = np.sort(pairs, axis=1)
-    n = np.int64(pairs.max() + 1) if len(pairs) else np.int64(1)
-    keys, inverse = np.unique(pairs[:, 0] * n + pairs[:, 1], return_inverse=True)
-    edges = np.stack([keys // n, keys % n], axis=1)
-    return edges, inverse.reshape(-1, 3)
 
 
 def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, values: np.ndarray | None = None,

@@ -38,10 +38,12 @@ import numpy as np
 from ..errors import InfeasibleError, InputError
 from ..surface.curvature import PrincipalCurvature
 from ..surface.geometry import normalize
-from .raster import feed_and_cross
-from .slicing import level_sets, mesh_edges, resample, slice_mesh
-from .toolpath import Pass, ToolPath
-from .widths import _rows, _unique_patches
+from .common import feed_and_cross
+from ..surface.geodesic import FaceGradient
+from ..surface.topology import mesh_edges
+from .slicing import level_sets, resample, slice_mesh
+from ..core import Pass, ToolPath
+from ..contact.widths import patch_rows, unique_patches
 
 log = logging.getLogger("swath.plan")
 
@@ -73,7 +75,7 @@ class WidthModel:
     def __init__(self, curvature: PrincipalCurvature, normals: np.ndarray, tool):
         self.curvature = curvature
         self.normals = normals
-        self.patch, self.inverse = _unique_patches(curvature.k1, curvature.k2, tool, 180)
+        self.patch, self.inverse = unique_patches(curvature.k1, curvature.k2, tool, 180)
 
     def across(self, idx: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Width (m) of the swath at vertices ``idx`` ``(k,)`` for feed directions ``feed`` ``(k, 3)``."""
@@ -82,12 +84,12 @@ class WidthModel:
         cross = np.cross(n, normalize(t))
         psi = np.arctan2(np.einsum("ij,ij->i", cross, self.curvature.d2[idx]),
                          np.einsum("ij,ij->i", cross, self.curvature.d1[idx]))
-        return _rows(self.patch, self.inverse[idx], lambda p, rows: p.width_across(psi[rows]))
+        return patch_rows(self.patch, self.inverse[idx], lambda p, rows: p.width_across(psi[rows]))
 
 
-def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boundary",
+def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="boundary",
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
-            feed: float = 0.05, max_angular: float = 1.0, max_centripetal: float = 2.0,
+            feed: float = 0.05, max_angular: float = 1.0, cost=None,
             work_spacing: float | None = None, progress=None) -> ToolPath:
     """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
 
@@ -99,12 +101,11 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
         The pad; its contact model sets the swath widths.
     overlap : float
         Overlap of neighbouring swaths as a fraction of the local width (default 0.1 = 10 %).
-    direction : "auto", float or (3,) array
+    direction : None, float or (3,) array
         Seed direction: the passes run along the feed direction at this angle (rad) from the
-        surface's first principal axis (or along this vector, projected into the best-fit plane); ``"auto"`` (default) plans with each of
-        :data:`AUTO_DIRECTIONS` and keeps the one with the shortest predicted cycle time, counting
-        the slow-downs the tool's angular-speed and centripetal limits force (``feed``,
-        ``max_angular``, ``max_centripetal``).  The candidates are recorded in the metadata.
+        surface's first principal axis (or along this vector, projected into the best-fit plane).
+        None (default): plans with each of :data:`AUTO_DIRECTIONS` and keeps the cheapest by
+        ``cost``.  The candidates are recorded in the metadata.
     seed : "boundary", "middle" or (k, 3) array
         The seed curve: the boundary on the low side across the feed direction, a slice through the
         middle (passes grow to both sides), or a polyline on the surface (m).
@@ -114,10 +115,15 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
         Pieces shorter than this are dropped, m (default R/4).
     max_passes : int
         Safety limit on the number of pass generations.
-    feed, max_angular, max_centripetal : float
-        Feed (m/s) and limits (rad/s, m/s²) used to predict cycle times for ``direction="auto"``; a
-        pass is also cut where, at this feed, the tool would turn about its axis faster than
-        ``max_angular`` / :data:`SHARP_TURN_SPEED_FRACTION` (the tool would slow and dwell there).
+    feed, max_angular : float
+        Feed (m/s) and angular-speed limit (rad/s): a pass is cut where, at this feed, the tool
+        would turn about its axis faster than ``max_angular`` / :data:`SHARP_TURN_SPEED_FRACTION`
+        (the tool would slow and dwell there).
+    cost : callable, optional
+        ``cost(toolpath) -> (value, description)`` ranking candidate directions (lower is better),
+        e.g. the predicted cycle time under the very limits and links the job's trajectory will
+        use (:func:`swath.cli.job.cycle_time_cost` builds one).  Default: contact length plus the
+        straight-line air distance between consecutive passes in zig-zag order, m.
     work_spacing : float, optional
         Edge length (m) the surface is subdivided to for the distance fields (default from the part
         size, between R/12 and R/4, coarsened if the mesh would exceed about
@@ -129,8 +135,9 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
     -------
     ToolPath
         ``metadata``: overlap_fraction, direction_rad, direction_rule, seed, n_passes, work_spacing_m,
-        n_touch_up_passes and touch_up_passes (their indices in ``passes``), candidates (per
-        direction: length_m, cycle_time_s) for ``"auto"``.
+        n_touch_up_passes and touch_up_passes (their indices in ``passes``; the passes also carry
+        ``kind="touch_up"``), candidates (per direction: length_m, cost) for automatic direction,
+        order_hint ``"zigzag"``.  Each pass's ``level`` is its generation.
     """
     if not (isinstance(overlap, (int, float)) and 0.0 <= overlap < 0.9):
         raise InputError(f"overlap must be a fraction in [0, 0.9), e.g. 0.1 for 10 %, got {overlap!r}")
@@ -138,23 +145,22 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction="auto", seed="boun
         raise InputError(f"point_spacing must be a positive length in metres, got {point_spacing!r}")
     R = tool.pad_radius
     min_pass_length = 0.25 * R if min_pass_length is None else float(min_pass_length)
-    if not (feed > 0 and max_angular > 0 and max_centripetal > 0):
-        raise InputError(f"feed, max_angular and max_centripetal must be positive (m/s, rad/s, m/s2), got "
-                         f"{feed!r}, {max_angular!r}, {max_centripetal!r}")
+    if not (feed > 0 and max_angular > 0):
+        raise InputError(f"feed and max_angular must be positive (m/s, rad/s), got {feed!r}, {max_angular!r}")
     ctx = _Context(surface, tool, work_spacing, max_turn_curvature=max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
 
-    if isinstance(direction, str):
-        if direction != "auto":
-            raise InputError(f"direction must be 'auto' or an angle in radians, got {direction!r}")
+    if direction is None or (isinstance(direction, str) and direction == "auto"):
         return _auto(ctx, overlap=overlap, seed=seed, point_spacing=point_spacing,
-                     min_pass_length=min_pass_length, max_passes=max_passes, feed=feed,
-                     max_angular=max_angular, max_centripetal=max_centripetal, progress=progress)
+                     min_pass_length=min_pass_length, max_passes=max_passes,
+                     cost=cost or length_cost, progress=progress)
+    if isinstance(direction, str):
+        raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
     if isinstance(direction, (int, float)) and math.isfinite(direction):
         return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
     vec = np.asarray(direction, float).reshape(-1) if not isinstance(direction, (int, float)) else None
     if vec is None or vec.shape != (3,) or not np.isfinite(vec).all():
-        raise InputError(f"direction must be 'auto', a finite angle in radians or a 3-vector, got {direction!r}")
+        raise InputError(f"direction must be None (auto), a finite angle in radians or a 3-vector, got {direction!r}")
     return _plan(ctx, vec, overlap=overlap, seed=seed, point_spacing=point_spacing,
                  min_pass_length=min_pass_length, max_passes=max_passes, rule="given vector")
 
@@ -193,12 +199,7 @@ class _Context:
         self.edges = mesh_edges(np.asarray(W.faces, np.int64))
         self._pts32 = W.vertices.astype(np.float32)
         self._nrm32 = W.normals.astype(np.float32)
-        # Per-face gradient operator pieces (for the direction of the distance field).
-        tri = W.vertices[W.faces]
-        self.face_n = W.face_normals
-        self.face_a = W.face_areas
-        e = [tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2], tri[:, 1] - tri[:, 0]]
-        self.grad_basis = [np.cross(self.face_n, ei) / (2.0 * np.maximum(self.face_a, 1e-300))[:, None] for ei in e]
+        self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
         log.info("uniform: working mesh %d vertices (edges <= %.1f mm), set up in %.2f s", len(W.vertices),
                  1e3 * self.work_spacing, time.perf_counter() - t0)
 
@@ -222,16 +223,7 @@ class _Context:
 
     def gradient_directions(self, d: np.ndarray) -> np.ndarray:
         """Unit tangent direction of increasing ``d`` at each vertex ``(n, 3)``."""
-        W = self.work
-        F = W.faces
-        g = sum(d[F[:, i]][:, None] * self.grad_basis[i] for i in range(3))
-        acc = np.zeros((len(W.vertices), 3))
-        for i in range(3):
-            acc += np.stack([np.bincount(F[:, i], weights=g[:, j] * self.face_a, minlength=len(acc))
-                             for j in range(3)], axis=1)
-        n = W.normals
-        acc -= np.einsum("ij,ij->i", acc, n)[:, None] * n
-        return normalize(acc)
+        return self.gradient.vertex_directions(d, self.work.normals)
 
     def nearest_vertices(self, points: np.ndarray) -> np.ndarray:
         return self.tree.query(points)[1]
@@ -357,14 +349,15 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
         log.warning("uniform: stopped after max_passes=%d generations", max_passes)
 
     passes_pts = [p for gen in generations for p, _ in gen]
+    generation_of = {id(p): g for g, gen in enumerate(generations) for p, _ in gen}
     if not passes_pts:
         raise InfeasibleError("uniform found no pass: the surface is narrower than the shortest allowed pass "
                               f"({min_pass_length * 1e3:.1f} mm) in every direction tried")
     covered, touch_ups = _touch_up(ctx, passes_pts, covered, step, min_pass_length)
     merged = _insert_near(passes_pts, touch_ups)
     touch_up_index = [i for i, q in enumerate(merged) if any(q is t for t in touch_ups)]
-    ordered = _zigzag(merged)
-    passes = [_on_surface_pass(ctx.surface, p, point_spacing) for p in ordered]
+    passes = [_on_surface_pass(ctx.surface, p, point_spacing, level=generation_of.get(id(p), -1),
+                               kind="touch_up" if i in touch_up_index else "pass") for i, p in enumerate(merged)]
     # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
     # capped as in _Context.touched); the simulator's figure is the one to trust.
     covered_pred = float(W.vertex_areas[covered].sum() / W.area)
@@ -372,7 +365,7 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
                 predicted_coverage_fraction=covered_pred,
                 feed_direction=feed_dir.tolist(), seed=seed if isinstance(seed, str) else "polyline",
                 n_passes=len(passes), n_generations=len(generations), n_touch_up_passes=len(touch_ups),
-                touch_up_passes=touch_up_index,
+                touch_up_passes=touch_up_index, order_hint="zigzag",
                 work_spacing_m=ctx.work_spacing,
                 point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
                 plan_time_s=time.perf_counter() - t0)
@@ -383,13 +376,25 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     return ToolPath(ctx.surface, passes, "uniform", meta)
 
 
-def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, feed, max_angular, max_centripetal,
-          progress=None):
-    from ..trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, time_path
+def length_cost(toolpath) -> tuple[float, str]:
+    """Contact length plus the straight air distance between passes run zig-zag (each from the end
+    nearer the previous end), m: the default ranking of candidate directions."""
+    total, end = toolpath.contact_length, None
+    for p in toolpath.passes:
+        first, last = p.points[0], p.points[-1]
+        if end is not None:
+            d_first, d_last = np.linalg.norm(first - end), np.linalg.norm(last - end)
+            total += min(d_first, d_last)
+            end = last if d_first <= d_last else first
+        else:
+            end = last
+    return float(total), "contact + straight air length (m)"
 
-    limits = [FeedLimit(feed), AngularSpeedLimit(max_angular), CentripetalLimit(max_centripetal)]
+
+def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None):
     results = []
     say = progress or (lambda stage, done, total: None)
+    what = ""
     for k, a in enumerate(AUTO_DIRECTIONS):
         say("planning (uniform): trying pass directions", k, len(AUTO_DIRECTIONS) + 1)
         try:
@@ -398,24 +403,23 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, fee
         except InfeasibleError as exc:
             log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), exc)
             continue
-        cycle = time_path(tp, limits).duration
-        results.append((float(a), tp.contact_length, cycle, tp.metadata["predicted_coverage_fraction"]))
-        log.info("uniform candidate %.0f deg: %.2f m in contact, predicted cycle %.1f s", math.degrees(a),
-                 tp.contact_length, cycle)
+        value, what = cost(tp)
+        results.append((float(a), tp.contact_length, float(value), tp.metadata["predicted_coverage_fraction"]))
+        log.info("uniform candidate %.0f deg: %.2f m in contact, cost %.4g (%s)", math.degrees(a),
+                 tp.contact_length, value, what)
     if not results:
         raise InfeasibleError("uniform found no feasible direction; check min_pass_length and the part size")
     # A direction must cover (a pad riding on the crests of waves narrower than itself leaves the
     # troughs untouched, so passes along the waves can miss area); among those that cover, the
-    # shortest cycle wins.
+    # cheapest wins.
     top = max(r[3] for r in results)
     good = [r for r in results if r[3] >= min(0.995, top - 0.002)]
     best = min(good, key=lambda r: r[2])
     say("planning (uniform): trying pass directions", len(AUTO_DIRECTIONS), len(AUTO_DIRECTIONS) + 1)
-    candidates = [dict(direction_deg=math.degrees(a), length_m=L, cycle_time_s=c, predicted_coverage_fraction=cv)
+    candidates = [dict(direction_deg=math.degrees(a), length_m=L, cost=c, predicted_coverage_fraction=cv)
                   for a, L, c, cv in results]
-    rule = (f"auto: shortest predicted cycle time at feed {feed * 1e3:.0f} mm/s with angular speed <= "
-            f"{max_angular:g} rad/s and centripetal acceleration <= {max_centripetal:g} m/s2, among the "
-            f"directions whose predicted coverage is at least {100 * min(0.995, top - 0.002):.1f} %")
+    rule = (f"auto: lowest {what} among the directions whose predicted coverage is at least "
+            f"{100 * min(0.995, top - 0.002):.1f} %")
     return _plan(ctx, best[0], overlap=overlap, seed=seed, point_spacing=point_spacing,
                  min_pass_length=min_pass_length, max_passes=max_passes, rule=rule,
                  extra_meta={"candidates": candidates})
@@ -722,18 +726,7 @@ def _insert_near(passes: list[np.ndarray], extra: list[np.ndarray]) -> list[np.n
     return out
 
 
-def _zigzag(polylines: list[np.ndarray]) -> list[np.ndarray]:
-    """Order passes greedily: keep generation order, start each at the end nearest the last end."""
-    out = [polylines[0]]
-    for p in polylines[1:]:
-        end = out[-1][-1]
-        if np.linalg.norm(p[-1] - end) < np.linalg.norm(p[0] - end):
-            p = p[::-1]
-        out.append(p)
-    return out
-
-
-def _on_surface_pass(surface, pts, point_spacing) -> Pass:
+def _on_surface_pass(surface, pts, point_spacing, **tags) -> Pass:
     """Resample a pass at ``point_spacing`` and put every point on ``surface`` with its smooth normal."""
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
@@ -741,4 +734,4 @@ def _on_surface_pass(surface, pts, point_spacing) -> Pass:
     s = np.linspace(0.0, cum[-1], n)
     res = np.stack([np.interp(s, cum, pts[:, j]) for j in range(3)], axis=1)
     closest, _, face = surface.closest_points(res)
-    return Pass(closest, surface.interpolate_normals(closest, face))
+    return Pass(closest, surface.interpolate_normals(closest, face), **tags)

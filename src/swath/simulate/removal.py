@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..contact import Tool, mesh_contact
-from ..plan.widths import coverage_lower_bound
+from ..contact.widths import coverage_lower_bound
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
@@ -175,8 +175,8 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         effective = float(a[d >= 0.1 * median].sum()) / total if median > 0 else 0.0
         p5, p95 = pct(0.05), pct(0.95)
     else:
-        mean = std = median = effective = p5, p95 = float("nan")
-        p5 = p95 = float("nan")
+        # The trajectory never touched the part: no depth statistics (NaN), zero coverage.
+        mean = std = median = effective = p5 = p95 = float("nan")
     L_contact = trajectory.contact_length
     L_star = coverage_lower_bound(surface, tool)
     return {

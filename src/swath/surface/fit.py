@@ -356,7 +356,7 @@ def _check_mesh_patch(n_vertices: int, F: np.ndarray) -> None:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from .geometry import boundary_edges
+    from .topology import boundary_edges
 
     used = np.unique(F)
     if len(used) < n_vertices:

@@ -37,44 +37,6 @@ def normalize(v: np.ndarray) -> np.ndarray:
     return np.divide(v, norm, out=np.zeros_like(v, dtype=float), where=norm > 0)
 
 
-def boundary_edges(faces: np.ndarray) -> np.ndarray:
-    """Edges ``(b, 2)`` used by exactly one face, oriented as in that face."""
-    edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]).astype(np.int64)
-    lo, hi = edges.min(axis=1), edges.max(axis=1)
-    key = lo * np.int64(edges.max() + 1) + hi          # one integer per undirected edge: a fast 1-D unique
-    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    return edges[counts[inverse] == 1]
-
-
-def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
-    """Closed boundary loops as vertex-index arrays, longest first.
-
-    Edges are chained head to tail; at a vertex where the boundary touches itself (a bow-tie) the
-    chain takes the first unused edge, so every boundary edge ends up in exactly one loop.
-    """
-    edges = boundary_edges(faces)
-    if len(edges) == 0:
-        return []
-    out_edges: dict[int, list[int]] = {}
-    for i, a in enumerate(edges[:, 0]):
-        out_edges.setdefault(int(a), []).append(i)
-    used = np.zeros(len(edges), dtype=bool)
-    loops = []
-    for start in range(len(edges)):
-        if used[start]:
-            continue
-        loop = []
-        e = start
-        while e is not None and not used[e]:
-            used[e] = True
-            loop.append(int(edges[e, 0]))
-            nxt = [j for j in out_edges.get(int(edges[e, 1]), []) if not used[j]]
-            e = nxt[0] if nxt else None
-        loops.append(np.asarray(loop))
-    loops.sort(key=len, reverse=True)
-    return loops
-
-
 def smooth_vertex_normals(vertices: np.ndarray, normals: np.ndarray, areas: np.ndarray,
                           radius: float, tree=None) -> np.ndarray:
     """Average unit normals over a ball of ``radius`` (m) around each vertex, area-weighted.

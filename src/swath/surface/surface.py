@@ -7,7 +7,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import InputError
-from . import geometry
+from . import geometry, topology
 from .curvature import PrincipalCurvature, principal_curvatures
 
 
@@ -123,7 +123,7 @@ class Surface:
     @cached_property
     def boundary_loops(self) -> list[np.ndarray]:
         """Closed boundary loops (vertex indices), longest first; empty for a closed surface."""
-        return geometry.boundary_loops(self.faces)
+        return topology.boundary_loops(self.faces)
 
     @cached_property
     def edge_lengths(self) -> np.ndarray:

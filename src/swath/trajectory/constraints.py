@@ -1,9 +1,12 @@
 """Constraint objects for :func:`swath.trajectory.time_path` (toppra style: a path plus a list of
 constraints).
 
-Along contact passes every constraint becomes a cap on the TCP speed at each sample (the smallest
-cap wins); :class:`TangentialAccelLimit` then limits how fast the speed may change between
-samples.  :class:`AngularSpeedLimit` also caps the speed on air links while the tool turns.
+Along contact passes every constraint caps the TCP speed at each grid point through its own
+``speed_cap(grid)`` method (the smallest cap wins), given the pass's :class:`PassGrid`; a
+constraint with a ``shape_profile(caps, s)`` method (:class:`TangentialAccelLimit`) then turns the
+caps into the speed profile.  A new limit (a force, a joint speed) plugs in as a new class with
+``speed_cap``; :func:`time_path` needs no change.  :class:`AngularSpeedLimit` also caps the speed
+on air links while the tool turns.
 
 =========================  =================================================================
 constraint                 speed cap at arc length s along a pass
@@ -21,8 +24,39 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import minimum_filter1d
 
 from ..errors import InputError
+from .geometry import path_curvature
+
+
+@dataclass(frozen=True, eq=False)
+class PassGrid:
+    """One contact pass on its timing grid, as constraints see it.
+
+    Attributes
+    ----------
+    index : int
+        The pass's index in the tool path.
+    s : (k,) float
+        Arc length of the grid points, m.
+    points : (k, 3) float
+        TCP positions, m.
+    spacing : float
+        Nominal grid step, m.
+    rotation_per_metre : (k,) float
+        Rotation of the tool frame per metre of travel at each grid point (the larger of the two
+        adjacent steps), rad/m.
+    source_index : (k,) float
+        Fractional index of each grid point in the pass's own points.
+    """
+
+    index: int
+    s: np.ndarray
+    points: np.ndarray
+    spacing: float
+    rotation_per_metre: np.ndarray
+    source_index: np.ndarray
 
 
 def _positive(name: str, value: float, unit: str) -> None:
@@ -40,6 +74,10 @@ class FeedLimit:
     def __post_init__(self):
         if not (np.isfinite(self.speed) and self.speed > 0):
             raise InputError(f"feed must be a positive speed, got {self.speed!r} m/s")
+
+    def speed_cap(self, grid: PassGrid) -> np.ndarray:
+        """The feed everywhere, m/s."""
+        return np.full(len(grid.s), float(self.speed))
 
 
 @dataclass(frozen=True)
@@ -65,6 +103,11 @@ class CentripetalLimit:
         _positive("centripetal acceleration limit", self.a_max, "m/s²")
         _positive("curvature scale", self.scale, "m")
 
+    def speed_cap(self, grid: PassGrid) -> np.ndarray:
+        """``sqrt(a_max / κ)`` with κ read at ``scale`` (the smallest of each point's neighbours), m/s."""
+        kappa = path_curvature(grid.points, grid.spacing, self.scale)
+        return minimum_filter1d(np.sqrt(self.a_max / np.maximum(kappa, 1e-12)), 3, mode="nearest")
+
 
 @dataclass(frozen=True)
 class AngularSpeedLimit:
@@ -76,6 +119,10 @@ class AngularSpeedLimit:
 
     def __post_init__(self):
         _positive("angular speed limit", self.omega_max, "rad/s")
+
+    def speed_cap(self, grid: PassGrid) -> np.ndarray:
+        """``omega_max / ρ``, ρ the frame's rotation per metre, m/s."""
+        return self.omega_max / np.maximum(grid.rotation_per_metre, 1e-12)
 
 
 @dataclass(frozen=True)
@@ -100,6 +147,14 @@ class TangentialAccelLimit:
 
     def __post_init__(self):
         _positive("tangential acceleration limit", self.a_t, "m/s²")
+
+    def speed_cap(self, grid: PassGrid) -> None:
+        """No pointwise cap (see :meth:`shape_profile`)."""
+        return None
+
+    def shape_profile(self, caps: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """The fastest profile under ``caps`` whose ``v²`` changes by at most ``2·a_t·Δs``, m/s."""
+        return speed_profile(caps, s, self.a_t, rest_at_ends=self.rest_at_ends)
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +181,11 @@ class FeedProfile:
             a.setflags(write=False)
         object.__setattr__(self, "speeds", arrays)
 
+    def speed_cap(self, grid: PassGrid) -> np.ndarray:
+        """The planned speeds of this pass, interpolated at the grid points, m/s."""
+        speeds = self.speeds[grid.index]
+        return np.interp(grid.source_index, np.arange(len(speeds)), speeds)
+
     def check(self, passes) -> None:
         """Raise :class:`InputError` unless there is one speed per point of every pass."""
         if len(self.speeds) != len(passes):
@@ -137,5 +197,39 @@ class FeedProfile:
                                  "give one speed per pass point")
 
 
-#: Constraint classes :func:`time_path` understands.
+#: The constraint classes swath ships (any object with ``speed_cap(grid)`` is accepted).
 CONSTRAINT_TYPES = (FeedLimit, FeedProfile, CentripetalLimit, AngularSpeedLimit, TangentialAccelLimit)
+
+
+def speed_profile(caps: np.ndarray, s: np.ndarray, accel: float | None, *, rest_at_ends: bool = True) -> np.ndarray:
+    """The fastest speed profile under pointwise caps whose ``v²`` changes by at most
+    ``2·accel·Δs`` between samples: a forward and a backward sweep, each a running minimum.
+
+    Parameters
+    ----------
+    caps : (n,) float
+        Speed caps at the samples, m/s.
+    s : (n,) float
+        Arc length of the samples, m, increasing.
+    accel : float or None
+        Tangential acceleration limit, m/s² (None: no limit, the caps are returned).
+    rest_at_ends : bool
+        Start and end at rest.
+
+    Returns
+    -------
+    (n,) float
+        Speeds, m/s.
+    """
+    c2 = np.square(np.asarray(caps, float))
+    if accel is None:
+        return np.sqrt(c2)
+    if rest_at_ends:
+        c2 = c2.copy()
+        c2[0] = c2[-1] = 0.0
+    s = np.asarray(s, float)
+    ramp = 2.0 * accel * (s - s[0])
+    fwd = ramp + np.minimum.accumulate(c2 - ramp)
+    back = 2.0 * accel * (s[-1] - s[::-1])
+    bwd = (back + np.minimum.accumulate(c2[::-1] - back))[::-1]
+    return np.sqrt(np.clip(np.minimum(fwd, bwd), 0.0, None))

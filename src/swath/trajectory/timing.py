@@ -47,14 +47,13 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.ndimage import minimum_filter1d
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import InputError
-from ..plan.toolpath import Pass, ToolPath
-from .constraints import (CONSTRAINT_TYPES, AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile,
-                          TangentialAccelLimit)
-from .geometry import path_curvature, resample_uniform, rotation_steps, smoothed_directions
+from ..core import Pass, ToolPath
+from .constraints import (CONSTRAINT_TYPES, AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile, PassGrid,
+                          TangentialAccelLimit, speed_profile)
+from .geometry import resample_uniform, rotation_steps, smoothed_directions
 from .links import AirGuard, LinkSettings, time_link
 from .orientation import make_continuous, quaternions_from_frames, tool_frames
 from .trajectory import Trajectory
@@ -78,7 +77,7 @@ __all__ = ["FeedLimit", "FeedProfile", "CentripetalLimit", "AngularSpeedLimit", 
            "LinkSettings", "time_path", "speed_profile", "MAX_CONTACT_STEP", "MAX_CONTACT_DT"]
 
 
-def time_path(toolpath: ToolPath, constraints=(FeedLimit(),), *, links: LinkSettings = LinkSettings(),
+def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | None = None,
               heading_scale: float = 5e-3) -> Trajectory:
     """Turn ``toolpath`` into timed TCP poses.
 
@@ -86,11 +85,10 @@ def time_path(toolpath: ToolPath, constraints=(FeedLimit(),), *, links: LinkSett
     ----------
     toolpath : ToolPath
         The passes to time, in order.
-    constraints : sequence
-        Constraint objects: exactly one :class:`FeedLimit`, and at most one each of
-        :class:`FeedProfile`, :class:`CentripetalLimit`, :class:`AngularSpeedLimit` and
-        :class:`TangentialAccelLimit`.
-    links : LinkSettings
+    constraints : sequence, optional
+        Constraint objects, each with a ``speed_cap(grid)`` method (:mod:`.constraints`): exactly
+        one :class:`FeedLimit`, and at most one of each kind (default: ``[FeedLimit()]``).
+    links : LinkSettings, optional
         Clearance, speed (m/s), acceleration (m/s²) and sample step (m) of the air links.
     heading_scale : float
         Gaussian scale, m, over which the tool's x-axis (heading) follows the travel direction
@@ -108,23 +106,24 @@ def time_path(toolpath: ToolPath, constraints=(FeedLimit(),), *, links: LinkSett
         On unknown or repeated constraints, a missing feed, an empty tool path, a feed profile that
         does not match the passes, or a negative ``heading_scale``.
     """
-    cons = _collect(constraints)
+    cons = _collect([FeedLimit()] if constraints is None else constraints)
+    links = LinkSettings() if links is None else links
     feed = cons[FeedLimit].speed
     if not toolpath.passes:
         raise InputError("the tool path has no passes to time")
     if not (np.isfinite(heading_scale) and heading_scale >= 0):
         raise InputError(f"heading_scale must be a length >= 0 in m, got {heading_scale!r}")
-    profile = cons.get(FeedProfile)
-    if profile is not None:
-        profile.check(toolpath.passes)
+    for c in cons.values():
+        if hasattr(c, "check"):
+            c.check(toolpath.passes)
     angular = cons.get(AngularSpeedLimit)
     omega_max = angular.omega_max if angular else None
     surface = toolpath.surface
     step = min(GRID_STEP, _MARGIN * feed * MAX_CONTACT_DT, _MARGIN * MAX_CONTACT_STEP)
     guard = AirGuard(surface, links.clearance)
 
-    timed = [_time_pass(p, surface, step, cons, heading_scale,
-                        None if profile is None else profile.speeds[i]) for i, p in enumerate(toolpath.passes)]
+    timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale)
+             for i, p in enumerate(toolpath.passes)]
     out = {k: [] for k in ("pos", "quat", "contact", "feed", "pass", "t", "omega")}
     clock = 0.0
     methods = {"toppra": 0, "trapezoid": 0, "none": 0}
@@ -173,15 +172,16 @@ def time_path(toolpath: ToolPath, constraints=(FeedLimit(),), *, links: LinkSett
 
 
 def _collect(constraints) -> dict:
-    """Constraints by type; checks that they are known, not repeated, and that a feed is given."""
-    if isinstance(constraints, CONSTRAINT_TYPES):
+    """Constraints by type; checks that each caps the speed, none is repeated, and a feed is given."""
+    if hasattr(constraints, "speed_cap"):
         constraints = [constraints]
     cons = {}
     for c in constraints:
         kind = type(c)
-        if kind not in CONSTRAINT_TYPES:
+        if not callable(getattr(c, "speed_cap", None)):
             names = ", ".join(k.__name__ for k in CONSTRAINT_TYPES)
-            raise InputError(f"time_path does not know the constraint {c!r}; supported: {names}")
+            raise InputError(f"time_path does not know the constraint {c!r}: a constraint needs a speed_cap(grid) "
+                             f"method (swath's own: {names})")
         if kind in cons:
             raise InputError(f"time_path got two {kind.__name__} constraints; give each kind at most once")
         cons[kind] = c
@@ -199,41 +199,7 @@ def _describe(c) -> dict:
     return d
 
 
-def speed_profile(caps: np.ndarray, s: np.ndarray, accel: float | None, *, rest_at_ends: bool = True) -> np.ndarray:
-    """The fastest speed profile under pointwise caps whose ``v²`` changes by at most
-    ``2·accel·Δs`` between samples: a forward and a backward sweep, each a running minimum.
-
-    Parameters
-    ----------
-    caps : (n,) float
-        Speed caps at the samples, m/s.
-    s : (n,) float
-        Arc length of the samples, m, increasing.
-    accel : float or None
-        Tangential acceleration limit, m/s² (None: no limit, the caps are returned).
-    rest_at_ends : bool
-        Start and end at rest.
-
-    Returns
-    -------
-    (n,) float
-        Speeds, m/s.
-    """
-    c2 = np.square(np.asarray(caps, float))
-    if accel is None:
-        return np.sqrt(c2)
-    if rest_at_ends:
-        c2 = c2.copy()
-        c2[0] = c2[-1] = 0.0
-    s = np.asarray(s, float)
-    ramp = 2.0 * accel * (s - s[0])
-    fwd = ramp + np.minimum.accumulate(c2 - ramp)
-    back = 2.0 * accel * (s[-1] - s[::-1])
-    bwd = (back + np.minimum.accumulate(c2[::-1] - back))[::-1]
-    return np.sqrt(np.clip(np.minimum(fwd, bwd), 0.0, None))
-
-
-def _time_pass(p: Pass, surface, step: float, cons: dict, heading_scale: float, speeds) -> dict:
+def _time_pass(index: int, p: Pass, surface, step: float, constraints: list, heading_scale: float) -> dict:
     """Sample and time one contact pass (see the module notes)."""
     s, pts, nrm, u = _grid(p, surface, step)
     s, pts, nrm, u = _refine(s, pts, nrm, u, surface)
@@ -250,20 +216,17 @@ def _time_pass(p: Pass, surface, step: float, cons: dict, heading_scale: float, 
     Omega = rotation_steps(frames) / ds[:, None]                            # (n−1, 3) rad/m
     rho = np.linalg.norm(Omega, axis=1)
 
-    caps = np.full(len(s), cons[FeedLimit].speed)
-    if speeds is not None:
-        caps = np.minimum(caps, np.interp(u, np.arange(len(speeds)), speeds))
-    cl = cons.get(CentripetalLimit)
-    if cl is not None:
-        kappa = path_curvature(pts, h, cl.scale)
-        cap_c = np.sqrt(cl.a_max / np.maximum(kappa, 1e-12))
-        caps = np.minimum(caps, minimum_filter1d(cap_c, 3, mode="nearest"))
-    al = cons.get(AngularSpeedLimit)
-    if al is not None:
-        rho_node = np.maximum(np.concatenate([[0.0], rho]), np.concatenate([rho, [0.0]]))
-        caps = np.minimum(caps, al.omega_max / np.maximum(rho_node, 1e-12))
-    tl = cons.get(TangentialAccelLimit)
-    v = speed_profile(caps, s, tl.a_t if tl else None, rest_at_ends=tl.rest_at_ends if tl else False)
+    rho_node = np.maximum(np.concatenate([[0.0], rho]), np.concatenate([rho, [0.0]]))
+    grid = PassGrid(index=index, s=s, points=pts, spacing=h, rotation_per_metre=rho_node, source_index=u)
+    caps = np.full(len(s), np.inf)
+    for c in constraints:
+        cap = c.speed_cap(grid)
+        if cap is not None:
+            caps = np.minimum(caps, cap)
+    shapers = [c for c in constraints if hasattr(c, "shape_profile")]
+    v = caps
+    for c in shapers:
+        v = c.shape_profile(v, s)
 
     # Time each grid step (constant acceleration), then split steps longer than the time limit.
     dt = 2.0 * ds / np.maximum(v[:-1] + v[1:], 1e-300)

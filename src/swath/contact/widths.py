@@ -45,8 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..contact import local_patch
-from ..contact.model import LocalPatch
+from .model import local_patch
+from .model import LocalPatch
 from ..errors import InputError
 from ..surface.curvature import PrincipalCurvature, principal_curvatures
 
@@ -96,8 +96,8 @@ def patch_widths(curvature: PrincipalCurvature, normals: np.ndarray, feed_direct
     # psi: angle of the cross direction from d1 in the tangent plane.  The quadric is symmetric
     # under y -> -y, so the handedness of (d1, d2) does not matter.
     psi = np.arctan2(np.einsum("ij,ij->i", cross, curvature.d2), np.einsum("ij,ij->i", cross, curvature.d1))
-    patch, inverse = _unique_patches(curvature.k1, curvature.k2, tool, n_rays)
-    w = _rows(patch, inverse, lambda p, rows: p.width_across(psi[rows]))
+    patch, inverse = unique_patches(curvature.k1, curvature.k2, tool, n_rays)
+    w = patch_rows(patch, inverse, lambda p, rows: p.width_across(psi[rows]))
     if undefined.any():
         w[undefined] = patch.min_width()[inverse[undefined]]
     return w
@@ -141,7 +141,7 @@ def max_swath_widths(surface, tool, *, n_directions: int = 36, n_rays: int = 180
     contact path); no pass layout can cover it with less.
     """
     c = surface.curvature
-    patch, inverse = _unique_patches(c.k1, c.k2, tool, n_rays)
+    patch, inverse = unique_patches(c.k1, c.k2, tool, n_rays)
     return patch.max_width(n_directions)[inverse]
 
 
@@ -155,12 +155,12 @@ def coverage_lower_bound(surface, tool, *, samples: PadSamples | None = None) ->
     lower bound.
     """
     s = samples if samples is not None else pad_scale_samples(surface, tool)
-    patch, inverse = _unique_patches(s.curvature.k1, s.curvature.k2, tool, 180)
-    w = _rows(patch, inverse, lambda p, rows: p.max_width(36))
+    patch, inverse = unique_patches(s.curvature.k1, s.curvature.k2, tool, 180)
+    w = patch_rows(patch, inverse, lambda p, rows: p.max_width(36))
     return float(np.sum(s.areas / np.maximum(w, 1e-9)))
 
 
-def _unique_patches(k1, k2, tool, n_rays):
+def unique_patches(k1, k2, tool, n_rays):
     """Solve the local model once per distinct rounded curvature pair; returns the patch of the
     distinct pairs and the row of each input point."""
     step = CURVATURE_STEP / tool.pad_radius
@@ -170,7 +170,7 @@ def _unique_patches(k1, k2, tool, n_rays):
     return patch, inverse.ravel()
 
 
-def _rows(patch: LocalPatch, inverse: np.ndarray, fn, chunk: int = 20000) -> np.ndarray:
+def patch_rows(patch: LocalPatch, inverse: np.ndarray, fn, chunk: int = 20000) -> np.ndarray:
     """Apply ``fn(sub_patch, rows)`` to the patch rows of ``inverse`` in chunks; returns ``(len(inverse),)``."""
     out = np.empty(len(inverse))
     for lo in range(0, len(inverse), chunk):

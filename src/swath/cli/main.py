@@ -1,7 +1,7 @@
 """``swath`` command line: one subcommand per job kind.
 
     swath plan PART [--units mm] [--planner raster] [--pad-radius 38.1mm] [--force 20N]
-               [--depression 1mm] [--feed 50mm/s] [--spacing 60mm] [--angle 0deg] --out DIR
+               [--depression 1mm] [--feed 50mm/s] [--spacing 60mm] [--direction 0deg] --out DIR
     swath plan SCAN --fit [--parameterization auto] [--surface-spacing 3mm] ... --out DIR
     swath plan patch.json ... --out DIR   # a patch written by swath fit
     swath demo --out DIR              # the same on the built-in helicopter-blade section
@@ -20,7 +20,7 @@ import logging
 import sys
 import time
 
-from .errors import InputError, SwathError
+from ..errors import InputError, SwathError
 
 log = logging.getLogger("swath")
 
@@ -52,17 +52,20 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--motion", default="orbital", choices=["orbital", "rotary"], help="pad motion")
     p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s")
     p.add_argument("--spacing", help="pass spacing, e.g. 60mm (default: full coverage from the contact model)")
-    p.add_argument("--angle", default="auto",
-                   help="pass direction from the part's principal axis, e.g. 30deg (default auto: the direction "
-                        "with the shortest full-coverage path)")
+    p.add_argument("--direction", "--angle", dest="direction", default="auto",
+                   help="pass direction: an angle from the part's principal axis, e.g. 30deg, or auto (default: "
+                        "each planner's own choice, e.g. the shortest full-coverage path)")
     p.add_argument("--point-spacing", default="1mm", help="spacing of points along passes")
     p.add_argument("--clearance", default="20mm", help="lift off the surface for air moves")
-    p.add_argument("--direction", dest="angle", default=argparse.SUPPRESS,
-                   help="same as --angle (the uniform planner's seed direction): auto or an angle")
+    p.add_argument("--order", choices=["snake", "zigzag", "greedy", "index"],
+                   help="how passes are sequenced (default: the planner's own: snake for raster and equidistant, "
+                        "zigzag for uniform)")
     p.add_argument("--overlap", help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
-    p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes, e.g. 2m/s2")
-    p.add_argument("--max-angular", help="limit on the tool's angular speed, e.g. 1rad/s")
-    p.add_argument("--max-accel", help="limit on tangential acceleration along passes, e.g. 1m/s2")
+    p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes (default 2m/s2; "
+                                             "'none' turns it off)")
+    p.add_argument("--max-angular", help="limit on the tool's angular speed (default 1rad/s; 'none' turns it off)")
+    p.add_argument("--max-accel", help="limit on tangential acceleration along passes (default 1m/s2; 'none' "
+                                       "turns it off)")
     p.add_argument("--out", required=True, help="output directory (written atomically)")
 
 
@@ -142,11 +145,11 @@ class _Progress:
             print(f"[{now - self.t0:6.1f} s]   {stage}: {100.0 * done / total:5.1f} %", file=sys.stderr, flush=True)
 
 
-def _settings_from_args(args) -> "JobSettings":
+def _settings_from_args(args):
     from .job import settings_from_mapping
 
     keys = ["part", "out", "units", "side", "all_pieces", "force_units", "planner", "pad_radius", "force",
-            "depression", "stiffness", "motion", "feed", "spacing", "angle", "point_spacing", "clearance",
+            "depression", "stiffness", "motion", "feed", "spacing", "direction", "order", "point_spacing", "clearance",
             "max_centripetal", "max_angular", "max_accel", "overlap", "fit", "parameterization", "surface_spacing"]
     values = {k: getattr(args, k) for k in keys if hasattr(args, k)}
     return settings_from_mapping(values)
@@ -192,7 +195,7 @@ def main(argv=None) -> int:
 
 def _fit_settings_from_args(args):
     from .fitjob import FitSettings
-    from .units import length_unit_factor, parse_quantity
+    from ..units import length_unit_factor, parse_quantity
 
     length_unit_factor(args.units)                 # refuses an unknown unit by name
     spacing = None
@@ -206,7 +209,7 @@ def _fit_settings_from_args(args):
 
 def _register_settings_from_args(args):
     from .fitjob import RegisterSettings
-    from .units import length_unit_factor
+    from ..units import length_unit_factor
 
     for unit in (args.units, args.scan_units):
         if unit is not None:

@@ -13,17 +13,17 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import InputError
-from .units import parse_quantity
+from ..errors import InputError
+from ..units import parse_quantity
 
 log = logging.getLogger(__name__)
 
-#: Planner name -> "module:function"; every planner has the call shape f(surface, tool, **options).
-PLANNERS = {
-    "raster": "swath.plan.raster:raster",
-    "uniform": "swath.plan.uniform:uniform",
-    "equidistant": "swath.plan.equidistant:equidistant",
-}
+#: Robot-realistic limits every trajectory is timed under unless the user turns them off ("none"):
+#: tool angular speed (rad/s), centripetal and tangential acceleration (m/s²).
+DEFAULT_LIMITS = {"max_angular": 1.0, "max_centripetal": 2.0, "max_accel": 1.0}
+
+#: Sentinel text that turns a default limit off.
+OFF_WORDS = ("none", "off", "no")
 
 
 @dataclass(frozen=True)
@@ -43,6 +43,7 @@ class JobSettings:
     all_pieces: bool = False
     force_units: bool = False
     planner: str = "raster"
+    order: str | None = None
     pad_radius: float = 0.0381
     force: float = 20.0
     depression: float | None = None
@@ -50,12 +51,12 @@ class JobSettings:
     motion: str = "orbital"
     feed: float = 0.05
     spacing: float | None = None
-    angle: float | None = None
+    direction: float | None = None
     point_spacing: float = 1e-3
     clearance: float = 0.02
-    max_centripetal: float | None = None
-    max_angular: float | None = None
-    max_accel: float | None = None
+    max_centripetal: float | None = DEFAULT_LIMITS["max_centripetal"]
+    max_angular: float | None = DEFAULT_LIMITS["max_angular"]
+    max_accel: float | None = DEFAULT_LIMITS["max_accel"]
     overlap: float | None = None
     sample_spacing: float | None = None
     planner_options: dict = field(default_factory=dict)
@@ -64,14 +65,15 @@ class JobSettings:
     surface_spacing: float | None = None
 
     def tool(self):
-        from .contact import Tool
+        from ..contact import Tool
 
         return Tool(pad_radius=self.pad_radius, force=self.force, depression=self.depression,
                     stiffness=self.stiffness, motion=self.motion)
 
     def constraints(self) -> list:
-        """The trajectory constraints: the feed and whichever limits are set."""
-        from .trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit
+        """The trajectory constraints: the feed and whichever limits are on (by default all three of
+        :data:`DEFAULT_LIMITS`)."""
+        from ..trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit
 
         out = [FeedLimit(self.feed)]
         if self.max_centripetal is not None:
@@ -84,7 +86,7 @@ class JobSettings:
 
     def links(self):
         """How the tool moves between passes."""
-        from .trajectory import LinkSettings
+        from ..trajectory import LinkSettings
 
         return LinkSettings(clearance=self.clearance)
 
@@ -96,7 +98,7 @@ class JobSettings:
             "pad_radius_m": self.pad_radius, "force_N": self.force,
             "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
             "motion": self.motion, "feed_m_per_s": self.feed, "spacing_m": self.spacing,
-            "angle_rad": self.angle, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
+            "direction_rad": self.direction, "order": self.order, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
             "max_centripetal_m_per_s2": self.max_centripetal, "max_angular_rad_per_s": self.max_angular,
             "max_accel_m_per_s2": self.max_accel,
             "fit": self.fit, "fit_parameterization": self.parameterization,
@@ -114,6 +116,7 @@ _QUANTITY_FIELDS = {
     "feed": "speed",
     "spacing": "length",
     "angle": "angle",
+    "direction": "angle",
     "point_spacing": "length", "point-spacing": "length",
     "clearance": "length",
     "sample_spacing": "length", "sample-spacing": "length",
@@ -122,10 +125,9 @@ _QUANTITY_FIELDS = {
     "max_angular": "angular_speed", "max-angular": "angular_speed",
     "max_accel": "acceleration", "max-accel": "acceleration",
     "overlap": "fraction",
-    "direction": "angle",
 }
 _PLAIN_FIELDS = {"part", "out", "units", "side", "all_pieces", "all-pieces", "force_units", "force-units",
-                 "planner", "motion", "fit", "parameterization"}
+                 "planner", "order", "motion", "fit", "parameterization"}
 
 
 def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobSettings:
@@ -139,12 +141,15 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
         if value is None:
             continue
         name = key.replace("-", "_")
-        if name == "direction":          # the uniform planner's word for the pass angle
-            name = "angle"
+        if name == "angle":              # the raster planner's word for the pass direction
+            name = "direction"
         if key in _QUANTITY_FIELDS:
             kind = _QUANTITY_FIELDS[key]
             if kind == "angle" and str(value).strip().lower() == "auto":
                 kwargs[name] = None
+                continue
+            if name in DEFAULT_LIMITS and str(value).strip().lower() in OFF_WORDS:
+                kwargs[name] = None      # the user turned a default limit off
                 continue
             kwargs[name] = parse_quantity(value, kind, default_unit="deg" if kind == "angle" else None)
         elif key in _PLAIN_FIELDS:
@@ -161,10 +166,14 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
             p = str(kwargs[k])
             if not p.startswith("example:") and not Path(p).is_absolute():
                 kwargs[k] = str(base_dir / p)
-    if kwargs.get("planner", "raster") not in PLANNERS:
-        raise InputError(f"unknown planner {kwargs['planner']!r}; choose one of {', '.join(PLANNERS)}")
+    from ..order import ORDER_METHODS
+    from ..plan import get_planner
+
+    get_planner(kwargs.get("planner", "raster"))          # refuses an unknown planner by name
+    if kwargs.get("order") is not None and kwargs["order"] not in ORDER_METHODS:
+        raise InputError(f"unknown order {kwargs['order']!r}; choose one of {', '.join(ORDER_METHODS)}")
     if "parameterization" in kwargs:
-        from .surface.fit import PARAMETERIZATIONS
+        from ..surface.fit import PARAMETERIZATIONS
 
         if kwargs["parameterization"] not in PARAMETERIZATIONS:
             raise InputError(f"unknown parameterization {kwargs['parameterization']!r}; choose one of "
@@ -209,7 +218,7 @@ def load_part_info(settings: JobSettings, *, progress=None):
     say = progress or (lambda stage, done, total: None)
     part = settings.part
     if part.startswith("example:"):
-        from .examples import example_part
+        from ..examples import example_part
 
         surface = example_part(part.split(":", 1)[1])
         if not settings.fit:
@@ -230,7 +239,7 @@ def load_part_info(settings: JobSettings, *, progress=None):
         if fitjob.is_point_cloud_file(part):
             raise InputError(f"{PurePath(part).name} is a point cloud, not a mesh; add --fit to plan on a B-spline "
                              "patch fitted to it (or run `swath fit` and plan its patch.json)")
-        from .io.mesh import load_mesh
+        from ..io.mesh import load_mesh
 
         return load_mesh(part, units=settings.units, side=settings.side, all_pieces=settings.all_pieces,
                          force_units=settings.force_units), {}
@@ -247,27 +256,60 @@ def load_part_info(settings: JobSettings, *, progress=None):
     return surface, {"patch": patch, "footprint": footprint, "metrics": metrics}
 
 
-def make_plan(surface, settings: JobSettings, *, progress=None):
-    """Run the job's planner on ``surface``; returns a ToolPath.  ``progress(stage, done, total)``
-    hears about long planning steps."""
-    import importlib
+def cycle_time_cost(constraints, links, order: str | None = None):
+    """A cost function for planners that compare candidates: the cycle time (s) of a candidate
+    tool path ordered by ``order`` (None: the planner's hint) and timed under exactly the
+    ``constraints`` and ``links`` the job's trajectory will use."""
+    from ..order import order_toolpath
+    from ..trajectory import time_path
 
-    module, func = PLANNERS[settings.planner].split(":")
-    planner = getattr(importlib.import_module(module), func)
-    options = dict(settings.planner_options)
-    if settings.planner in ("raster", "equidistant"):
-        options.update(spacing=settings.spacing, angle=settings.angle, point_spacing=settings.point_spacing)
-    elif settings.planner == "uniform":
-        # The direction search predicts cycle times under the job's own feed and limits.
-        options.update(point_spacing=settings.point_spacing, feed=settings.feed, progress=progress,
-                       direction="auto" if settings.angle is None else settings.angle)
-        if settings.overlap is not None:
-            options["overlap"] = settings.overlap
-        if settings.max_angular is not None:
-            options["max_angular"] = settings.max_angular
-        if settings.max_centripetal is not None:
-            options["max_centripetal"] = settings.max_centripetal
-    return planner(surface, settings.tool(), **options)
+    names = ", ".join(type(c).__name__ for c in constraints)
+
+    def cost(toolpath) -> tuple[float, str]:
+        ordered = order_toolpath(toolpath, method=order)
+        return time_path(ordered, constraints, links=links).duration, f"predicted cycle time (s) under {names}"
+
+    return cost
+
+
+def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
+    """The keyword options the job passes to its planner: those the planner takes, from the job's
+    settings and ``planner_options``; the planner's own default where a setting is None.
+
+    Raises
+    ------
+    InputError
+        When a setting or planner option is given that the chosen planner does not take, naming the
+        planners that do.
+    """
+    from ..plan import planner_options, planners_taking
+
+    takes = planner_options(settings.planner)
+    given = {"spacing": settings.spacing, "direction": settings.direction, "overlap": settings.overlap}
+    for key, value in {**given, **settings.planner_options}.items():
+        if value is not None and key not in takes:
+            others = planners_taking(key)
+            raise InputError(f"the {settings.planner} planner does not take {key!r}"
+                             + (f"; planners that do: {', '.join(others)}" if others else
+                                f"; it takes: {', '.join(sorted(takes - {'progress', 'cost'}))}"))
+    context = {"point_spacing": settings.point_spacing, "feed": settings.feed, "progress": progress,
+               "cost": cycle_time_cost(settings.constraints(), settings.links(), settings.order)}
+    if settings.max_angular is not None:
+        context["max_angular"] = settings.max_angular
+    options = {k: v for k, v in {**context, **given}.items() if k in takes and v is not None}
+    options.update(settings.planner_options)
+    return options
+
+
+def make_plan(surface, settings: JobSettings, *, progress=None):
+    """Run the job's planner on ``surface`` and order its passes; returns a ToolPath.
+    ``progress(stage, done, total)`` hears about long planning steps."""
+    from ..order import order_toolpath
+    from ..plan import get_planner
+
+    planner = get_planner(settings.planner)
+    toolpath = planner(surface, settings.tool(), **planner_arguments(settings, progress=progress))
+    return order_toolpath(toolpath, method=settings.order)
 
 
 def run_job(settings: JobSettings, *, progress=None) -> dict:
@@ -284,10 +326,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     dict
         The metrics (keys with units).
     """
-    from .io.atomic import atomic_directory
-    from .report import write_report
-    from .simulate import simulate_removal
-    from .trajectory import time_path
+    from ..io.atomic import atomic_directory
+    from ..report import write_report
+    from ..simulate import simulate_removal
+    from ..trajectory import time_path
 
     say = progress or (lambda stage, done, total: None)
     timings = {}
@@ -300,6 +342,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     say(f"planning ({settings.planner})", 0, 1)
+    planner_arguments(settings)                      # option errors before loading, not after planning
     toolpath = make_plan(surface, settings, progress=say)
     timings["plan_s"] = time.perf_counter() - t0
     log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)

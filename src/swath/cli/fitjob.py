@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 log = logging.getLogger(__name__)
 
@@ -139,11 +139,11 @@ def load_scan(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
     Scan
     """
     if is_point_cloud_file(path):
-        from .io.points import load_points
+        from ..io.points import load_points
 
         pts, nrm = load_points(path, units=units, force_units=force_units)
         return Scan(pts, nrm, None, Path(path).stem)
-    from .io.mesh import load_mesh
+    from ..io.mesh import load_mesh
 
     surface = load_mesh(path, units=units, side=side, all_pieces=all_pieces, force_units=force_units)
     return scan_from_surface(surface)
@@ -232,7 +232,7 @@ def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
     InputError, InfeasibleError
         As ``fit_patch`` (too few points, not one patch, a parameterisation that folds over).
     """
-    from .surface.fit import PARAMETERIZATIONS, fit_patch
+    from ..surface.fit import PARAMETERIZATIONS, fit_patch
 
     if parameterization not in PARAMETERIZATIONS:
         raise InputError(f"unknown parameterization {parameterization!r}; choose one of "
@@ -250,7 +250,7 @@ def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
     patch, report = fit_patch(scan.points, normals=scan.normals, mesh_faces=scan.faces, rows=rows,
                               parameterization=parameterization)
     if side is not None:
-        from .io.mesh import parse_side
+        from ..io.mesh import parse_side
 
         s = parse_side(side)
         (u0, u1), (v0, v1) = patch.domain
@@ -274,9 +274,9 @@ def patch_surface(patch, *, spacing: float | None = None, name: str | None = Non
     footprint : Footprint, optional
         Keep only the triangles whose three vertices lie in the footprint (the scanned area).
     """
-    from .examples import grid_faces
-    from .io.mesh import remove_unreferenced
-    from .surface import Surface
+    from ..examples import grid_faces
+    from ..io.mesh import remove_unreferenced
+    from ..surface import Surface
 
     if spacing is None:
         spacing = default_surface_spacing(patch, footprint)
@@ -480,7 +480,7 @@ def _tidy_mask(mask: np.ndarray, *, speck: float = 0.01, pinhole: int = 16) -> n
 
 def save_patch(patch, path, footprint: Footprint | None = None) -> None:
     """Write ``patch`` as JSON (as :meth:`BSplinePatch.save_json`) with its footprint, atomically."""
-    from .io.atomic import write_text_atomic
+    from ..io.atomic import write_text_atomic
 
     doc = patch.to_dict()
     if footprint is not None:
@@ -491,7 +491,7 @@ def save_patch(patch, path, footprint: Footprint | None = None) -> None:
 def load_patch(path):
     """Read a patch written by :func:`save_patch` (or :meth:`BSplinePatch.save_json`):
     ``(BSplinePatch, Footprint or None)``."""
-    from .surface.bspline import BSplinePatch
+    from ..surface.bspline import BSplinePatch
 
     patch = BSplinePatch.load_json(path)
     data = json.loads(Path(path).read_text(encoding="utf-8"))
@@ -546,8 +546,8 @@ def run_fit(settings: FitSettings, *, progress=None) -> dict:
     dict
         The document written as ``fit.json``.
     """
-    from .io.atomic import atomic_directory, write_text_atomic
-    from .io.mesh import save_surface_ply
+    from ..io.atomic import atomic_directory, write_text_atomic
+    from ..io.mesh import save_surface_ply
 
     say = progress or (lambda stage, done, total: None)
     say("loading scan", 0, 1)
@@ -579,8 +579,8 @@ def run_fit(settings: FitSettings, *, progress=None) -> dict:
 
 def fit_document(settings: FitSettings, scan: Scan, patch, report, residuals, surface, spacing) -> dict:
     """The content of ``fit.json`` (lengths in m, times in s; units in the key names)."""
-    from . import __version__
-    from .report.metrics import to_jsonable
+    from .. import __version__
+    from ..report.metrics import to_jsonable
 
     a = np.abs(residuals)
     fit = report.to_dict()
@@ -622,7 +622,7 @@ def residual_figure_png(residuals, u, v, *, title: str = "") -> bytes:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .report.plots import png_bytes
+    from ..report.plots import png_bytes
 
     r_mm = np.asarray(residuals, float) * 1e3
     fig = Figure(figsize=(12.0, 4.8), layout="constrained")
@@ -748,7 +748,7 @@ class RegisterSettings:
 def load_registration_inputs(settings: RegisterSettings):
     """``(cad Surface, scan target)``: the scan target is a Surface for a mesh and
     ``(points, normals)`` for a cloud."""
-    from .io.mesh import load_mesh
+    from ..io.mesh import load_mesh
 
     if settings.cad.lower().endswith(".json"):
         patch, footprint = load_patch(settings.cad)
@@ -761,7 +761,7 @@ def load_registration_inputs(settings: RegisterSettings):
                         force_units=settings.force_units)
     scan_units = settings.scan_units or settings.units
     if is_point_cloud_file(settings.scan):
-        from .io.points import load_points
+        from ..io.points import load_points
 
         pts, nrm = load_points(settings.scan, units=scan_units, force_units=settings.force_units)
         target = (pts, nrm)
@@ -795,9 +795,9 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
     InfeasibleError
         No overlap, unconstrained geometry, or ICP that does not converge.
     """
-    from .io.atomic import atomic_directory, write_text_atomic
-    from .io.mesh import parse_side
-    from .surface.register import register_on_table, register_rigid
+    from ..io.atomic import atomic_directory, write_text_atomic
+    from ..io.mesh import parse_side
+    from ..surface.register import register_on_table, register_rigid
 
     say = progress or (lambda stage, done, total: None)
     if not (0.2 <= settings.trim <= 1.0):
@@ -831,8 +831,8 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
 
 def transform_document(settings: RegisterSettings, reg, method: str, elapsed: float) -> dict:
     """The content of ``transform.json``."""
-    from . import __version__
-    from .report.metrics import to_jsonable
+    from .. import __version__
+    from ..report.metrics import to_jsonable
 
     quality = reg.to_dict()
     quality.pop("matrix", None)

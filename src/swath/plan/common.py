@@ -1,0 +1,133 @@
+"""Helpers every planner shares: option checks, the feed/cross directions in the best-fit plane,
+the automatic-direction rule, and turning slice fragments into tagged passes."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from ..core import Pass
+from ..errors import InputError
+from ..surface.geometry import normalize
+
+log = logging.getLogger("swath.plan")
+
+#: Default shortest pass, as a fraction of the pad radius.
+MIN_PASS_FRACTION = 0.25
+
+
+def is_number(x) -> bool:
+    """A real number (not a bool)."""
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+
+
+def positive(name: str, value) -> float:
+    """``value`` as a float if it is a positive finite length (m); else :class:`InputError` naming it."""
+    if not (is_number(value) and math.isfinite(value) and value > 0):
+        raise InputError(f"{name} must be a positive, finite length in metres, got {value!r}")
+    return float(value)
+
+
+def check_min_pass_length(min_pass_length, pad_radius: float) -> float:
+    """The shortest pass kept, m: ``MIN_PASS_FRACTION · R`` when None, else a checked length >= 0."""
+    if min_pass_length is None:
+        return MIN_PASS_FRACTION * pad_radius
+    if not (is_number(min_pass_length) and math.isfinite(min_pass_length) and min_pass_length >= 0):
+        raise InputError(f"min_pass_length must be a finite length >= 0 m, got {min_pass_length!r}")
+    return float(min_pass_length)
+
+
+def split_direction(direction) -> tuple[float | None, np.ndarray | None]:
+    """A planner's ``direction`` option as ``(angle, vector)``: None (choose automatically), an
+    angle in rad from the part's first principal axis, or a (3,) vector in the part frame."""
+    if direction is None or (isinstance(direction, str) and direction == "auto"):
+        return None, None
+    if is_number(direction):
+        if not math.isfinite(direction):
+            raise InputError(f"direction angle must be a finite number of radians, got {direction!r}")
+        return float(direction), None
+    return None, np.asarray(direction, float)
+
+
+def feed_and_cross(surface, *, angle: float = 0.0, direction=None) -> tuple[np.ndarray, np.ndarray]:
+    """Unit feed direction in the best-fit plane ``(3,)`` and the cutting-plane normal ``(3,)``.
+
+    The best-fit plane's normal (third principal axis) is oriented toward the tool (with the
+    area-weighted mean facet normal); the feed is the first principal axis rotated by ``angle``
+    about it, or ``direction`` projected into the plane; the cross direction is normal × feed.
+
+    The axes are :attr:`Surface.principal_axes` (exact triangle moments).
+    """
+    axes = surface.principal_axes[1]
+    a0, a2 = np.asarray(axes[0], float), np.asarray(axes[2], float)
+    mean_normal = (surface.face_normals * surface.face_areas[:, None]).sum(axis=0)
+    if a2 @ mean_normal < 0:
+        a2 = -a2
+    a1 = np.cross(a2, a0)
+    if direction is None:
+        feed = math.cos(angle) * a0 + math.sin(angle) * a1
+    else:
+        d = np.asarray(direction, float).reshape(-1)
+        if d.shape != (3,) or not np.isfinite(d).all() or np.linalg.norm(d) == 0:
+            raise InputError(f"direction must be a finite, non-zero 3-vector, got {direction!r}")
+        d = d / np.linalg.norm(d)
+        feed = d - (d @ a2) * a2
+        if np.linalg.norm(feed) < 1e-6:
+            raise InputError(f"direction {d.round(4).tolist()} is along the part's mean normal "
+                             f"{a2.round(4).tolist()}; give a direction along the surface")
+    cross = normalize(np.cross(a2, feed))
+    feed = np.cross(cross, a2)
+    return feed, cross
+
+
+def select_direction(rows, max_gap: float, planner: str):
+    """The direction rule shared by the planners that pick their own feed direction.
+
+    ``rows`` are ``(angle_rad, predicted_gap_fraction, predicted_length_m, payload)``.  The shortest
+    candidate whose gap is at most ``max_gap`` wins, near-ties (within 2 %) going to the earlier
+    candidate (the principal axis first); if none qualifies, the one with the smallest gap.
+    Returns the winning row and a one-line description for metadata.
+    """
+    ok = [r for r in rows if r[1] <= max_gap]
+    if ok:
+        shortest = min(r[2] for r in ok)
+        best = next(r for r in ok if r[2] <= 1.02 * shortest)
+    else:
+        best = min(rows, key=lambda r: r[1])
+    summary = ", ".join(f"{math.degrees(r[0]):.0f} deg: {r[2]:.2f} m, gap {100 * r[1]:.2f}%" for r in rows)
+    rule = f"auto: shortest predicted path with gap <= {100 * max_gap:.1f}% among ({summary})"
+    log.info("%s direction %s", planner, rule)
+    return (float(best[0]),) + tuple(best[1:]), rule
+
+
+def plane_passes(polylines, feed, face_normals, point_spacing, *, region: int = 0) -> list[Pass]:
+    """Slice fragments as passes, level by level (the fragment's plane or level-set index), each
+    running along ``feed`` and, on a level, in order along it; resampled at ``point_spacing`` (m).
+    The ``order`` stage sequences them (snake order alternates every other level)."""
+    from .slicing import resample
+
+    by_plane: dict[int, list] = {}
+    for pl in polylines:
+        by_plane.setdefault(pl.plane, []).append(pl)
+    passes = []
+    for plane in sorted(by_plane):
+        oriented = [_orient(pl, feed) for pl in by_plane[plane]]
+        oriented.sort(key=lambda pl: float(pl.points[0] @ feed))
+        for pl in oriented:
+            sm = resample(pl, point_spacing)
+            normals = normalize(sm.values)
+            bad = np.linalg.norm(normals, axis=1) < 0.5
+            if bad.any():   # opposite vertex normals across a fold: fall back to the facet normal
+                normals[bad] = face_normals[sm.faces[bad]]
+            passes.append(Pass(sm.points, normals, level=int(plane), region=region))
+    return passes
+
+
+def _orient(pl, travel):
+    """Run an open fragment along ``travel``; start a closed loop at its rearmost point."""
+    proj = pl.points @ travel
+    if not pl.closed:
+        return pl if proj[-1] >= proj[0] else pl.reversed()
+    return pl.rolled(int(np.argmin(proj[:-1])))
