@@ -27,7 +27,8 @@ def main():
     args = ap.parse_args()
 
     from swath.contact import Tool
-    from swath.plan.equidistant import equidistant, pass_spacing
+    from swath.plan.equidistant import equidistant
+    from swath.plan.spacing_check import pass_spacing
     from swath.plan.raster import raster
 
     tool = Tool()

@@ -13,9 +13,11 @@ from conftest import SHARED_MESH_UNITS, shared_mesh
 from swath.contact import Tool
 from swath.errors import InfeasibleError, InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
-from swath.plan.arclength import ArcLengthMap, equidistant_patch
+from swath.plan.arclength import equidistant_patch
+from swath.plan.arclength_map import ArcLengthMap
 from swath.plan.equidistant import equidistant as plan_equidistant
-from swath.plan.equidistant import boundary_seed, pass_levels, pass_spacing
+from swath.plan.seeds import boundary_seed
+from swath.plan.spacing_check import pass_levels, pass_spacing
 from swath.surface.geodesic import distance_field, locate_points, refine_mesh
 from swath.surface.topology import split_nonmanifold_vertices
 from swath.order import order_toolpath

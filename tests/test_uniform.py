@@ -10,7 +10,8 @@ from swath.errors import InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
 from swath.plan.raster import raster
 from swath.core import ToolPath
-from swath.plan.uniform import turn_curvature, uniform
+from swath.plan.uniform import uniform
+from swath.plan.uniform_passes import turn_curvature
 from swath.simulate import simulate_removal
 from swath.cli.job import cycle_time_cost
 from swath.order import order_toolpath
@@ -163,7 +164,7 @@ def test_turn_curvature_of_a_circle_is_one_over_its_radius():
 def test_a_hairpin_is_cut_and_the_tool_turns_in_the_air():
     # A U-turn of radius 10 mm at the end of two 100 mm legs: at 50 mm/s the tool would have to turn
     # at 5 rad/s; with 1 rad/s allowed it is cut where the turn passes 1 / (0.5 x 0.05) = 40 1/m.
-    from swath.plan.uniform import _cut_sharp_turns
+    from swath.plan.uniform_passes import _cut_sharp_turns
 
     rho, leg = 0.01, 0.1
     a = np.linspace(-np.pi / 2, np.pi / 2, 32)

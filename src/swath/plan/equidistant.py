@@ -48,11 +48,13 @@ from ..errors import InfeasibleError, InputError
 from ..surface.geometry import face_normals_and_areas, normalize
 from .common import (MIN_PASS_FRACTION, feed_and_cross, is_number as _is_number, plane_passes, positive as _positive,
                      select_direction, split_direction)
+from ..surface.polyline import densify
 from ..surface.geodesic import DISTANCE_METHODS, distance_field, face_gradients, locate_points, refine_mesh
 from ..surface.topology import boundary_loops, split_nonmanifold_vertices, vertex_components
 from .slicing import level_sets
 from ..core import ToolPath
 from ..contact.widths import SPACING_PERCENTILE, area_percentile, gap_fraction, pad_scale_samples, patch_widths
+from .seeds import boundary_seed, polyline_band
 
 log = logging.getLogger("swath.plan")
 
@@ -60,158 +62,8 @@ log = logging.getLogger("swath.plan")
 EDGE_FRACTION = 1.0 / 8.0
 #: The field mesh is coarsened (``max_edge`` enlarged) so that it has about this many vertices at most.
 MAX_FIELD_VERTICES = 100_000
-#: Seed side: boundary whose tangent is within this angle of the feed direction (rad).
-SEED_ANGLE = math.radians(45.0)
 #: A user seed point farther than this from the surface is refused (m).
 SEED_TOLERANCE = 5e-3
-
-
-def polyline_band(vertices: np.ndarray, polylines, radius: float, *, tree=None) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices within ``radius`` of polylines and their straight-line distance to the nearest one.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-    polylines : list of (k, 3) float
-        Curves on (or very near) the surface, m; points at most about ``radius / 2`` apart.
-    radius : float
-        Band half-width, m; within a few mesh edges the straight-line distance to the curve is the
-        geodesic distance to far below a micrometre on any part a pad can follow.
-    tree : scipy.spatial.cKDTree, optional
-        Tree over ``vertices``.
-
-    Returns
-    -------
-    index : (s,) int
-        Vertices in the band.
-    distance : (s,) float
-        Their distance to the nearest polyline segment, m.
-    """
-    from scipy.spatial import cKDTree
-
-    V = np.asarray(vertices, float)
-    tree = cKDTree(V) if tree is None else tree
-    idx_all, d_all = [], []
-    for pl in polylines:
-        pl = np.asarray(pl, float).reshape(-1, 3)
-        near = tree.query_ball_point(pl, r=radius)
-        cand = np.unique(np.concatenate([np.asarray(c, np.int64) for c in near])) if len(pl) else np.zeros(0, np.int64)
-        if len(cand) == 0:
-            continue
-        q = V[cand]
-        _, j = cKDTree(pl).query(q)
-        d = np.linalg.norm(q - pl[j], axis=1)
-        for lo in (j - 1, j):                       # the two segments at the nearest point
-            ok = (lo >= 0) & (lo + 1 < len(pl))
-            a, b = pl[np.clip(lo, 0, len(pl) - 1)], pl[np.clip(lo + 1, 0, len(pl) - 1)]
-            ab = b - a
-            L2 = np.einsum("ij,ij->i", ab, ab)
-            t = np.clip(np.divide(np.einsum("ij,ij->i", q - a, ab), L2, out=np.zeros(len(q)), where=L2 > 0), 0, 1)
-            d = np.where(ok, np.minimum(d, np.linalg.norm(a + t[:, None] * ab - q, axis=1)), d)
-        idx_all.append(cand)
-        d_all.append(d)
-    if not idx_all:
-        return np.zeros(0, np.int64), np.zeros(0)
-    idx, d = np.concatenate(idx_all), np.concatenate(d_all)
-    order = np.lexsort((d, idx))
-    idx, d = idx[order], d[order]
-    first = np.r_[True, idx[1:] != idx[:-1]]
-    return idx[first], d[first]
-
-
-# ----------------------------------------------------------------------------------------------
-# seeds
-# ----------------------------------------------------------------------------------------------
-def boundary_seed(vertices: np.ndarray, loop: np.ndarray, feed: np.ndarray, cross: np.ndarray, *,
-                  window: float) -> np.ndarray:
-    """The boundary side at the low end of ``cross``: a run of a boundary loop roughly along ``feed``.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float
-    loop : (b,) int
-        A closed boundary loop (vertex indices in order).
-    feed, cross : (3,) float
-        Unit feed and cross directions.
-    window : float
-        Arc-length half-window (m) over which the loop's tangent is averaged, so that a ragged
-        scan boundary has a direction; gaps shorter than half of it are bridged inside a run.
-
-    Returns
-    -------
-    (r,) int
-        Loop vertices in loop order: the run whose averaged tangent stays within
-        :data:`SEED_ANGLE` of the feed direction (measured in the feed-cross plane) and which
-        holds the lowest such vertex along ``cross``.  When no part of the loop runs along the feed, the vertices within a window
-        of the loop's lowest point.
-    """
-    loop = np.asarray(loop, np.int64)
-    P = np.asarray(vertices, float)[loop]
-    b = len(P)
-    seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    total = float(s[-1])
-    h = P @ np.asarray(cross, float)
-    if b < 3 or total <= 0:
-        return loop[[int(np.argmin(h))]]
-    w = min(float(window), 0.25 * total)
-    closed = np.vstack([P, P[:1]])
-
-    def at(x):
-        x = np.mod(x, total)
-        return np.stack([np.interp(x, s, closed[:, j]) for j in range(3)], axis=1)
-
-    feed, cross = np.asarray(feed, float), np.asarray(cross, float)
-
-    def runs_along(t):
-        # Angle to the feed measured in the (feed, cross) plane, so a boundary running down a
-        # slope along the feed still counts; one running mostly along the normal does not.
-        tf, tc = np.abs(t @ feed), np.abs(t @ cross)
-        return (tf * math.tan(SEED_ANGLE) >= tc) & (tf >= 0.25)
-
-    tangent = normalize(at(s[:-1] + w) - at(s[:-1] - w))
-    along = runs_along(tangent)
-    if not along.any():
-        d = np.abs(s[:-1] - s[int(np.argmin(h))])
-        return loop[np.minimum(d, total - d) <= w]
-    if along.all():
-        return loop
-    # Runs of `along` vertices, in loop order starting at a vertex that is not along the feed.
-    r0 = int(np.argmin(along))
-    order = (np.arange(b) + r0) % b
-    a = along[order].astype(int)
-    pos = np.mod(s[:-1][order] - s[r0], total)
-    edge = np.diff(np.concatenate([[0], a, [0]]))
-    starts, ends = list(np.flatnonzero(edge == 1)), list(np.flatnonzero(edge == -1) - 1)
-    bridge = 0.5 * w
-    runs = [[starts[0], ends[0]]]
-    for st, en in zip(starts[1:], ends[1:]):
-        if pos[st] - pos[runs[-1][1]] <= bridge:
-            runs[-1][1] = en
-        else:
-            runs.append([st, en])
-    spans = [np.arange(st, en + 1) for st, en in runs]
-    if len(spans) > 1 and total - pos[runs[-1][1]] + pos[runs[0][0]] <= bridge:   # wraps round
-        spans[0] = np.concatenate([np.arange(runs[-1][0], b), np.arange(0, runs[0][1] + 1)])
-        spans.pop()
-    lowest = int(np.argmin(np.where(a > 0, h[order], np.inf)))
-    span = order[next(sp for sp in spans if np.any(sp == lowest))]
-    # The averaged tangent blurs a corner over the window: extend the run edge by edge while the
-    # edges themselves still run along the feed (so it ends at the corner, not a window short).
-    edge_along = runs_along(normalize(np.roll(P, -1, axis=0) - P))
-    head, tail, grown = [], [], 0.0
-    i = int(span[-1])
-    while grown < w and edge_along[i] and len(span) + len(head) + len(tail) < b:
-        grown += seg[i]
-        i = (i + 1) % b
-        tail.append(i)
-    grown = 0.0
-    i = int(span[0])
-    while grown < w and edge_along[(i - 1) % b] and len(span) + len(head) + len(tail) < b:
-        i = (i - 1) % b
-        grown += seg[i]
-        head.append(i)
-    return loop[np.concatenate([head[::-1], span, tail]).astype(np.int64)]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -315,7 +167,7 @@ def _fields(surface, mesh: _FieldMesh, feed, cross, R, seed_pts, distance) -> _F
                 if len(run) > 1:
                     seed_length += float(np.linalg.norm(np.diff(V[run], axis=0), axis=1).sum())
         else:
-            dense = _densify(seed_pts, 0.5 * mesh.edge)
+            dense = densify(seed_pts, 0.5 * mesh.edge)[0]
             _, _, dist = locate_points(V, F, dense)
             if dist.max() > SEED_TOLERANCE:
                 i = int(np.argmax(dist))
@@ -610,133 +462,3 @@ def _choose_angle(surface, tool, mesh, samples, spacing, R, distance) -> tuple[f
         rows.append((a, gap_fraction(w, areas, d), float(areas.sum() / d), None))
     best, rule = select_direction(rows, AUTO_MAX_GAP, "equidistant")
     return best[0], rule
-
-
-def _densify(points: np.ndarray, step: float) -> np.ndarray:
-    """A polyline ``(k, 3)`` with points inserted so that no segment is longer than ``step``."""
-    if len(points) < 2:
-        return points.copy()
-    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    n = np.maximum(np.ceil(seg / step).astype(int), 1)
-    t = np.concatenate([np.arange(k) / k for k in n])
-    i = np.repeat(np.arange(len(seg)), n)
-    out = points[i] + t[:, None] * (points[i + 1] - points[i])
-    return np.vstack([out, points[-1:]])
-
-
-# ----------------------------------------------------------------------------------------------
-# measuring the spacing of any tool path
-# ----------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class PassSpacing:
-    """Geodesic distances between neighbouring passes of a tool path.
-
-    Attributes
-    ----------
-    pairs : list of (int, int, (k,) float)
-        ``(component, level, gaps)``: for every point of the passes at ``level``, its geodesic
-        distance (m) to the passes at ``level + 1`` of the same piece.
-    mean : float
-        Mean of all gaps, m.
-    spread : float
-        ``(max − min) / mean`` over all gaps (0 = perfectly equidistant).
-    pair_spread : (p,) float
-        The same per neighbouring pair.
-    percentiles : (3,) float
-        5th, 50th and 95th percentile of all gaps, m.
-    robust_spread : float
-        ``(P95 − P5) / P50``: the spread without the few points (pass ends at ragged edges,
-        next to dropped fragments or holes) whose neighbour level has no pass beside them.
-    method : str
-        Distance solver used.
-    """
-
-    pairs: list
-    mean: float
-    spread: float
-    pair_spread: np.ndarray
-    percentiles: np.ndarray
-    robust_spread: float
-    method: str
-
-
-def pass_levels(toolpath) -> tuple[np.ndarray, np.ndarray]:
-    """(component, level) of each pass: from the passes' own ``region`` and ``level``, from the plane
-    offsets of a raster plan, otherwise the pass order (one level per pass)."""
-    n = len(toolpath.passes)
-    md = toolpath.metadata
-    if n and all(p.level >= 0 for p in toolpath.passes):
-        return toolpath.regions, toolpath.levels
-    if toolpath.planner == "raster" and "cross_direction" in md and "spacing_m" in md:
-        c = np.asarray(md["cross_direction"], float)
-        off = np.array([float(np.mean(p.points @ c)) for p in toolpath.passes])
-        return np.zeros(n, int), np.round((off - off.min()) / md["spacing_m"]).astype(int)
-    return np.zeros(n, int), np.arange(n)
-
-
-def pass_spacing(toolpath, *, max_edge: float = 3e-3, trim: float = 0.0, method: str = "fmm") -> PassSpacing:
-    """Measure the geodesic distance from every pass point to the passes of the next level
-    (a level pulled in to a far edge, ``metadata["pulled_in"]``, is not measured against).
-
-    Parameters
-    ----------
-    toolpath : ToolPath
-        Any plan on a mesh; levels come from :func:`pass_levels`.
-    max_edge : float
-        The surface is refined to this edge length (m) for the distance solves (fast-marching
-        error is about a tenth of it on smooth parts).
-    trim : float
-        Points within this arc length (m) of either end of a pass are not measured.
-    method : {"fmm", "heat"}
-
-    Returns
-    -------
-    PassSpacing
-    """
-    surface = toolpath.surface
-    V, F, _, _ = refine_mesh(surface.vertices, surface.faces, max_edge)
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(V[F].mean(axis=1))
-    vtree = cKDTree(V)
-    solver = None
-    if method == "fmm":
-        import potpourri3d as pp3d
-
-        try:
-            solver = pp3d.MeshFastMarchingDistanceSolver(V, F)
-        except RuntimeError:
-            solver = None
-    comps, levels = pass_levels(toolpath)
-    keys = {}
-    for i, (c, lv) in enumerate(zip(comps, levels)):
-        keys.setdefault((int(c), int(lv)), []).append(i)
-    pairs, used = [], set()
-    pulled = {tuple(k) for k in toolpath.metadata.get("pulled_in", [])}
-    for (c, lv), idx in sorted(keys.items()):
-        nxt = keys.get((c, lv + 1))
-        if not nxt or (c, lv + 1) in pulled:        # a pulled-in last level is closer on purpose
-            continue
-        band, band_d = polyline_band(V, [toolpath.passes[i].points for i in nxt], 1.5 * max_edge, tree=vtree)
-        d, m = distance_field(V, F, source_vertices=band, source_distances=band_d, method=method, solver=solver)
-        used.add(m)
-        pts = []
-        for i in idx:
-            p = toolpath.passes[i].points
-            if trim > 0:
-                s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
-                p = p[(s >= trim) & (s <= s[-1] - trim)]
-            pts.append(p)
-        pts = np.concatenate(pts)
-        if len(pts) == 0:
-            continue
-        f, b, _ = locate_points(V, F, pts, tree=tree)
-        pairs.append((c, lv, np.einsum("ij,ij->i", d[F[f]], b)))
-    if not pairs:
-        raise InputError("the tool path has no neighbouring passes to measure")
-    allg = np.concatenate([g for _, _, g in pairs])
-    mean = float(allg.mean())
-    pair_spread = np.array([float(np.ptp(g) / g.mean()) for _, _, g in pairs])
-    pct = np.percentile(allg, [5, 50, 95])
-    return PassSpacing(pairs, mean, float(np.ptp(allg) / mean), pair_spread, pct, float((pct[2] - pct[0]) / pct[1]),
-                       "+".join(sorted(used)))

@@ -31,54 +31,7 @@ from scipy.ndimage import correlate1d
 from scipy.spatial.transform import Rotation
 
 from ..surface.geometry import normalize
-
-
-def arc_length(points: np.ndarray) -> np.ndarray:
-    """Cumulative arc length ``(k,)`` (m) of a polyline ``(k, 3)``, starting at 0."""
-    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    return np.concatenate([[0.0], np.cumsum(seg)])
-
-
-def resample_uniform(points: np.ndarray, step: float, *columns: np.ndarray):
-    """Resample a polyline at equal arc-length steps.
-
-    Parameters
-    ----------
-    points : (k, 3) float
-        Polyline, m.
-    step : float
-        Largest allowed spacing, m; the actual spacing is ``L / ceil(L / step)``.
-    *columns : (k, ...) float
-        Per-point data interpolated linearly in arc length alongside (normals are re-normalised by
-        the caller).
-
-    Returns
-    -------
-    s : (n,) float
-        Arc length of the new samples, m (``s[0] = 0``, ``s[-1] = L``).
-    points : (n, 3) float
-        The resampled points (on the polyline's chords).
-    *columns : (n, ...) float
-        The interpolated columns.
-    """
-    s_old = arc_length(points)
-    length = s_old[-1]
-    n = max(int(np.ceil(length / step - 1e-9)), 1) + 1
-    s = np.linspace(0.0, length, n)
-    keep = np.concatenate([[True], np.diff(s_old) > 0])     # drop repeated points
-    s_old = s_old[keep]
-    out = [s, _interp_rows(s, s_old, points[keep])]
-    out += [_interp_rows(s, s_old, np.asarray(c, float)[keep]) for c in columns]
-    return tuple(out)
-
-
-def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
-    """``np.interp`` of every column of ``fp`` ``(k, ...)``."""
-    if len(xp) == 1:
-        return np.repeat(fp[:1], len(x), axis=0)
-    flat = fp.reshape(len(fp), -1)
-    out = np.stack([np.interp(x, xp, flat[:, j]) for j in range(flat.shape[1])], axis=1)
-    return out.reshape((len(x),) + fp.shape[1:])
+from ..surface.polyline import arc_length, resample_uniform  # noqa: F401  (re-exported: the timing grid)
 
 
 def local_quadratic(values: np.ndarray, spacing: float, scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -53,7 +53,8 @@ from ..errors import InputError
 from ..core import Pass, ToolPath
 from .constraints import (CONSTRAINT_TYPES, AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile, PassGrid,
                           TangentialAccelLimit, speed_profile)
-from .geometry import resample_uniform, rotation_steps, smoothed_directions
+from ..surface.polyline import densify, resample_uniform
+from .geometry import rotation_steps, smoothed_directions
 from .links import AirGuard, LinkSettings, time_link
 from .orientation import make_continuous, quaternions_from_frames, tool_frames
 from .trajectory import Trajectory
@@ -294,15 +295,10 @@ def _densify(p: Pass, surface, step: float) -> tuple[Pass, np.ndarray]:
     seg = np.linalg.norm(np.diff(p.points, axis=0), axis=1)
     if seg.max(initial=0.0) <= step * 1.0001:
         return p, np.arange(len(p.points), dtype=float)
-    n_sub = np.maximum(np.ceil(seg / step).astype(int), 1)
-    frac = np.concatenate([np.arange(k) / k for k in n_sub])
-    seg_id = np.repeat(np.arange(len(seg)), n_sub)
-    pts = p.points[seg_id] + frac[:, None] * (p.points[seg_id + 1] - p.points[seg_id])
-    pts = np.vstack([pts, p.points[-1:]])
-    u = np.concatenate([seg_id + frac, [len(p.points) - 1.0]])
-    new = np.concatenate([frac > 0, [False]])
+    pts, u = densify(p.points, step)
+    new = u != np.round(u)
     out_pts, out_n = pts.copy(), np.empty_like(pts)
-    out_n[~new] = p.normals[np.concatenate([seg_id[frac == 0], [len(p.points) - 1]])]
+    out_n[~new] = p.normals[np.round(u[~new]).astype(int)]
     if new.any():
         closest, _, face = surface.closest_points(pts[new])
         out_pts[new] = closest

@@ -1,0 +1,147 @@
+"""The uniform planner's working mesh: the subdivided surface with its heat-method distance solver, gradient operator, contact-model width model and pad-touch test, shared by all candidate directions."""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+import numpy as np
+from ..surface.curvature import PrincipalCurvature
+from ..surface.geometry import normalize
+from ..surface.geodesic import FaceGradient
+from ..surface.topology import mesh_edges
+from ..contact.widths import patch_rows, unique_patches
+
+log = logging.getLogger(__name__)
+
+
+#: About this many working-mesh vertices at most (the default working edge is coarsened to stay near it).
+MAX_WORK_VERTICES = 350_000
+
+
+class WidthModel:
+    """Swath widths from the local contact model at the vertices of a working mesh.
+
+    The contact patch is solved once per distinct (rounded) curvature pair; widths across any
+    feed direction are then read from it.
+    """
+
+    def __init__(self, curvature: PrincipalCurvature, normals: np.ndarray, tool):
+        self.curvature = curvature
+        self.normals = normals
+        self.patch, self.inverse = unique_patches(curvature.k1, curvature.k2, tool, 180)
+
+    def across(self, idx: np.ndarray, feed: np.ndarray) -> np.ndarray:
+        """Width (m) of the swath at vertices ``idx`` ``(k,)`` for feed directions ``feed`` ``(k, 3)``."""
+        n = self.normals[idx]
+        t = feed - np.einsum("ij,ij->i", feed, n)[:, None] * n
+        cross = np.cross(n, normalize(t))
+        psi = np.arctan2(np.einsum("ij,ij->i", cross, self.curvature.d2[idx]),
+                         np.einsum("ij,ij->i", cross, self.curvature.d1[idx]))
+        return patch_rows(self.patch, self.inverse[idx], lambda p, rows: p.width_across(psi[rows]))
+
+
+class _Context:
+    """The working mesh, its distance solver and width model, shared by all candidate directions."""
+
+    def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf):
+        import potpourri3d as pp3d
+
+        t0 = time.perf_counter()
+        R = tool.pad_radius
+        given = work_spacing is not None
+        if not given:
+            work_spacing = float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
+        self.surface = surface
+        self.tool = tool
+        self.max_turn_curvature = float(max_turn_curvature)   # 1/m, in the tangent plane
+        self.work = surface.subdivided(work_spacing)
+        # Halving long thin CAD triangles makes far more vertices than an even mesh of the same edge
+        # length; the distance solver's set-up grows faster than linearly with them, so coarsen to
+        # stay near the budget (never past R/4, where the widths would blur).
+        while not given and len(self.work.vertices) > 1.3 * MAX_WORK_VERTICES and work_spacing < R / 4.0:
+            work_spacing = min(work_spacing * math.sqrt(len(self.work.vertices) / MAX_WORK_VERTICES), R / 4.0)
+            self.work = surface.subdivided(work_spacing)
+        self.work_spacing = float(work_spacing)
+        W = self.work
+        self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
+        # Curvature from the part's own vertices (nearest one to each working vertex): vertices added
+        # on flat facets by the subdivision would read the faceting, not the surface.
+        nearest = surface.kdtree.query(W.vertices)[1]
+        c = surface.curvature
+        self.widths = WidthModel(PrincipalCurvature(c.k1[nearest], c.k2[nearest], c.d1[nearest], c.d2[nearest]),
+                                 W.normals, tool)
+        self.tree = W.kdtree
+        self.edges = mesh_edges(np.asarray(W.faces, np.int64))
+        self._pts32 = W.vertices.astype(np.float32)
+        self._nrm32 = W.normals.astype(np.float32)
+        self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
+        log.info("uniform: working mesh %d vertices (edges <= %.1f mm), set up in %.2f s", len(W.vertices),
+                 1e3 * self.work_spacing, time.perf_counter() - t0)
+
+    def distance(self, sources: np.ndarray) -> np.ndarray:
+        """Geodesic distance (m) from the vertex set ``sources`` to every working vertex.
+
+        The heat method recovers distance up to a constant; it is fixed so the sources sit at 0
+        (their median), and the field is clipped at 0.
+        """
+        src = np.unique(sources)
+        d = np.asarray(self.solver.compute_distance_multisource(src.tolist()), float)
+        return np.maximum(d - np.median(d[src]), 0.0)
+
+    def frontier(self, covered: np.ndarray) -> np.ndarray:
+        """Covered vertices with an uncovered neighbour: the edge of the covered region."""
+        F = self.work.faces
+        c = covered[F]
+        mixed = c.any(axis=1) & ~c.all(axis=1)
+        v = F[mixed][c[mixed]]
+        return np.unique(v)
+
+    def gradient_directions(self, d: np.ndarray) -> np.ndarray:
+        """Unit tangent direction of increasing ``d`` at each vertex ``(n, 3)``."""
+        return self.gradient.vertex_directions(d, self.work.normals)
+
+    def nearest_vertices(self, points: np.ndarray) -> np.ndarray:
+        return self.tree.query(points)[1]
+
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Points ``(k, 3)`` dropped onto the tangent plane of their nearest working vertex, and that
+        vertex's smooth normal: within a micrometre of the surface for points already near it (the
+        working mesh is finer than R/4), and far cheaper than an exact closest-point query."""
+        idx = self.nearest_vertices(points)
+        n = self.work.normals[idx]
+        off = np.einsum("ij,ij->i", points - self.work.vertices[idx], n)
+        return points - off[:, None] * n, n
+
+    def touched(self, pts: np.ndarray) -> np.ndarray:
+        """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``,
+        at poses at most R/8 apart (see :meth:`touched_at`)."""
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        n = max(int(np.ceil(cum[-1] / (self.tool.pad_radius / 8))), 1) + 1
+        idx = np.unique(np.searchsorted(cum, np.linspace(0, cum[-1], n)).clip(0, len(pts) - 1))
+        return self.touched_at(pts[idx])
+
+    def touched_at(self, poses: np.ndarray) -> np.ndarray:
+        """(n,) bool: working vertices the pressed pad touches at the pad centres ``poses`` ``(k, 3)``.
+
+        The mesh contact model (:func:`swath.contact.mesh_contact`), with the pad-face depth capped at
+        that of the local contact model (principal curvatures at the pose): where the pad overhangs
+        the part's edge the real pad sinks deeper and reaches farther, and passes laid along that
+        wider edge would bow outward more with every generation.  The cap only ever shrinks the
+        region counted as covered, so the simulator agrees with it.
+        """
+        from ..contact import mesh_contact
+
+        if len(poses) == 0:
+            return np.zeros(len(self.work.vertices), bool)
+        closest, normals = self.project(poses)
+        axes = -normals
+        W = self.work
+        mc = mesh_contact(self._pts32, self._nrm32, W.vertex_areas, self.tree, closest, axes, self.tool)
+        cap = np.minimum(mc.sink, self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]])
+        height = mc.sink[mc.pose] - mc.pressure / self.tool.k        # sample height along tool z
+        sample = mc.sample[height < cap[mc.pose]]
+        out = np.zeros(len(W.vertices), bool)
+        out[sample] = True
+        return out
