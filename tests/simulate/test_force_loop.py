@@ -56,7 +56,7 @@ def test_simulation_refuses_a_too_high_force_gain():
     with pytest.raises(InfeasibleError, match="force loop"):
         simulate_force(tr, s, tool, controller=ForceController(force_gain=20.0 / K * 500))
     # a compliant part lowers the loop gain: the same gain passes against a part 30x softer than the pad
-    kp, st = force_gains(tool, ForceController(force_gain=1.5 / K * 500, servo_lag=0.0),
+    kp, ki, st = force_gains(tool, ForceController(force_gain=1.5 / K * 500, integral_gain=0.0, servo_lag=0.0),
                          part_stiffness=K / 30)
     assert st.stable and st.gain_margin > 2
 
@@ -66,7 +66,7 @@ def test_step_response_reaches_the_set_point_with_the_predicted_time_constant():
     s = flat_plate()
     tr = time_path(ToolPath(s, [Pass(np.array([[0.1, 0.15, 0], [0.2, 0.15, 0]]), np.array([[0, 0, 1.0]] * 2))], "t"),
                    [FeedLimit(0.05)])
-    c = ForceController(servo_lag=0.0, ramp_time=0.0, rate=1000.0, time_constant=0.02)
+    c = ForceController(servo_lag=0.0, ramp_time=0.0, rate=1000.0, time_constant=0.02, integral_gain=0.0)
     trace = simulate_force(tr, s, tool, controller=c)
     K = contact_stiffness(tool)
     assert K == pytest.approx(20.0 / 1e-3, rel=1e-9)
@@ -83,3 +83,23 @@ def test_step_response_reaches_the_set_point_with_the_predicted_time_constant():
     moving = F[trace.moving]
     assert abs(moving[0] - tool.force) <= 0.02 * tool.force
     assert np.max(np.abs(moving[100:] - tool.force)) < 1e-3 * tool.force
+
+
+def test_default_pi_gains_pass_with_a_jaeger_latency_and_remove_the_ramp_error():
+    tool = Tool()
+    kp, ki, st = force_gains(tool, ForceController(latency=0.008))
+    assert ki == pytest.approx(kp / (5 * 0.03))
+    assert st.gain_margin > 2 and st.phase_margin > math.radians(40)
+    # a part tilted 0.01 rad under a straight pass: the surface recedes at feed·0.01; proportional
+    # control lags it by v_n / K_p, the default PI does not
+    from swath.simulate import Disturbance
+    s = flat_plate()
+    tr = time_path(ToolPath(s, [Pass(np.array([[0.1, 0.15, 0], [0.3, 0.15, 0]]), np.array([[0, 0, 1.0]] * 2))], "t"),
+                   [FeedLimit(0.05)])
+    dist = Disturbance(part_offset=(0, 0, 0, 0, 0.01, 0))
+    p_only = simulate_force(tr, s, tool, controller=ForceController(integral_gain=0.0), disturbance=dist)
+    pi = simulate_force(tr, s, tool, disturbance=dist)
+    K = contact_stiffness(tool)
+    lag = 0.05 * math.tan(0.01) / (1 / (K * 0.03))
+    assert abs(p_only.metrics["mean_force_n"] - tool.force) == pytest.approx(lag, rel=0.1)
+    assert abs(pi.metrics["mean_force_n"] - tool.force) < 0.2 * lag

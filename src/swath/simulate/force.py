@@ -64,9 +64,11 @@ class ForceController:
     force_gain : float or None
         Proportional force gain ``K_p``, m/s per N.  None: ``1 / (K_c · time_constant)`` with ``K_c``
         the stiffest contact (pad ``k·π·R²`` in series with the part).
-    integral_gain : float
-        Integral force gain ``K_i``, m/s per N·s (default 0: Jaeger's proportional law, which already
-        has no steady error to a constant set force).
+    integral_gain : float or None
+        Integral force gain ``K_i``, m/s per N·s.  None (default): ``K_p / (5 · time_constant)``,
+        which removes the steady force error of a surface that recedes at a constant rate (a tilted
+        part under a straight pass) for about 10° of phase margin; 0 gives Jaeger's proportional
+        law (no steady error to a constant set force, an error ``v_n / K_p`` to a ramp ``v_n``).
     time_constant : float
         Closed-loop force time constant the default gain aims at, s (default 30 ms).
     position_gain : float
@@ -88,8 +90,10 @@ class ForceController:
     ramp_time : float
         Time the set point takes from the contact threshold to the set force, s (default 0.1).
     start_tolerance : float
-        The pass starts when ``|F_measured − F_set| ≤ start_tolerance · F_set`` after the ramp
-        (default 0.02).
+        The pass starts when ``|F_measured − F_set| ≤ start_tolerance · F_set`` has held for
+        ``settle_time`` after the ramp (default 0.02).
+    settle_time : float
+        See ``start_tolerance``, s (default 0.05).
     max_hold : float
         Longest wait for that before starting anyway (logged), s (default 2).
     min_gain_margin : float
@@ -101,7 +105,7 @@ class ForceController:
     mode: str = "hybrid"
     rate: float = 500.0
     force_gain: float | None = None
-    integral_gain: float = 0.0
+    integral_gain: float | None = None
     time_constant: float = 0.03
     position_gain: float = 30.0
     servo_lag: float = 0.01
@@ -113,6 +117,7 @@ class ForceController:
     contact_threshold: float = 0.1
     ramp_time: float = 0.1
     start_tolerance: float = 0.02
+    settle_time: float = 0.05
     max_hold: float = 2.0
     min_gain_margin: float = 2.0
     min_phase_margin: float = math.radians(30.0)
@@ -126,10 +131,12 @@ class ForceController:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InputError(f"controller {name} must be a positive finite number, got {v!r}")
-        for name in ("integral_gain", "servo_lag", "latency", "clearance", "ramp_time", "min_phase_margin"):
+        for name in ("settle_time", "servo_lag", "latency", "clearance", "ramp_time", "min_phase_margin"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(f"controller {name} must be a non-negative finite number, got {v!r}")
+        if self.integral_gain is not None and not (math.isfinite(self.integral_gain) and self.integral_gain >= 0):
+            raise InputError(f"controller integral_gain must be >= 0 (m/s per N·s), got {self.integral_gain!r}")
         if self.force_gain is not None and not (math.isfinite(self.force_gain) and self.force_gain > 0):
             raise InputError(f"controller force_gain must be positive (m/s per N), got {self.force_gain!r}")
         if not self.contact_threshold < 1:
@@ -243,8 +250,10 @@ def contact_stiffness(tool: Tool, *, part_stiffness: float = math.inf) -> float:
     return pad if math.isinf(part_stiffness) else pad * part_stiffness / (pad + part_stiffness)
 
 
-def force_gains(tool: Tool, controller: ForceController, *, part_stiffness: float = math.inf) -> tuple[float, LoopStability]:
-    """The force gain ``K_p`` (m/s per N) and the checked stability of the force loop.
+def force_gains(tool: Tool, controller: ForceController, *,
+                part_stiffness: float = math.inf) -> tuple[float, float, LoopStability]:
+    """The force gains ``K_p`` (m/s per N) and ``K_i`` (m/s per N·s) and the checked stability of the
+    force loop.
 
     Raises
     ------
@@ -253,10 +262,11 @@ def force_gains(tool: Tool, controller: ForceController, *, part_stiffness: floa
     """
     K = contact_stiffness(tool, part_stiffness=part_stiffness)
     kp = controller.force_gain if controller.force_gain is not None else 1.0 / (K * controller.time_constant)
-    st = check_stability(K, rate=controller.rate, kp=kp, ki=controller.integral_gain, servo_lag=controller.servo_lag,
+    ki = controller.integral_gain if controller.integral_gain is not None else kp / (5.0 * controller.time_constant)
+    st = check_stability(K, rate=controller.rate, kp=kp, ki=ki, servo_lag=controller.servo_lag,
                          latency=controller.latency, min_gain_margin=controller.min_gain_margin,
                          min_phase_margin=controller.min_phase_margin, what="force loop")
-    return kp, st
+    return kp, ki, st
 
 
 def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceController = ForceController(),
@@ -288,7 +298,7 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
         (contact force minus set force over the ticks where the tool moves along a pass),
         ``max_abs_force_error_n``, ``mean_force_n``, ``contact_loss_fraction`` (moving ticks with no
         force), ``rms_tangential_error_m``, ``hold_time_s`` (total contact-phase wait),
-        ``force_gain_m_per_s_per_n``, ``force_gain_margin``, ``force_phase_margin_deg``,
+        ``force_gain_m_per_s_per_n``, ``force_integral_gain_m_per_s2_per_n``, ``force_gain_margin``, ``force_phase_margin_deg``,
         ``force_time_constant_s`` and ``position_phase_margin_deg``.
 
     Raises
@@ -310,9 +320,9 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
     stability = {"position": check_stability(1.0, rate=c.rate, kp=c.position_gain, servo_lag=c.servo_lag,
                                              latency=c.latency, min_gain_margin=c.min_gain_margin,
                                              min_phase_margin=c.min_phase_margin, what="tangential position loop")}
-    kp = math.nan
+    kp = ki = math.nan
     if c.mode == "hybrid":
-        kp, stability["force"] = force_gains(tool, c, part_stiffness=part_stiffness)
+        kp, ki, stability["force"] = force_gains(tool, c, part_stiffness=part_stiffness)
 
     spacing = sample_spacing_for(tool) if sample_spacing is None else float(sample_spacing)
     samples = surface.subdivided(spacing)
@@ -344,7 +354,7 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
     breaks = np.flatnonzero((np.diff(cidx) > 1) | (np.diff(pidx) != 0)) + 1
     runs = np.split(np.arange(len(cidx)), breaks)
     rng = np.random.default_rng(d.seed)
-    sim = _Run(c, kp=kp, tool=tool, curves=real_curves, part_stiffness=part_stiffness, rng=rng,
+    sim = _Run(c, kp=kp, ki=ki, tool=tool, curves=real_curves, part_stiffness=part_stiffness, rng=rng,
                noise=d.force_noise)
     t_plan = np.asarray(trajectory.t, float)[cidx]
     feed = np.asarray(trajectory.feed, float)[cidx]
@@ -360,7 +370,7 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
     force[cidx] = _per_sample_force(runs, t_plan, cat)
     nominal_full = np.full(len(trajectory), np.nan)
     nominal_full[cidx] = nominal
-    metrics = _metrics(cat, tool.force, kp, stability)
+    metrics = _metrics(cat, tool.force, kp, ki, stability)
     return ForceTrace(cat["t"], cat["progress"], cat["set"], cat["contact"], cat["measured"], cat["command"],
                       cat["actual"], cat["moving"].astype(bool), cat["run"].astype(int), force, nominal_full,
                       metrics, stability)
@@ -369,8 +379,8 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
 class _Run:
     """The tick loop of one contact run (scalar Python: the loop is sequential feedback)."""
 
-    def __init__(self, c: ForceController, *, kp, tool, curves: ContactCurves, part_stiffness, rng, noise):
-        self.c, self.kp, self.F = c, kp, tool.force
+    def __init__(self, c: ForceController, *, kp, ki, tool, curves: ContactCurves, part_stiffness, rng, noise):
+        self.c, self.kp, self.ki, self.F = c, kp, ki, tool.force
         self.curves, self.kpart = curves, part_stiffness
         self.rng, self.noise = rng, noise
         self.dt = 1.0 / c.rate
@@ -419,7 +429,7 @@ class _Run:
         out = {k: [] for k in ("t", "progress", "set", "contact", "measured", "command", "actual", "moving", "ref")}
         max_ticks = int(((T1 - T0) + c.max_hold + 2.0 + 10 * c.clearance / c.approach_speed) * c.rate) + 10
         noise = self.rng.standard_normal(max_ticks) * self.noise if self.noise > 0 else None
-        settle = 0
+        settle = settled = 0
         for k in range(max_ticks):
             tau = min(max(tan.actual, T0), T1)
             i = max(0, min(bisect.bisect_right(Tl, tau) - 1, n - 2)) if n > 1 else 0
@@ -449,14 +459,17 @@ class _Run:
                     frac = 1.0 if c.ramp_time == 0 else min(1.0, (k * dt - t_seen) / c.ramp_time)
                     sp = c.contact_threshold * F + (F - c.contact_threshold * F) * frac
                     e = sp - fm
-                    v_fb = self.kp * e + c.integral_gain * integ
-                    v = slo[i] * ff_rate + v_fb
-                    if abs(v) > c.max_normal_speed:
+                    # the sum includes this tick (as in force_loop); it starts once the ramp is over, so
+                    # the ramp's tracking lag does not wind it up into an overshoot
+                    integ_next = integ + e * dt if frac >= 1.0 else integ
+                    v = slo[i] * ff_rate + self.kp * e + self.ki * integ_next
+                    if abs(v) > c.max_normal_speed:        # saturated: hold the integral (anti-windup)
                         v = math.copysign(c.max_normal_speed, v)
                     else:
-                        integ += e * dt
+                        integ = integ_next
                     if not moving and frac >= 1.0:
-                        if abs(fm - F) <= c.start_tolerance * F:
+                        settled = settled + 1 if abs(fm - F) <= c.start_tolerance * F else 0
+                        if settled * dt >= c.settle_time:
                             moving = True
                         elif k * dt - t_seen > c.max_hold:
                             log.warning("contact run %d: force %.3g N did not settle within %.3g N of %.3g N in %g s; "
@@ -514,7 +527,7 @@ def _per_sample_force(runs, t_plan: np.ndarray, cat: dict) -> np.ndarray:
     return out
 
 
-def _metrics(cat: dict, F: float, kp: float, stability: dict) -> dict:
+def _metrics(cat: dict, F: float, kp: float, ki: float, stability: dict) -> dict:
     mv = cat["moving"] > 0
     err = cat["contact"][mv] - F
     rms = float(np.sqrt(np.mean(err**2))) if mv.any() else math.nan
@@ -531,6 +544,7 @@ def _metrics(cat: dict, F: float, kp: float, stability: dict) -> dict:
         "rms_tangential_error_m": float(np.sqrt(np.mean(tang[mv] ** 2))) if mv.any() else math.nan,
         "hold_time_s": held,
         "force_gain_m_per_s_per_n": kp,
+        "force_integral_gain_m_per_s2_per_n": ki,
         "force_gain_margin": fs.gain_margin if fs else math.nan,
         "force_phase_margin_deg": math.degrees(fs.phase_margin) if fs else math.nan,
         "force_time_constant_s": fs.time_constant if fs else math.nan,
