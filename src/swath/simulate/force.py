@@ -326,9 +326,27 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
 
     spacing = sample_spacing_for(tool) if sample_spacing is None else float(sample_spacing)
     samples = surface.subdivided(spacing)
+    t_plan = np.asarray(trajectory.t, float)[cidx]
+    feed = np.asarray(trajectory.feed, float)[cidx]
+
+    # Contact runs: consecutive contact samples of one pass.  The plant is evaluated at "key"
+    # samples about one removal-sample spacing apart (and at both ends of each run) and
+    # interpolated in between: the force curve changes on the scale of the surface sampling.
+    pidx = np.asarray(trajectory.pass_index)[cidx]
+    breaks = np.flatnonzero((np.diff(cidx) > 1) | (np.diff(pidx) != 0)) + 1
+    runs = np.split(np.arange(len(cidx)), breaks)
+    steps = np.linalg.norm(np.diff(trajectory.position[cidx], axis=0), axis=1)
+    inner = np.ones(len(steps), bool)
+    inner[breaks - 1] = False
+    typical = float(np.median(steps[inner])) if inner.any() else spacing
+    every = max(1, int(spacing / max(typical, 1e-9)))
+    keys = [np.unique(np.concatenate([run[::every], run[-1:]])) for run in runs]
+    kidx = np.concatenate(keys)
+    key_start = np.concatenate([[0], np.cumsum([len(k) for k in keys])])
+
     axes = trajectory.tool_z()
-    pos_c, ax_c = trajectory.position[cidx], axes[cidx]
-    plan_curves = contact_curves(samples, pos_c, ax_c, tool)
+    pos_k, ax_k = trajectory.position[cidx[kidx]], axes[cidx[kidx]]
+    plan_curves = contact_curves(samples, pos_k, ax_k, tool)
     nominal = plan_curves.offsets(tool.force)
     if np.isnan(nominal).any():
         log.warning("%d contact samples have no surface under the pad; using the flat depression as their "
@@ -338,38 +356,36 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
     if np.any(np.asarray(d.part_offset) != 0):
         R, shift = rigid_offset(d.part_offset)
         centre = np.asarray(d.offset_centre, float) if d.offset_centre is not None else surface.principal_axes[0]
-        real_curves = contact_curves(samples, pos_c, ax_c, tool, part2real=(R, shift, centre))
+        real_curves = contact_curves(samples, pos_k, ax_k, tool, part2real=(R, shift, centre))
     else:
         real_curves = plan_curves
 
     g = np.asarray(d.gravity, float)
     gnorm = float(np.linalg.norm(g))
-    # Sensor reading (tared hanging along gravity) minus the contact force: m (|g| − g·a).
-    weight_share = d.tool_mass * (gnorm - ax_c @ g)
+    # Sensor reading (tared hanging along gravity) minus the contact force: m (|g| − g·a); the
+    # compensation subtracts the same with the mass it believes.
+    weight_share = d.tool_mass * (gnorm - ax_k @ g)
     comp_mass = d.tool_mass * (1.0 + d.mass_error)
-    comp_share = comp_mass * (gnorm - ax_c @ g) if c.gravity_compensation else np.zeros(len(cidx))
+    comp_share = comp_mass * (gnorm - ax_k @ g) if c.gravity_compensation else np.zeros(len(kidx))
+    reading = weight_share - comp_share
 
-    # Contact runs: consecutive contact samples of one pass.
-    pidx = np.asarray(trajectory.pass_index)[cidx]
-    breaks = np.flatnonzero((np.diff(cidx) > 1) | (np.diff(pidx) != 0)) + 1
-    runs = np.split(np.arange(len(cidx)), breaks)
     rng = np.random.default_rng(d.seed)
     sim = _Run(c, kp=kp, ki=ki, tool=tool, curves=real_curves, part_stiffness=part_stiffness, rng=rng,
                noise=d.force_noise)
-    t_plan = np.asarray(trajectory.t, float)[cidx]
-    feed = np.asarray(trajectory.feed, float)[cidx]
     records, waited = [], 0.0
+    nominal_full = np.full(len(trajectory), np.nan)
     for r, run in enumerate(runs):
-        rec = sim.run(run, t_plan[run], nominal[run], weight_share[run] - comp_share[run], start_time=waited, index=r)
+        ks = slice(key_start[r], key_start[r + 1])
+        Tk = t_plan[kidx[ks]]
+        rec = sim.run(int(key_start[r]), Tk, nominal[ks], reading[ks], start_time=waited, index=r)
         waited = rec["t"][-1] - t_plan[run][-1] if len(rec["t"]) else waited
         rec["feed"] = np.interp(rec["progress"], t_plan[run], feed[run]) if len(run) > 1 else np.full(len(rec["t"]), feed[run][0])
         records.append(rec)
+        nominal_full[cidx[run]] = np.interp(t_plan[run], Tk, nominal[ks]) if len(Tk) > 1 else nominal[ks][0]
     cat = {k: np.concatenate([rec[k] for rec in records]) for k in records[0]}
 
     force = np.zeros(len(trajectory))
     force[cidx] = _per_sample_force(runs, t_plan, cat)
-    nominal_full = np.full(len(trajectory), np.nan)
-    nominal_full[cidx] = nominal
     metrics = _metrics(cat, tool.force, kp, ki, stability)
     return ForceTrace(cat["t"], cat["progress"], cat["set"], cat["contact"], cat["measured"], cat["command"],
                       cat["actual"], cat["moving"].astype(bool), cat["run"].astype(int), force, nominal_full,
@@ -410,12 +426,12 @@ class _Run:
                 break
         return self.kpart * (delta - x), x
 
-    def run(self, run: np.ndarray, T: np.ndarray, nominal: np.ndarray, weight_share: np.ndarray, *,
+    def run(self, base: int, T: np.ndarray, nominal: np.ndarray, weight_share: np.ndarray, *,
             start_time: float, index: int) -> dict:
+        """Simulate one run whose key poses are curves ``base .. base + len(T) − 1`` at plan times ``T``."""
         c, dt, F = self.c, self.dt, self.F
         Tl = T.tolist()
         n = len(Tl)
-        base = int(run[0])
         T0, T1 = Tl[0], Tl[-1]
         slope = np.zeros(n)
         if n > 1:
