@@ -65,3 +65,11 @@ def test_template_columns():
     lines = text.splitlines()
     assert lines[0] == "trial,force_N,passes,depth_m"
     assert lines[1] == "1,10,2,"
+
+
+def test_parse_generator():
+    from swath.simulate.preston_doe import parse_generator
+
+    assert parse_generator("speed=grit+force") == ("spindle_speed_rpm", ("grit", "force_N"))
+    with pytest.raises(InputError):
+        parse_generator("speed")

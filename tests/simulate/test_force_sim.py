@@ -115,3 +115,17 @@ def test_removal_with_the_force_trace(plate, two_passes, tmp_path):
     assert np.allclose(back.extra["force"], trace.force, rtol=1e-5)
     with pytest.raises(ValueError):
         simulate_removal(two_passes, plate, tool, force=np.full(3, 1.0))
+
+
+def test_cli_option_parsers():
+    from swath.errors import InputError
+    from swath.simulate.force import parse_mass, parse_part_offset
+
+    assert parse_mass("2kg") == 2.0 and parse_mass("500g") == 0.5 and parse_mass("3") == 3.0
+    off = parse_part_offset("0.5mm,0,-1mm,0.2deg,0,0")
+    assert off == pytest.approx((5e-4, 0.0, -1e-3, math.radians(0.2), 0.0, 0.0))
+    for bad in ("2 stone", "-1kg"):
+        with pytest.raises(InputError):
+            parse_mass(bad)
+    with pytest.raises(InputError):
+        parse_part_offset("1,2,3")

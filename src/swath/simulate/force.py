@@ -194,6 +194,36 @@ def gravity_for_tilt(tilt: float, *, magnitude: float = STANDARD_GRAVITY) -> tup
     return (magnitude * math.sin(tilt), 0.0, -magnitude * math.cos(tilt))
 
 
+_MASS_UNITS = {"kg": 1.0, "g": 1e-3, "lb": 0.45359237}
+
+
+def parse_mass(text) -> float:
+    """``"2kg"``, ``"500g"``, ``"4.4lb"`` or a bare number of kg -> kg (for ``--tool-mass``)."""
+    import re
+
+    m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-z]*)\s*", str(text))
+    if not m or m.group(2) not in ("", *_MASS_UNITS):
+        raise InputError(f"expected a mass such as '2kg' or '500g', got {text!r}")
+    value = float(m.group(1)) * _MASS_UNITS.get(m.group(2) or "kg")
+    if not (math.isfinite(value) and value >= 0):
+        raise InputError(f"a tool mass must be a non-negative finite number, got {text!r}")
+    return value
+
+
+def parse_part_offset(text) -> tuple:
+    """``"dx,dy,dz,rx,ry,rz"`` -> 6 SI numbers (for ``--part-offset``).
+
+    Translations are lengths (``0.5mm``; a bare number is metres), rotations angles (``0.2deg``; a
+    bare number is radians), the rotation a rotation vector about the part's centroid.
+    """
+    from ..units import parse_quantity
+
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != 6:
+        raise InputError(f"expected a part offset as dx,dy,dz,rx,ry,rz (e.g. 0.5mm,0,0,0.2deg,0,0), got {text!r}")
+    return tuple(parse_quantity(p, "length") for p in parts[:3]) + tuple(parse_quantity(p, "angle") for p in parts[3:])
+
+
 @dataclass(frozen=True, eq=False)
 class ForceTrace:
     """The simulated run: controller ticks, and the contact force per trajectory sample.

@@ -72,6 +72,17 @@ def parse_factor(text: str) -> tuple[str, list]:
     return column, values
 
 
+def parse_generator(text: str) -> tuple[str, tuple[str, ...]]:
+    """``"speed=grit+force"`` -> ``("spindle_speed_rpm", ("grit", "force_N"))`` (for ``--generator``):
+    the generated factor and its base factors, by the names :func:`parse_factor` knows."""
+    name, sep, rhs = str(text).partition("=")
+    bases = tuple(b.strip() for b in rhs.split("+") if b.strip())
+    if not sep or not name.strip() or not bases:
+        raise InputError(f"expected a generator as FACTOR=BASE+BASE (e.g. speed=grit+force), got {text!r}")
+    col = lambda n: FACTOR_ALIASES.get(n, (n, None))[0]
+    return col(name.strip()), tuple(col(b) for b in bases)
+
+
 def _int(v: str, name: str) -> int:
     try:
         i = int(v)
