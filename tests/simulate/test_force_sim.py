@@ -129,3 +129,11 @@ def test_cli_option_parsers():
             parse_mass(bad)
     with pytest.raises(InputError):
         parse_part_offset("1,2,3")
+
+
+def test_a_part_far_below_the_plan_skips_the_pass_with_a_warning(plate, two_passes, caplog):
+    tool = Tool()
+    trace = simulate_force(two_passes, plate, tool, disturbance=Disturbance(part_offset=(0, 0, -8e-3, 0, 0, 0)))
+    assert "no contact within 5 mm" in caplog.text
+    assert not trace.moving.any() and np.all(trace.force == 0)
+    assert np.isnan(trace.metrics["rms_force_error_n"])

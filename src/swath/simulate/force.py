@@ -85,6 +85,9 @@ class ForceController:
         Limit of the normal velocity command in contact, m/s (default 50 mm/s).
     clearance : float
         Start of the descent above the nominal sink, m (default 1 mm).
+    search_depth : float
+        How far beyond the nominal sink the descent goes looking for contact before the pass is
+        skipped (logged), m (default 5 mm).
     contact_threshold : float
         Measured force (fraction of the set force) that counts as contact (default 0.1).
     ramp_time : float
@@ -114,6 +117,7 @@ class ForceController:
     approach_speed: float = 5e-3
     max_normal_speed: float = 0.05
     clearance: float = 1e-3
+    search_depth: float = 5e-3
     contact_threshold: float = 0.1
     ramp_time: float = 0.1
     start_tolerance: float = 0.02
@@ -125,7 +129,7 @@ class ForceController:
     def __post_init__(self):
         if self.mode not in ("hybrid", "position"):
             raise InputError(f"controller mode must be 'hybrid' or 'position', got {self.mode!r}")
-        positive = ("rate", "time_constant", "position_gain", "approach_speed", "max_normal_speed",
+        positive = ("rate", "search_depth", "time_constant", "position_gain", "approach_speed", "max_normal_speed",
                     "contact_threshold", "start_tolerance", "max_hold", "min_gain_margin")
         for name in positive:
             v = getattr(self, name)
@@ -472,10 +476,10 @@ class _Run:
         nrm = Servo(nom[0] - c.clearance, dt=dt, servo_lag=c.servo_lag, delay=self.delay)
         ref, moving, seen, t_seen, integ, held = T0, False, False, 0.0, 0.0, 0.0
         x_pad = nrm.actual
-        out = {k: [] for k in ("t", "progress", "set", "contact", "measured", "command", "actual", "moving", "ref")}
+        out = {k: [] for k in ("progress", "set", "contact", "measured", "command", "actual", "moving", "ref")}
         max_ticks = int(((T1 - T0) + c.max_hold + 2.0 + 10 * c.clearance / c.approach_speed) * c.rate) + 10
         noise = self.rng.standard_normal(max_ticks) * self.noise if self.noise > 0 else None
-        settle = settled = 0
+        settled = 0
         for k in range(max_ticks):
             tau = min(max(tan.actual, T0), T1)
             i = max(0, min(bisect.bisect_right(Tl, tau) - 1, n - 2)) if n > 1 else 0
@@ -521,7 +525,6 @@ class _Run:
                             log.warning("contact run %d: force %.3g N did not settle within %.3g N of %.3g N in %g s; "
                                         "starting anyway", index, fm, c.start_tolerance * F, F, c.max_hold)
                             moving = True
-            out["t"].append(0.0)
             out["progress"].append(tau)
             out["set"].append(sp)
             out["contact"].append(fc)
@@ -538,11 +541,13 @@ class _Run:
                 ref = min(ref + dt, T1)
             nrm.step(v)
             tan.step(u)
-            if moving and ref >= T1 and T1 - tan.actual < 1e-4 * max(dt, 1e-3):
-                settle += 1
-                if settle > 2:
-                    break
-        m = len(out["t"])
+            if moving and ref >= T1 and T1 - tan.actual < 0.5 * dt:
+                break
+            if not seen and c.mode == "hybrid" and nrm.command > nom[0] + c.search_depth:
+                log.warning("contact run %d: no contact within %.3g mm beyond the nominal sink; the pass is "
+                            "skipped (is the part where the plan expects it?)", index, 1e3 * c.search_depth)
+                break
+        m = len(out["progress"])
         res = {k: np.asarray(v, float) for k, v in out.items()}
         res["t"] = start_time + T0 + np.arange(m) * dt
         res["run"] = np.full(m, index)
