@@ -137,3 +137,30 @@ def test_a_part_far_below_the_plan_skips_the_pass_with_a_warning(plate, two_pass
     assert "no contact within 5 mm" in caplog.text
     assert not trace.moving.any() and np.all(trace.force == 0)
     assert np.isnan(trace.metrics["rms_force_error_n"])
+
+
+def test_curved_part_with_registration_error_and_tilted_tool():
+    from swath.examples import doubly_curved_panel
+
+    part = doubly_curved_panel(size_x=0.24, size_y=0.2, radius_x=0.35, radius_y=0.9, spacing=4e-3)
+    tool = Tool()
+    ys = (-0.04, 0.04)
+    xs = np.linspace(-0.08, 0.08, 33)
+    passes = []
+    for y in ys:
+        z = (np.sqrt(0.35**2 - xs**2) - 0.35) + (np.sqrt(0.9**2 - y**2) - 0.9)
+        pts = np.stack([xs, np.full_like(xs, y), z], axis=1)
+        nrm = np.stack([xs / 0.35, np.full_like(xs, y / 0.9), np.sqrt(1 - (xs / 0.35) ** 2 - (y / 0.9) ** 2)], axis=1)
+        passes.append(Pass(pts, nrm / np.linalg.norm(nrm, axis=1, keepdims=True)))
+    tr = time_path(ToolPath(part, passes, "test"), [FeedLimit(0.05)])
+    dist = Disturbance(part_offset=(0.2e-3, 0.1e-3, 0.45e-3, 5e-4, 5e-4, 0), tool_mass=2.0,
+                       gravity=gravity_for_tilt(math.radians(30)))
+    a = simulate_force(tr, part, tool, controller=ForceController(latency=0.008), disturbance=dist)
+    b = simulate_force(tr, part, tool, controller=ForceController(latency=0.008, gravity_compensation=False),
+                       disturbance=dist)
+    c = simulate_force(tr, part, tool, controller=ForceController(latency=0.008, mode="position"), disturbance=dist)
+    assert a.metrics["rms_force_error_fraction"] < 0.02
+    assert b.metrics["rms_force_error_fraction"] > 0.10
+    assert c.metrics["rms_force_error_fraction"] > 0.25
+    # the nominal sink on a convex part is deeper than the flat depression
+    assert np.nanmin(a.nominal_offset) > tool.flat_depression

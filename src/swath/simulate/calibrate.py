@@ -174,8 +174,9 @@ def read_trials(path, *, pad_radius: float = 0.0381) -> Trials:
     path = Path(path)
     try:
         with open(path, encoding="utf-8", newline="") as fh:
-            rows = list(csv.DictReader(fh))
-            header = rows[0].keys() if rows else []
+            reader = csv.DictReader(fh)
+            rows = list(reader)
+            header = [h.strip() for h in (reader.fieldnames or [])]
     except OSError as exc:
         raise InputError(f"cannot read trials {path}: {exc}") from exc
     missing = [c for c in _REQUIRED if c not in header]
