@@ -27,9 +27,9 @@ from common import print_table
 
 
 def main():
-    from swath.contact import Tool
     from scipy.spatial.transform import Rotation
 
+    from swath.contact import Tool
     from swath.examples import doubly_curved_panel, flat_plate
     from swath.plan.raster import raster
     from swath.simulate import Disturbance, ForceController, gravity_for_tilt, simulate_force, simulate_removal

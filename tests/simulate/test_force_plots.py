@@ -1,6 +1,5 @@
 """The force and calibration figures render, with the curves they promise."""
 
-import math
 
 import numpy as np
 import pytest

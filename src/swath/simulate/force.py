@@ -238,7 +238,8 @@ class ForceTrace:
     Attributes
     ----------
     t : (m,) float
-        Time of each tick, s: plan time plus the waiting accumulated in earlier contact phases.
+        Time of each tick, s: each run's descent starts at the plan time of its first sample plus
+        the time earlier runs' contact phases added to the plan.
     progress : (m,) float
         Plan time the tool has actually reached along the trajectory, s.
     set_force : (m,) float
