@@ -10,7 +10,8 @@ The full factorial runs every combination (here 64).  A fractional factorial nam
 a generated factor takes the level number ``(i₁ + i₂ + …) mod L`` of its base factors' level
 numbers, so ``{"spindle_speed_rpm": ("grit", "force_N")}`` turns the design above into the 16-run
 Latin square in which every pair of factors meets at every pair of levels once; with two-level
-factors it is the classic ``2^(k−p)`` design (``C = AB``).
+factors it is the classic ``2^(k−p)`` half fraction (levels listed low, high: ``C = −AB`` in ±1
+coding, i.e. the fraction ``I = −ABC``; list C's levels high, low for ``C = AB``).
 """
 
 from __future__ import annotations
