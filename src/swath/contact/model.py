@@ -101,7 +101,7 @@ class MeshContact:
 
 
 def mesh_contact(points: np.ndarray, normals: np.ndarray, areas: np.ndarray, tree,
-                 positions: np.ndarray, axes: np.ndarray, tool: Tool) -> MeshContact:
+                 positions: np.ndarray, axes: np.ndarray, tool: Tool, *, force=None) -> MeshContact:
     """Pad contact on surface samples for poses ``positions`` ``(P, 3)`` with tool z ``axes`` ``(P, 3)``.
 
     Parameters
@@ -117,6 +117,8 @@ def mesh_contact(points: np.ndarray, normals: np.ndarray, areas: np.ndarray, tre
     axes : (P, 3) float
         Unit tool z-axes (pointing into the part).
     tool : Tool
+    force : (P,) float, optional
+        Normal force per pose, N (default ``tool.force`` at every pose).
 
     Returns
     -------
@@ -145,7 +147,7 @@ def mesh_contact(points: np.ndarray, normals: np.ndarray, areas: np.ndarray, tre
     keep = (r2 <= R * R * (1 + 1e-6)) & (np.einsum("ij,ij->i", normals[sample], a) < 0.0)
     pose, sample = pose[keep], sample[keep]
     z, r2 = z[keep].astype(float), r2[keep].astype(float)
-    target = np.full(P, tool.force / tool.k)
+    target = np.full(P, tool.force / tool.k) if force is None else np.asarray(force, float) / tool.k
     sink = solve_sink(z, areas[sample], pose, target)
     h = sink[pose] - z
     touch = h > 0

@@ -72,7 +72,7 @@ def contact_dwell(trajectory) -> np.ndarray:
 
 
 def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float | None = None,
-                     chunk: int = 1500, progress=None) -> RemovalMap:
+                     chunk: int = 1500, progress=None, force=None) -> RemovalMap:
     """Integrate Preston removal of ``trajectory`` over ``surface``.
 
     Parameters
@@ -88,6 +88,10 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         Poses processed per vectorised batch (memory ~ chunk × samples under the pad).
     progress : callable, optional
         Called as ``progress(done, total)`` after each batch.
+    force : (n,) float, optional
+        Normal force per trajectory sample, N (e.g. ``ForceTrace.force`` from
+        :func:`swath.simulate.simulate_force`): each integration pose solves the force balance for
+        the dwell-weighted mean force of the samples it stands for, instead of ``tool.force``.
 
     Returns
     -------
@@ -102,12 +106,16 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
     tree = samples.kdtree
     idx, dwell = _integration_poses(trajectory, INTEGRATION_STEP * spacing)
+    pose_force = None
+    if force is not None:
+        pose_force = _pose_force(trajectory, force, idx)
     axes = trajectory.tool_z()
     depth = np.zeros(len(pts))
 
     def batch(lo: int) -> np.ndarray:
         sel = idx[lo:lo + chunk]
-        mc = mesh_contact(pts, nrm, area, tree, trajectory.position[sel], axes[sel], tool)
+        mc = mesh_contact(pts, nrm, area, tree, trajectory.position[sel], axes[sel], tool,
+                          force=None if pose_force is None else pose_force[lo:lo + chunk])
         rate = tool.preston * mc.pressure * tool.relative_speed(mc.radius)
         return np.bincount(mc.sample, weights=rate * dwell[lo:lo + chunk][mc.pose], minlength=len(pts))
 
@@ -149,6 +157,28 @@ def _integration_poses(trajectory, max_travel: float) -> tuple[np.ndarray, np.nd
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     rep = idx[starts + counts // 2]
     return rep, sums
+
+
+def _pose_force(trajectory, force, idx: np.ndarray) -> np.ndarray:
+    """Force (N) at each integration pose ``idx``: the dwell-weighted mean of ``force`` over the
+    in-contact samples nearest to it along the trajectory (the samples it stands for)."""
+    force = np.asarray(force, float)
+    if force.shape != (len(trajectory),) or not np.all(np.isfinite(force)) or np.any(force < 0):
+        raise InputError(f"force must be ({len(trajectory)},) finite non-negative newtons, one per trajectory "
+                         f"sample, got shape {force.shape}")
+    if len(idx) == 0:
+        return np.zeros(0)
+    dwell = contact_dwell(trajectory)
+    live = np.flatnonzero(trajectory.contact & (dwell > 0))
+    # each live sample belongs to the nearest representative at or after its group start
+    owner = np.clip(np.searchsorted(idx, live, side="left"), 0, len(idx) - 1)
+    prev = np.clip(owner - 1, 0, len(idx) - 1)
+    closer_prev = np.abs(live - idx[prev]) < np.abs(idx[owner] - live)
+    owner = np.where(closer_prev, prev, owner)
+    w = dwell[live]
+    num = np.bincount(owner, weights=w * force[live], minlength=len(idx))
+    den = np.bincount(owner, weights=w, minlength=len(idx))
+    return np.where(den > 0, num / np.maximum(den, 1e-300), force[idx])
 
 
 def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:

@@ -15,6 +15,9 @@ column    meaning
           with ``Ω`` the frame's rotation per metre of travel; see :mod:`swath.trajectory.timing`)
 ``wy``    the same about the part frame's y-axis, rad/s
 ``wz``    the same about the part frame's z-axis, rad/s
+``force`` (only when the force control was simulated) mean normal contact force while the tool
+          passed the sample, N, from :func:`swath.simulate.simulate_force` (added by
+          :func:`swath.simulate.force.trajectory_with_force`); ``0`` off contact
 ========  ==========================================================================================
 
 The angular velocity is expressed in the part frame (not the tool frame): between two samples
@@ -43,6 +46,7 @@ EXTRA_COLUMNS = {
     "wx": "angular velocity of the tool frame about the part x-axis, rad/s (part frame)",
     "wy": "angular velocity of the tool frame about the part y-axis, rad/s (part frame)",
     "wz": "angular velocity of the tool frame about the part z-axis, rad/s (part frame)",
+    "force": "simulated normal contact force at the sample, N (0 off contact); only with force control",
 }
 
 
