@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..units import length_unit_factor
-from .mesh import _check_extent, _check_file
+from .checks import check_extent, check_file
 
 log = logging.getLogger("swath.io")
 
@@ -61,7 +61,7 @@ def load_points(path, *, units: str = "m", force_units: bool = False):
         points, or an implausible size (naming the likely unit).
     """
     path = Path(path)
-    ext = _check_file(path, POINT_EXTENSIONS, "point cloud")
+    ext = check_file(path, POINT_EXTENSIONS, "point cloud")
     factor = length_unit_factor(units)
     label = path.name
     if ext == ".ply":
@@ -84,7 +84,7 @@ def load_points(path, *, units: str = "m", force_units: bool = False):
     if len(pts) < MIN_POINTS:
         raise InputError(f"{label} has {len(pts)} points; at least {MIN_POINTS} are needed to fit a surface")
     pts = pts * factor
-    _check_extent(float(np.ptp(pts, axis=0).max()) / factor, units, force_units, label)
+    check_extent(float(np.ptp(pts, axis=0).max()) / factor, units, force_units, label)
     if nrm is not None:
         nrm = _unit_normals(nrm, label)
     log.info("%s: %d points%s, extents %s m", label, len(pts), " with normals" if nrm is not None else "",
