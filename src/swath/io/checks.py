@@ -6,7 +6,7 @@ import logging
 from pathlib import Path
 
 from ..errors import InputError
-from ..units import length_unit_factor
+from ..units import canonical_length_unit, length_unit_factor
 
 log = logging.getLogger("swath.io")
 
@@ -43,6 +43,7 @@ def check_file(path: Path, extensions, what: str) -> str:
 
 def check_extent(extent_file_units: float, units: str, force_units: bool, label: str) -> None:
     """Refuse or warn about an implausible part size (largest extent in the file's unit)."""
+    units = canonical_length_unit(units)
     size = float(extent_file_units) * length_unit_factor(units)
     lo, hi = SIZE_LIMITS
     guess = likely_unit(extent_file_units, exclude=units)
@@ -69,6 +70,7 @@ def check_extent(extent_file_units: float, units: str, force_units: bool, label:
 def likely_unit(extent_file_units: float, *, exclude: str | None = None) -> str | None:
     """The unit among m, mm, in that makes a part of this extent (file units) 5 mm .. 20 m across,
     preferring 0.05 .. 3 m; None when no unit does."""
+    exclude = None if exclude is None else canonical_length_unit(exclude)
     sizes = {u: extent_file_units * length_unit_factor(u) for u in SUGGESTED_UNITS if u != exclude}
     ok = [u for u, s in sizes.items() if SIZE_LIMITS[0] <= s <= SIZE_LIMITS[1]]
     good = [u for u in ok if PREFERRED_SIZE[0] <= sizes[u] <= PREFERRED_SIZE[1]]

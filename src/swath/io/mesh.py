@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..units import length_unit_factor
+from ..units import canonical_length_unit, length_unit_factor
 from .atomic import atomic_file
 from .checks import (  # noqa: F401 - re-exported: the public names of the mesh stage
     LARGE_PART,
@@ -153,6 +153,7 @@ def load_mesh(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
     path = Path(path)
     ext = check_file(path, MESH_EXTENSIONS, "mesh")
     side_vec = None if side is None else parse_side(side)
+    units = canonical_length_unit(units)
     factor = length_unit_factor(units)
     label = path.name
 
@@ -193,17 +194,25 @@ def load_mesh(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
     # --- non-manifold edges ---------------------------------------------------------------
     areas = face_areas(v, f)
     total = float(areas.sum())
-    drop, n_bad_edges, n_edges = nonmanifold_faces(f, areas)
+    n_edges_tolerated = max(NONMANIFOLD_EDGES_TOLERATED, int(MAX_NONMANIFOLD_EDGE_FRACTION * 1.5 * len(f)))
+    drop, n_bad_edges, n_edges = nonmanifold_faces(v, f, areas, max_edges=n_edges_tolerated)
     if n_bad_edges:
         frac_e = n_bad_edges / n_edges
         frac_a = float(areas[drop].sum()) / total
-        too_many = n_bad_edges > max(NONMANIFOLD_EDGES_TOLERATED, MAX_NONMANIFOLD_EDGE_FRACTION * n_edges)
-        if too_many or frac_a > MAX_DROPPED_AREA_FRACTION:
+        if n_bad_edges > max(NONMANIFOLD_EDGES_TOLERATED, MAX_NONMANIFOLD_EDGE_FRACTION * n_edges):
             raise InputError(
                 f"{label} is badly broken: {n_bad_edges} edges ({100 * frac_e:.1f}%) are shared by more than "
                 f"two faces; repair the mesh (e.g. MeshLab 'Repair non manifold edges') and load it again")
-        log.warning("%s: %d non-manifold edges (shared by more than two faces); dropped the %d smallest "
-                    "faces on them (%.3g%% of the area)", label, n_bad_edges, int(drop.sum()), 100 * frac_a)
+        if frac_a > MAX_DROPPED_AREA_FRACTION:
+            raise InputError(
+                f"{label}: {n_bad_edges} edges are shared by more than two faces, and the faces branching off "
+                f"the surface there carry {100 * frac_a:.1f}% of the area (more than "
+                f"{100 * MAX_DROPPED_AREA_FRACTION:g}% would be dropped); repair the mesh (e.g. MeshLab "
+                "'Repair non manifold edges') and load it again")
+        log.warning("%s: %d edges are shared by more than two faces; kept on each the two faces that continue "
+                    "the surface (least bend across the edge) and dropped %d faces branching off it, with the "
+                    "sheets attached only through them (%.4g m², %.3g%% of the area)", label, n_bad_edges,
+                    int(drop.sum()), float(areas[drop].sum()), 100 * frac_a)
         f, orig, areas = f[~drop], orig[~drop], areas[~drop]
 
     # --- consistent winding, pieces ---------------------------------------------------------

@@ -1,84 +1,378 @@
-"""Read the raw triangles of a mesh file (STL, PLY, OBJ): vertices, faces, and the file's normals."""
+"""Read the raw triangles of a mesh file (STL, PLY, OBJ): vertices, faces and the file's normals.
+
+The text formats are parsed here, exactly, so that a malformed row is refused with its line
+number instead of being skipped or misread:
+
+- OBJ: ``v``/``vn``/``f`` records, polygon faces fan-triangulated, ``v/vt/vn`` corner forms,
+  negative (relative) indices resolved against the vertices defined *before* the face (as the
+  OBJ format defines them), line continuations (``\\``); groups, materials and texture
+  coordinates are ignored.
+- ASCII PLY: the header's elements and properties, then exactly one row per element; a blank,
+  short, long or non-numeric row is refused naming its line.
+
+Binary PLY and STL (binary and ASCII) are read with trimesh's parsers, after checking the file is
+what its extension says.  Positions are returned as float64, as written in the file.
+"""
 
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 
+#: PLY scalar types and their numpy dtypes (both the spec's names and the sized aliases).
+_PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
+              "float": "f4", "double": "f8", "int8": "i1", "uint8": "u1", "int16": "i2", "uint16": "u2",
+              "int32": "i4", "uint32": "u4", "float32": "f4", "float64": "f8"}
+_PLY_FACE_LISTS = ("vertex_indices", "vertex_index")
+
 
 def read_mesh_file(path: Path, ext: str):
-    """Raw ``(vertices (n,3) float, faces (m,3) int, per-face file normals (m,3) or None)``."""
-    from trimesh.exchange import obj, ply, stl
+    """The raw triangles of a mesh file.
 
+    Parameters
+    ----------
+    path : Path
+        The file.
+    ext : str
+        Its lower-case extension, ``.stl``, ``.ply`` or ``.obj``.
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+        Positions in the file's unit.
+    faces : (m, 3) int64
+        Triangles (polygons fan-triangulated); indices in ``0..n-1``.
+    face_normals : (m, 3) float or None
+        Per face, the sum of the file's unit normals at its corners (None when the file has none).
+
+    Raises
+    ------
+    InputError
+        When the file is not what its extension says, is malformed (naming the line for the text
+        formats), or its faces refer to vertices it does not have.
+    """
     data = path.read_bytes()
-    if ext == ".stl":
-        _sniff_stl(data, path.name)
-    elif ext == ".ply" and not data.lstrip()[:3] == b"ply":
-        raise InputError(f"{path.name} is not a PLY file (it does not start with 'ply'); check the file")
-    elif ext == ".obj" and b"\x00" in data[:65536]:
-        raise InputError(f"{path.name} holds binary data, not a text OBJ; check the file or re-export it")
-    loader = {".stl": stl.load_stl, ".ply": ply.load_ply, ".obj": obj.load_obj}[ext]
-    try:
-        kw = loader(io.BytesIO(data))
-    except Exception as exc:  # noqa: BLE001 - any parser failure is an unreadable file
-        raise InputError(f"could not read {path.name} as {ext[1:].upper()}: {exc}; check the file or "
-                         "re-export it") from None
-    parts = list(kw["geometry"].values()) if isinstance(kw, dict) and "geometry" in kw else [kw]
-    vs, fs, ns = [], [], []
-    offset = 0
-    for part in parts:
-        if not isinstance(part, dict) or part.get("vertices") is None:
+    label = path.name
+    if ext == ".obj":
+        return read_obj(data, label)
+    if ext == ".ply":
+        v, f, vn = read_ply(data, label)
+        if f is None:
+            f = np.zeros((0, 3), dtype=np.int64)
+        return v, f, _face_normals_from_vertex_normals(f, vn)
+    return _read_stl(data, label)
+
+
+# --------------------------------------------------------------------------------------------
+# OBJ
+# --------------------------------------------------------------------------------------------
+def read_obj(data: bytes, label: str):
+    """Parse a Wavefront OBJ; returns ``(vertices (n,3) float64, faces (m,3) int64, face normals or None)``.
+
+    Negative indices count back from the last ``v`` (or ``vn``) record before the face, so
+    ``f -3 -2 -1`` is the triangle of the three vertices just defined.
+    """
+    if b"\x00" in data[:65536]:
+        raise InputError(f"{label} holds binary data, not a text OBJ; check the file or re-export it")
+    text = data.decode("utf-8-sig", errors="replace")
+    lines = text.splitlines()
+    positions: list[list[float]] = []
+    normals: list[list[float]] = []
+    corners: list[int] = []          # vertex index of each face corner, flattened
+    corner_normals: list[int] = []   # normal index of each corner, -1 when the corner has none
+    counts: list[int] = []           # corners per face
+    face_lines: list[int] = []       # 1-based line of each face
+    lineno, n_lines = 0, len(lines)
+    while lineno < n_lines:
+        start = lineno
+        line = lines[lineno]
+        lineno += 1
+        while line.endswith("\\") and lineno < n_lines:      # continuation
+            line = line[:-1] + " " + lines[lineno]
+            lineno += 1
+        tokens = line.split("#", 1)[0].split()
+        if not tokens:
             continue
-        vv = np.asarray(part["vertices"], dtype=float).reshape(-1, 3)
-        ff = _triangulate(part.get("faces"), path.name)
-        vn = part.get("vertex_normals")
-        vn = None if vn is None else np.asarray(vn, dtype=float)
-        if vn is not None and vn.shape != vv.shape:
-            vn = None
-        vs.append(vv)
-        fs.append(ff + offset)
-        ns.append(vn)
-        offset += len(vv)
-    if not vs:
-        raise InputError(f"{path.name} holds no geometry; check the file or re-export it")
-    v = np.concatenate(vs)
-    f = np.concatenate(fs).astype(np.int64)
+        key = tokens[0]
+        if key == "v" or key == "vn":
+            if len(tokens) < 4:
+                raise InputError(f"{label}, line {start + 1}: a '{key}' record needs 3 numbers, got "
+                                 f"{len(tokens) - 1} ({line.strip()[:60]!r}); check the file or re-export it")
+            try:
+                xyz = [float(t) for t in tokens[1:4]]
+            except ValueError:
+                raise InputError(f"{label}, line {start + 1}: expected 3 numbers after '{key}', got "
+                                 f"{' '.join(tokens[1:4])[:60]!r}; check the file or re-export it") from None
+            (positions if key == "v" else normals).append(xyz)
+        elif key == "f":
+            if len(tokens) < 4:
+                raise InputError(f"{label}, line {start + 1}: a face needs at least 3 vertices, got "
+                                 f"{len(tokens) - 1}; check the file or re-export it")
+            n_v, n_n = len(positions), len(normals)
+            for tok in tokens[1:]:
+                parts = tok.split("/")
+                try:
+                    vi = int(parts[0])
+                    ni = int(parts[2]) if len(parts) > 2 and parts[2] else 0
+                except ValueError:
+                    raise InputError(f"{label}, line {start + 1}: {tok!r} is not a vertex reference such as "
+                                     "'7', '7/3' or '7//2'; check the file or re-export it") from None
+                corners.append(_obj_index(vi, n_v, "vertex", label, start))
+                corner_normals.append(_obj_index(ni, n_n, "normal", label, start) if ni else -1)
+            counts.append(len(tokens) - 1)
+            face_lines.append(start + 1)
+    v = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    corner_v = np.asarray(corners, dtype=np.int64)
+    too_far = np.flatnonzero(corner_v >= len(v))
+    if too_far.size:
+        face = int(np.searchsorted(np.cumsum(counts), too_far[0], side="right"))
+        raise InputError(f"{label}, line {face_lines[face]}: face refers to vertex {corner_v[too_far[0]] + 1} "
+                         f"but the file has {len(v)} vertices; the file is corrupt, re-export it")
+    f = _fan(corner_v, np.asarray(counts, dtype=np.int64))
     face_normals = None
-    if all(n is not None for n in ns) and len(f):
-        vn = np.concatenate(ns)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            vn = vn / np.linalg.norm(vn, axis=1, keepdims=True)
-        vn = np.nan_to_num(vn, nan=0.0, posinf=0.0, neginf=0.0)
-        if f.max() < len(vn) and f.min() >= 0:
-            face_normals = vn[f].sum(axis=1)
-            if not np.abs(face_normals).sum() > 0:
-                face_normals = None
+    corner_n = np.asarray(corner_normals, dtype=np.int64)
+    if len(f) and len(normals) and (corner_n >= 0).all():
+        if corner_n.max() >= len(normals):
+            raise InputError(f"{label}: a face refers to normal {corner_n.max() + 1} but the file has "
+                             f"{len(normals)}; the file is corrupt, re-export it")
+        unit = _unit_rows(np.asarray(normals, dtype=np.float64))
+        per_corner = _fan(np.arange(len(corner_n)), np.asarray(counts, dtype=np.int64))
+        face_normals = unit[corner_n[per_corner]].sum(axis=1)
+        if not np.abs(face_normals).sum() > 0:
+            face_normals = None
     return v, f, face_normals
 
 
-def _triangulate(faces, label: str) -> np.ndarray:
-    """Polygon faces (m,k) array or ragged list → (t, 3) int triangles (fan)."""
-    if faces is None:
+def _obj_index(index: int, n_defined: int, what: str, label: str, line: int) -> int:
+    """0-based index of an OBJ reference (1-based, or negative: relative to the last defined)."""
+    if index > 0:
+        return index - 1               # checked against the final count (forward references are tolerated)
+    if index < 0 and n_defined + index >= 0:
+        return n_defined + index
+    raise InputError(f"{label}, line {line + 1}: {what} reference {index} is invalid (OBJ indices start at 1; "
+                     f"-k means the k-th last, and {n_defined} {what}s are defined before this line); "
+                     "the file is corrupt, re-export it")
+
+
+def _fan(corners: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Fan triangles (t, 3) of polygons given as flattened ``corners`` with ``counts`` corners each."""
+    if len(counts) == 0:
         return np.zeros((0, 3), dtype=np.int64)
+    start = np.r_[0, np.cumsum(counts)[:-1]]
+    n_tri = counts - 2
+    first = np.repeat(start, n_tri)
+    step = np.arange(int(n_tri.sum())) - np.repeat(np.r_[0, np.cumsum(n_tri)[:-1]], n_tri)
+    return np.stack([corners[first], corners[first + step + 1], corners[first + step + 2]], axis=1)
+
+
+# --------------------------------------------------------------------------------------------
+# PLY
+# --------------------------------------------------------------------------------------------
+def read_ply(data: bytes, label: str):
+    """Parse a PLY file (ASCII exactly, binary with trimesh).
+
+    Returns
+    -------
+    vertices : (n, 3) float64
+    faces : (m, 3) int64 or None
+        Fan-triangulated faces, or None when the file has no face element.
+    vertex_normals : (n, 3) float or None
+        The ``nx ny nz`` properties when present.
+    """
+    if data.lstrip()[:3] != b"ply":
+        raise InputError(f"{label} is not a PLY file (it does not start with 'ply'); check the file")
+    fmt, elements, body_start, n_header_lines = _ply_header(data, label)
+    if fmt == "ascii":
+        return _read_ascii_ply(data[body_start:], elements, n_header_lines, label)
+    return _read_binary_ply(data, label)
+
+
+def _ply_header(data: bytes, label: str):
+    """``(format, [(name, count, [(prop, list_count_type or None)])], body offset, header lines)``."""
+    match = re.search(rb"end_header[ \t]*\r?\n", data)
+    if match is None:
+        if data.rstrip().endswith(b"end_header"):
+            match = re.search(rb"end_header\s*$", data)
+        else:
+            raise InputError(f"{label}: the PLY header has no 'end_header' line; the file is truncated or not a PLY")
+    header = data[:match.start()].decode("ascii", errors="replace").splitlines()
+    fmt = None
+    elements: list = []
+    for i, line in enumerate(header, start=1):
+        tokens = line.split()
+        if not tokens or tokens[0] in ("ply", "comment", "obj_info"):
+            continue
+        if tokens[0] == "format" and len(tokens) >= 2:
+            fmt = tokens[1]
+        elif tokens[0] == "element" and len(tokens) == 3:
+            try:
+                count = int(tokens[2])
+            except ValueError:
+                count = -1
+            if count < 0:
+                raise InputError(f"{label}, line {i}: element {tokens[1]!r} has count {tokens[2]!r}, expected a "
+                                 "whole number >= 0; the file is corrupt")
+            elements.append((tokens[1], count, []))
+        elif tokens[0] == "property" and elements:
+            if len(tokens) == 5 and tokens[1] == "list" and tokens[2] in _PLY_TYPES and tokens[3] in _PLY_TYPES:
+                elements[-1][2].append((tokens[4], tokens[2]))
+            elif len(tokens) == 3 and tokens[1] in _PLY_TYPES:
+                elements[-1][2].append((tokens[2], None))
+            else:
+                raise InputError(f"{label}, line {i}: cannot read the PLY property {line.strip()[:60]!r}")
+        else:
+            raise InputError(f"{label}, line {i}: unexpected PLY header line {line.strip()[:60]!r}")
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise InputError(f"{label}: PLY format {fmt!r} is not ascii, binary_little_endian or binary_big_endian")
+    return fmt, elements, match.end(), len(header) + 1
+
+
+def _read_ascii_ply(body: bytes, elements, n_header_lines: int, label: str):
+    lines = body.decode("ascii", errors="replace").split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    row = 0
+    tables: dict = {}
+    for name, count, props in elements:
+        if row + count > len(lines):
+            raise InputError(f"{label}: the file ends at line {n_header_lines + len(lines)} but element {name!r} "
+                             f"needs {count} rows from line {n_header_lines + row + 1}; the file is truncated")
+        tables[name] = _ascii_rows(lines[row:row + count], props, n_header_lines + row + 1, name, label)
+        row += count
+    extra = [i for i in range(row, len(lines)) if lines[i].strip()]
+    if extra:
+        raise InputError(f"{label}, line {n_header_lines + extra[0] + 1}: {len(extra)} rows more than the header "
+                         "declares; the element counts are wrong, re-export the file")
+    vertex = tables.get("vertex")
+    if vertex is None or not all(c in vertex for c in "xyz"):
+        raise InputError(f"{label} has no vertex element with x, y, z properties; check the file")
+    v = np.column_stack([vertex[c] for c in "xyz"]).astype(np.float64).reshape(-1, 3)
+    normals = None
+    if all(c in vertex for c in ("nx", "ny", "nz")):
+        normals = np.column_stack([vertex[c] for c in ("nx", "ny", "nz")]).astype(np.float64)
+    face = tables.get("face")
+    faces = None
+    if face is not None:
+        key = next((k for k in _PLY_FACE_LISTS if k in face), None)
+        if key is not None:
+            polys, first_line = face[key], face["_first_line"]
+            counts = np.array([len(p) for p in polys], dtype=np.int64)
+            small = np.flatnonzero(counts < 3)
+            if small.size:
+                raise InputError(f"{label}, line {first_line + small[0]}: a face has {counts[small[0]]} vertices, "
+                                 "a face needs at least 3; check the file or re-export it")
+            corners = np.concatenate(polys) if polys else np.zeros(0, dtype=np.int64)
+            bad = np.flatnonzero((corners < 0) | (corners >= len(v)))
+            if bad.size:
+                face_no = int(np.searchsorted(np.cumsum(counts), bad[0], side="right"))
+                raise InputError(f"{label}, line {first_line + face_no}: face refers to vertex {corners[bad[0]]} but "
+                                 f"the file has {len(v)} vertices (0..{len(v) - 1}); the file is corrupt, re-export it")
+            faces = _fan(corners, counts)
+    return v, faces, normals
+
+
+def _ascii_rows(rows: list[str], props, first_line: int, name: str, label: str) -> dict:
+    """Parse ``rows`` of one element: scalar properties -> (count,) float, list properties -> list of int arrays."""
+    out: dict = {"_first_line": first_line}
+    is_list = [kind is not None for _, kind in props]
+    split = [r.split() for r in rows]
+    if not any(is_list):
+        lens = np.array([len(t) for t in split], dtype=np.int64)
+        bad = np.flatnonzero(lens != len(props))
+        if bad.size:
+            raise InputError(_row_error(label, first_line + bad[0], name, rows[bad[0]], len(props)))
+        try:
+            table = np.array(split, dtype=np.float64).reshape(len(rows), len(props))
+        except ValueError:
+            for i, toks in enumerate(split):
+                try:
+                    [float(t) for t in toks]
+                except ValueError:
+                    raise InputError(f"{label}, line {first_line + i}: {name} row {rows[i].strip()[:60]!r} holds "
+                                     "a value that is not a number; check the file") from None
+            raise
+        for j, (prop, _) in enumerate(props):
+            out[prop] = table[:, j]
+        return out
+    columns: list[list] = [[] for _ in props]
+    for i, toks in enumerate(split):
+        pos = 0
+        try:
+            for j, (_, kind) in enumerate(props):
+                if kind is None:
+                    columns[j].append(float(toks[pos]))
+                    pos += 1
+                else:
+                    n = int(toks[pos])
+                    if n < 0 or pos + 1 + n > len(toks):
+                        raise IndexError
+                    columns[j].append(np.array([int(t) for t in toks[pos + 1:pos + 1 + n]], dtype=np.int64))
+                    pos += 1 + n
+            if pos != len(toks):
+                raise IndexError
+        except IndexError:
+            expected = None
+            if len(props) == 1 and toks and toks[0].isdigit():
+                expected = 1 + int(toks[0])          # the row's own count, plus the count itself
+            raise InputError(_row_error(label, first_line + i, name, rows[i], expected)) from None
+        except ValueError:
+            raise InputError(f"{label}, line {first_line + i}: {name} row {rows[i].strip()[:60]!r} holds a value "
+                             "that is not a whole number where one is expected; check the file") from None
+    for j, (prop, kind) in enumerate(props):
+        out[prop] = columns[j] if kind is not None else np.asarray(columns[j], dtype=np.float64)
+    return out
+
+
+def _row_error(label: str, line: int, name: str, row: str, expected: int | None) -> str:
+    got = len(row.split())
+    what = "is blank" if got == 0 else f"has {got} values ({row.strip()[:60]!r})"
+    want = (f"{expected} values" if expected is not None else
+            "as many values as its properties and list counts say")
+    return (f"{label}, line {line}: the {name} row {what}, expected {want}; the file is truncated or corrupt, "
+            "re-export it")
+
+
+def _read_binary_ply(data: bytes, label: str):
+    from trimesh.exchange import ply
+
     try:
-        arr = np.asarray(faces, dtype=np.int64)
-        rows = None if arr.ndim != 2 else arr
-    except (ValueError, TypeError):
-        rows = None
-    if rows is not None:
-        if rows.shape[1] < 3:
-            return np.zeros((0, 3), dtype=np.int64)
-        k = rows.shape[1]
-        idx = np.stack([np.zeros(k - 2, int), np.arange(1, k - 1), np.arange(2, k)], axis=1)
-        return rows[:, idx].reshape(-1, 3)
-    polys = [np.asarray(p, dtype=np.int64).ravel() for p in faces]
-    out = [p[np.stack([np.zeros(len(p) - 2, int), np.arange(1, len(p) - 1), np.arange(2, len(p))], 1)]
-           for p in polys if len(p) >= 3]
-    return np.concatenate(out) if out else np.zeros((0, 3), dtype=np.int64)
+        kw = ply.load_ply(io.BytesIO(data))
+    except Exception as exc:  # noqa: BLE001 - any parser failure is an unreadable file
+        raise InputError(f"could not read {label} as PLY: {exc}; check the file or re-export it") from None
+    v = np.asarray(kw.get("vertices", np.zeros((0, 3))), dtype=np.float64).reshape(-1, 3)
+    faces = kw.get("faces")
+    faces = None if faces is None else _triangulate(faces)
+    vn = kw.get("vertex_normals")
+    vn = None if vn is None else np.asarray(vn, dtype=np.float64)
+    if vn is not None and vn.shape != v.shape:
+        vn = None
+    if faces is not None and len(faces) and (faces.min() < 0 or faces.max() >= len(v)):
+        raise InputError(f"{label}: face indices run {faces.min()}..{faces.max()} but there are {len(v)} vertices; "
+                         "the file is corrupt, re-export it")
+    return v, faces, vn
+
+
+# --------------------------------------------------------------------------------------------
+# STL
+# --------------------------------------------------------------------------------------------
+def _read_stl(data: bytes, label: str):
+    from trimesh.exchange import stl
+
+    _sniff_stl(data, label)
+    try:
+        kw = stl.load_stl(io.BytesIO(data))
+    except Exception as exc:  # noqa: BLE001 - any parser failure is an unreadable file
+        raise InputError(f"could not read {label} as STL: {exc}; check the file or re-export it") from None
+    v = np.asarray(kw["vertices"], dtype=np.float64).reshape(-1, 3)
+    f = _triangulate(kw.get("faces"))
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        raise InputError(f"could not read {label} as STL: its triangles are inconsistent; re-export it")
+    return v, f, None
 
 
 def _sniff_stl(data: bytes, label: str) -> None:
@@ -90,3 +384,39 @@ def _sniff_stl(data: bytes, label: str) -> None:
         return
     raise InputError(f"{label} is not an STL file (neither binary, whose size matches its triangle count, "
                      "nor ASCII starting with 'solid'); check the file or re-export it")
+
+
+# --------------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------------
+def _triangulate(faces) -> np.ndarray:
+    """Polygon faces, a (m, k) array or a ragged list, as (t, 3) int64 fan triangles; rows of < 3 dropped."""
+    if faces is None:
+        return np.zeros((0, 3), dtype=np.int64)
+    try:
+        rows = np.asarray(faces, dtype=np.int64)
+    except (ValueError, TypeError):
+        rows = None
+    if rows is not None and rows.ndim == 2:
+        if rows.shape[1] < 3:
+            return np.zeros((0, 3), dtype=np.int64)
+        return _fan(rows.ravel(), np.full(len(rows), rows.shape[1], dtype=np.int64))
+    polys = [np.asarray(p, dtype=np.int64).ravel() for p in faces]
+    polys = [p for p in polys if len(p) >= 3]
+    if not polys:
+        return np.zeros((0, 3), dtype=np.int64)
+    return _fan(np.concatenate(polys), np.array([len(p) for p in polys], dtype=np.int64))
+
+
+def _unit_rows(a: np.ndarray) -> np.ndarray:
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = a / np.linalg.norm(a, axis=1, keepdims=True)
+    return np.nan_to_num(unit, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def _face_normals_from_vertex_normals(faces: np.ndarray, vertex_normals):
+    """Per face, the sum of its corners' unit vertex normals; None without usable normals."""
+    if vertex_normals is None or len(faces) == 0:
+        return None
+    face_normals = _unit_rows(vertex_normals)[faces].sum(axis=1)
+    return face_normals if np.abs(face_normals).sum() > 0 else None

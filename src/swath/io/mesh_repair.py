@@ -90,15 +90,28 @@ def edge_table(faces: np.ndarray):
     return edge_of.ravel(), counts, half[:, 0] < half[:, 1]
 
 
-def nonmanifold_faces(faces: np.ndarray, areas: np.ndarray):
-    """Faces to drop so that no edge has more than two faces: all but the two largest on each.
+def nonmanifold_faces(vertices: np.ndarray, faces: np.ndarray, areas: np.ndarray, *,
+                      max_edges: int | None = None):
+    """Faces to drop so that no edge has more than two faces, keeping the surface that continues.
+
+    On each edge shared by more than two faces the pair of faces that bends least across the edge
+    is kept (their in-plane directions away from the edge are the most nearly opposite: a flat
+    continuation scores -1, a fin standing at right angles 0); ties go to the larger pair by area.
+    The others are dropped, and so is every sheet (faces joined by ordinary two-face edges) that
+    touches the over-shared edges only through dropped faces: a fin goes as a whole, not just its
+    first row of triangles.
 
     Parameters
     ----------
+    vertices : (n, 3) float
+        Positions, m.
     faces : (m, 3) int
-        Triangles.
+        Triangles, without duplicates.
     areas : (m,) float
-        Face areas, m².
+        Face areas, m² (tie-break).
+    max_edges : int, optional
+        When more edges than this are non-manifold, nothing is chosen (``drop`` all False): the
+        caller refuses such a mesh, and the per-edge choice would only cost time.
 
     Returns
     -------
@@ -109,20 +122,47 @@ def nonmanifold_faces(faces: np.ndarray, areas: np.ndarray):
     n_edges : int
         Number of edges.
     """
-    edge_of, counts, _ = edge_table(faces)
-    drop = np.zeros(len(faces), dtype=bool)
-    bad_half = np.flatnonzero(counts[edge_of] > 2)
-    n_bad = int((counts > 2).sum())
-    if n_bad:
-        face_of = bad_half // 3
-        order = np.lexsort((-areas[face_of], edge_of[bad_half]))
-        e_sorted = edge_of[bad_half][order]
-        start = np.r_[0, np.flatnonzero(np.diff(e_sorted)) + 1]
-        group_start = np.repeat(start, np.diff(np.r_[start, len(e_sorted)]))
-        rank = np.arange(len(e_sorted)) - group_start
-        drop[face_of[order][rank >= 2]] = True
-    return drop, n_bad, len(counts)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
 
+    f = np.asarray(faces, dtype=np.int64)
+    v = np.asarray(vertices, dtype=float)
+    edge_of, counts, _ = edge_table(f)
+    drop = np.zeros(len(f), dtype=bool)
+    n_bad = int((counts > 2).sum())
+    if not n_bad or (max_edges is not None and n_bad > max_edges):
+        return drop, n_bad, len(counts)
+    bad_half = np.flatnonzero(counts[edge_of] > 2)
+    face_of = bad_half // 3
+    corner = bad_half % 3
+    a, b, c = f[face_of, corner], f[face_of, (corner + 1) % 3], f[face_of, (corner + 2) % 3]
+    along = v[b] - v[a]
+    along /= np.maximum(np.linalg.norm(along, axis=1, keepdims=True), 1e-300)
+    wing = v[c] - v[a]
+    wing -= np.einsum("ij,ij->i", wing, along)[:, None] * along
+    wing /= np.maximum(np.linalg.norm(wing, axis=1, keepdims=True), 1e-300)
+    order = np.argsort(edge_of[bad_half], kind="stable")
+    groups = np.split(order, np.flatnonzero(np.diff(edge_of[bad_half][order])) + 1)
+    touches_bad = np.zeros(len(f), dtype=bool)
+    touches_bad[face_of] = True
+    for group in groups:
+        dots = wing[group] @ wing[group].T
+        pair_area = areas[face_of[group]][:, None] + areas[face_of[group]][None, :]
+        i, j = np.triu_indices(len(group), k=1)
+        best = np.lexsort((-pair_area[i, j], np.round(dots[i, j], 9)))[0]
+        keep = np.zeros(len(group), dtype=bool)
+        keep[[i[best], j[best]]] = True
+        drop[face_of[group][~keep]] = True
+    # sheets: faces joined across ordinary (two-face) edges
+    half = np.flatnonzero(counts[edge_of] == 2)
+    pair = half[np.argsort(edge_of[half], kind="stable")]
+    fi, fj = pair[0::2] // 3, pair[1::2] // 3
+    m = len(f)
+    _, sheet = connected_components(coo_matrix((np.ones(len(fi)), (fi, fj)), shape=(m, m)), directed=False)
+    sheet_keeps = np.bincount(sheet, weights=touches_bad & ~drop, minlength=sheet.max() + 1) > 0
+    sheet_drops = np.bincount(sheet, weights=drop, minlength=sheet.max() + 1) > 0
+    drop |= (sheet_drops & ~sheet_keeps)[sheet]
+    return drop, n_bad, len(counts)
 
 def group_rows(a: np.ndarray):
     """Group equal rows of ``a`` (k, d).
