@@ -162,6 +162,8 @@ def load_mesh(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
     if bad:
         raise InputError(f"{label}: {bad} of {len(v)} vertices have NaN or infinite coordinates; "
                          "repair or re-export the mesh")
+    if len(v) == 0:
+        raise InputError(f"{label} holds no vertices; check the file or re-export it")
     if len(f) == 0:
         raise InputError(f"{label} has {len(v)} vertices but no faces: it is a point cloud, not a mesh; "
                          "use `swath fit` to fit a surface to it")
