@@ -368,6 +368,8 @@ def _read_stl(data: bytes, label: str):
         kw = stl.load_stl(io.BytesIO(data))
     except Exception as exc:  # noqa: BLE001 - any parser failure is an unreadable file
         raise InputError(f"could not read {label} as STL: {exc}; check the file or re-export it") from None
+    if not isinstance(kw, dict) or kw.get("vertices") is None:
+        raise InputError(f"{label} holds no triangles; check the file or re-export it")
     v = np.asarray(kw["vertices"], dtype=np.float64).reshape(-1, 3)
     f = _triangulate(kw.get("faces"))
     if len(f) and (f.min() < 0 or f.max() >= len(v)):
