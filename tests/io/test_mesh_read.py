@@ -59,6 +59,7 @@ def test_obj_corner_forms_continuation_and_normals():
     ("v 0 0 0\nv 1 zero 0\n", r"line 2: expected 3 numbers after 'v'"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", r"line 4: a face needs at least 3 vertices, got 2"),
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x/3\n", r"line 4: 'x/3' is not a vertex reference"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n", r"line 4: vertex reference 9+ is invalid"),
 ])
 def test_obj_malformed_refused_with_line(tmp_path, text, message):
     path = tmp_path / "bad.obj"
@@ -93,6 +94,7 @@ def test_ply_blank_line_after_header_refused(tmp_path):
     (32, "3 0 1 20", r"line 32: face refers to vertex 20 but the file has 20 vertices \(0\.\.19\)"),
     (32, "3 0 1 -1", r"line 32: face refers to vertex -1"),
     (32, "3 0 1.5 2", r"line 32: face row '3 0 1\.5 2' holds a value that is not a whole number"),
+    (32, "3 0 1 99999999999999999999999", r"line 32: face row '3 0 1 9+' holds a value that is not a whole number"),
 ])
 def test_ply_bad_rows_refused_with_line(tmp_path, row, replacement, message):
     lines = ply_ascii_lines(*grid())

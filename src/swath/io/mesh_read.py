@@ -29,6 +29,8 @@ _PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int":
               "float": "f4", "double": "f8", "int8": "i1", "uint8": "u1", "int16": "i2", "uint16": "u2",
               "int32": "i4", "uint32": "u4", "float32": "f4", "float64": "f8"}
 _PLY_FACE_LISTS = ("vertex_indices", "vertex_index")
+#: Larger indices than this are refused as corrupt (they could not be stored as int64 arrays).
+_MAX_INDEX = 2**62
 
 
 def read_mesh_file(path: Path, ext: str):
@@ -150,7 +152,7 @@ def read_obj(data: bytes, label: str):
 
 def _obj_index(index: int, n_defined: int, what: str, label: str, line: int) -> int:
     """0-based index of an OBJ reference (1-based, or negative: relative to the last defined)."""
-    if index > 0:
+    if 0 < index <= _MAX_INDEX:
         return index - 1               # checked against the final count (forward references are tolerated)
     if index < 0 and n_defined + index >= 0:
         return n_defined + index
@@ -261,7 +263,11 @@ def _read_ascii_ply(body: bytes, elements, n_header_lines: int, label: str):
         key = next((k for k in _PLY_FACE_LISTS if k in face), None)
         if key is not None:
             polys, first_line = face[key], face["_first_line"]
-            counts = np.array([len(p) for p in polys], dtype=np.int64)
+            if "_array" in face:
+                counts = np.full(len(face["_array"]), face["_array"].shape[1], dtype=np.int64)
+                polys = [face["_array"].ravel()]
+            else:
+                counts = np.array([len(p) for p in polys], dtype=np.int64)
             small = np.flatnonzero(counts < 3)
             if small.size:
                 raise InputError(f"{label}, line {first_line + small[0]}: a face has {counts[small[0]]} vertices, "
@@ -299,6 +305,12 @@ def _ascii_rows(rows: list[str], props, first_line: int, name: str, label: str) 
         for j, (prop, _) in enumerate(props):
             out[prop] = table[:, j]
         return out
+    if len(props) == 1 and rows:
+        fast = _uniform_list_rows(split)
+        if fast is not None:
+            out[props[0][0]] = fast
+            out["_array"] = fast
+            return out
     columns: list[list] = [[] for _ in props]
     for i, toks in enumerate(split):
         pos = 0
@@ -311,7 +323,10 @@ def _ascii_rows(rows: list[str], props, first_line: int, name: str, label: str) 
                     n = int(toks[pos])
                     if n < 0 or pos + 1 + n > len(toks):
                         raise IndexError
-                    columns[j].append(np.array([int(t) for t in toks[pos + 1:pos + 1 + n]], dtype=np.int64))
+                    indices = [int(t) for t in toks[pos + 1:pos + 1 + n]]
+                    if any(abs(k) > _MAX_INDEX for k in indices):
+                        raise ValueError
+                    columns[j].append(np.array(indices, dtype=np.int64))
                     pos += 1 + n
             if pos != len(toks):
                 raise IndexError
@@ -322,10 +337,25 @@ def _ascii_rows(rows: list[str], props, first_line: int, name: str, label: str) 
             raise InputError(_row_error(label, first_line + i, name, rows[i], expected)) from None
         except ValueError:
             raise InputError(f"{label}, line {first_line + i}: {name} row {rows[i].strip()[:60]!r} holds a value "
-                             "that is not a whole number where one is expected; check the file") from None
+                             "that is not a whole number (or is too large) where an index is expected; check the file") from None
     for j, (prop, kind) in enumerate(props):
         out[prop] = columns[j] if kind is not None else np.asarray(columns[j], dtype=np.float64)
     return out
+
+
+def _uniform_list_rows(split: list[list[str]]):
+    """(count, k) int64 when every row is ``k i_1 .. i_k`` with the same k; None otherwise (then the
+    general, row-by-row parser runs and names any bad row)."""
+    width = len(split[0])
+    if width < 1 or any(len(t) != width for t in split):
+        return None
+    try:
+        table = np.array(split, dtype=np.int64)
+    except (ValueError, OverflowError):
+        return None
+    if table.ndim != 2 or not (table[:, 0] == width - 1).all():
+        return None
+    return table[:, 1:]
 
 
 def _row_error(label: str, line: int, name: str, row: str, expected: int | None) -> str:
