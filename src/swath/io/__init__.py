@@ -14,14 +14,7 @@ from .mesh import MESH_EXTENSIONS, likely_unit, load_mesh, parse_side, save_surf
 from .points import POINT_EXTENSIONS, load_points
 
 __all__ = [
-    "MESH_EXTENSIONS",
-    "POINT_EXTENSIONS",
-    "atomic_directory",
-    "atomic_file",
-    "likely_unit",
-    "load_mesh",
-    "load_points",
-    "parse_side",
-    "save_surface_ply",
-    "write_text_atomic",
+    "load_mesh", "load_points", "save_surface_ply", "parse_side", "likely_unit",
+    "MESH_EXTENSIONS", "POINT_EXTENSIONS",
+    "atomic_file", "write_text_atomic", "atomic_directory",
 ]

@@ -376,7 +376,12 @@ def _read_binary_ply(data: bytes, label: str):
         raise InputError(f"could not read {label} as PLY: {exc}; check the file or re-export it") from None
     v = np.asarray(kw.get("vertices", np.zeros((0, 3))), dtype=np.float64).reshape(-1, 3)
     faces = kw.get("faces")
-    faces = None if faces is None else _triangulate(faces)
+    if faces is not None:
+        sizes = np.array([len(p) for p in faces]) if not hasattr(faces, "shape") else np.full(len(faces), faces.shape[-1])
+        if (sizes < 3).any():
+            raise InputError(f"{label}: {int((sizes < 3).sum())} of {len(sizes)} faces have fewer than 3 vertices; "
+                             "the file is corrupt, re-export it")
+        faces = _triangulate(faces)
     vn = kw.get("vertex_normals")
     vn = None if vn is None else np.asarray(vn, dtype=np.float64)
     if vn is not None and vn.shape != v.shape:
