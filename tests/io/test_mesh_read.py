@@ -239,3 +239,20 @@ def test_cli_accepts_unit_names(tmp_path, capsys):
     assert err == "swath: error: empty.obj holds no vertices; check the file or re-export it\n"   # the unit passed
     assert main(["--quiet", "plan", str(bad), "--units", "furlong", "--out", str(tmp_path / "out")]) == 2
     assert "unknown length unit 'furlong'" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------
+# the point-cloud loader shares the PLY reader and the unit names
+# --------------------------------------------------------------------------------------------
+def test_points_ascii_ply_rows_checked_and_unit_names(tmp_path):
+    from swath.io import load_points
+
+    rng = np.random.default_rng(7)
+    cloud = rng.uniform(0.0, 150.0, (50, 3))                      # mm
+    lines = ply_ascii_lines(cloud)
+    path = ply_with(lines, tmp_path, "cloud.ply")
+    points, normals = load_points(path, units="Millimetres")
+    assert normals is None and np.array_equal(points, cloud * 1e-3)
+    lines.insert(lines.index("end_header") + 1, "")
+    with pytest.raises(InputError, match=r"blank_cloud\.ply, line 8: the vertex row is blank"):
+        load_points(ply_with(lines, tmp_path, "blank_cloud.ply"), units="mm")

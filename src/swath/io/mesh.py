@@ -112,17 +112,21 @@ def load_mesh(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
               name: str | None = None):
     """Load an STL, PLY or OBJ part mesh as an open :class:`~swath.surface.Surface` in metres.
 
-    Steps: read; refuse NaN/infinite coordinates; convert ``units`` to metres; merge duplicate
-    vertices, drop degenerate and duplicate faces and unreferenced vertices; check the size;
-    repair a few non-manifold edges; make the winding consistent; keep the largest piece; cut a
-    closed solid down to the faces that look toward ``side``; orient the normals toward the tool.
+    Steps: read (exactly: relative OBJ indices resolved, malformed text rows refused with their
+    line number, positions in float64); refuse NaN/infinite coordinates and out-of-range faces;
+    convert ``units`` to metres; merge duplicate vertices, drop degenerate and duplicate faces and
+    unreferenced vertices; check the size; repair a few non-manifold edges (keep on each the two
+    faces that continue the surface, drop what branches off, such as a fin); make the winding
+    consistent; keep the largest piece; cut a closed solid down to the faces that look toward
+    ``side``; orient the normals toward the tool.
 
     Parameters
     ----------
     path : str or Path
         The mesh file (``.stl``, ``.ply``, ``.obj``; case-insensitive).
     units : str
-        The file's length unit (``m``, ``mm``, ``cm``, ``in``); coordinates are converted to m.
+        The file's length unit: ``m``, ``mm``, ``cm``, ``in`` or a spelled-out name in any case
+        (``"MM"``, ``"inches"``, ``"millimetres"``, ``"meter"``); coordinates are converted to m.
     side : str or (3,) float, optional
         The direction the tool comes FROM (see :func:`parse_side`), e.g. ``"+z"``.  Required for a
         closed solid (its faces with outward normal n·side > 0.2 are kept); for an open surface

@@ -42,7 +42,7 @@ def load_points(path, *, units: str = "m", force_units: bool = False):
         (vertices; faces are ignored) or ``.pcd`` (ASCII or binary; ``binary_compressed`` is
         refused).
     units : str
-        The file's length unit (``m``, ``mm``, ``cm``, ``in``).
+        The file's length unit: ``m``, ``mm``, ``cm``, ``in`` or a spelled-out name in any case.
     force_units : bool
         Accept a cloud whose largest extent is outside 5 mm .. 20 m.
 
