@@ -10,8 +10,8 @@ from meshfiles import grid, obj_text, plate_with_fin, ply_ascii_lines, ply_binar
 
 from swath.errors import InputError
 from swath.io.mesh import load_mesh, nonmanifold_faces
-from swath.io.mesh_read import read_obj
 from swath.io.mesh_repair import face_areas
+from swath.io.obj_read import read_obj
 from swath.units import canonical_length_unit, length_unit_factor
 
 

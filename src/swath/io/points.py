@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import InputError
 from ..units import canonical_length_unit, length_unit_factor
 from .checks import check_extent, check_file
-from .mesh_read import read_ply
+from .ply_read import read_ply
 
 log = logging.getLogger("swath.io")
 
