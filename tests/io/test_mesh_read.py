@@ -256,3 +256,12 @@ def test_points_ascii_ply_rows_checked_and_unit_names(tmp_path):
     lines.insert(lines.index("end_header") + 1, "")
     with pytest.raises(InputError, match=r"blank_cloud\.ply, line 8: the vertex row is blank"):
         load_points(ply_with(lines, tmp_path, "blank_cloud.ply"), units="mm")
+
+
+def test_large_branch_refused_naming_its_share(tmp_path):
+    v, f, _ = plate_with_fin(fin_x=(0.0, 0.3), fin_height=0.08)   # a 300 x 80 mm wall on a 300 mm plate
+    path = tmp_path / "wall.ply"
+    path.write_text("\n".join(ply_ascii_lines(v, f)) + "\n")
+    with pytest.raises(InputError, match=r"wall\.ply: 15 edges are shared by more than two faces, and the faces "
+                                         r"branching off the surface there carry 21\.1% of the area"):
+        load_mesh(path)
