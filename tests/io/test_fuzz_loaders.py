@@ -119,3 +119,42 @@ def test_mutated_files_load_or_refuse(case):
 def test_points_loader_loads_or_refuses(ext, data):
     result = _load(ext, data, load_points)
     assert isinstance(result, (tuple, InputError))
+
+
+def _obj_seeds() -> list[bytes]:
+    v, f = grid(5, 4, size=(0.2, 0.1))
+    quads = [[0, 1, 5, 4], [1, 2, 6, 5]]
+    normals = np.tile([0.0, 0.0, 1.0], (len(v), 1))
+    return [obj_text(v, f).encode(), obj_text(v, f, relative_groups=4).encode(), obj_text(v, f, normals=normals).encode(),
+            (obj_text(v, quads) + "vt 0 0\nf 1/1/1 2/1/1 6/1/1\nf -1//-1 -2//-2 -3//-3 # comment\n").encode()]
+
+
+@FUZZ
+@given(seed=st.sampled_from(range(4)), edits=st.lists(st.tuples(st.integers(0, 10**6), st.sampled_from(
+    [b"", b" ", b"\t", b"\n", b"\r\n", b"#", b"/", b"-", b"0", b"9", b"v", b"f", b"vn", b"1.5", b"nan", b"\\"])),
+    min_size=1, max_size=5))
+def test_obj_fast_scan_agrees_with_the_exact_scan(seed, edits):
+    from swath.io.obj_read import _assemble, _scan_exact, _scan_fast, _Unusual
+
+    data = bytearray(_obj_seeds()[seed])
+    for at, insert in edits:
+        at %= len(data) + 1
+        data[at:at + 1] = insert                          # replace one byte (an empty insert deletes it)
+    text = bytes(data).decode("ascii", errors="replace")
+    try:
+        exact = _assemble(_scan_exact(text, "t.obj"), "t.obj")
+    except InputError:
+        exact = None
+    fast_scan = _scan_fast(text)
+    if fast_scan is None:
+        return
+    try:
+        fast = _assemble(fast_scan, "t.obj")
+    except _Unusual:                                      # only raised for an error the exact scan names
+        assert exact is None
+        return
+    assert exact is not None, "the fast scan accepted a file the exact scan refuses"
+    assert np.array_equal(fast[0], exact[0], equal_nan=True) and np.array_equal(fast[1], exact[1])
+    assert (fast[2] is None) == (exact[2] is None)
+    if fast[2] is not None:
+        assert np.allclose(fast[2], exact[2], equal_nan=True)
