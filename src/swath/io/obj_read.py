@@ -5,8 +5,6 @@ texture coordinates are ignored.  A malformed record is refused naming its line.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from ..errors import InputError
@@ -22,21 +20,6 @@ def read_obj(data: bytes, label: str):
     if b"\x00" in data[:65536]:
         raise InputError(f"{label} holds binary data, not a text OBJ; check the file or re-export it")
     text = data.decode("utf-8-sig", errors="replace")
-    scan = _scan_fast(text)
-    if scan is not None:
-        try:
-            return _assemble(scan, label)
-        except _Unusual:
-            pass                      # an error to report: the exact scan names its line
-    return _assemble(_scan_exact(text, label), label)
-
-
-class _Unusual(Exception):
-    """The fast scan met something it does not handle, or an error that needs a line number."""
-
-
-def _scan_exact(text: str, label: str) -> dict:
-    """Line by line: every record checked, errors refused naming their line."""
     lines = text.splitlines()
     records: dict[str, list] = {"v": [], "vn": []}       # the 3 number strings of each v / vn record
     record_lines: dict[str, list] = {"v": [], "vn": []}
@@ -85,37 +68,23 @@ def _scan_exact(text: str, label: str) -> dict:
     normals = _obj_numbers(records["vn"], record_lines["vn"], "vn", label)
     n_corners = np.asarray(counts, dtype=np.int64)
     corner_face = np.repeat(np.arange(len(counts)), n_corners)
-    return {"v": v, "normals": normals, "n_corners": n_corners, "corner_face": corner_face,
-            "raw_v": _obj_references(corner_v, corner_face, face_lines, lines, label),
-            "raw_n": _obj_references(corner_n, corner_face, face_lines, lines, label),
-            "defined_v": np.asarray(defined_v, dtype=np.int64), "defined_n": np.asarray(defined_n, dtype=np.int64),
-            "face_lines": face_lines}
-
-
-def _assemble(scan: dict, label: str):
-    """Resolve the references, check them and fan-triangulate: ``(vertices, faces, face normals or None)``."""
-    v, normals, n_corners, corner_face = scan["v"], scan["normals"], scan["n_corners"], scan["corner_face"]
-    raw_v, raw_n, face_lines = scan["raw_v"], scan["raw_n"], scan["face_lines"]
-    defined_v, defined_n = scan["defined_v"], scan["defined_n"]
-    idx_v = _obj_resolve(raw_v, np.repeat(defined_v, n_corners), corner_face,
+    raw_v = _obj_references(corner_v, corner_face, face_lines, lines, label)
+    raw_n = _obj_references(corner_n, corner_face, face_lines, lines, label)
+    idx_v = _obj_resolve(raw_v, np.repeat(np.asarray(defined_v, dtype=np.int64), n_corners), corner_face,
                          face_lines, "vertex", label)
     too_far = np.flatnonzero(idx_v >= len(v))
     if too_far.size:
-        if face_lines is None:
-            raise _Unusual
         raise InputError(f"{label}, line {face_lines[corner_face[too_far[0]]]}: face refers to vertex "
                          f"{idx_v[too_far[0]] + 1} but the file has {len(v)} vertices; the file is corrupt, re-export it")
     has_n = raw_n != 0
     idx_n = np.full(len(raw_n), -1, dtype=np.int64)
     if has_n.any():
-        idx_n[has_n] = _obj_resolve(raw_n[has_n], np.repeat(defined_n, n_corners)[has_n],
+        idx_n[has_n] = _obj_resolve(raw_n[has_n], np.repeat(np.asarray(defined_n, dtype=np.int64), n_corners)[has_n],
                                     corner_face[has_n], face_lines, "normal", label)
     f = fan_triangles(idx_v, n_corners)
     face_normals = None
     if len(f) and len(normals) and (idx_n >= 0).all():
         if idx_n.max() >= len(normals):
-            if face_lines is None:
-                raise _Unusual
             raise InputError(f"{label}: a face refers to normal {idx_n.max() + 1} but the file has "
                              f"{len(normals)}; the file is corrupt, re-export it")
         unit = unit_rows(normals)
@@ -170,64 +139,8 @@ def _obj_resolve(raw: np.ndarray, defined: np.ndarray, corner_face: np.ndarray, 
     index = np.where(raw > 0, raw - 1, defined + raw)
     bad = np.flatnonzero((raw == 0) | (index < 0))
     if bad.size:
-        if face_lines is None:
-            raise _Unusual
         i = bad[0]
         raise InputError(f"{label}, line {face_lines[corner_face[i]]}: {what} reference {raw[i]} is invalid (OBJ "
                          f"indices start at 1; -k means the k-th last, and {defined[i]} {what}s are defined before "
                          "this line); the file is corrupt, re-export it")
     return index
-
-
-# --------------------------------------------------------------------------------------------
-# fast scan: whole-text regular expressions for the common case
-# --------------------------------------------------------------------------------------------
-_TOKEN = r"[ \t]+([^\s#]+)"
-#: A ``v``/``vn`` record of exactly 3 numbers, or an ``f`` record of 3 or 4 corners, alone on its line.
-_STRICT = re.compile(r"^[ \t]*(?:(v)" + _TOKEN * 3 + r"|(vn)" + _TOKEN * 3 + r"|(f)" + _TOKEN * 3
-                     + r"(?:" + _TOKEN + r")?)[ \t]*(?:#[^\r\n]*)?\r?$", re.MULTILINE)
-#: Any ``v``/``vn``/``f`` record, however written.
-_LOOSE = re.compile(r"^[ \t]*(?:vn|v|f)(?=[ \t#\r\n]|\Z)", re.MULTILINE)
-#: Characters the line-by-line scan treats differently from these expressions.
-_UNUSUAL_CHARS = re.compile(r"[\\\x0b\x0c\x1c-\x1f]|\r(?!\n)")
-
-
-def _scan_fast(text: str) -> dict | None:
-    """The same result as :func:`_scan_exact` for files of plain ``v x y z`` / ``vn`` records and
-    triangle or quad faces, in whole-text operations; None for anything else (the exact scan runs)."""
-    if not text.isascii() or _UNUSUAL_CHARS.search(text):
-        return None
-    records = _STRICT.findall(text)
-    if len(records) != len(_LOOSE.findall(text)):
-        return None                   # some record is written in a form only the exact scan reads
-    if not records:
-        return {"v": np.zeros((0, 3)), "normals": np.zeros((0, 3)), "n_corners": np.zeros(0, dtype=np.int64),
-                "corner_face": np.zeros(0, dtype=np.int64), "raw_v": np.zeros(0, dtype=np.int64),
-                "raw_n": np.zeros(0, dtype=np.int64), "defined_v": np.zeros(0, dtype=np.int64),
-                "defined_n": np.zeros(0, dtype=np.int64), "face_lines": None}
-    cols = [np.array(c) for c in zip(*records, strict=True)]
-    is_v, is_n, is_f = cols[0] == "v", cols[4] == "vn", cols[8] == "f"
-    try:
-        v = np.stack([cols[1][is_v], cols[2][is_v], cols[3][is_v]], axis=1).astype(np.float64)
-        normals = np.stack([cols[5][is_n], cols[6][is_n], cols[7][is_n]], axis=1).astype(np.float64)
-    except ValueError:
-        return None
-    corners = np.stack([cols[9][is_f], cols[10][is_f], cols[11][is_f], cols[12][is_f]], axis=1)
-    n_corners = np.where(corners[:, 3] == "", 3, 4).astype(np.int64)
-    tokens = corners.ravel()[(corners != "").ravel()]
-    if "/" in text:
-        head, _, rest = np.char.partition(tokens, "/").T
-        _, _, normal = np.char.partition(rest, "/").T
-        tokens, normal = head, np.where(normal == "", "0", normal)
-    else:
-        normal = np.full(len(tokens), "0")
-    try:
-        raw_v, raw_n = tokens.astype(np.int64), normal.astype(np.int64)
-    except (ValueError, OverflowError):
-        return None
-    if len(raw_v) and max(np.abs(raw_v).max(), np.abs(raw_n).max()) > MAX_INDEX:
-        return None
-    return {"v": v, "normals": normals, "n_corners": n_corners,
-            "corner_face": np.repeat(np.arange(len(n_corners)), n_corners), "raw_v": raw_v, "raw_n": raw_n,
-            "defined_v": np.cumsum(is_v)[is_f].astype(np.int64), "defined_n": np.cumsum(is_n)[is_f].astype(np.int64),
-            "face_lines": None}
