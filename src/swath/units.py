@@ -14,6 +14,14 @@ from .errors import InputError
 #: Length units accepted for unitless mesh files and for length quantities, as metres per unit.
 LENGTH_UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "in": 0.0254}
 
+#: Spelled-out names of the length units (matched case-insensitively, after the symbols above).
+LENGTH_UNIT_NAMES: dict[str, str] = {
+    "meter": "m", "meters": "m", "metre": "m", "metres": "m",
+    "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm",
+    "centimeter": "cm", "centimeters": "cm", "centimetre": "cm", "centimetres": "cm",
+    "inch": "in", "inches": "in",
+}
+
 # Each kind of quantity: suffix -> factor to SI.
 _KINDS: dict[str, dict[str, float]] = {
     "length": dict(LENGTH_UNITS, um=1e-6),
@@ -70,12 +78,36 @@ def parse_quantity(text: str | float | int, kind: str, *, default_unit: str | No
     return value * table[unit]
 
 
+def canonical_length_unit(unit: str) -> str:
+    """The symbol (``m``, ``mm``, ``cm``, ``in``) of a mesh file's length unit.
+
+    Parameters
+    ----------
+    unit : str
+        A symbol or a spelled-out name, any case, e.g. ``"MM"``, ``"inch"``, ``"Millimetres"``,
+        ``"meter"``.
+
+    Raises
+    ------
+    InputError
+        If the text names no known length unit.
+    """
+    key = unit.strip() if isinstance(unit, str) else unit
+    if key in LENGTH_UNITS:
+        return key
+    if isinstance(key, str):
+        low = key.lower()
+        if low in LENGTH_UNITS:
+            return low
+        if low in LENGTH_UNIT_NAMES:
+            return LENGTH_UNIT_NAMES[low]
+    raise InputError(f"unknown length unit {unit!r}; use one of {', '.join(LENGTH_UNITS)} (or a name such as "
+                     "millimetres, inches, metres)")
+
+
 def length_unit_factor(unit: str) -> float:
-    """Metres per ``unit`` for a mesh file's unit name (``m``, ``mm``, ``cm``, ``in``)."""
-    try:
-        return LENGTH_UNITS[unit]
-    except KeyError:
-        raise InputError(f"unknown length unit {unit!r}; use one of {', '.join(LENGTH_UNITS)}") from None
+    """Metres per ``unit`` for a mesh file's unit (a symbol or a name, see :func:`canonical_length_unit`)."""
+    return LENGTH_UNITS[canonical_length_unit(unit)]
 
 
 def _si_unit(kind: str) -> str:

@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..units import length_unit_factor
-from .mesh import _check_extent, _check_file
+from ..units import canonical_length_unit, length_unit_factor
+from .checks import check_extent, check_file
+from .ply_read import read_ply
 
 log = logging.getLogger("swath.io")
 
@@ -41,7 +42,7 @@ def load_points(path, *, units: str = "m", force_units: bool = False):
         (vertices; faces are ignored) or ``.pcd`` (ASCII or binary; ``binary_compressed`` is
         refused).
     units : str
-        The file's length unit (``m``, ``mm``, ``cm``, ``in``).
+        The file's length unit: ``m``, ``mm``, ``cm``, ``in`` or a spelled-out name in any case.
     force_units : bool
         Accept a cloud whose largest extent is outside 5 mm .. 20 m.
 
@@ -61,7 +62,8 @@ def load_points(path, *, units: str = "m", force_units: bool = False):
         points, or an implausible size (naming the likely unit).
     """
     path = Path(path)
-    ext = _check_file(path, POINT_EXTENSIONS, "point cloud")
+    ext = check_file(path, POINT_EXTENSIONS, "point cloud")
+    units = canonical_length_unit(units)
     factor = length_unit_factor(units)
     label = path.name
     if ext == ".ply":
@@ -84,7 +86,7 @@ def load_points(path, *, units: str = "m", force_units: bool = False):
     if len(pts) < MIN_POINTS:
         raise InputError(f"{label} has {len(pts)} points; at least {MIN_POINTS} are needed to fit a surface")
     pts = pts * factor
-    _check_extent(float(np.ptp(pts, axis=0).max()) / factor, units, force_units, label)
+    check_extent(float(np.ptp(pts, axis=0).max()) / factor, units, force_units, label)
     if nrm is not None:
         nrm = _unit_normals(nrm, label)
     log.info("%s: %d points%s, extents %s m", label, len(pts), " with normals" if nrm is not None else "",
@@ -105,20 +107,8 @@ def _unit_normals(n: np.ndarray, label: str):
 
 
 def _read_ply(path: Path):
-    from trimesh.exchange import ply
-
-    data = path.read_bytes()
-    if data.lstrip()[:3] != b"ply":
-        raise InputError(f"{path.name} is not a PLY file (it does not start with 'ply'); check the file")
-    try:
-        kw = ply.load_ply(io.BytesIO(data))
-    except Exception as exc:  # noqa: BLE001 - any parser failure is an unreadable file
-        raise InputError(f"could not read {path.name} as PLY: {exc}; check the file or re-export it") from None
-    pts = np.asarray(kw.get("vertices", np.zeros((0, 3))), dtype=float).reshape(-1, 3)
-    nrm = kw.get("vertex_normals")
-    nrm = None if nrm is None else np.asarray(nrm, dtype=float).reshape(-1, 3)
-    if nrm is not None and len(nrm) != len(pts):
-        nrm = None
+    """Vertices ``(n, 3)`` and vertex normals ``(n, 3)`` or None of a PLY (faces, if any, are ignored)."""
+    pts, _, nrm = read_ply(path.read_bytes(), path.name)
     return pts, nrm
 
 

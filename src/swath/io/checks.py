@@ -1,0 +1,77 @@
+"""Checks at the edge shared by the mesh and point-cloud readers: the file itself and the part size."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from ..errors import InputError
+from ..units import canonical_length_unit, length_unit_factor
+
+log = logging.getLogger("swath.io")
+
+#: Accepted part size (largest bounding-box extent) in metres, and the comfortable range.
+SIZE_LIMITS = (0.005, 20.0)
+PREFERRED_SIZE = (0.05, 3.0)
+#: A part larger than this (m) is accepted with a warning that the file may not be in metres.
+LARGE_PART = 5.0
+#: A part smaller than this (m) is accepted with the same warning.
+SMALL_PART = 0.02
+#: Units suggested when the size is implausible, in order of preference.
+SUGGESTED_UNITS = ("m", "mm", "in")
+
+def check_file(path: Path, extensions, what: str) -> str:
+    """The lower-case extension of ``path`` after checking it is one of ``extensions`` and a non-empty file.
+
+    Raises
+    ------
+    InputError
+        For an unsupported extension, a missing path, a directory or an empty file.
+    """
+    ext = path.suffix.lower()
+    if ext not in extensions:
+        raise InputError(f"{path.name}: unsupported {what} file type {ext or '(no extension)'!r}; "
+                         f"use one of {', '.join(extensions)}")
+    if not path.exists():
+        raise InputError(f"{path}: no such file; check the path")
+    if not path.is_file():
+        raise InputError(f"{path} is not a file; give the path of a {what} file")
+    if path.stat().st_size == 0:
+        raise InputError(f"{path.name} is empty (0 bytes); re-export the {what}")
+    return ext
+
+
+def check_extent(extent_file_units: float, units: str, force_units: bool, label: str) -> None:
+    """Refuse or warn about an implausible part size (largest extent in the file's unit)."""
+    units = canonical_length_unit(units)
+    size = float(extent_file_units) * length_unit_factor(units)
+    lo, hi = SIZE_LIMITS
+    guess = likely_unit(extent_file_units, exclude=units)
+    hint = ""
+    if guess is not None:
+        hint = f"; in {guess} it would be {extent_file_units * length_unit_factor(guess):.3g} m"
+    if not lo <= size <= hi:
+        if force_units:
+            log.warning("%s: part is %.4g m across read in %s (outside %g mm .. %g m); accepted because "
+                        "units were forced%s", label, size, units, lo * 1e3, hi, hint)
+            return
+        fix = (f"it is probably in {guess} ({extent_file_units * length_unit_factor(guess):.3g} m): pass "
+               f"--units {guess}, or --force-units to keep {units}" if guess is not None else
+               f"no unit among {', '.join(SUGGESTED_UNITS)} gives a plausible size: check the file, or pass "
+               f"--force-units to keep {units}")
+        raise InputError(f"{label}: part is {size:.4g} m across when read in {units}, outside "
+                         f"{lo * 1e3:g} mm .. {hi:g} m; {fix}")
+    if size > LARGE_PART or size < SMALL_PART:
+        log.warning("%s: part is %.4g m across read in %s; the file may not be in %s%s%s", label, size, units,
+                    "metres" if units == "m" else units, hint,
+                    f" (pass --units {guess})" if guess is not None else "")
+
+
+def likely_unit(extent_file_units: float, *, exclude: str | None = None) -> str | None:
+    """The unit among m, mm, in that makes a part of this extent (file units) 5 mm .. 20 m across,
+    preferring 0.05 .. 3 m; None when no unit does."""
+    exclude = None if exclude is None else canonical_length_unit(exclude)
+    sizes = {u: extent_file_units * length_unit_factor(u) for u in SUGGESTED_UNITS if u != exclude}
+    ok = [u for u, s in sizes.items() if SIZE_LIMITS[0] <= s <= SIZE_LIMITS[1]]
+    good = [u for u in ok if PREFERRED_SIZE[0] <= sizes[u] <= PREFERRED_SIZE[1]]
+    return (good or ok or [None])[0]
