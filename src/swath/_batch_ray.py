@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+from pathlib import Path
 
 from .errors import InputError
 
@@ -47,8 +48,13 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
+            # Local workers import the same swath as this process, wherever it was imported from.
+            import swath
+
+            src = str(Path(swath.__file__).resolve().parents[1])
+            path = os.pathsep.join(p for p in (src, os.environ.get("PYTHONPATH")) if p)
             ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False, log_to_driver=False,
-                     configure_logging=False)
+                     configure_logging=False, runtime_env={"env_vars": {"PYTHONPATH": path}})
         started = True
     limit = workers or (len(jobs) if address else (os.cpu_count() or 1))
     remote = ray.remote(num_cpus=1, max_retries=0)(_task)

@@ -155,9 +155,25 @@ def sweep_from_mapping(data: dict, *, base_dir: Path) -> Sweep:
         try:
             settings = settings_from_mapping(values, base_dir=base_dir)
         except InputError as exc:
-            raise InputError(f"job {job_id}: {exc}") from None
+            key = _offending_key(values, base_dir)
+            where = f"{key} = {values[key]!r}: " if key and repr(key) not in str(exc) else ""
+            raise InputError(f"job {job_id}: {where}{exc}") from None
         jobs.append(BatchJob(job_id, values, settings))
     return Sweep(out=out_dir, base_dir=base_dir, grid_keys=keys, jobs=tuple(jobs))
+
+
+def _offending_key(values: dict, base_dir: Path) -> str | None:
+    """The first key whose value alone is refused (to name it in the message), if there is one."""
+    from .job import settings_from_mapping
+
+    for key, value in values.items():
+        if key in ("part", "out"):
+            continue
+        try:
+            settings_from_mapping({"part": "example:plate", "out": "out", key: value}, base_dir=base_dir)
+        except InputError:
+            return key
+    return None
 
 
 def make_job_id(index: int, varied: dict, *, width: int = 4) -> str:
