@@ -48,13 +48,7 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
-            # Local workers import the same swath as this process, wherever it was imported from.
-            import swath
-
-            src = str(Path(swath.__file__).resolve().parents[1])
-            path = os.pathsep.join(p for p in (src, os.environ.get("PYTHONPATH")) if p)
-            ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False, log_to_driver=False,
-                     configure_logging=False, runtime_env={"env_vars": {"PYTHONPATH": path}})
+            ray.init(**local_ray_options(workers or os.cpu_count() or 1))
         started = True
     limit = workers or (len(jobs) if address else (os.cpu_count() or 1))
     remote = ray.remote(num_cpus=1, max_retries=0)(_task)
@@ -77,6 +71,17 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
     finally:
         if started:
             ray.shutdown()
+
+
+def local_ray_options(n_cpus: int) -> dict:
+    """``ray.init`` keywords of the local Ray of a sweep: ``n_cpus`` CPUs, no dashboard, worker logs
+    kept out of the terminal, and workers importing the same swath as this process."""
+    import swath
+
+    src = str(Path(swath.__file__).resolve().parents[1])
+    path = os.pathsep.join(p for p in (src, os.environ.get("PYTHONPATH")) if p)
+    return {"num_cpus": n_cpus, "include_dashboard": False, "log_to_driver": False, "configure_logging": False,
+            "runtime_env": {"env_vars": {"PYTHONPATH": path}}}
 
 
 def _settings_columns(job) -> dict:

@@ -257,7 +257,7 @@ def run_batch_job(job_id: str, values: dict, base_dir: str) -> dict:
         settings = settings_from_mapping(values, base_dir=Path(base_dir))
         metrics = run_job(settings)
         row = _row(job_id, settings, metrics, status="ok")
-    except Exception as exc:  # a failed job is reported in its row; the sweep goes on
+    except Exception as exc:  # noqa: BLE001 -- a failed job is reported in its row; the sweep goes on
         first = (str(exc).strip().splitlines() or [""])[0]
         row = _row(job_id, settings, {}, status="failed", error=f"{type(exc).__name__}: {first}")
         if not isinstance(exc, SwathError):

@@ -48,8 +48,8 @@ def large_panel(*, n_faces: int = 500_000, size_x: float = 1.2, size_y: float = 
         raise InputError(f"large_panel needs radius_x > size_x / 2 and radius_y > size_y / 2; got radii "
                          f"{radius_x} m, {radius_y} m for size {size_x} m x {size_y} m")
     # 2 (n_u - 1)(n_v - 1) = n_faces with square cells: (n_u - 1) / (n_v - 1) = size_x / size_y.
-    cells_v = max(int(round(np.sqrt(n_faces / 2.0 * size_y / size_x))), 1)
-    cells_u = max(int(round(n_faces / 2.0 / cells_v)), 1)
+    cells_v = max(round(np.sqrt(n_faces / 2.0 * size_y / size_x)), 1)
+    cells_u = max(round(n_faces / 2.0 / cells_v), 1)
     xs = np.linspace(-size_x / 2, size_x / 2, cells_u + 1)
     ys = np.linspace(-size_y / 2, size_y / 2, cells_v + 1)
     x, y = np.meshgrid(xs, ys, indexing="ij")

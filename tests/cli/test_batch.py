@@ -81,7 +81,7 @@ def test_serial_sweep_writes_one_sorted_row_per_job(serial):
 
 
 def test_local_ray_gives_the_same_table(serial, tmp_path):
-    path, rows = serial
+    _, rows = serial
     ray_sweep = write_sweep(tmp_path, "ray")
     env = os.environ.pop("RAY_ADDRESS", None)
     try:

@@ -1,0 +1,93 @@
+"""Batch throughput: the same 12-job sweep serially (``--workers 1``) and on a local Ray with 2 workers.
+
+    python benchmarks/bench_batch.py [--workers 2] [--point-spacing 2mm]
+
+The sweep: example:plate and example:panel x raster, uniform, equidistant x 10 N, 20 N (default
+3-inch pad, 50 mm/s, angle 0).  Prints wall time and jobs per minute for each run, the Ray one with
+and without its start-up (timed apart: Ray is started before the sweep), the speed-up over serial,
+the sum of the jobs' own times, and the machine's load average before and after, since the cores
+are shared.  Checks that both runs give the same table (all columns but wall times).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import tempfile
+import time
+from pathlib import Path
+
+from common import print_table
+
+SWEEP = """
+out = "{out}"
+point_spacing = "{point_spacing}"
+angle = "0deg"
+
+[grid]
+part = ["example:plate", "example:panel"]
+planner = ["raster", "uniform", "equidistant"]
+force = ["10N", "20N"]
+"""
+TIMES = {"load_s", "plan_s", "trajectory_s", "simulate_s", "job_s", "resumed"}
+
+
+def table(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        return [{k: v for k, v in row.items() if k not in TIMES} for row in csv.DictReader(fh)]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--point-spacing", default="2mm", help="job point spacing (sets the job size)")
+    args = parser.parse_args()
+
+    from swath.batch import load_sweep, run_sweep
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        tables = {}
+        for workers in (1, args.workers):
+            path = Path(tmp) / f"w{workers}.toml"
+            path.write_text(SWEEP.format(out=f"w{workers}", point_spacing=args.point_spacing), encoding="utf-8")
+            sweep = load_sweep(path)
+            load_before = os.getloadavg()[0]
+            startup = 0.0
+            if workers > 1:
+                import ray
+
+                from swath._batch_ray import local_ray_options
+
+                t0 = time.perf_counter()
+                ray.init(**local_ray_options(workers))
+                startup = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            result = run_sweep(sweep, workers=workers, resume=False)
+            wall = time.perf_counter() - t0
+            if workers > 1:
+                ray.shutdown()
+            failed = [r["job_id"] for r in result if r["status"] != "ok"]
+            rows.append({"workers": workers, "jobs": len(result), "failed": len(failed), "startup_s": startup,
+                         "wall_s": wall, "jobs_per_min": 60.0 * len(result) / wall,
+                         "jobs_per_min_with_startup": 60.0 * len(result) / (wall + startup),
+                         "sum_job_s": sum(r["job_s"] or 0.0 for r in result),
+                         "load_before": load_before, "load_after": os.getloadavg()[0]})
+            tables[workers] = table(sweep.out / "results.csv")
+            print(f"  {workers} worker(s): {wall:.1f} s{' failed: ' + ', '.join(failed) if failed else ''}", flush=True)
+        serial = rows[0]["wall_s"]
+        for row in rows:
+            row["speedup"] = serial / row["wall_s"]
+            row["speedup_with_startup"] = serial / (row["wall_s"] + row["startup_s"])
+        same = tables[1] == tables[args.workers]
+    print(f"\nbatch throughput on {os.cpu_count()} CPUs (load average: 1-min, shared machine)")
+    print_table(rows, [("workers", "d"), ("jobs", "d"), ("failed", "d"), ("startup_s", ".1f"), ("wall_s", ".1f"),
+                       ("sum_job_s", ".1f"), ("jobs_per_min", ".1f"), ("speedup", ".2f"),
+                       ("jobs_per_min_with_startup", ".1f"), ("speedup_with_startup", ".2f"),
+                       ("load_before", ".2f"), ("load_after", ".2f")])
+    print(f"same results table serial and parallel (wall times aside): {same}")
+
+
+if __name__ == "__main__":
+    main()
