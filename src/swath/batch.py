@@ -50,6 +50,7 @@ import io
 import itertools
 import json
 import logging
+import numbers
 import os
 import re
 import sys
@@ -272,7 +273,11 @@ def _row(job_id: str, settings, metrics: dict, *, status: str, error: str = "", 
         row.update(_plain(settings.as_record()))
     for key in METRIC_COLUMNS:
         value = metrics.get(key)
-        row[key] = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+        if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+            value = int(value)
+        elif isinstance(value, numbers.Real):
+            value = float(value)
+        row[key] = value
     return row
 
 
@@ -376,6 +381,9 @@ def run_from_args(args, *, quiet: bool = False) -> int:
     except SwathError as exc:
         print(f"swath: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("swath batch: interrupted; finished jobs keep their folders: run again to resume", file=sys.stderr)
+        return 130
     failed = [r for r in rows if r["status"] != "ok"]
     if not quiet:
         resumed = sum(bool(r["resumed"]) for r in rows)

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import csv
+import json
 import os
-import time
 from pathlib import Path
 
 import pytest
@@ -100,12 +100,25 @@ def test_resume_skips_finished_jobs(serial, tmp_path):
     assert [r["resumed"] for r in again] == [True] * 4
     assert {j.job_id: (Path(j.settings.out) / "metrics.json").stat().st_mtime_ns for j in sweep.jobs} == done
     same_figures(read_table(sweep.out / "results.csv"), rows)
-    # A changed setting is not a finished job: the same ids run again.
-    changed = load_sweep(write_sweep(path.parent, "serial", extra='force = "10N"\n'))
-    t0 = time.perf_counter()
-    redo = run_sweep(changed, workers=1, resume=True)
-    assert [r["resumed"] for r in redo] == [False] * 4 and [r["force_N"] for r in redo] == [10.0] * 4
-    assert time.perf_counter() - t0 > 0.5
+    # A job whose stored settings differ (as after an edit of the sweep) is not finished: it runs again.
+    first = Path(sweep.jobs[0].settings.out) / "metrics.json"
+    doc = json.loads(first.read_text(encoding="utf-8"))
+    doc["settings"]["force_N"] = 10.0
+    first.write_text(json.dumps(doc), encoding="utf-8")
+    redo = run_sweep(sweep, workers=1, resume=True)
+    assert [r["resumed"] for r in redo] == [False, True, True, True]
+    assert json.loads(first.read_text(encoding="utf-8"))["settings"]["force_N"] == 20.0
+    same_figures(read_table(sweep.out / "results.csv"), rows)
+
+
+def test_parquet_table_matches_the_csv(serial):
+    pq = pytest.importorskip("pyarrow.parquet")
+    path, rows = serial
+    sweep = load_sweep(path)
+    run_sweep(sweep, workers=1, resume=True)
+    table = pq.read_table(sweep.out / "results.parquet").to_pylist()
+    assert [r["job_id"] for r in table] == IDS
+    assert [r["coverage_fraction"] for r in table] == [float(r["coverage_fraction"]) for r in rows]
 
 
 def test_a_failed_job_is_reported_and_the_rest_kept(tmp_path, capsys):
