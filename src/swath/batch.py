@@ -73,7 +73,7 @@ METRIC_COLUMNS = (
 _ID_PREFIX = {"pad_radius": "r", "force": "f", "feed": "v", "spacing": "s", "angle": "a", "direction": "a",
               "depression": "d", "stiffness": "k", "point_spacing": "ps", "clearance": "c", "overlap": "o",
               "sample_spacing": "ss", "surface_spacing": "fs", "max_centripetal": "ac", "max_angular": "w",
-              "max_accel": "at", "units": "u", "side": "side"}
+              "max_accel": "at", "units": "u", "side": "side", "planner_options": ""}
 _BARE_IDS = {"part", "planner", "motion", "parameterization"}
 
 
@@ -131,7 +131,7 @@ def sweep_from_mapping(data: dict, *, base_dir: Path) -> Sweep:
         raise InputError("[grid] must be a table of lists, e.g. planner = [\"raster\", \"uniform\"]")
     base = dict(data.pop("job")) if isinstance(data.get("job"), dict) else {}
     for key, value in data.items():
-        if key in base:
+        if _norm(key) in {_norm(k) for k in base}:
             raise InputError(f"{key!r} is set both at the top level and in [job]; keep one")
         base[key] = value
     out = base.pop("out", None)
@@ -141,7 +141,7 @@ def sweep_from_mapping(data: dict, *, base_dir: Path) -> Sweep:
     for key, values in grid.items():
         if key == "out":
             raise InputError("'out' cannot be a grid key: every job writes to OUT/JOB_ID")
-        if key in base:
+        if _norm(key) in {_norm(k) for k in base}:
             raise InputError(f"{key!r} is both a base setting and a grid key; keep one")
         if not isinstance(values, list) or not values:
             raise InputError(f"grid key {key!r} must be a non-empty list, e.g. {key} = [..., ...]; got {values!r}")
@@ -161,6 +161,10 @@ def sweep_from_mapping(data: dict, *, base_dir: Path) -> Sweep:
             raise InputError(f"job {job_id}: {where}{exc}") from None
         jobs.append(BatchJob(job_id, values, settings))
     return Sweep(out=out_dir, base_dir=base_dir, grid_keys=keys, jobs=tuple(jobs))
+
+
+def _norm(key: str) -> str:
+    return key.replace("-", "_")
 
 
 def _offending_key(values: dict, base_dir: Path) -> str | None:
@@ -187,7 +191,7 @@ def make_job_id(index: int, varied: dict, *, width: int = 4) -> str:
     for key, value in varied.items():
         name = key.replace("-", "_")
         if isinstance(value, dict):
-            text = "opts" + "_".join(f"{k}{v}" for k, v in value.items())
+            text = "_".join(f"{k}{v}" for k, v in value.items())
         elif name == "part":
             text = str(value).split(":", 1)[1] if str(value).startswith("example:") else PurePath(str(value)).stem
         else:
