@@ -67,7 +67,7 @@ log = logging.getLogger(__name__)
 METRIC_COLUMNS = (
     "n_passes", "coverage_fraction", "effective_coverage_fraction", "removal_cov", "removal_mean_m",
     "removal_p5_m", "removal_p95_m", "contact_length_m", "air_length_m", "cycle_time_s",
-    "coverage_lower_bound_m", "efficiency", "load_s", "plan_s", "trajectory_s", "simulate_s", "job_s",
+    "coverage_lower_bound_m", "efficiency", "load_s", "plan_s", "trajectory_s", "simulate_s", "job_s", "job_cpu_s",
 )
 #: Short prefixes of grid values in job ids (other keys use their own name).
 _ID_PREFIX = {"pad_radius": "r", "force": "f", "feed": "v", "spacing": "s", "angle": "a", "direction": "a",
@@ -256,7 +256,7 @@ def run_batch_job(job_id: str, values: dict, base_dir: str) -> dict:
     """Run one job and return its table row; never raises for a failure of the job itself."""
     from .job import run_job, settings_from_mapping
 
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     settings = None
     try:
         settings = settings_from_mapping(values, base_dir=Path(base_dir))
@@ -268,6 +268,7 @@ def run_batch_job(job_id: str, values: dict, base_dir: str) -> dict:
         if not isinstance(exc, SwathError):
             row["_traceback"] = traceback.format_exc()
     row["job_s"] = time.perf_counter() - t0
+    row["job_cpu_s"] = time.process_time() - cpu0
     return row
 
 
@@ -303,7 +304,7 @@ def _finished_row(job: BatchJob) -> dict | None:
         log.info("%s: settings changed since its metrics.json was written; running it again", job.job_id)
         return None
     row = _row(job.job_id, job.settings, doc.get("metrics", {}), status="ok", resumed=True)
-    row["job_s"] = None
+    row["job_s"] = row["job_cpu_s"] = None
     return row
 
 

@@ -28,7 +28,7 @@ planner = ["raster", "uniform"]
 """
 IDS = ["0000-plate-raster", "0001-plate-uniform", "0002-panel-raster", "0003-panel-uniform"]
 #: Columns that are wall times, so differ between runs.
-TIMES = {"load_s", "plan_s", "trajectory_s", "simulate_s", "job_s", "resumed"}
+TIMES = {"load_s", "plan_s", "trajectory_s", "simulate_s", "job_s", "job_cpu_s", "resumed"}
 
 
 def write_sweep(folder: Path, out: str, grid: str = GRID, extra: str = "") -> Path:
