@@ -80,8 +80,9 @@ def local_ray_options(n_cpus: int) -> dict:
 
     src = str(Path(swath.__file__).resolve().parents[1])
     path = os.pathsep.join(p for p in (src, os.environ.get("PYTHONPATH")) if p)
-    return {"num_cpus": n_cpus, "include_dashboard": False, "log_to_driver": False, "configure_logging": False,
-            "runtime_env": {"env_vars": {"PYTHONPATH": path}}}
+    # address "local": a new Ray of our own, even if `ray start` left one running on this machine.
+    return {"address": "local", "num_cpus": n_cpus, "include_dashboard": False, "log_to_driver": False,
+            "configure_logging": False, "runtime_env": {"env_vars": {"PYTHONPATH": path}}}
 
 
 def _settings_columns(job) -> dict:
