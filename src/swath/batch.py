@@ -159,6 +159,12 @@ def sweep_from_mapping(data: dict, *, base_dir: Path) -> Sweep:
             key = _offending_key(values, base_dir)
             where = f"{key} = {values[key]!r}: " if key and repr(key) not in str(exc) else ""
             raise InputError(f"job {job_id}: {where}{exc}") from None
+        if settings.part.startswith("example:"):
+            from .examples import PARTS
+
+            if settings.part.split(":", 1)[1] not in PARTS:
+                raise InputError(f"job {job_id}: part = {settings.part!r} is not a built-in part; choose one of "
+                                 + ", ".join(f"example:{name}" for name in PARTS))
         jobs.append(BatchJob(job_id, values, settings))
     return Sweep(out=out_dir, base_dir=base_dir, grid_keys=keys, jobs=tuple(jobs))
 

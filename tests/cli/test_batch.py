@@ -140,6 +140,7 @@ def test_a_failed_job_is_reported_and_the_rest_kept(tmp_path, capsys):
     ('[grid]\npart = ["example:plate"]\nplanner = "raster"\n', "planner"),
     ('[grid]\npart = ["example:plate"]\nangle = ["0deg"]\n', "angle"),       # both base and grid
     ('[grid]\nout = ["a", "b"]\n', "out"),
+    ('[grid]\npart = ["example:plate", "example:plat"]\n', "0001-plat: part = 'example:plat'"),
     ('[grid]\npart = ["example:plate"]\npad-radius = ["30mm"]\n', "pad-radius"),  # pad_radius in the base
 ])
 def test_a_bad_sweep_is_refused_before_any_work(tmp_path, grid, named, capsys):
