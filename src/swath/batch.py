@@ -27,8 +27,9 @@ keys by a short prefix: ``r`` pad radius, ``f`` force, ``v`` feed, ``s`` spacing
 to ``OUT/ID/``; the sweep writes ``OUT/results.csv`` (and ``OUT/results.parquet`` when pyarrow is
 installed), one row per job sorted by id: ``job_id``, ``status`` (``ok`` or ``failed``),
 ``error`` (the failure in one line), ``resumed``, the settings (units in the column names) and
-the main metrics (:data:`METRIC_COLUMNS`).  A failed job's traceback is kept in
-``OUT/errors/ID.txt``.
+the main metrics (:data:`METRIC_COLUMNS`; ``job_s`` and ``job_cpu_s`` are the job's wall and CPU
+time).  A job that failed with an unexpected exception (not an input error) leaves its traceback
+in ``OUT/errors/ID.txt``.  A failed job writes no folder (job outputs are atomic).
 
 The whole sweep is validated before any job starts: a bad key or value is refused naming the key
 and the first job it breaks.  With resume (the default) a job whose folder already holds a
@@ -40,6 +41,12 @@ Running
 workers run them as Ray tasks: on a local Ray started for the sweep (``--workers`` CPUs, default
 all), or on an existing cluster when ``--address`` or ``RAY_ADDRESS`` is given (the part files
 and ``out`` must then be on a file system every node sees, and swath importable on every node).
+
+    swath batch sweep.toml [--workers N] [--address ADDR] [--resume | --no-resume] [-q]
+
+Progress goes to stderr, a line per finished job.  Exit status: 0 every job ok, 1 some failed
+(the table is written all the same), 2 the sweep was refused (nothing ran), 130 interrupted
+(finished jobs keep their folders; run again to resume).
 """
 
 from __future__ import annotations
@@ -331,8 +338,11 @@ def write_results(sweep: Sweep, rows: list[dict]) -> Path:
     out_csv = sweep.out / "results.csv"
     write_text_atomic(out_csv, buf.getvalue())
     for row in rows:
+        trace = sweep.out / "errors" / f"{row['job_id']}.txt"
         if row.get("_traceback"):
-            write_text_atomic(sweep.out / "errors" / f"{row['job_id']}.txt", row["_traceback"])
+            write_text_atomic(trace, row["_traceback"])
+        elif trace.exists():                      # from an earlier run of a job that is fine now
+            trace.unlink()
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq

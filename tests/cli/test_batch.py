@@ -150,3 +150,18 @@ def test_a_bad_sweep_is_refused_before_any_work(tmp_path, grid, named, capsys):
     assert main([str(path), "--workers", "1"]) == 2
     assert named in capsys.readouterr().err
     assert not (tmp_path / "bad").exists()
+
+
+def test_an_unexpected_failure_leaves_its_traceback(tmp_path, monkeypatch):
+    import swath.job
+
+    def broken(settings, **kwargs):
+        raise RuntimeError("solver diverged\nsecond line")
+
+    monkeypatch.setattr(swath.job, "run_job", broken)
+    path = write_sweep(tmp_path, "boom", grid='[grid]\nplanner = ["raster"]\n', extra='part = "example:plate"\n')
+    rows = run_sweep(load_sweep(path), workers=1)
+    assert [(r["job_id"], r["status"], r["error"]) for r in rows] == [
+        ("0000-raster", "failed", "RuntimeError: solver diverged")]
+    trace = (tmp_path / "boom" / "errors" / "0000-raster.txt").read_text(encoding="utf-8")
+    assert "Traceback" in trace and "second line" in trace
