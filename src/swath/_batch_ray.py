@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 from pathlib import Path
 
 from .errors import InputError
@@ -46,7 +47,8 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
     started = False
     if not ray.is_initialized():
         if address:
-            ray.init(address=address, log_to_driver=False)
+            # Ship this swath to the cluster's workers, so that they run the driver's version.
+            ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
         else:
             ray.init(**local_ray_options(workers or os.cpu_count() or 1))
         started = True
@@ -64,21 +66,32 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
                 job = running.pop(ref)
                 try:
                     yield ray.get(ref)
-                except ray.exceptions.RayError as exc:        # the worker died; the job failed
-                    first = (str(exc).strip().splitlines() or [""])[0]
-                    yield {"job_id": job.job_id, "status": "failed", "error": f"{type(exc).__name__}: {first}",
-                           "resumed": False, **_settings_columns(job)}
+                except ray.exceptions.RayError as exc:        # the worker died or could not import swath
+                    yield {"job_id": job.job_id, "status": "failed", "error": _error_line(exc), "resumed": False,
+                           **_settings_columns(job)}
     finally:
         if started:
             ray.shutdown()
 
 
+def _package_dir() -> str:
+    import swath
+
+    return str(Path(swath.__file__).resolve().parent)
+
+
+def _error_line(exc: Exception) -> str:
+    """One line for a task that Ray could not run: the innermost ``XxxError: ...`` line if any."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(exc))
+    found = re.findall(r"^(\w+(?:Error|Exception|Exit)\b.*)$", text, flags=re.MULTILINE)
+    line = found[-1] if found else next((x for x in text.splitlines() if x.strip()), "")
+    return f"{type(exc).__name__}: {line.strip()}"[:300]
+
+
 def local_ray_options(n_cpus: int) -> dict:
     """``ray.init`` keywords of the local Ray of a sweep: ``n_cpus`` CPUs, no dashboard, worker logs
     kept out of the terminal, and workers importing the same swath as this process."""
-    import swath
-
-    src = str(Path(swath.__file__).resolve().parents[1])
+    src = str(Path(_package_dir()).parent)
     path = os.pathsep.join(p for p in (src, os.environ.get("PYTHONPATH")) if p)
     # address "local": a new Ray of our own, even if `ray start` left one running on this machine.
     return {"address": "local", "num_cpus": n_cpus, "include_dashboard": False, "log_to_driver": False,

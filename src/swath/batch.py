@@ -39,8 +39,10 @@ Running
 -------
 ``--workers 1`` runs the jobs one after another in this process (Ray is not imported).  More
 workers run them as Ray tasks: on a local Ray started for the sweep (``--workers`` CPUs, default
-all), or on an existing cluster when ``--address`` or ``RAY_ADDRESS`` is given (the part files
-and ``out`` must then be on a file system every node sees, and swath importable on every node).
+all), or on an existing cluster when ``--address`` or ``RAY_ADDRESS`` is given.  On a cluster
+this process's swath package is shipped to the workers (Ray ``py_modules``), so they run the
+same code; its dependencies must be installed on every node, and the part files and ``out``
+must be on a file system every node sees.
 
     swath batch sweep.toml [--workers N] [--address ADDR] [--resume | --no-resume] [-q]
 
