@@ -9,6 +9,11 @@ of each run, the Ray ones with and without start-up (timed apart: Ray is started
 sweep), the speed-up over the mean serial run, the sum of the jobs' own wall and CPU times, and
 the load average before and after, since the cores are shared.  Checks that every run gives the
 same table (all columns but times).
+
+On a machine shared through sessions (Linux autogroup scheduling: ``/proc/self/autogroup``; the
+local Ray's workers join the session of the process that starts them), a busy machine gives the
+session a fixed share of the CPUs however many workers it runs: the speed-up shows only when the
+session's share exceeds one CPU.  ``sum_cpu_s`` staying flat while ``sum_job_s`` grows is the sign.
 """
 
 from __future__ import annotations
