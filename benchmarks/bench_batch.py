@@ -52,7 +52,7 @@ def main():
     parser.add_argument("--point-spacing", default="2mm", help="job point spacing (sets the job size)")
     args = parser.parse_args()
 
-    from swath.batch import load_sweep, run_sweep
+    from swath.cli.batch import load_sweep, run_sweep
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -66,7 +66,7 @@ def main():
             if workers > 1:
                 import ray
 
-                from swath._batch_ray import local_ray_options
+                from swath.cli.batch_ray import local_ray_options
 
                 t0 = time.perf_counter()
                 ray.init(**local_ray_options(workers))

@@ -124,21 +124,19 @@ def test_wavy_mesh_agrees_with_file_normals():
     assert np.mean(np.einsum("ij,ij->i", surface.vertex_normals, file_normals) > 0.5) > 0.99
 
 
-def test_wavy_mesh_units(caplog):
+def test_wavy_mesh_units_a_slip_is_refused_not_warned(caplog):
+    """FORMATS.md: a guessed unit is refused (unless forced) — read in mm (10.5 mm) or in m (10.5 m)
+    the wavy scan is a unit slip that another unit (inches, 0.267 m) makes a comfortable size."""
     path = shared_mesh("noether_wavy_mesh_with_hole.ply")
     inches = load_mesh(path, units="in")
-    # 10.5 mm is inside 5 mm .. 20 m, so millimetres are accepted, with a warning naming inches
+    assert np.ptp(inches.vertices, axis=0).max() == pytest.approx(0.2667, rel=1e-3)
+    for units, size in (("mm", "0.0105 m"), ("m", "10.5 m")):
+        with pytest.raises(InputError, match=f"part is {size} across when read in {units}.*--units in"):
+            load_mesh(path, units=units)
     with caplog.at_level(logging.WARNING, logger="swath.io"):
-        mm = load_mesh(path, units="mm")
-    assert np.ptp(mm.vertices, axis=0).max() == pytest.approx(0.0105, rel=1e-3)
-    assert "--units in" in caplog.text
+        mm = load_mesh(path, units="mm", force_units=True)
+    assert "may not be in mm" in caplog.text
     np.testing.assert_allclose(mm.vertices, inches.vertices / 25.4, rtol=1e-12, atol=1e-15)
-    # read as metres it is a 10.5 m part: accepted (< 20 m) with the large-part warning
-    caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="swath.io"):
-        metres = load_mesh(path, units="m")
-    assert np.ptp(metres.vertices, axis=0).max() == pytest.approx(10.5, rel=1e-3)
-    assert "may not be in metres" in caplog.text and "--units in" in caplog.text
 
 
 # --------------------------------------------------------------------------------------------

@@ -24,7 +24,7 @@ LENGTH_UNIT_NAMES: dict[str, str] = {
 
 # Each kind of quantity: suffix -> factor to SI.
 _KINDS: dict[str, dict[str, float]] = {
-    "length": dict(LENGTH_UNITS, um=1e-6),
+    "length": dict(LENGTH_UNITS, um=1e-6, **{"µm": 1e-6}),
     "force": {"N": 1.0, "kN": 1e3},
     "speed": {"m/s": 1.0, "mm/s": 1e-3, "cm/s": 1e-2, "m/min": 1.0 / 60.0, "mm/min": 1e-3 / 60.0},
     "acceleration": {"m/s2": 1.0, "m/s^2": 1.0, "mm/s2": 1e-3, "mm/s^2": 1e-3},
@@ -33,6 +33,7 @@ _KINDS: dict[str, dict[str, float]] = {
     "stiffness": {"Pa/m": 1.0, "N/m3": 1.0, "MPa/m": 1e6, "kPa/m": 1e3, "N/mm3": 1e9},
     "fraction": {"%": 0.01, "": 1.0},
     "frequency": {"Hz": 1.0, "rpm": 1.0 / 60.0},
+    "mass": {"kg": 1.0, "g": 1e-3, "lb": 0.45359237},
 }
 
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from swath.batch import load_sweep, main, make_job_id, run_sweep
+from swath.cli.batch import load_sweep, main, make_job_id, run_sweep
 from swath.errors import InputError
 
 #: A coarse setup: each job plans, times, simulates and reports in about a second.
@@ -153,12 +153,12 @@ def test_a_bad_sweep_is_refused_before_any_work(tmp_path, grid, named, capsys):
 
 
 def test_an_unexpected_failure_leaves_its_traceback(tmp_path, monkeypatch):
-    import swath.job
+    import swath.cli.job
 
     def broken(settings, **kwargs):
         raise RuntimeError("solver diverged\nsecond line")
 
-    monkeypatch.setattr(swath.job, "run_job", broken)
+    monkeypatch.setattr(swath.cli.job, "run_job", broken)
     path = write_sweep(tmp_path, "boom", grid='[grid]\nplanner = ["raster"]\n', extra='part = "example:plate"\n')
     rows = run_sweep(load_sweep(path), workers=1)
     assert [(r["job_id"], r["status"], r["error"]) for r in rows] == [

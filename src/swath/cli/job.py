@@ -10,193 +10,11 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
 
 from ..errors import InputError
-from ..units import parse_quantity
+from .settings import JobSettings, load_job_toml, settings_from_mapping  # noqa: F401  (the job's inputs)
 
 log = logging.getLogger(__name__)
-
-#: Robot-realistic limits every trajectory is timed under unless the user turns them off ("none"):
-#: tool angular speed (rad/s), centripetal and tangential acceleration (m/s²).
-DEFAULT_LIMITS = {"max_angular": 1.0, "max_centripetal": 2.0, "max_accel": 1.0}
-
-#: Sentinel text that turns a default limit off.
-OFF_WORDS = ("none", "off", "no")
-
-
-@dataclass(frozen=True)
-class JobSettings:
-    """Every setting of a job, SI units.
-
-    ``part`` is a mesh file path, ``example:NAME`` for a built-in part (``example:blade``), a
-    B-spline patch saved by ``swath fit`` (``patch.json``), or, with ``fit``, a scan (point cloud
-    or mesh) to fit a B-spline patch to first.  A patch is planned on its triangulation at
-    ``surface_spacing`` (m; default its longest extent / 150, clipped to 2..5 mm).
-    """
-
-    part: str
-    out: str
-    units: str = "m"
-    side: str | None = None
-    all_pieces: bool = False
-    force_units: bool = False
-    planner: str = "raster"
-    order: str | None = None
-    pad_radius: float = 0.0381
-    force: float = 20.0
-    depression: float | None = None
-    stiffness: float | None = None
-    motion: str = "orbital"
-    feed: float = 0.05
-    spacing: float | None = None
-    direction: float | None = None
-    point_spacing: float = 1e-3
-    clearance: float = 0.02
-    max_centripetal: float | None = DEFAULT_LIMITS["max_centripetal"]
-    max_angular: float | None = DEFAULT_LIMITS["max_angular"]
-    max_accel: float | None = DEFAULT_LIMITS["max_accel"]
-    overlap: float | None = None
-    sample_spacing: float | None = None
-    planner_options: dict = field(default_factory=dict)
-    fit: bool = False
-    parameterization: str = "auto"
-    surface_spacing: float | None = None
-
-    def tool(self):
-        from ..contact import Tool
-
-        return Tool(pad_radius=self.pad_radius, force=self.force, depression=self.depression,
-                    stiffness=self.stiffness, motion=self.motion)
-
-    def constraints(self) -> list:
-        """The trajectory constraints: the feed and whichever limits are on (by default all three of
-        :data:`DEFAULT_LIMITS`)."""
-        from ..trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit
-
-        out = [FeedLimit(self.feed)]
-        if self.max_centripetal is not None:
-            out.append(CentripetalLimit(self.max_centripetal))
-        if self.max_angular is not None:
-            out.append(AngularSpeedLimit(self.max_angular))
-        if self.max_accel is not None:
-            out.append(TangentialAccelLimit(self.max_accel))
-        return out
-
-    def links(self):
-        """How the tool moves between passes."""
-        from ..trajectory import LinkSettings
-
-        return LinkSettings(clearance=self.clearance)
-
-    def as_record(self) -> dict:
-        """Settings with units in the key names, for metrics.json and the report."""
-        tool = self.tool()
-        return {
-            "part": self.part, "units": self.units, "planner": self.planner,
-            "pad_radius_m": self.pad_radius, "force_N": self.force,
-            "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
-            "motion": self.motion, "feed_m_per_s": self.feed, "spacing_m": self.spacing,
-            "direction_rad": self.direction, "order": self.order, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
-            "max_centripetal_m_per_s2": self.max_centripetal, "max_angular_rad_per_s": self.max_angular,
-            "max_accel_m_per_s2": self.max_accel,
-            "fit": self.fit, "fit_parameterization": self.parameterization,
-            "surface_spacing_m": self.surface_spacing,
-            **{f"planner_{k}": v for k, v in self.planner_options.items()},
-        }
-
-
-# Text keys (CLI flags and TOML keys) -> (field, quantity kind or None for plain values).
-_QUANTITY_FIELDS = {
-    "pad_radius": "length", "pad-radius": "length",
-    "force": "force",
-    "depression": "length",
-    "stiffness": "stiffness",
-    "feed": "speed",
-    "spacing": "length",
-    "angle": "angle",
-    "direction": "angle",
-    "point_spacing": "length", "point-spacing": "length",
-    "clearance": "length",
-    "sample_spacing": "length", "sample-spacing": "length",
-    "surface_spacing": "length", "surface-spacing": "length",
-    "max_centripetal": "acceleration", "max-centripetal": "acceleration",
-    "max_angular": "angular_speed", "max-angular": "angular_speed",
-    "max_accel": "acceleration", "max-accel": "acceleration",
-    "overlap": "fraction",
-}
-_PLAIN_FIELDS = {"part", "out", "units", "side", "all_pieces", "all-pieces", "force_units", "force-units",
-                 "planner", "order", "motion", "fit", "parameterization"}
-
-
-def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobSettings:
-    """Build :class:`JobSettings` from text values (a TOML table or parsed CLI flags).
-
-    Quantities accept unit suffixes; bare numbers are SI (``pad_radius = 0.0381``) except angles,
-    which default to degrees.  Unknown keys are refused by name.
-    """
-    kwargs = {}
-    for key, value in values.items():
-        if value is None:
-            continue
-        name = key.replace("-", "_")
-        if name == "angle":              # the raster planner's word for the pass direction
-            name = "direction"
-        if key in _QUANTITY_FIELDS:
-            kind = _QUANTITY_FIELDS[key]
-            if kind == "angle" and str(value).strip().lower() == "auto":
-                kwargs[name] = None
-                continue
-            if name in DEFAULT_LIMITS and str(value).strip().lower() in OFF_WORDS:
-                kwargs[name] = None      # the user turned a default limit off
-                continue
-            kwargs[name] = parse_quantity(value, kind, default_unit="deg" if kind == "angle" else None)
-        elif key in _PLAIN_FIELDS:
-            kwargs[name] = value
-        elif key == "planner_options" and isinstance(value, dict):
-            kwargs[name] = dict(value)
-        else:
-            known = sorted({k.replace("-", "_") for k in list(_QUANTITY_FIELDS) + list(_PLAIN_FIELDS)})
-            raise InputError(f"unknown job setting {key!r}; known settings: {', '.join(known)}")
-    if "part" not in kwargs or "out" not in kwargs:
-        raise InputError("a job needs 'part' (a mesh file or example:NAME) and 'out' (the output directory)")
-    if base_dir is not None:
-        for k in ("part", "out"):
-            p = str(kwargs[k])
-            if not p.startswith("example:") and not Path(p).is_absolute():
-                kwargs[k] = str(base_dir / p)
-    from ..order import ORDER_METHODS
-    from ..plan import get_planner
-
-    get_planner(kwargs.get("planner", "raster"))          # refuses an unknown planner by name
-    if kwargs.get("order") is not None and kwargs["order"] not in ORDER_METHODS:
-        raise InputError(f"unknown order {kwargs['order']!r}; choose one of {', '.join(ORDER_METHODS)}")
-    if "parameterization" in kwargs:
-        from ..surface.fit import PARAMETERIZATIONS
-
-        if kwargs["parameterization"] not in PARAMETERIZATIONS:
-            raise InputError(f"unknown parameterization {kwargs['parameterization']!r}; choose one of "
-                             f"{', '.join(PARAMETERIZATIONS)}")
-    if kwargs.get("surface_spacing") is not None and not kwargs["surface_spacing"] > 0:
-        raise InputError(f"surface_spacing must be a positive length, got {kwargs['surface_spacing']!r} m")
-    return JobSettings(**kwargs)
-
-
-def load_job_toml(path) -> JobSettings:
-    """Read a TOML job file: top-level keys as in :class:`JobSettings`, quantities with units."""
-    import tomllib
-
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"job file {path} not found") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"job file {path} is not valid TOML: {exc}") from None
-    table = data.get("job", data)
-    return settings_from_mapping(table, base_dir=path.parent)
-
 
 def load_part(settings: JobSettings):
     """The job's part as a Surface (built-in example, mesh file, saved patch, or fitted scan)."""
@@ -284,9 +102,13 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     """
     from ..plan import planner_options, planners_taking
 
+    from .settings import SCHEMA, parse_value
+
     takes = planner_options(settings.planner)
     given = {"spacing": settings.spacing, "direction": settings.direction, "overlap": settings.overlap}
-    for key, value in {**given, **settings.planner_options}.items():
+    own = {k: (parse_value(f"planner_options.{k}", v, SCHEMA[k]) if k in SCHEMA else v)
+           for k, v in settings.planner_options.items()}
+    for key, value in {**given, **own}.items():
         if value is not None and key not in takes:
             others = planners_taking(key)
             raise InputError(f"the {settings.planner} planner does not take {key!r}"
@@ -297,7 +119,7 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     if settings.max_angular is not None:
         context["max_angular"] = settings.max_angular
     options = {k: v for k, v in {**context, **given}.items() if k in takes and v is not None}
-    options.update(settings.planner_options)
+    options.update(own)
     return options
 
 
@@ -315,6 +137,10 @@ def make_plan(surface, settings: JobSettings, *, progress=None):
 def run_job(settings: JobSettings, *, progress=None) -> dict:
     """Run a whole job and write ``trajectory.csv``, ``metrics.json``, ``report.html`` and PNGs.
 
+    Everything that can be refused from the settings alone (the output folder, units, values, the
+    planner's options) is refused before the part is loaded; the work the part needs is estimated
+    and refused over the memory budget before planning (:func:`swath.cli.guard.check_budget`).
+
     Parameters
     ----------
     settings : JobSettings
@@ -324,25 +150,29 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     Returns
     -------
     dict
-        The metrics (keys with units).
+        The metrics (keys with units), with ``warnings`` (list of str).
     """
-    from ..io.atomic import atomic_directory
-    from ..report import write_report
+    from ..io.atomic import atomic_directory, check_output_dir
+    from ..report import plan_warnings, write_report
     from ..simulate import simulate_removal
     from ..trajectory import time_path
+    from . import stages
+    from .guard import check_budget
 
     say = progress or (lambda stage, done, total: None)
     timings = {}
+    check_output_dir(settings.out, overwrite=settings.overwrite)
+    tool = stages.job_tool(settings)
 
     t0 = time.perf_counter()
     say("loading part", 0, 1)
     surface, part_info = load_part_info(settings, progress=say)
     log.info("part %s", surface)
+    check_budget(surface, settings)
     timings["load_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     say(f"planning ({settings.planner})", 0, 1)
-    planner_arguments(settings)                      # option errors before loading, not after planning
     toolpath = make_plan(surface, settings, progress=say)
     timings["plan_s"] = time.perf_counter() - t0
     log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
@@ -352,29 +182,47 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
     timings["trajectory_s"] = time.perf_counter() - t0
 
+    extra_metrics, figures, force = {}, {}, None
+    if settings.force_control:
+        t0 = time.perf_counter()
+        say("simulating force control", 0, 1)
+        trajectory, force, extra_metrics = stages.force_stage(trajectory, surface, tool, settings)
+        timings["force_s"] = time.perf_counter() - t0
+
     t0 = time.perf_counter()
-    tool = settings.tool()
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
+                               force=None if force is None else force.force,
                                progress=lambda d, n: say("simulating removal", d, n))
     timings["simulate_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)
-    metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
-                    and k.endswith(("_m", "_rad", "_s")) and k not in metrics})
+    metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float))
+                    and not isinstance(v, bool) and k.endswith(("_m", "_rad", "_s")) and k not in metrics})
     metrics.update(timings)
     metrics.update(part_info.get("metrics", {}))
+    metrics.update(extra_metrics)
+    if settings.calibration:
+        metrics["preston_coefficient_per_Pa"] = tool.preston
+    metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
+    for w in metrics["warnings"]:
+        log.warning("%s", w)
     record = settings.as_record()
     record["plan"] = dict(toolpath.metadata)
 
     say("writing report", 0, 1)
-    with atomic_directory(settings.out) as tmp:
+    with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
         trajectory.write_csv(tmp / "trajectory.csv")
         if part_info.get("patch") is not None:
             from .fitjob import save_patch
 
             save_patch(part_info["patch"], tmp / "patch.json", part_info.get("footprint"))
+        if force is not None:
+            from ..report.force_plots import write_force_plots
+
+            figures.update(write_force_plots(tmp, trace=force))
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
-                     metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}")
+                     metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}",
+                     extra_figures=figures)
     say("done", 1, 1)
     return metrics
 

@@ -6,6 +6,7 @@
     swath plan patch.json ... --out DIR   # a patch written by swath fit
     swath demo --out DIR              # the same on the built-in helicopter-blade section
     swath run job.toml                # settings from a TOML file
+    swath batch sweep.toml [--workers 2]   # a grid of jobs on Ray, one results table
     swath fit SCAN [--units mm] [--parameterization auto|projection|lscm|rows] [--spacing 2mm] --out DIR
     swath register CAD SCAN [--units mm] [--scan-units mm] [--table] --out DIR
 
@@ -30,7 +31,8 @@ PARAMETERIZATIONS = ("auto", "projection", "lscm", "rows")
 
 def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = True) -> None:
     if with_part_options:
-        p.add_argument("--units", default="m", help="unit of a unitless mesh file: m, mm, cm or in (default m)")
+        p.add_argument("--units", default="m", help="unit of a unitless mesh file: m, mm, cm or in (or their names, "
+                                                    "e.g. millimetres, inch)")
         p.add_argument("--side", help="for a closed solid: the direction the tool comes from, e.g. +z")
         p.add_argument("--all-pieces", action="store_true", help="keep every piece of a multi-piece mesh")
         p.add_argument("--force-units", action="store_true", help="accept a part size outside 5 mm .. 20 m")
@@ -43,7 +45,7 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                             "(default: the patch's extent / 150, within 2..5 mm)")
     p.add_argument("--planner", default="raster",
                    help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
-                        "or equidistant (geodesic-parallel passes); default raster")
+                        "or equidistant (geodesic-parallel passes)")
     p.add_argument("--pad-radius", default="38.1mm", help="pad radius, e.g. 38.1mm (default: 3-inch pad)")
     p.add_argument("--force", default="20N", help="normal force, e.g. 20N")
     g = p.add_mutually_exclusive_group()
@@ -57,7 +59,7 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                         "each planner's own choice, e.g. the shortest full-coverage path)")
     p.add_argument("--point-spacing", default="1mm", help="spacing of points along passes")
     p.add_argument("--clearance", default="20mm", help="lift off the surface for air moves")
-    p.add_argument("--order", choices=["snake", "zigzag", "greedy", "index"],
+    p.add_argument("--order",
                    help="how passes are sequenced (default: the planner's own: snake for raster and equidistant, "
                         "zigzag for uniform)")
     p.add_argument("--overlap", help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
@@ -66,14 +68,40 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--max-angular", help="limit on the tool's angular speed (default 1rad/s; 'none' turns it off)")
     p.add_argument("--max-accel", help="limit on tangential acceleration along passes (default 1m/s2; 'none' "
                                        "turns it off)")
-    p.add_argument("--out", required=True, help="output directory (written atomically)")
+    p.add_argument("--out", required=True, help="output directory (written atomically; an existing non-empty folder "
+                                                "is refused unless it is an earlier swath output or --overwrite)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing non-empty output folder that swath did not write")
+    p.add_argument("--memory-budget", help="refuse work estimated to need more memory than this, e.g. 8GiB "
+                                           "(default: 3/4 of this machine's memory)")
+    f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
+    f.add_argument("--force-control", action="store_true",
+                   help="simulate hybrid position/force control along the trajectory: a force column, a force plot, "
+                        "removal from the simulated force")
+    f.add_argument("--part-offset", help="with --force-control: the real part's offset from the plan (registration "
+                                         "error), dx,dy,dz,rx,ry,rz, e.g. 0.5mm,0,0,0.2deg,0,0")
+    f.add_argument("--tool-mass", help="with --force-control: mass below the force sensor, e.g. 2kg (default 0)")
+    f.add_argument("--tool-tilt", help="with --force-control: tilt of the cell from tool-down, e.g. 30deg (default 0)")
+    f.add_argument("--no-gravity-compensation", dest="gravity_compensation", action="store_false", default=None,
+                   help="with --force-control: do not subtract the tool's weight from the measured force")
+    f.add_argument("--calibration", help="a Preston calibration file written by swath calibrate (sets k_p)")
+    f.add_argument("--grit", help="with --calibration: which grit's fit to use (default: the only or first)")
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
     parser = argparse.ArgumentParser(prog="swath", description="Plan robotic surface finishing on free-form parts.")
+    parser.add_argument("--version", action="version", version=f"swath {__version__}")
     parser.add_argument("-q", "--quiet", action="store_true", help="only errors")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = parser.add_subparsers(dest="command", required=True)
+    _add = sub.add_parser
+
+    def add_parser(name, **kw):                 # every subcommand's --help shows its defaults
+        return _add(name, formatter_class=argparse.ArgumentDefaultsHelpFormatter, **kw)
+
+    sub.add_parser = add_parser
 
     p = sub.add_parser("plan", help="plan a part: trajectory.csv, metrics.json, report.html")
     p.add_argument("part", help="mesh file (STL, PLY, OBJ), patch.json from swath fit, example:NAME (blade, "
@@ -120,6 +148,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a TOML job file")
     r.add_argument("job", help="job file (TOML)")
+
+    from .calibrate_cmd import add_calibrate_arguments, add_doe_arguments
+
+    add_calibrate_arguments(sub.add_parser("calibrate", help="fit the Preston coefficient from trials: "
+                                                             "calibration.json, calibration.png"))
+    add_doe_arguments(sub.add_parser("doe", help="write a trials template (full or fractional factorial design)"))
+
+    from .batch import add_arguments as add_batch_arguments
+
+    b = sub.add_parser("batch", help="run a sweep of jobs (parts x settings) in parallel on Ray; one results table")
+    add_batch_arguments(b)
     return parser
 
 
@@ -146,22 +185,51 @@ class _Progress:
 
 
 def _settings_from_args(args):
-    from .job import settings_from_mapping
+    from .settings import SCHEMA, settings_from_mapping
 
-    keys = ["part", "out", "units", "side", "all_pieces", "force_units", "planner", "pad_radius", "force",
-            "depression", "stiffness", "motion", "feed", "spacing", "direction", "order", "point_spacing", "clearance",
-            "max_centripetal", "max_angular", "max_accel", "overlap", "fit", "parameterization", "surface_spacing"]
-    values = {k: getattr(args, k) for k in keys if hasattr(args, k)}
+    values = {k: v for k, v in vars(args).items() if k in SCHEMA and v is not None}
     return settings_from_mapping(values)
 
 
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """``--feed -5mm/s`` as ``--feed=-5mm/s``: argparse takes a value that starts with a minus sign
+    and a digit for an option and says "expected one argument"; joined, the value reaches the
+    settings check, which says what is wrong with it."""
+    out: list[str] = []
+    for tok in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and len(tok) > 1 and tok[0] == "-" \
+                and (tok[1].isdigit() or tok[1] == "."):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
+def _exit_on_sigterm(signum, frame):
+    """SIGTERM (a job killed by a scheduler, ``kill``) unwinds like an interrupt, so the output
+    folder being built is removed on the way out."""
+    raise SystemExit(128 + signum)
+
+
 def main(argv=None) -> int:
+    import signal
+
+    if hasattr(signal, "SIGTERM"):
+        try:
+            signal.signal(signal.SIGTERM, _exit_on_sigterm)
+        except ValueError:                 # not the main thread (e.g. a worker): leave the default
+            pass
     parser = build_parser()
+    argv = _join_negative_values(list(sys.argv[1:] if argv is None else argv))
     args = parser.parse_args(argv)
     level = logging.ERROR if args.quiet else (logging.DEBUG if args.verbose else logging.WARNING)
     logging.basicConfig(level=level, format="swath: %(levelname)s: %(message)s")
     try:
         progress = _Progress(args.quiet)
+        if args.command == "batch":
+            from .batch import run_from_args
+
+            return run_from_args(args, quiet=args.quiet)
         if args.command == "fit":
             from .fitjob import run_fit
 
@@ -178,7 +246,12 @@ def main(argv=None) -> int:
             if not args.quiet:
                 print(_register_summary(settings, doc))
             return 0
-        from .job import load_job_toml, run_job
+        if args.command in ("calibrate", "doe"):
+            from .calibrate_cmd import run_calibrate, run_doe
+
+            return (run_calibrate if args.command == "calibrate" else run_doe)(args)
+        from .job import run_job
+        from .settings import load_job_toml
 
         settings = load_job_toml(args.job) if args.command == "run" else _settings_from_args(args)
         metrics = run_job(settings, progress=progress)

@@ -13,9 +13,9 @@ log = logging.getLogger("swath.io")
 #: Accepted part size (largest bounding-box extent) in metres, and the comfortable range.
 SIZE_LIMITS = (0.005, 20.0)
 PREFERRED_SIZE = (0.05, 3.0)
-#: A part larger than this (m) is accepted with a warning that the file may not be in metres.
+#: A part larger than this (m), or smaller than SMALL_PART, whose size another unit makes
+#: comfortable (PREFERRED_SIZE) is refused as a likely unit slip unless units are forced.
 LARGE_PART = 5.0
-#: A part smaller than this (m) is accepted with the same warning.
 SMALL_PART = 0.02
 #: Units suggested when the size is implausible, in order of preference.
 SUGGESTED_UNITS = ("m", "mm", "in")
@@ -62,6 +62,11 @@ def check_extent(extent_file_units: float, units: str, force_units: bool, label:
         raise InputError(f"{label}: part is {size:.4g} m across when read in {units}, outside "
                          f"{lo * 1e3:g} mm .. {hi:g} m; {fix}")
     if size > LARGE_PART or size < SMALL_PART:
+        comfortable = guess is not None and PREFERRED_SIZE[0] <= extent_file_units * length_unit_factor(guess) \
+            <= PREFERRED_SIZE[1]
+        if comfortable and not force_units:
+            raise InputError(f"{label}: part is {size:.4g} m across when read in {units}, which looks like a unit "
+                             f"slip{hint}; pass --units {guess}, or --force-units to keep {units}")
         log.warning("%s: part is %.4g m across read in %s; the file may not be in %s%s%s", label, size, units,
                     "metres" if units == "m" else units, hint,
                     f" (pass --units {guess})" if guess is not None else "")

@@ -6,6 +6,7 @@ import logging
 import math
 import time
 import numpy as np
+from scipy.spatial import cKDTree
 from ..surface.curvature import PrincipalCurvature
 from ..surface.geometry import normalize
 from ..surface.geodesic import FaceGradient
@@ -73,7 +74,11 @@ class _Context:
                                  W.normals, tool)
         self.tree = W.kdtree
         self.edges = mesh_edges(np.asarray(W.faces, np.int64))
-        self._pts32 = W.vertices.astype(np.float32)
+        # Pad queries in float32 relative to the part's centre (micrometre heights survive far from
+        # the origin), on their own KD-tree of the same local coordinates.
+        self._origin = 0.5 * (W.vertices.min(axis=0) + W.vertices.max(axis=0))
+        self._pts32 = (W.vertices - self._origin).astype(np.float32)
+        self._local_tree = cKDTree(W.vertices - self._origin)
         self._nrm32 = W.normals.astype(np.float32)
         self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
         log.info("uniform: working mesh %d vertices (edges <= %.1f mm), set up in %.2f s", len(W.vertices),
@@ -138,7 +143,8 @@ class _Context:
         closest, normals = self.project(poses)
         axes = -normals
         W = self.work
-        mc = mesh_contact(self._pts32, self._nrm32, W.vertex_areas, self.tree, closest, axes, self.tool)
+        mc = mesh_contact(self._pts32, self._nrm32, W.vertex_areas, self._local_tree, closest - self._origin, axes,
+                          self.tool)
         cap = np.minimum(mc.sink, self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]])
         height = mc.sink[mc.pose] - mc.pressure / self.tool.k        # sample height along tool z
         sample = mc.sample[height < cap[mc.pose]]

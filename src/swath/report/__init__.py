@@ -15,15 +15,16 @@ from ..errors import InputError
 from .html import write_report_html
 from .metrics import format_value, key_unit, to_jsonable, write_metrics_json
 from .plots import write_plots
+from .warnings import plan_warnings
 
 log = logging.getLogger(__name__)
 
 __all__ = ["write_report", "write_metrics_json", "write_report_html", "write_plots", "format_value",
-           "key_unit", "to_jsonable"]
+           "key_unit", "to_jsonable", "plan_warnings"]
 
 
 def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=None, metrics=None,
-                 settings=None, title=None) -> dict[str, Path]:
+                 settings=None, title=None, extra_figures=None) -> dict[str, Path]:
     """Write ``metrics.json``, the PNG figures and ``report.html`` into ``out_dir``.
 
     Parameters
@@ -44,6 +45,9 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
         Job settings with units in their key names (``pad_radius_m``, ``force_n``, ...).
     title : str, optional
         Report title; default ``"swath report — <part name>"``.
+    extra_figures : dict of str -> Path, optional
+        PNGs other stages wrote into ``out_dir`` (force trace, joint plots, ...), shown after the
+        standard figures.
 
     Returns
     -------
@@ -59,6 +63,7 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
     settings = dict(settings or {})
     paths = {"metrics": write_metrics_json(out_dir / "metrics.json", metrics, settings)}
     pngs = write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal)
+    pngs.update(extra_figures or {})
     paths.update(pngs)
     paths["html"] = write_report_html(out_dir / "report.html", surface=surface, toolpath=toolpath,
                                       trajectory=trajectory, removal=removal, metrics=metrics,

@@ -152,16 +152,16 @@ def to_jsonable(value):
 def keys_without_unit(values: dict, prefix: str = "") -> list[str]:
     """Names of numeric entries of ``values`` (searched recursively) whose name states no unit.
 
-    Strings, booleans, ``None`` and lists (direction vectors, per-candidate tables) are not scalar
-    figures and are never listed.
+    Strings, booleans, ``None``, whole numbers (counts) and lists (direction vectors, per-candidate
+    tables) are not measured figures and are never listed.
     """
     missing = []
     for key, v in values.items():
         name = f"{prefix}{key}"
         if isinstance(v, dict):
             missing += keys_without_unit(v, prefix=name + ".")
-        elif isinstance(v, (bool, np.bool_, str, list, tuple, np.ndarray)) or v is None:
-            continue
+        elif isinstance(v, (bool, np.bool_, str, list, tuple, np.ndarray, int, np.integer)) or v is None:
+            continue                      # not a measured figure (whole numbers are counts)
         elif key_unit(key).kind == "unknown":
             missing.append(name)
     return missing

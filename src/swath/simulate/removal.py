@@ -14,6 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..contact import Tool, mesh_contact
 from ..contact.widths import coverage_lower_bound
@@ -51,6 +52,16 @@ class RemovalMap:
     def covered(self) -> np.ndarray:
         """(n,) bool: samples the pressed pad touched at least once."""
         return self.depth > 0
+
+
+#: The removal samples are kept below this count: on a larger part the sample spacing grows (and
+#: the metrics say so), so the simulation's memory stays bounded whatever the part's size.
+MAX_REMOVAL_SAMPLES = 2_500_000
+
+
+def samples_for_area(area: float, spacing: float) -> int:
+    """About how many vertices a surface of ``area`` (m²) subdivided to edges of ``spacing`` (m) has."""
+    return int(area / (0.433 * spacing**2)) + 1
 
 
 def sample_spacing_for(tool: Tool) -> float:
@@ -101,10 +112,19 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     spacing = sample_spacing_for(tool) if sample_spacing is None else float(sample_spacing)
     if not (np.isfinite(spacing) and spacing > 0):
         raise InputError(f"sample spacing must be positive, got {sample_spacing!r} m")
+    if samples_for_area(surface.area, spacing) > MAX_REMOVAL_SAMPLES:
+        wider = float(np.sqrt(surface.area / (0.433 * MAX_REMOVAL_SAMPLES)))
+        log.warning("removal sampled at %.2f mm instead of %.2f mm to stay within %d samples (%.2f m² part)",
+                    wider * 1e3, spacing * 1e3, MAX_REMOVAL_SAMPLES, surface.area)
+        spacing = wider
     samples = surface.subdivided(spacing)
-    # float32 copies for the pad queries (see mesh_contact); areas and depths stay float64.
-    pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
-    tree = samples.kdtree
+    # Coordinates relative to the part's centre, then float32 for the pad queries (see mesh_contact):
+    # a part far from the origin keeps its micrometre heights.  Areas and depths stay float64.
+    origin = 0.5 * (samples.vertices.min(axis=0) + samples.vertices.max(axis=0))
+    local = samples.vertices - origin
+    pts, nrm, area = local.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
+    tree = cKDTree(local)
+    positions = trajectory.position - origin
     idx, dwell = _integration_poses(trajectory, INTEGRATION_STEP * spacing)
     pose_force = None
     if force is not None:
@@ -114,7 +134,7 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
 
     def batch(lo: int) -> np.ndarray:
         sel = idx[lo:lo + chunk]
-        mc = mesh_contact(pts, nrm, area, tree, trajectory.position[sel], axes[sel], tool,
+        mc = mesh_contact(pts, nrm, area, tree, positions[sel], axes[sel], tool,
                           force=None if pose_force is None else pose_force[lo:lo + chunk])
         rate = tool.preston * mc.pressure * tool.relative_speed(mc.radius)
         return np.bincount(mc.sample, weights=rate * dwell[lo:lo + chunk][mc.pose], minlength=len(pts))
@@ -128,6 +148,7 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
                 progress(min(k * chunk, len(idx)), len(idx))
     removal = RemovalMap(samples, depth)
     metrics = plan_metrics(trajectory, surface, tool, removal)
+    metrics["removal_sample_spacing_m"] = spacing
     return RemovalMap(samples, depth, metrics)
 
 

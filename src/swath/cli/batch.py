@@ -68,7 +68,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path, PurePath
 
-from .errors import InputError, SwathError
+from ..errors import InputError, SwathError
 
 log = logging.getLogger(__name__)
 
@@ -169,7 +169,7 @@ def sweep_from_mapping(data: dict, *, base_dir: Path) -> Sweep:
             where = f"{key} = {values[key]!r}: " if key and repr(key) not in str(exc) else ""
             raise InputError(f"job {job_id}: {where}{exc}") from None
         if settings.part.startswith("example:"):
-            from .examples import PARTS
+            from ..examples import PARTS
 
             if settings.part.split(":", 1)[1] not in PARTS:
                 raise InputError(f"job {job_id}: part = {settings.part!r} is not a built-in part; choose one of "
@@ -256,7 +256,7 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, address: str | None =
                 rows.append(run_batch_job(job.job_id, job.values, str(sweep.base_dir)))
                 say(len(rows), total, rows[-1])
         else:
-            from ._batch_ray import run_on_ray
+            from .batch_ray import run_on_ray
 
             for row in run_on_ray(todo, str(sweep.base_dir), workers=workers,
                                   address=address or os.environ.get("RAY_ADDRESS") or None):
@@ -326,7 +326,7 @@ def _finished_row(job: BatchJob) -> dict | None:
 def write_results(sweep: Sweep, rows: list[dict]) -> Path:
     """Write ``results.csv`` (and ``results.parquet`` with pyarrow) into ``sweep.out`` atomically,
     and each failed job's traceback to ``errors/ID.txt``; returns the CSV path."""
-    from .io.atomic import atomic_file, write_text_atomic
+    from ..io.atomic import atomic_file, write_text_atomic
 
     columns = ["job_id", "status", "error", "resumed"]
     for row in rows:
@@ -432,7 +432,7 @@ class _ProgressBar:
 
 
 def main(argv=None) -> int:
-    """``python -m swath.batch sweep.toml ...`` (the same as ``swath batch``)."""
+    """``python -m swath.cli.batch sweep.toml ...`` (the same as ``swath batch``)."""
     parser = argparse.ArgumentParser(prog="swath batch", description="Run a sweep of finishing jobs.")
     parser.add_argument("-q", "--quiet", action="store_true", help="only errors")
     add_arguments(parser)

@@ -1,0 +1,65 @@
+"""Plain-language warnings about a plan's result: what a user must know before running it.
+
+Each warning is one sentence that says what is wrong, by how much, and what to do.  Only the kept
+plan is judged (a planner's discarded candidates never warn).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Coverage below this fraction is worth a warning.
+MIN_COVERAGE = 0.99
+#: Contact time spent below this fraction of the feed is worth a warning above WARN_SLOW_SHARE.
+SLOW_FRACTION = 0.5
+WARN_SLOW_SHARE = 0.05
+
+
+def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad_radius: float) -> list[str]:
+    """Warnings for a planned, timed and simulated job.
+
+    Parameters
+    ----------
+    surface : Surface
+    toolpath : ToolPath
+        The kept plan (its ``metadata["warnings"]`` are included).
+    trajectory : Trajectory
+    metrics : dict
+        The job's metrics (``coverage_fraction``, ``efficiency``, ...).
+    feed : float
+        The commanded feed, m/s.
+    pad_radius : float
+        m; air moves more than ``pad_radius`` + the clearance outside the part's bounding box warn.
+
+    Returns
+    -------
+    list of str
+    """
+    out = [str(w) for w in toolpath.metadata.get("warnings", [])]
+    cov = metrics.get("coverage_fraction")
+    if cov is not None and np.isfinite(cov) and cov < MIN_COVERAGE:
+        out.append(f"coverage is {100 * cov:.1f} % (below {100 * MIN_COVERAGE:.0f} %): {100 * (1 - cov):.1f} % of "
+                   "the part is never touched; lower the spacing or raise the overlap, or plan the part in regions")
+    eff = metrics.get("efficiency")
+    if eff is not None and np.isfinite(eff) and eff > 1.0 + 1e-9:
+        out.append(f"efficiency {eff:.3f} is above 1, which no plan can reach: the coverage lower bound counts area "
+                   "the passes never cover; read it with coverage_fraction")
+    if trajectory is not None and len(trajectory) > 1:
+        dt = np.diff(trajectory.t)
+        both = trajectory.contact[1:] & trajectory.contact[:-1]
+        slow = both & (0.5 * (trajectory.feed[1:] + trajectory.feed[:-1]) < SLOW_FRACTION * feed)
+        total = float(dt[both].sum())
+        if total > 0 and dt[slow].sum() / total > WARN_SLOW_SHARE:
+            out.append(f"the speed limits hold the tool below half the feed for {100 * dt[slow].sum() / total:.0f} % "
+                       "of the contact time: it dwells there and removes more; relax the limits (--max-angular, "
+                       "--max-centripetal, --max-accel) or choose another direction")
+        lo, hi = surface.vertices.min(axis=0), surface.vertices.max(axis=0)
+        air = ~trajectory.contact
+        if air.any():
+            p = trajectory.position[air]
+            beyond = np.maximum(np.maximum(lo - p, p - hi), 0.0).max()
+            allowed = pad_radius + float(trajectory.metadata.get("clearance_m", 0.02)) + 1e-3
+            if beyond > allowed:
+                out.append(f"air moves go {1e3 * beyond:.0f} mm outside the part's bounding box (more than the pad "
+                           f"radius plus the clearance, {1e3 * allowed:.0f} mm): check the cell for room")
+    return out
