@@ -172,3 +172,33 @@ def test_wheel_hub_shape(hub):
     assert (hub.normals[:, 2] > 0.5).all()              # toward the tool (+z)
     with pytest.raises(InputError):
         wheel_hub(window_inner=0.2, window_outer=0.1)
+
+
+def _half_pipe(radius=0.1, length=0.3, span=np.deg2rad(240), n_a=80, n_l=40):
+    """Outer side of a cylinder sector about the y axis, centred on +z (normals outward)."""
+    from swath.examples import grid_faces
+
+    a = np.linspace(-span / 2, span / 2, n_a)
+    y = np.linspace(0, length, n_l)
+    A, Y = np.meshgrid(a, y, indexing="ij")
+    v = np.stack([radius * np.sin(A), Y, radius * np.cos(A)], -1).reshape(-1, 3)
+    f = grid_faces(n_a, n_l)
+    s = Surface(v, f, name="half_pipe")
+    if (s.face_normals @ [0, 0, 1.0]).mean() < 0:
+        s = Surface(v, f[:, ::-1], name="half_pipe")
+    return s
+
+
+@pytest.mark.parametrize("make", [_half_pipe, lambda: wheel_hub(edge=10e-3)])
+def test_air_routes_stay_near_the_part(make):
+    from swath.trajectory.links import AirGuard
+
+    surface = make()
+    guard = AirGuard(surface, 0.02, pad_radius=0.03)
+    rng = np.random.default_rng(11)
+    lo, hi = surface.bounds
+    idx = rng.integers(0, len(surface.vertices), (40, 2))
+    for i, j in idx:
+        route = guard.route(surface.vertices[i], surface.normals[i], surface.vertices[j], surface.normals[j])
+        assert (route >= lo - 0.05 - 1e-12).all() and (route <= hi + 0.05 + 1e-12).all()
+        assert guard._clear(route[1:-1])
