@@ -202,3 +202,13 @@ def test_air_routes_stay_near_the_part(make):
         route = guard.route(surface.vertices[i], surface.normals[i], surface.vertices[j], surface.normals[j])
         assert (route >= lo - 0.05 - 1e-12).all() and (route <= hi + 0.05 + 1e-12).all()
         assert guard._clear(route[1:-1])
+
+
+def test_boundary_turns_skip_small_wiggles():
+    from swath.segment.sweep import boundary_turns
+
+    h = np.array([0, 1, 0.2, 1.1, 0.0, -5, -4.95, -5.2, 3, 2.99, 0.0])
+    # the 0.8-high wiggle stays, the 0.05 ones (-5 / -4.95, 3 / 2.99) go
+    assert boundary_turns(h, 0.5).tolist() == [1, 2, 3, 7, 8, 10]
+    assert boundary_turns(h, 2.0).tolist() == [7, 8]
+    assert boundary_turns(0.001 * h, 0.5).tolist() == [7, 8]    # a pin hole keeps its top and bottom

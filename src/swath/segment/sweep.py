@@ -40,6 +40,8 @@ log = logging.getLogger("swath.segment")
 
 #: Feed angles (rad, from the first principal axis about the best-fit normal) tried for ``direction=None``.
 AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
+#: Default smallest outline wiggle cut at, m.
+MIN_FEATURE = 5e-3
 #: Default smallest region, m² (2 cm²).
 MIN_AREA = 2e-4
 
@@ -103,13 +105,16 @@ def sweep_frame(surface, *, angle: float = 0.0, direction=None) -> tuple[np.ndar
     return feed, cross / np.linalg.norm(cross)
 
 
-def critical_vertices(faces: np.ndarray, height: np.ndarray) -> np.ndarray:
+def critical_vertices(faces: np.ndarray, height: np.ndarray, *, loops=None, tolerance: float = 0.0) -> np.ndarray:
     """Indices of the vertices where the level sets of ``height`` ``(n,)`` may change topology.
 
     A vertex ``v`` is compared with its neighbours by (height, index); walking round its link, the
     number of changes between lower and higher neighbours is 2 at a regular interior vertex and 1 at
     a regular border vertex.  Everything else (extrema, saddles, border tips, non-manifold
-    vertices) is returned.
+    vertices) is returned.  With the border ``loops`` (vertex index arrays) and a ``tolerance`` (m),
+    the border vertices are replaced by the loops' significant extrema (:func:`boundary_turns`):
+    wiggles of the outline smaller than the tolerance then leave short extra pieces on a few sweep
+    lines instead of a region each.
     """
     F = np.asarray(faces, np.int64)
     h = np.asarray(height, float)
@@ -127,7 +132,54 @@ def critical_vertices(faces: np.ndarray, height: np.ndarray) -> np.ndarray:
     used = np.zeros(n, bool)
     used[F.ravel()] = True
     critical = np.where(on_border, counts != 1, counts != 2) & used
+    if loops is not None and tolerance > 0:
+        critical &= ~on_border
+        for loop in loops:
+            loop = np.asarray(loop, np.int64)
+            critical[loop[boundary_turns(h[loop], tolerance)]] = True
     return np.flatnonzero(critical)
+
+
+def boundary_turns(height_along_loop: np.ndarray, tolerance: float) -> np.ndarray:
+    """Positions of the significant extrema of a height sampled round a closed loop ``(k,)``.
+
+    A zig-zag filter (1-D persistence): starting from the highest point, a minimum (maximum) is kept
+    once the height has risen (fallen) by at least ``tolerance`` from it, so wiggles smaller than
+    ``tolerance`` — the ragged outline of a scan — are skipped.  A loop whose whole swing is below
+    the tolerance (a pin hole) keeps its highest and lowest point.
+    """
+    h = np.asarray(height_along_loop, float)
+    k = len(h)
+    if k == 0:
+        return np.zeros(0, np.int64)
+    top = int(np.argmax(h))
+    if np.ptp(h) < tolerance or tolerance <= 0:
+        if tolerance <= 0:
+            prev, nxt = np.roll(h, 1), np.roll(h, -1)
+            return np.flatnonzero(((h >= prev) & (h >= nxt)) | ((h <= prev) & (h <= nxt)))
+        return np.unique([top, int(np.argmin(h))])
+    order = (top + np.arange(k)) % k
+    turns = [top]
+    going_down = True
+    cand = top
+    for i in order[1:]:
+        if going_down:
+            if h[i] < h[cand]:
+                cand = i
+            elif h[i] >= h[cand] + tolerance:
+                turns.append(cand)
+                going_down, cand = False, i
+        else:
+            if h[i] > h[cand]:
+                cand = i
+            elif h[i] <= h[cand] - tolerance:
+                turns.append(cand)
+                going_down, cand = True, i
+    if not going_down and cand != top and h[cand] < h[top]:
+        pass                                         # the last rise ends at the start (the top)
+    elif going_down and cand != top:
+        turns.append(cand)                           # the last fall's minimum before coming back up
+    return np.unique(np.array(turns, np.int64))
 
 
 def split_at_levels(vertices: np.ndarray, faces: np.ndarray, height: np.ndarray, levels):
@@ -195,7 +247,8 @@ def _face_pairs(F: np.ndarray):
     return np.stack([f[order][same], f[order][same + 1]], 1), e[order][same]
 
 
-def decompose(surface, feed: np.ndarray, cross: np.ndarray, *, min_area: float = MIN_AREA) -> list[Region]:
+def decompose(surface, feed: np.ndarray, cross: np.ndarray, *, min_area: float = MIN_AREA,
+              min_feature: float = 0.0) -> list[Region]:
     """Boustrophedon decomposition of ``surface`` for sweep lines normal to ``cross`` (see the module notes)."""
     import scipy.sparse as sp
     from scipy.optimize import linear_sum_assignment
@@ -203,7 +256,7 @@ def decompose(surface, feed: np.ndarray, cross: np.ndarray, *, min_area: float =
 
     V0, F0 = surface.vertices, surface.faces
     h0 = V0 @ cross
-    crit = critical_vertices(F0, h0)
+    crit = critical_vertices(F0, h0, loops=surface.boundary_loops, tolerance=min_feature)
     levels = np.unique(h0[crit])
     V, F, h, parent = split_at_levels(V0, F0, h0, levels)
     tri = V[F]
@@ -300,7 +353,8 @@ def decompose(surface, feed: np.ndarray, cross: np.ndarray, *, min_area: float =
     return out
 
 
-def segment(surface, *, direction=None, min_area: float = MIN_AREA, angles=AUTO_ANGLES) -> list[Region]:
+def segment(surface, *, direction=None, min_area: float = MIN_AREA, min_feature: float = MIN_FEATURE,
+            angles=AUTO_ANGLES) -> list[Region]:
     """Split ``surface`` into regions that every sweep line crosses in one unbroken segment.
 
     Parameters
@@ -316,6 +370,9 @@ def segment(surface, *, direction=None, min_area: float = MIN_AREA, angles=AUTO_
         (default 2 cm²; a pad of 38 mm radius covers 45 cm²).  Inside a merged region the sweep
         lines through the small piece have a second, short segment; ``min_area=0`` keeps every
         region and the property exact.
+    min_feature : float
+        Wiggles of the outline whose height across the sweep lines is below this (m) are not cut
+        at (default 5 mm: the ragged edge of a scan); 0 cuts at every border extremum.
     angles : sequence of float
         Candidate feed angles for ``direction=None``, rad.
 
@@ -333,11 +390,11 @@ def segment(surface, *, direction=None, min_area: float = MIN_AREA, angles=AUTO_
         raise InputError(f"min_area must be an area >= 0 m², got {min_area!r}")
     if direction is not None:
         feed, cross = sweep_frame(surface, direction=direction)
-        return decompose(surface, feed, cross, min_area=min_area)
+        return decompose(surface, feed, cross, min_area=min_area, min_feature=min_feature)
     best, best_count = None, None
     for a in angles:
         feed, cross = sweep_frame(surface, angle=a)
-        count = len(decompose(surface, feed, cross, min_area=0.0))
+        count = len(decompose(surface, feed, cross, min_area=0.0, min_feature=min_feature))
         if best_count is None or count < best_count:
             best, best_count = (feed, cross), count
-    return decompose(surface, *best, min_area=min_area)
+    return decompose(surface, *best, min_area=min_area, min_feature=min_feature)
