@@ -8,7 +8,9 @@
    the best of 100 LKH runs on the larger ones, with solve times.
 3. Shared meshes and the hub: trajectory (time_path, FeedLimit(0.05), AngularSpeedLimit(1.0),
    CentripetalLimit(2.0)) air length, cycle time, farthest excursion beyond the part's bounding box,
-   and simulated coverage, before (planner's order) and after ordering.
+   and simulated coverage, before (planner's order) and after ordering by air length ("gtsp") and by
+   estimated link time ("gtsp(time)": the tool's turn at 1 rad/s counted; coverage not simulated
+   again for those rows, the contact passes are the same).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_order.py [--no-removal] [--uniform PICKLE]``.
 """
@@ -109,6 +111,10 @@ def subsets(name, tp, k, n_inst, rng):
     return out
 
 
+#: Order by link time with the trajectory stage's link speed/acceleration and the angular limit.
+TIMED = dict(link_speed=0.25, link_acceleration=1.0, omega_max=1.0)
+
+
 def trajectory_row(part, label, tp, tool, removal: bool):
     lo, hi = tp.surface.bounds
     cons = [FeedLimit(0.05), AngularSpeedLimit(1.0), CentripetalLimit(2.0)]
@@ -139,6 +145,7 @@ def parts_table(hub, hub_tp, removal: bool, uniform_pickle: str | None):
         whole = raster(surf, tool)
         rows.append(trajectory_row(name, "raster", whole, tool, removal and not big))
         rows.append(trajectory_row(name, "raster + gtsp", order_toolpath(whole), tool, removal and not big))
+        rows.append(trajectory_row(name, "raster + gtsp(time)", order_toolpath(whole, **TIMED), tool, False))
         try:
             regions = segment(surf)
             seg = hub_tp if name == "wheel_hub" else plan_regions(surf, tool, raster, regions)
@@ -146,6 +153,9 @@ def parts_table(hub, hub_tp, removal: bool, uniform_pickle: str | None):
             rows.append(trajectory_row(name, f"segment({len(regions)}) raster + gtsp",
                                        order_toolpath(seg, groups=[[i] for i in range(len(seg.passes))]),
                                        tool, removal and not big))
+            rows.append(trajectory_row(name, f"segment({len(regions)}) raster + gtsp(time)",
+                                       order_toolpath(seg, groups=[[i] for i in range(len(seg.passes))], **TIMED),
+                                       tool, False))
         except Exception as exc:  # noqa: BLE001 - a benchmark reports and goes on
             rows.append(dict(part=name, plan=f"segment failed: {type(exc).__name__}: {exc}"[:90]))
     if uniform_pickle:
@@ -154,6 +164,7 @@ def parts_table(hub, hub_tp, removal: bool, uniform_pickle: str | None):
         name = uni.surface.name
         rows.append(trajectory_row(name, "uniform", uni, tool, False))
         rows.append(trajectory_row(name, "uniform + gtsp", order_toolpath(uni), tool, False))
+        rows.append(trajectory_row(name, "uniform + gtsp(time)", order_toolpath(uni, **TIMED), tool, False))
     print_table(rows, [("part", ""), ("plan", ""), ("passes", "d"), ("contact_m", ".2f"), ("air_m", ".2f"),
                        ("cycle_s", ".1f"), ("beyond_box_m", ".3f"), ("coverage_pct", ".2f"), ("time_s", ".1f")])
     return rows

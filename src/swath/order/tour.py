@@ -43,6 +43,60 @@ _INT_SCALE = 1e5
 METHODS = ("gtsp", "greedy", "index", "exact")
 
 
+@dataclass(frozen=True)
+class LinkModel:
+    """How a link between two passes is costed.
+
+    Attributes
+    ----------
+    clearance : float
+        Lift along the normal before and after the move, m.
+    speed : float or None
+        Link speed, m/s; None costs links by length (m) instead of time (s).
+    acceleration : float
+        Link acceleration, m/s² (rest-to-rest trapezoid).
+    omega_max : float or None
+        Angular speed limit of the tool, rad/s: the link lasts at least the turn from the lift-off
+        frame to the touch-down frame (tool z = -normal, x = travel direction) divided by it.
+    """
+
+    clearance: float = 0.02
+    speed: float | None = None
+    acceleration: float = 1.0
+    omega_max: float | None = None
+
+    def __post_init__(self):
+        if not (np.isfinite(self.clearance) and self.clearance >= 0):
+            raise InputError(f"clearance must be a length >= 0 m, got {self.clearance!r}")
+        for name in ("speed", "omega_max"):
+            v = getattr(self, name)
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise InputError(f"link {name} must be positive or None, got {v!r}")
+        if not (np.isfinite(self.acceleration) and self.acceleration > 0):
+            raise InputError(f"link acceleration must be positive, got {self.acceleration!r} m/s²")
+
+    @property
+    def timed(self) -> bool:
+        return self.speed is not None
+
+    def length(self, exit_p, exit_n, entry_p, entry_n) -> np.ndarray:
+        """Retract + straight move at the clearance + approach, m (broadcasts over leading axes)."""
+        c = self.clearance
+        return 2 * c + np.linalg.norm((exit_p + c * exit_n) - (entry_p + c * entry_n), axis=-1)
+
+    def cost(self, length, exit_frame, entry_frame) -> np.ndarray:
+        """Link time (s) for ``length`` (m) between frames ``(..., 3, 3)``, or the length if untimed."""
+        if not self.timed:
+            return length
+        v, a = self.speed, self.acceleration
+        t = np.where(length >= v * v / a, length / v + v / a, 2 * np.sqrt(np.maximum(length, 0) / a))
+        if self.omega_max is not None:
+            tr = np.einsum("...ij,...ij->...", exit_frame, entry_frame)
+            turn = np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0))
+            t = np.maximum(t, turn / self.omega_max)
+        return t
+
+
 @dataclass(frozen=True, eq=False)
 class Variants:
     """The path types of every group, flattened into one list of nodes.
@@ -53,17 +107,28 @@ class Variants:
         Group of each node.
     reverse_order, flip : (N,) bool
         Whether the node runs the group's passes in reverse order, and flips every pass.
-    entry, exit : (N, 3) float
-        Touch-down and lift-off points raised by the clearance along the normals, m.
-    inner : (N,) float
+    entry_point, exit_point : (N, 3) float
+        Touch-down and lift-off points on the surface, m.
+    entry_normal, exit_normal : (N, 3) float
+        Unit surface normals there.
+    entry_frame, exit_frame : (N, 3, 3) float
+        Tool frames there (columns x = travel direction, y, z = -normal).
+    inner_length : (N,) float
         Air length of the links inside the group for this variant, m.
+    inner : (N,) float
+        Cost of those links (m, or s with a timed :class:`LinkModel`).
     """
 
     group: np.ndarray
     reverse_order: np.ndarray
     flip: np.ndarray
-    entry: np.ndarray
-    exit: np.ndarray
+    entry_point: np.ndarray
+    entry_normal: np.ndarray
+    entry_frame: np.ndarray
+    exit_point: np.ndarray
+    exit_normal: np.ndarray
+    exit_frame: np.ndarray
+    inner_length: np.ndarray
     inner: np.ndarray
 
     @property
@@ -71,7 +136,27 @@ class Variants:
         return int(self.group.max()) + 1 if len(self.group) else 0
 
 
-def group_variants(passes, groups, *, clearance: float) -> Variants:
+def _frame(normal, tangent) -> np.ndarray:
+    """Tool frame (3, 3), columns x (travel), y, z = -normal."""
+    z = -np.asarray(normal, float)
+    z = z / max(np.linalg.norm(z), 1e-300)
+    x = np.asarray(tangent, float) - (np.asarray(tangent, float) @ z) * z
+    nx = np.linalg.norm(x)
+    if nx < 1e-12:
+        x = np.cross(z, [1.0, 0, 0] if abs(z[0]) < 0.9 else [0, 1.0, 0])
+        nx = np.linalg.norm(x)
+    x = x / nx
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def _ends(p, flip: bool):
+    """(start point, start normal, start frame, end point, end normal, end frame) of a pass."""
+    pts, nrm = (p.points[::-1], p.normals[::-1]) if flip else (p.points, p.normals)
+    t0, t1 = pts[1] - pts[0], pts[-1] - pts[-2]
+    return pts[0], nrm[0], _frame(nrm[0], t0), pts[-1], nrm[-1], _frame(nrm[-1], t1)
+
+
+def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel | None = None) -> Variants:
     """Enumerate the path types of each group (see the module notes).
 
     Parameters
@@ -80,48 +165,49 @@ def group_variants(passes, groups, *, clearance: float) -> Variants:
     groups : list of list of int
         Pass indices of each group, in the group's own processing order.
     clearance : float
-        Lift along the normal before an air move, m.
+        Lift along the normal before an air move, m (used when ``model`` is None).
+    model : LinkModel, optional
+        Link costing (default: by length, with ``clearance``).
     """
+    model = LinkModel(clearance=clearance) if model is None else model
     rows = []
     for g, idx in enumerate(groups):
         types = [(False, False), (False, True)] if len(idx) == 1 else \
             [(False, False), (False, True), (True, False), (True, True)]
         for rev, flip in types:
-            seq = _sequence(passes, idx, rev, flip)
-            inner = sum(_air(a, b, clearance) for a, b in zip(seq[:-1], seq[1:]))
+            order = list(idx)[::-1] if rev else list(idx)
+            seq = [_ends(passes[i], flip) for i in order]
+            inner_len = inner = 0.0
+            for a, b in zip(seq[:-1], seq[1:]):
+                L = float(model.length(a[3], a[4], b[0], b[1]))
+                inner_len += L
+                inner += float(model.cost(L, a[5], b[2]))
             first, last = seq[0], seq[-1]
-            rows.append((g, rev, flip, first[0] + clearance * first[1], last[2] + clearance * last[3], inner))
-    g, rev, flip, entry, exit_, inner = zip(*rows)
-    return Variants(np.array(g), np.array(rev), np.array(flip), np.array(entry), np.array(exit_), np.array(inner))
+            rows.append((g, rev, flip, first[0], first[1], first[2], last[3], last[4], last[5], inner_len, inner))
+    cols = list(zip(*rows))
+    return Variants(*(np.array(c) for c in cols))
 
 
-def _sequence(passes, idx, rev, flip):
-    """(start point, start normal, end point, end normal) of each pass of a group variant."""
-    order = list(idx)[::-1] if rev else list(idx)
-    out = []
-    for i in order:
-        p = passes[i]
-        a, b = (-1, 0) if flip else (0, -1)
-        out.append((p.points[a], p.normals[a], p.points[b], p.normals[b]))
-    return out
+def link_matrix(variants: Variants, clearance: float = 0.02, *, model: LinkModel | None = None,
+                cost: bool = False) -> np.ndarray:
+    """(N, N) air length (m) from each node's exit to each node's entry (retract and approach
+    included), or with ``cost`` the link cost of ``model`` (m or s)."""
+    model = LinkModel(clearance=clearance) if model is None else model
+    L = model.length(variants.exit_point[:, None], variants.exit_normal[:, None],
+                     variants.entry_point[None], variants.entry_normal[None])
+    if not cost:
+        return L
+    return model.cost(L, variants.exit_frame[:, None], variants.entry_frame[None])
 
 
-def _air(a, b, clearance: float) -> float:
-    """Air length from the end of pass ``a`` to the start of pass ``b`` (tuples of :func:`_sequence`)."""
-    return 2 * clearance + float(np.linalg.norm((a[2] + clearance * a[3]) - (b[0] + clearance * b[1])))
-
-
-def link_matrix(variants: Variants, clearance: float) -> np.ndarray:
-    """(N, N) air length from each node's exit to each node's entry, m (retract and approach included)."""
-    d = np.linalg.norm(variants.exit[:, None, :] - variants.entry[None, :, :], axis=2)
-    return d + 2 * clearance
-
-
-def tour_length(variants: Variants, D: np.ndarray, nodes, start_cost: np.ndarray | None) -> float:
-    """Air length (m) of visiting ``nodes`` in order: links between groups, links inside groups and the
-    move from the start point (``start_cost[node]``) when one is given."""
+def tour_length(variants: Variants, D: np.ndarray, nodes, start_cost: np.ndarray | None, *,
+                inner: np.ndarray | None = None) -> float:
+    """Cost (air length in m, or time in s) of visiting ``nodes`` in order: links between groups
+    (``D``), links inside groups (``inner``, default ``variants.inner``) and the move from the start
+    point (``start_cost[node]``) when one is given."""
     nodes = list(nodes)
-    total = float(sum(D[a, b] for a, b in zip(nodes[:-1], nodes[1:])) + variants.inner[nodes].sum())
+    inner = variants.inner if inner is None else inner
+    total = float(sum(D[a, b] for a, b in zip(nodes[:-1], nodes[1:])) + inner[nodes].sum())
     if start_cost is not None and nodes:
         total += float(start_cost[nodes[0]])
     return total
@@ -270,11 +356,10 @@ def _solve_single_passes(variants: Variants, D: np.ndarray, start_cost, *, seed:
     about twice as small for LKH as the Noon–Bean transform and solve to better tours.
     """
     n = variants.n_groups
-    ends = np.empty((2 * n, 3))
-    ends[0::2] = variants.entry[0::2]                # start of pass g, raised
-    ends[1::2] = variants.exit[0::2]                 # end of pass g, raised
-    inner_link = float(D[0, 0] - np.linalg.norm(variants.exit[0] - variants.entry[0]))   # 2 x clearance
-    dist = np.linalg.norm(ends[:, None] - ends[None], axis=2) + inner_link
+    # Ends: 2g = start of pass g (entry of node 2g, exit of node 2g + 1), 2g + 1 = its end.  Leaving
+    # by end p means exiting node p ^ 1; arriving at end q means entering node q.
+    dist = D[np.arange(2 * n) ^ 1][:, np.arange(2 * n)]
+    dist = 0.5 * (dist + dist.T)                     # symmetric up to round-off (see the notes)
     size = 2 * n + 2
     S, E = 2 * n, 2 * n + 1
     cost = np.zeros((size, size))
@@ -385,8 +470,10 @@ def default_groups(toolpath) -> list[list[int]]:
 
 
 def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, seed: int = 0,
-                   clearance: float = 0.02, runs: int = 1, max_trials: int | None = None):
-    """Reorder a tool path's pass groups and choose their path types to minimise air travel.
+                   clearance: float = 0.02, link_speed: float | None = None, link_acceleration: float = 1.0,
+                   omega_max: float | None = None, runs: int = 1, max_trials: int | None = None):
+    """Reorder a tool path's pass groups and choose their path types to minimise air travel
+    (or, given ``link_speed``, link time).
 
     Parameters
     ----------
@@ -405,6 +492,15 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         Seed of LKH's random choices.
     clearance : float
         Lift along the normal used in the air-length estimate, m.
+    link_speed : float, optional
+        Link speed, m/s.  When given, links are costed by time (a rest-to-rest trapezoid with
+        ``link_acceleration``, m/s², and at least the tool's turn over ``omega_max``, rad/s) instead
+        of length: with the trajectory stage's heading following the travel direction, a snake's
+        180-degree turn at 1 rad/s costs 3.1 s, more than most short moves.
+    link_acceleration : float
+        m/s² (with ``link_speed``).
+    omega_max : float, optional
+        Angular speed limit, rad/s (with ``link_speed``).
     runs, max_trials : int
         LKH runs and trials per run (default ``min(nodes, 100)``).
 
@@ -412,7 +508,8 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     -------
     ToolPath
         The same passes, reordered and flipped (:meth:`Pass.reversed`); ``metadata`` gains
-        ``order_method``, ``air_before_m`` (as given), ``air_after_m``, ``order_seconds``,
+        ``order_method``, ``air_before_m`` (as given), ``air_after_m``, with ``link_speed`` also
+        ``link_time_before_s`` and ``link_time_after_s`` (estimates), ``order_seconds``,
         ``order_groups`` (the group order as indices into ``groups``) and, when the input had it,
         ``pass_region`` reordered.
 
@@ -426,8 +523,7 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     n = len(toolpath.passes)
     if n == 0:
         raise InputError("the tool path has no passes to order")
-    if not (np.isfinite(clearance) and clearance >= 0):
-        raise InputError(f"clearance must be a length >= 0 m, got {clearance!r}")
+    model = LinkModel(clearance=clearance, speed=link_speed, acceleration=link_acceleration, omega_max=omega_max)
     groups = default_groups(toolpath) if groups is None else [list(map(int, g)) for g in groups]
     flat = sorted(i for g in groups for i in g)
     if flat != list(range(n)) or any(len(g) == 0 for g in groups):
@@ -439,12 +535,18 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         if start_pt.shape != (3,) or not np.isfinite(start_pt).all():
             raise InputError(f"start must be a finite point (3,) in m, got {start!r}")
     t0 = time.perf_counter()
-    variants = group_variants(toolpath.passes, groups, clearance=clearance)
-    D = link_matrix(variants, clearance)
-    start_cost = None if start_pt is None else np.linalg.norm(variants.entry - start_pt, axis=1) + clearance
-    before = tour_length(variants, D, solve_index(variants), start_cost)
+    variants = group_variants(toolpath.passes, groups, model=model)
+    D_len = link_matrix(variants, model=model)
+    D = link_matrix(variants, model=model, cost=True)
+    start_len = start_cost = None
+    if start_pt is not None:
+        start_len = np.linalg.norm(variants.entry_point + clearance * variants.entry_normal - start_pt, axis=1) + clearance
+        eye = np.broadcast_to(np.eye(3), (len(start_len), 3, 3))
+        start_cost = model.cost(start_len, eye, eye)
+    index = solve_index(variants)
     tour = solve(variants, D, start_cost, method, seed=seed, runs=runs, max_trials=max_trials)
-    after = tour_length(variants, D, tour, start_cost)
+    before = tour_length(variants, D_len, index, start_len, inner=variants.inner_length)
+    after = tour_length(variants, D_len, tour, start_len, inner=variants.inner_length)
     seconds = time.perf_counter() - t0
 
     passes, regions = [], []
@@ -460,6 +562,9 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     meta = dict(toolpath.metadata)
     meta.update(order_method=method, air_before_m=before, air_after_m=after, order_seconds=seconds,
                 order_groups=[int(variants.group[v]) for v in tour], order_clearance_m=float(clearance))
+    if model.timed:
+        meta.update(link_time_before_s=tour_length(variants, D, index, start_cost),
+                    link_time_after_s=tour_length(variants, D, tour, start_cost))
     if regions:
         meta["pass_region"] = regions
     log.info("order %s: %d passes in %d groups, air %.3f m -> %.3f m (%.2f s)", method, n, len(groups),
