@@ -212,3 +212,21 @@ def test_boundary_turns_skip_small_wiggles():
     assert boundary_turns(h, 0.5).tolist() == [1, 2, 3, 7, 8, 10]
     assert boundary_turns(h, 2.0).tolist() == [7, 8]
     assert boundary_turns(0.001 * h, 0.5).tolist() == [7, 8]    # a pin hole keeps its top and bottom
+
+
+def test_time_ordering_weighs_the_tool_turn_against_the_move():
+    ends = [((0, 0, 0), (1, 0, 0)), ((0, 0.05, 0), (1, 0.05, 0)), ((0, 0.1, 0), (1, 0.1, 0))]
+    tp = ToolPath(None, _passes(ends), "test")
+
+    def directions(out):
+        return [int(np.sign(p.points[-1][0] - p.points[0][0])) for p in out.passes]
+
+    # a 180-degree turn at 1 rad/s (3.1 s) beats going back 1 m at 0.25 m/s (4.25 s): a snake
+    snake = order_toolpath(tp, method="exact", link_speed=0.25, link_acceleration=1.0, omega_max=1.0)
+    assert directions(snake) in ([1, -1, 1], [-1, 1, -1])
+    # at 0.5 rad/s the turn takes 6.3 s: every pass the same way
+    one_way = order_toolpath(tp, method="exact", link_speed=0.25, link_acceleration=1.0, omega_max=0.5)
+    assert len(set(directions(one_way))) == 1
+    # each link: 0.04 m of retract/approach plus the 1.00125 m diagonal, trapezoid at 0.25 m/s, 1 m/s²
+    L = 0.04 + np.hypot(1.0, 0.05)
+    assert one_way.metadata["link_time_after_s"] == pytest.approx(2 * (L / 0.25 + 0.25))
