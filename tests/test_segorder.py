@@ -10,7 +10,13 @@ from swath.errors import InputError
 from swath.examples import flat_plate
 from swath.examples_hub import wheel_hub
 from swath.order import order_toolpath
-from swath.order.tour import group_variants, held_karp, link_matrix, solve_gtsp, tour_length
+from swath.order.tour import (
+    group_variants,
+    held_karp,
+    link_matrix,
+    solve_gtsp,
+    tour_length,
+)
 from swath.plan.raster import raster
 from swath.plan.regions import plan_regions
 from swath.plan.slicing import slice_mesh
@@ -174,7 +180,7 @@ def test_wheel_hub_shape(hub):
         wheel_hub(window_inner=0.2, window_outer=0.1)
 
 
-def _half_pipe(radius=0.1, length=0.3, span=np.deg2rad(240), n_a=80, n_l=40):
+def _half_pipe(radius=0.1, length=0.3, span=4 * np.pi / 3, n_a=80, n_l=40):
     """Outer side of a cylinder sector about the y axis, centred on +z (normals outward)."""
     from swath.examples import grid_faces
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
@@ -178,7 +179,7 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
             order = list(idx)[::-1] if rev else list(idx)
             seq = [_ends(passes[i], flip) for i in order]
             inner_len = inner = 0.0
-            for a, b in zip(seq[:-1], seq[1:]):
+            for a, b in pairwise(seq):
                 L = float(model.length(a[3], a[4], b[0], b[1]))
                 inner_len += L
                 inner += float(model.cost(L, a[5], b[2]))
@@ -207,7 +208,7 @@ def tour_length(variants: Variants, D: np.ndarray, nodes, start_cost: np.ndarray
     point (``start_cost[node]``) when one is given."""
     nodes = list(nodes)
     inner = variants.inner if inner is None else inner
-    total = float(sum(D[a, b] for a, b in zip(nodes[:-1], nodes[1:])) + inner[nodes].sum())
+    total = float(sum(D[a, b] for a, b in pairwise(nodes)) + inner[nodes].sum())
     if start_cost is not None and nodes:
         total += float(start_cost[nodes[0]])
     return total
@@ -396,7 +397,7 @@ def best_variants(variants: Variants, D: np.ndarray, start_cost, groups_in_order
     layers = [np.flatnonzero(g_of == g) for g in groups_in_order]
     cost = variants.inner[layers[0]] + (0.0 if start_cost is None else start_cost[layers[0]])
     back = []
-    for prev, cur in zip(layers[:-1], layers[1:]):
+    for prev, cur in pairwise(layers):
         tot = cost[:, None] + D[np.ix_(prev, cur)] + variants.inner[cur][None, :]
         back.append(tot.argmin(axis=0))
         cost = tot.min(axis=0)

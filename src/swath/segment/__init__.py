@@ -3,4 +3,4 @@
 from .boundary import alpha_boundary, surface_boundary
 from .sweep import Region, segment
 
-__all__ = ["Region", "segment", "alpha_boundary", "surface_boundary"]
+__all__ = ["Region", "alpha_boundary", "segment", "surface_boundary"]

@@ -213,7 +213,7 @@ def split_at_levels(vertices: np.ndarray, faces: np.ndarray, height: np.ndarray,
         # crossings on edges (a, b) and (a, c), shared between the two triangles of an edge
         ends = np.concatenate([np.stack([a, b], 1), np.stack([a, c], 1)])
         key = np.sort(ends, axis=1)
-        ukey, inv = np.unique(key[:, 0] * np.int64(len(V) + 1) + key[:, 1], return_inverse=True)
+        _, inv = np.unique(key[:, 0] * np.int64(len(V) + 1) + key[:, 1], return_inverse=True)
         first = np.unique(inv, return_index=True)[1]
         e0, e1 = ends[first, 0], ends[first, 1]
         t = (L - h[e0]) / (h[e1] - h[e0])
