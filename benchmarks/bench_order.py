@@ -22,14 +22,19 @@ import pickle
 import time
 
 import numpy as np
-
-from common import SHARED_MESH_UNITS, SHARED_MESHES, print_table  # noqa: F401  (sets sys.path)
+from common import SHARED_MESH_UNITS, SHARED_MESHES, print_table
 
 from swath.contact.tool import Tool
 from swath.examples_hub import wheel_hub
 from swath.io.mesh import load_mesh
 from swath.order import order_toolpath
-from swath.order.tour import group_variants, held_karp, link_matrix, solve_gtsp, tour_length
+from swath.order.tour import (
+    group_variants,
+    held_karp,
+    link_matrix,
+    solve_gtsp,
+    tour_length,
+)
 from swath.plan.raster import raster
 from swath.plan.regions import plan_regions
 from swath.segment import segment
@@ -184,6 +189,8 @@ def main():
     instances.append(("hub raster 12 mm", dense, [[i] for i in range(len(dense.passes))]))
     dense_seg = plan_regions(hub, Tool(), raster, segment(hub), spacing=0.01)
     instances.append(("hub regions raster 10 mm", dense_seg, [[i] for i in range(len(dense_seg.passes))]))
+    dense = raster(hub, Tool(), spacing=0.005)
+    instances.append(("hub raster 5 mm", dense, [[i] for i in range(len(dense.passes))]))
     optimality_table(instances)
     parts_table(hub, hub_tp, not args.no_removal, args.uniform)
 
