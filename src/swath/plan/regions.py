@@ -27,7 +27,10 @@ def plan_regions(surface, tool, planner, regions, **options) -> ToolPath:
         Passed to the planner for every region.  When the planner takes a ``direction`` vector
         (raster, equidistant) and none is given, each region's sweep direction is passed; when it
         takes ``cross_direction`` (raster), the region's sweep-line plane normal too, so its passes
-        are the region's sweep lines.
+        are the region's sweep lines.  Give raster a common ``spacing`` (e.g. the whole part's
+        default): left to itself it picks each region's own, up to 70 mm on small flat regions of
+        bezier_dac_scan, and the simulated coverage drops (98.9 % against 99.8 % with the common
+        26.9 mm spacing).
 
     Returns
     -------
