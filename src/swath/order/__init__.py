@@ -1,27 +1,51 @@
-"""The ``order`` stage: sequence a planner's passes (and choose their directions) to waste least
-air travel.  Every planner's output goes through :func:`order_toolpath`.
+"""The ``order`` stage: sequence a planner's passes — the visiting order and each pass group's
+path type — to waste least air travel (Wang §4).  Every planner's output goes through
+:func:`order_toolpath`.
 
-Methods are registered in :data:`ORDER_METHODS` (name -> function ``f(toolpath) -> ToolPath``).
+Methods (:data:`ORDER_METHODS`, name -> function ``f(toolpath) -> ToolPath``):
+
+``snake``, ``zigzag``, ``index``
+    the planner's levels in boustrophedon order, its order with each pass started at the nearer
+    end, or its order unchanged (:mod:`.sequence`);
+``greedy``, ``gtsp``, ``exact``
+    pass groups (a segmented part's regions, else single passes) visited nearest-entry first, as a
+    generalised TSP (Noon–Bean transform + LKH), or exactly (Held–Karp, small instances)
+    (:mod:`.tour`); inside a region the passes keep their snake order.
 """
 
 from __future__ import annotations
 
 from ..core import ToolPath
 from ..errors import InputError
-from . import sequence
+from . import sequence, tour
+
+
+def _tour(method: str, *, snake_regions: bool = True):
+    def run(toolpath: ToolPath, **options) -> ToolPath:
+        grouped = snake_regions and "groups" not in options and len(set(toolpath.regions.tolist())) > 1
+        base = sequence.snake(toolpath) if grouped else toolpath
+        return tour.order_toolpath(base, method=method, **options)
+
+    run.__name__ = f"order_{method}"
+    return run
+
 
 #: Order methods by name; each maps a ToolPath to a re-sequenced ToolPath.
 ORDER_METHODS = {
     "snake": sequence.snake,
     "zigzag": sequence.zigzag,
-    "greedy": sequence.greedy,
-    "index": sequence.index,
+    "index": _tour("index", snake_regions=False),
+    "greedy": _tour("greedy"),
+    "gtsp": _tour("gtsp"),
+    "exact": _tour("exact"),
 }
 
 
-def order_toolpath(toolpath: ToolPath, *, method: str | None = None) -> ToolPath:
-    """Re-sequence ``toolpath``'s passes with the named method (see :mod:`.sequence`); None: the
-    planner's ``metadata["order_hint"]`` (raster and equidistant: ``snake``, uniform: ``zigzag``).
+def order_toolpath(toolpath: ToolPath, *, method: str | None = None, **options) -> ToolPath:
+    """Re-sequence ``toolpath``'s passes with the named method; None: the planner's
+    ``metadata["order_hint"]`` (raster and equidistant: ``snake``, uniform: ``zigzag``).
+    ``options`` go to the tour methods (``start``, ``clearance``, ``link_speed``, ``omega_max``, ...;
+    see :func:`swath.order.tour.order_toolpath`).
 
     Raises
     ------
@@ -34,7 +58,10 @@ def order_toolpath(toolpath: ToolPath, *, method: str | None = None) -> ToolPath
         fn = ORDER_METHODS[method]
     except KeyError:
         raise InputError(f"unknown order method {method!r}; choose one of {', '.join(ORDER_METHODS)}") from None
-    return fn(toolpath)
+    if options and fn in (sequence.snake, sequence.zigzag):
+        raise InputError(f"the {method} order takes no options (got {', '.join(sorted(options))}); the tour "
+                         "methods (greedy, gtsp, exact, index) do")
+    return fn(toolpath, **options)
 
 
-__all__ = ["ORDER_METHODS", "order_toolpath", "sequence"]
+__all__ = ["ORDER_METHODS", "order_toolpath", "sequence", "tour"]

@@ -11,8 +11,6 @@ method     order
            emitted them (along the feed); every other level (counted among the levels that have
            passes) runs backwards: its passes in reverse order, each reversed — boustrophedon
 ``zigzag`` the planner's order; each pass starts at the end nearer the previous pass's end
-``greedy`` from the first pass, always the unvisited pass with an end nearest the current end
-``index``  the planner's order and directions unchanged
 =========  ===========================================================================================
 """
 
@@ -50,37 +48,6 @@ def zigzag(toolpath: ToolPath) -> ToolPath:
             p = p.reversed()
         out.append(p)
     return _with(toolpath, out, "zigzag")
-
-
-def greedy(toolpath: ToolPath, *, start: np.ndarray | None = None) -> ToolPath:
-    """Nearest end first: from ``start`` (m, default the first pass's start) always the unvisited
-    pass with an end nearest the current position, run from that end."""
-    passes = list(toolpath.passes)
-    if not passes:
-        return _with(toolpath, passes, "greedy")
-    starts = np.array([p.points[0] for p in passes])
-    ends = np.array([p.points[-1] for p in passes])
-    left = np.ones(len(passes), bool)
-    pos = starts[0] if start is None else np.asarray(start, float)
-    out = []
-    for _ in range(len(passes)):
-        d0 = np.where(left, np.linalg.norm(starts - pos, axis=1), np.inf)
-        d1 = np.where(left, np.linalg.norm(ends - pos, axis=1), np.inf)
-        i0, i1 = int(np.argmin(d0)), int(np.argmin(d1))
-        if d0[i0] <= d1[i1]:
-            out.append(passes[i0])
-            left[i0] = False
-            pos = ends[i0]
-        else:
-            out.append(passes[i1].reversed())
-            left[i1] = False
-            pos = starts[i1]
-    return _with(toolpath, out, "greedy")
-
-
-def index(toolpath: ToolPath) -> ToolPath:
-    """The passes as given."""
-    return _with(toolpath, list(toolpath.passes), "index")
 
 
 def air_estimate(passes) -> float:

@@ -32,7 +32,7 @@ AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
 
 
 def raster(surface, tool, *, spacing: float | None = None, direction=None, point_spacing: float = 1e-3,
-           min_pass_length: float | None = None, progress=None) -> ToolPath:
+           min_pass_length: float | None = None, cross_direction=None, progress=None) -> ToolPath:
     """Cover a surface with parallel plane slices, visited in snake order.
 
     Parameters
@@ -55,6 +55,11 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         the feed direction in the part frame (only its component in the best-fit plane matters).
     point_spacing : float
         Arc-length step between pass points, m (default 1 mm: ≤ 20 ms apart at 50 mm/s).
+    cross_direction : (3,) float, optional
+        Normal of the cutting planes, part frame, used as given (not re-derived from this surface's
+        best-fit plane); the feed is ``direction`` (or the principal axis) made orthogonal to it.
+        For regions of a segmented part (:func:`swath.segment.segment`), whose sweep lines are
+        level sets along the parent's cross direction.
     min_pass_length : float, optional
         Slice fragments shorter than this (m) are dropped.  Default ``R/4`` (9.5 mm for a 3-inch
         pad): such slivers occur where a plane grazes a bump, a hole or the part's edge, and each
@@ -99,6 +104,16 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
     if angle is None and vector is None:
         angle, choice, direction_rule = choose_angle(surface, tool, spacing=spacing)
     feed, cross = feed_and_cross(surface, angle=angle or 0.0, direction=vector)
+    if cross_direction is not None:
+        c = np.asarray(cross_direction, float).reshape(-1)
+        if c.shape != (3,) or not np.isfinite(c).all() or np.linalg.norm(c) == 0:
+            raise InputError(f"cross_direction must be a finite, non-zero 3-vector, got {cross_direction!r}")
+        cross = c / np.linalg.norm(c)
+        f = feed - (feed @ cross) * cross
+        if np.linalg.norm(f) < 1e-6:
+            raise InputError("cross_direction is along the feed direction; give a feed across the planes")
+        feed = f / np.linalg.norm(f)
+        direction_rule = "given cutting-plane normal"
 
     if spacing is None:
         if choice is None:

@@ -1,0 +1,238 @@
+"""Segmentation into unbroken-sweep regions, the per-region driver, pass ordering, the hub part."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swath.contact.tool import Tool
+from swath.errors import InputError
+from swath.examples import flat_plate
+from swath.examples_hub import wheel_hub
+from swath.order import order_toolpath
+from swath.order.tour import (
+    group_variants,
+    held_karp,
+    link_matrix,
+    solve_gtsp,
+    tour_length,
+)
+from swath.plan.raster import raster
+from swath.plan.regions import plan_regions
+from swath.plan.slicing import slice_mesh
+from swath.core import Pass, ToolPath
+from swath.segment import alpha_boundary, segment
+from swath.surface import Surface
+
+
+@pytest.fixture(scope="module")
+def hub():
+    return wheel_hub()
+
+
+def plate_with_holes(edge=5e-3):
+    """A 0.3 m x 0.2 m plate with two round holes (r = 30 mm) side by side and a square one."""
+    from scipy.spatial import Delaunay
+
+    xs, ys = np.arange(0, 0.3 + 1e-9, edge), np.arange(0, 0.2 + 1e-9, edge)
+    gx, gy = np.meshgrid(xs, ys)
+    p = np.stack([gx.ravel(), gy.ravel()], 1)
+    holes = [(0.08, 0.1, 0.03), (0.2, 0.07, 0.03)]
+    tri = Delaunay(p).simplices
+    c = p[tri].mean(axis=1)
+    keep = np.ones(len(tri), bool)
+    for x, y, r in holes:
+        keep &= np.hypot(c[:, 0] - x, c[:, 1] - y) > r
+    keep &= ~((np.abs(c[:, 0] - 0.24) < 0.02) & (np.abs(c[:, 1] - 0.16) < 0.02))
+    tri = tri[keep]
+    a, b, cc = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
+    ccw = (b[:, 0] - a[:, 0]) * (cc[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (cc[:, 0] - a[:, 0]) > 0
+    tri = np.where(ccw[:, None], tri, tri[:, ::-1])
+    return Surface(np.column_stack([p, np.zeros(len(p))]), tri, name="plate_with_holes")
+
+
+def assert_unbroken(surface, tool, regions, *, short=0.01):
+    """Raster every region along its sweep lines: each cutting plane must give at most one pass, and
+    a dense set of sweep lines of each region one piece per plane (pieces shorter than ``short``,
+    m, left by merging regions of less than ``min_area`` — single triangles at the tip of a hole —
+    are not counted)."""
+    tp = plan_regions(surface, tool, raster, regions, min_pass_length=0.0)
+    assert sum(r.area for r in regions) == pytest.approx(surface.area, rel=1e-9)
+    labels = tp.regions
+    for i, region in enumerate(regions):
+        meta = tp.metadata["regions"][i]
+        if "skipped" in meta:
+            continue
+        assert meta["n_passes"] <= meta["n_planes"], f"region {i}: {meta['n_passes']} passes on {meta['n_planes']} planes"
+        # every pass lies on its own plane (one pass per sweep line)
+        heights = [float(np.mean(p.points @ region.cross)) for p, lab in zip(tp.passes, labels) if lab == i]
+        planes = np.round((np.array(heights) - min(heights)) / meta["spacing_m"]).astype(int)
+        assert len(set(planes.tolist())) == len(planes)
+        # a dense set of sweep lines, every one a single piece
+        h = region.surface.vertices @ region.cross
+        offsets = np.linspace(h.min(), h.max(), 41)[1:-1]
+        pieces = slice_mesh(region.surface.vertices, region.surface.faces, region.cross, offsets)
+        per_plane = np.bincount([pl.plane for pl in pieces if pl.length > short], minlength=len(offsets))
+        assert per_plane.max() <= 1, f"region {i}: a sweep line in {per_plane.max()} pieces"
+    return tp
+
+
+def test_plate_with_holes_regions_have_unbroken_sweep_lines():
+    plate = plate_with_holes()
+    tool = Tool()
+    exact = segment(plate, direction=[1.0, 0, 0], min_area=0.0)
+    assert sum(r.area < 2e-4 for r in exact) == 4       # single triangles at the tips of the round holes
+    regions = segment(plate, direction=[1.0, 0, 0])
+    # two holes overlapping in height and a third above: four cells
+    assert len(regions) == 4
+    assert_unbroken(plate, tool, regions)
+    # without segmentation the planes through the holes break into two passes
+    whole = raster(plate, tool, direction=[1.0, 0, 0], min_pass_length=0.0)
+    assert whole.metadata["n_passes"] > whole.metadata["n_planes"]
+
+
+def test_hub_regions_have_unbroken_sweep_lines(hub):
+    regions = segment(hub)
+    assert len(regions) >= 6                     # five windows and a bore break the sweep lines
+    assert_unbroken(hub, Tool(), regions)
+    assert all(set(r.faces.tolist()) <= set(range(len(hub.faces))) for r in regions)
+
+
+def test_plate_without_holes_is_one_region():
+    regions = segment(flat_plate(), direction=[1.0, 0, 0])
+    assert len(regions) == 1
+    assert regions[0].area == pytest.approx(flat_plate().area)
+
+
+def test_alpha_boundary_of_an_annulus():
+    rng = np.random.default_rng(3)
+    p = rng.uniform(-1, 1, (6000, 2))
+    r = np.hypot(p[:, 0], p[:, 1])
+    p = p[(r < 1) & (r > 0.5)]
+    loops = alpha_boundary(np.column_stack([p, 0.01 * p[:, 0]]))
+    assert len(loops) == 2
+    outer, inner = (np.hypot(*p[lp].T) for lp in loops)
+    assert outer.min() > 0.9 and inner.max() < 0.6
+
+
+def _passes(points):
+    return [Pass(np.array([a, b], float), np.tile([0.0, 0.0, 1.0], (2, 1))) for a, b in points]
+
+
+def test_order_matches_the_exact_optimum_on_small_instances():
+    rng = np.random.default_rng(7)
+    for trial in range(5):
+        ends = [(a, a + np.r_[rng.normal(size=2) * 0.05, 0.0]) for a in rng.uniform(0, 0.5, (9, 3)) * [1, 1, 0]]
+        tp = ToolPath(None, _passes(ends), "test")
+        groups = [[0, 1, 2], [3], [4, 5], [6], [7], [8]]
+        exact = order_toolpath(tp, groups=groups, method="exact", start=[0, 0, 0.1]).metadata["air_after_m"]
+        gtsp = order_toolpath(tp, groups=groups, method="gtsp", start=[0, 0, 0.1], seed=trial).metadata["air_after_m"]
+        greedy = order_toolpath(tp, groups=groups, method="greedy", start=[0, 0, 0.1]).metadata["air_after_m"]
+        assert exact <= gtsp + 1e-9 and gtsp <= 1.01 * exact
+        assert exact <= greedy + 1e-9
+
+
+def test_exact_order_by_brute_force():
+    """Held-Karp against all orders and path types of four single passes."""
+    import itertools
+
+    ends = [((0, 0, 0), (1, 0, 0)), ((0, 1, 0), (1, 1, 0)), ((3, 0, 0), (2, 0, 0)), ((0, 3, 0), (0, 2, 0))]
+    tp = ToolPath(None, _passes(ends), "test")
+    v = group_variants(tp.passes, [[0], [1], [2], [3]], clearance=0.0)
+    D = link_matrix(v, 0.0)
+    best = min(tour_length(v, D, [2 * g + f for g, f in zip(perm, flips)], None)
+               for perm in itertools.permutations(range(4)) for flips in itertools.product((0, 1), repeat=4))
+    assert tour_length(v, D, held_karp(v, D, None), None) == pytest.approx(best)
+    assert tour_length(v, D, solve_gtsp(v, D, None), None) == pytest.approx(best)
+    # the optimum: 0, 1 reversed, ... total air exactly the three shortest joins
+    assert best == pytest.approx(1.0 + np.sqrt(2.0) + 1.0)
+
+
+def test_order_toolpath_keeps_passes_and_flips_them():
+    ends = [((0, 0, 0), (1, 0, 0)), ((0, 0.1, 0), (1, 0.1, 0)), ((0, 0.2, 0), (1, 0.2, 0))]
+    tp = ToolPath(None, [p.replace(region=i) for i, p in enumerate(_passes(ends))], "test")
+    out = order_toolpath(tp, method="gtsp", clearance=0.0)
+    assert out.metadata["air_before_m"] == pytest.approx(2 * np.hypot(1, 0.1))
+    assert out.metadata["air_after_m"] == pytest.approx(0.2)        # a snake
+    assert sorted(out.regions.tolist()) == [0, 1, 2]
+    assert out.contact_length == pytest.approx(tp.contact_length)
+    with pytest.raises(InputError):
+        order_toolpath(tp, groups=[[0, 1]])
+    with pytest.raises(InputError):
+        order_toolpath(tp, method="nearest")
+
+
+def test_hub_order_beats_index_and_greedy(hub):
+    tool = Tool()
+    tp = plan_regions(hub, tool, raster, segment(hub))
+    singles = [[i] for i in range(len(tp.passes))]
+    air = {m: order_toolpath(tp, groups=singles, method=m).metadata["air_after_m"] for m in ("index", "greedy", "gtsp")}
+    assert air["gtsp"] < air["greedy"] < air["index"]
+
+
+def test_wheel_hub_shape(hub):
+    r = np.hypot(hub.vertices[:, 0], hub.vertices[:, 1])
+    assert r.max() == pytest.approx(0.225, abs=1e-4)
+    assert len(hub.boundary_loops) == 7                 # rim, bore and five windows
+    assert np.median(hub.edge_lengths) == pytest.approx(5e-3, rel=0.1)
+    assert (hub.normals[:, 2] > 0.5).all()              # toward the tool (+z)
+    with pytest.raises(InputError):
+        wheel_hub(window_inner=0.2, window_outer=0.1)
+
+
+def _half_pipe(radius=0.1, length=0.3, span=4 * np.pi / 3, n_a=80, n_l=40):
+    """Outer side of a cylinder sector about the y axis, centred on +z (normals outward)."""
+    from swath.examples import grid_faces
+
+    a = np.linspace(-span / 2, span / 2, n_a)
+    y = np.linspace(0, length, n_l)
+    A, Y = np.meshgrid(a, y, indexing="ij")
+    v = np.stack([radius * np.sin(A), Y, radius * np.cos(A)], -1).reshape(-1, 3)
+    f = grid_faces(n_a, n_l)
+    s = Surface(v, f, name="half_pipe")
+    if (s.face_normals @ [0, 0, 1.0]).mean() < 0:
+        s = Surface(v, f[:, ::-1], name="half_pipe")
+    return s
+
+
+@pytest.mark.parametrize("make", [_half_pipe, lambda: wheel_hub(edge=10e-3)])
+def test_air_routes_stay_near_the_part(make):
+    from swath.trajectory.links import AirGuard
+
+    surface = make()
+    guard = AirGuard(surface, 0.02, pad_radius=0.03)
+    rng = np.random.default_rng(11)
+    lo, hi = surface.bounds
+    idx = rng.integers(0, len(surface.vertices), (40, 2))
+    for i, j in idx:
+        route = guard.route(surface.vertices[i], surface.normals[i], surface.vertices[j], surface.normals[j])
+        assert (route >= lo - 0.05 - 1e-12).all() and (route <= hi + 0.05 + 1e-12).all()
+        assert guard._clear(route[1:-1])
+
+
+def test_boundary_turns_skip_small_wiggles():
+    from swath.segment.sweep import boundary_turns
+
+    h = np.array([0, 1, 0.2, 1.1, 0.0, -5, -4.95, -5.2, 3, 2.99, 0.0])
+    # the 0.8-high wiggle stays, the 0.05 ones (-5 / -4.95, 3 / 2.99) go
+    assert boundary_turns(h, 0.5).tolist() == [1, 2, 3, 7, 8, 10]
+    assert boundary_turns(h, 2.0).tolist() == [7, 8]
+    assert boundary_turns(0.001 * h, 0.5).tolist() == [7, 8]    # a pin hole keeps its top and bottom
+
+
+def test_time_ordering_weighs_the_tool_turn_against_the_move():
+    ends = [((0, 0, 0), (1, 0, 0)), ((0, 0.05, 0), (1, 0.05, 0)), ((0, 0.1, 0), (1, 0.1, 0))]
+    tp = ToolPath(None, _passes(ends), "test")
+
+    def directions(out):
+        return [int(np.sign(p.points[-1][0] - p.points[0][0])) for p in out.passes]
+
+    # a 180-degree turn at 1 rad/s (3.1 s) beats going back 1 m at 0.25 m/s (4.25 s): a snake
+    snake = order_toolpath(tp, method="exact", link_speed=0.25, link_acceleration=1.0, omega_max=1.0)
+    assert directions(snake) in ([1, -1, 1], [-1, 1, -1])
+    # at 0.5 rad/s the turn takes 6.3 s: every pass the same way
+    one_way = order_toolpath(tp, method="exact", link_speed=0.25, link_acceleration=1.0, omega_max=0.5)
+    assert len(set(directions(one_way))) == 1
+    # each link: 0.04 m of retract/approach plus the 1.00125 m diagonal, trapezoid at 0.25 m/s, 1 m/s²
+    L = 0.04 + np.hypot(1.0, 0.05)
+    assert one_way.metadata["link_time_after_s"] == pytest.approx(2 * (L / 0.25 + 0.25))
