@@ -19,7 +19,9 @@ from swath.plan.equidistant import (boundary_seed, distance_field, equidistant, 
 from swath.plan.raster import raster
 from swath.plan.slicing import mesh_edges
 from swath.surface import Surface
-from swath.surface.bspline import BSplinePatch, clamped_knots, nurbs_cylinder
+from swath.surface.bspline import BSplinePatch
+from swath.surface.bspline_basis import clamped_knots
+from swath.surface.exact_shapes import nurbs_cylinder
 
 TOOL = Tool()                     # R = 38.1 mm
 R = TOOL.pad_radius

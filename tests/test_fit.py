@@ -11,8 +11,9 @@ import pytest
 from swath.contact import Tool, local_patch
 from swath.errors import InfeasibleError, InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
-from swath.surface.bspline import nurbs_sphere
-from swath.surface.fit import curvature_knots, fit_patch
+from swath.surface.exact_shapes import nurbs_sphere
+from swath.surface.fit import fit_patch
+from swath.surface.fit_knots import curvature_knots
 from swath.surface.scansim import blade_patch, panel_patch, simulate_laser_scan
 
 

@@ -1,7 +1,7 @@
 """The ``swath fit`` and ``swath register`` jobs: scans in, smooth patches and transforms out.
 
 * :func:`run_fit` — fit a B-spline patch to a scan (point cloud or mesh) and write
-  ``patch.json`` (reloadable with :meth:`BSplinePatch.load_json`; it also carries the patch's
+  ``patch.json`` (reloadable with :func:`swath.io.patch.load_patch_json`; it also carries the patch's
   :class:`Footprint`, the scanned part of its domain), ``surface.ply`` (the patch triangulated
   and trimmed to the footprint, per-vertex normals), ``fit.json`` (the figures, units in the key
   names) and ``fit.html`` / ``fit.png`` (residual map and histogram), atomically.
@@ -274,7 +274,7 @@ def patch_surface(patch, *, spacing: float | None = None, name: str | None = Non
     footprint : Footprint, optional
         Keep only the triangles whose three vertices lie in the footprint (the scanned area).
     """
-    from .examples import grid_faces
+    from .surface.grid import grid_faces
     from .io.mesh import remove_unreferenced
     from .surface import Surface
 
@@ -479,22 +479,18 @@ def _tidy_mask(mask: np.ndarray, *, speck: float = 0.01, pinhole: int = 16) -> n
 
 
 def save_patch(patch, path, footprint: Footprint | None = None) -> None:
-    """Write ``patch`` as JSON (as :meth:`BSplinePatch.save_json`) with its footprint, atomically."""
-    from .io.atomic import write_text_atomic
+    """Write ``patch`` as JSON (:func:`swath.io.patch.save_patch_json`) with its footprint, atomically."""
+    from .io.patch import save_patch_json
 
-    doc = patch.to_dict()
-    if footprint is not None:
-        doc["footprint"] = footprint.to_dict()
-    write_text_atomic(path, json.dumps(doc) + "\n")
+    save_patch_json(patch, path, extra=None if footprint is None else {"footprint": footprint.to_dict()})
 
 
 def load_patch(path):
-    """Read a patch written by :func:`save_patch` (or :meth:`BSplinePatch.save_json`):
+    """Read a patch written by :func:`save_patch` (or :func:`swath.io.patch.save_patch_json`):
     ``(BSplinePatch, Footprint or None)``."""
-    from .surface.bspline import BSplinePatch
+    from .io.patch import read_patch_document
 
-    patch = BSplinePatch.load_json(path)
-    data = json.loads(Path(path).read_text(encoding="utf-8"))
+    patch, data = read_patch_document(path)
     fp = data.get("footprint")
     return patch, (None if fp is None else Footprint.from_dict(fp))
 
