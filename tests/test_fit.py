@@ -343,3 +343,48 @@ def test_rows_fit_with_a_fixed_smoothing_length():
     _, _, dist = patch.project(scan.true_points[::50])
     assert report.rms < 3e-4
     assert np.percentile(dist, 95) < 3e-4
+
+
+# ----------------------------------------------------------------------------------------------
+# Trimming a fitted patch to its footprint (swath fit / plan --fit)
+# ----------------------------------------------------------------------------------------------
+def _rect_footprint(patch, cell):
+    """A footprint as scan_footprint lays it out: the domain ends on cell edges, one cell of
+    margin, every cell over the domain occupied."""
+    from swath.fitjob import Footprint
+
+    lo = patch.domain[:, 0]
+    n = np.ceil((patch.domain[:, 1] - lo) / cell).astype(int) + 2
+    return Footprint(lo - cell, cell, np.ones(n, dtype=bool)), n
+
+
+def test_footprint_cells_are_closed_on_their_edges():
+    from swath.fitjob import Footprint
+
+    mask = np.zeros((3, 3), dtype=bool)
+    mask[1, 1] = True
+    fp = Footprint(np.array([0.0, 0.0]), 0.1, mask)
+    # on the edge between an empty and the occupied cell (as computed, not exactly): in
+    edge = 0.1 * 3 / 3
+    assert fp.contains(np.array([edge, 0.15, 0.2 + 1e-12, 0.05]), np.array([0.15, edge, 0.15, 0.15])).tolist() == \
+        [True, True, True, False]
+
+
+def test_trimmed_triangulation_changes_only_locally_when_an_edge_cell_comes_or_goes():
+    # The same scan read in m and in mm fits to patches a few nm apart, whose footprints can differ
+    # by a cell at the rim; the trimmed surface (and so the plan) must not change by a whole row.
+    from swath.fitjob import Footprint, patch_surface
+
+    patch = panel_patch(size_x=0.2, size_y=0.15)
+    fp, n = _rect_footprint(patch, 2.2e-3)
+    base, _ = patch_surface(patch, spacing=2e-3, footprint=fp)
+    inner = np.zeros_like(fp.mask)
+    inner[3:-3, 3:-3] = True           # a scan that stops short of the domain, with a ragged rim
+    fp = Footprint(fp.origin, fp.cell, inner)
+    base, _ = patch_surface(patch, spacing=2e-3, footprint=fp)
+    for extra in ((2, n[1] // 2), (n[0] // 2, 2), (n[0] - 3, n[1] // 3)):
+        mask = fp.mask.copy()
+        mask[extra] = True             # one more cell at the rim, beyond the occupied box
+        other, _ = patch_surface(patch, spacing=2e-3, footprint=Footprint(fp.origin, fp.cell, mask))
+        assert abs(other.area - base.area) < 2e-3 * base.area
+        assert 0 <= len(other.vertices) - len(base.vertices) <= 2

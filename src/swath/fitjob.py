@@ -198,7 +198,7 @@ def default_surface_spacing(patch, footprint=None) -> float:
     (u0, u1), (v0, v1) = patch.domain
     if footprint is not None and footprint.mask.any():
         I, J = np.nonzero(footprint.mask)
-        pick = np.random.default_rng(0).choice(len(I), size=min(len(I), 4000), replace=False)
+        pick = _even_sample(len(I), 4000)
         U = np.clip(footprint.origin[0] + (I[pick] + 0.5) * footprint.cell, u0, u1)
         V = np.clip(footprint.origin[1] + (J[pick] + 0.5) * footprint.cell, v0, v1)
     else:
@@ -299,26 +299,54 @@ def patch_surface(patch, *, spacing: float | None = None, name: str | None = Non
     return Surface(verts, faces, name=patch.name if name is None else name), float(spacing)
 
 
+def _even_sample(n: int, size: int) -> np.ndarray:
+    """Indices ``(min(n, size),)`` spread evenly over ``range(n)``.
+
+    The footprint's occupied cells are sampled this way rather than at random: a random choice
+    from a population of ``n`` reshuffles completely when ``n`` changes by one, so two fits that
+    differ by nanometres (the same scan read in m and in mm) could get footprints that differ by a
+    cell, speed estimates that differ by a percent, a triangulation grid one row longer, and a
+    trimmed surface whose boundary triangles (a spacing wide all round) come out differently.  An
+    even stride moves a sample by at most one cell instead."""
+    if n <= size:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, size).round().astype(np.int64))
+
+
 def _footprint_grid(patch, footprint: Footprint, spacing: float):
     """Parameter grids ``(nu,)``, ``(nv,)`` over the footprint's occupied box, uniform in the
     parameters, with steps that make about ``spacing`` metres where the scan is (measured from
     the patch's first derivatives there; the arc length of the whole patch would count the parts
-    that shoot off beyond the data)."""
+    that shoot off beyond the data).
+
+    The grid lines are those of one lattice laid over the patch's whole domain (which the fit
+    fixes), kept where they cross the occupied box; so a cell at the edge of the footprint that
+    comes or goes (the footprint's thresholds meet some cell in every scan) adds or removes only
+    the grid nodes in that cell.  A grid stretched over the occupied box instead would shift every
+    node when the box grows by one cell, and with it whole rows of boundary triangles."""
     (u0, u1), (v0, v1) = patch.domain
     I, J = np.nonzero(footprint.mask)
     if len(I) == 0:
         raise InputError("the patch's footprint is empty: no part of the patch lies near the scan")
     lo = np.maximum(footprint.origin + footprint.cell * np.array([I.min(), J.min()]), [u0, v0])
     hi = np.minimum(footprint.origin + footprint.cell * np.array([I.max() + 1, J.max() + 1]), [u1, v1])
-    pick = np.random.default_rng(0).choice(len(I), size=min(len(I), 4000), replace=False)
-    cu = np.clip(footprint.origin[0] + (I[pick] + 0.5) * footprint.cell, u0, u1)
-    cv = np.clip(footprint.origin[1] + (J[pick] + 0.5) * footprint.cell, v0, v1)
+    # Speeds |S_u|, |S_v| at a fixed lattice of the domain, where the footprint is occupied.
+    g = (np.arange(64) + 0.5) / 64
+    cu, cv = (a.ravel() for a in np.meshgrid(u0 + (u1 - u0) * g, v0 + (v1 - v0) * g, indexing="ij"))
+    inside = footprint.contains(cu, cv)
+    if inside.sum() >= 16:
+        cu, cv = cu[inside], cv[inside]
     D = patch.derivatives(cu, cv, 1)
     speed = np.array([np.median(np.linalg.norm(D[:, 1, 0], axis=1)), np.median(np.linalg.norm(D[:, 0, 1], axis=1))])
-    n = np.maximum(np.ceil((hi - lo) * speed / spacing).astype(np.int64), 1) + 1
+    span = np.array([u1 - u0, v1 - v0])
+    n_dom = np.maximum(np.ceil(span * speed / spacing).astype(np.int64), 1) + 1
+    step = span / (n_dom - 1)
+    first = np.clip(np.ceil((lo - [u0, v0]) / step - 1e-9).astype(np.int64), 0, n_dom - 1)
+    last = np.clip(np.floor((hi - [u0, v0]) / step + 1e-9).astype(np.int64), first, n_dom - 1)
+    n = last - first + 1
     if n[0] * n[1] > 5_000_000:
         raise InputError(f"spacing {spacing:g} m gives {n[0]}x{n[1]} samples; choose a larger spacing")
-    return np.linspace(lo[0], hi[0], n[0]), np.linspace(lo[1], hi[1], n[1])
+    return (u0 + step[0] * np.arange(first[0], last[0] + 1), v0 + step[1] * np.arange(first[1], last[1] + 1))
 
 
 def signed_residuals(patch, points):
@@ -332,6 +360,10 @@ def signed_residuals(patch, points):
 # --------------------------------------------------------------------------------------------
 # footprint: where a fitted patch has data
 # --------------------------------------------------------------------------------------------
+#: Points this close to a footprint cell edge (in cells) count as in the cells on both sides.
+EDGE_TOLERANCE = 1e-7
+
+
 @dataclass(frozen=True)
 class Footprint:
     """Where a fitted patch is backed by scan points: an occupancy mask over its parameter domain.
@@ -354,12 +386,21 @@ class Footprint:
     mask: np.ndarray
 
     def contains(self, u, v) -> np.ndarray:
-        """Whether parameters ``u, v`` ``(k,)`` lie in an occupied cell, ``(k,)`` bool."""
-        i = np.floor((np.asarray(u, float) - self.origin[0]) / self.cell).astype(np.int64)
-        j = np.floor((np.asarray(v, float) - self.origin[1]) / self.cell).astype(np.int64)
-        inside = (i >= 0) & (i < self.mask.shape[0]) & (j >= 0) & (j < self.mask.shape[1])
-        out = np.zeros(i.shape, dtype=bool)
-        out[inside] = self.mask[i[inside], j[inside]]
+        """Whether parameters ``u, v`` ``(k,)`` lie in an occupied cell, ``(k,)`` bool.
+
+        Cells are closed: a point on the edge between two cells (within ``1e-7`` of a cell in
+        relative terms) is in both.  The patch's domain ends fall on cell edges by construction
+        (:func:`scan_footprint`), so without this a grid line along a domain end would be kept
+        or dropped whole by rounding."""
+        x = (np.asarray(u, float) - self.origin[0]) / self.cell
+        y = (np.asarray(v, float) - self.origin[1]) / self.cell
+        out = np.zeros(np.broadcast(x, y).shape, dtype=bool)
+        for dx in (-EDGE_TOLERANCE, EDGE_TOLERANCE):
+            for dy in (-EDGE_TOLERANCE, EDGE_TOLERANCE):
+                i = np.floor(x + dx).astype(np.int64)
+                j = np.floor(y + dy).astype(np.int64)
+                inside = (i >= 0) & (i < self.mask.shape[0]) & (j >= 0) & (j < self.mask.shape[1])
+                out[inside] |= self.mask[i[inside], j[inside]]
         return out
 
     @property
