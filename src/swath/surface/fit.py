@@ -27,6 +27,7 @@ one patch (separate pieces, a closed mesh), and a parameterisation that folds ov
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -160,6 +161,28 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
         The points do not form one patch (separate pieces, a closed mesh), or the chosen
         parameterisation folds over.
     """
+    with _single_threaded_blas():
+        return _fit_patch(points, normals=normals, mesh_faces=mesh_faces, rows=rows,
+                          parameterization=parameterization, degree=degree, n_ctrl=n_ctrl, smoothing=smoothing,
+                          knot_curvature_weight=knot_curvature_weight, max_turn=max_turn,
+                          max_ctrl_spacing=max_ctrl_spacing, knot_rounds=knot_rounds, reparam_rounds=reparam_rounds)
+
+
+def _single_threaded_blas():
+    """A context in which BLAS runs on one thread (when threadpoolctl is installed).
+
+    The fit's factorisations are banded and small to medium; on a machine shared with other work,
+    multi-threaded OpenBLAS spins its idle threads and runs them tens of times slower."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n_ctrl, smoothing,
+               knot_curvature_weight, max_turn, max_ctrl_spacing, knot_rounds, reparam_rounds):
+
     t_start = time.perf_counter()
     X = np.asarray(points, dtype=float)
     if X.ndim != 2 or X.shape[1] != 3:

@@ -12,6 +12,13 @@ from .bspline import BSplinePatch
 from .bspline_basis import _span_samples, clamped_knots
 from .geometry import normalize
 
+#: Total turning (rad) of a direction below which curvature hardly moves the knots.
+TURN_SIGNIFICANT = 0.2
+
+#: Knot spans are at most this many times shorter than even spacing.
+KNOT_CONCENTRATION = 4.0
+
+
 
 # ----------------------------------------------------------------------------------------------
 # Knots
@@ -81,13 +88,6 @@ def curvature_knots(s: np.ndarray, kappa2: np.ndarray, n_spans: int, *, q: float
     R = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * ds)])
     R /= R[-1]
     return np.interp(np.arange(1, n_spans) / n_spans, R, s)
-
-#: Total turning (rad) of a direction below which curvature hardly moves the knots.
-TURN_SIGNIFICANT = 0.2
-
-#: Knot spans are at most this many times shorter than even spacing.
-KNOT_CONCENTRATION = 4.0
-
 
 
 def _trapz(f, ds):
