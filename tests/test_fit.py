@@ -388,3 +388,81 @@ def test_trimmed_triangulation_changes_only_locally_when_an_edge_cell_comes_or_g
         other, _ = patch_surface(patch, spacing=2e-3, footprint=Footprint(fp.origin, fp.cell, mask))
         assert abs(other.area - base.area) < 2e-3 * base.area
         assert 0 <= len(other.vertices) - len(base.vertices) <= 2
+
+
+# ----------------------------------------------------------------------------------------------
+# Warnings beyond the fit tolerance, and progress
+# ----------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_scan():
+    return simulate_laser_scan(panel_patch(size_x=0.2, size_y=0.15), row_spacing=4e-3, point_spacing=2e-3,
+                               rng=np.random.default_rng(3))
+
+
+def test_fit_warns_when_points_lie_beyond_the_tolerance(small_scan, caplog):
+    from swath.surface.fit import FIT_TOLERANCE
+
+    # σ = 0.1 mm noise and 0.2 mm row offsets: within the default 1 mm, not within 0.25 mm
+    patch, report = fit_patch(small_scan.points, parameterization="projection")
+    assert report.warnings == () and report.tolerance == FIT_TOLERANCE == 1e-3
+    caplog.clear()
+    patch, report = fit_patch(small_scan.points, parameterization="projection", tolerance=2.5e-4)
+    _, _, dist = patch.project(small_scan.points)
+    n_far = int((dist > 2.5e-4).sum())
+    assert 0 < n_far < len(dist) // 4
+    assert len(report.warnings) == 1
+    assert report.warnings[0].startswith(f"{n_far} of {len(dist)} points") and "0.25 mm" in report.warnings[0]
+    assert f"up to {dist.max() * 1e3:.3g} mm" in report.warnings[0]
+    logged = [r for r in caplog.records if r.levelname == "WARNING" and "fit tolerance" in r.getMessage()]
+    assert len(logged) == 1
+    assert report.to_dict()["warnings"] == list(report.warnings) and report.to_dict()["tolerance_m"] == 2.5e-4
+    with pytest.raises(InputError, match="tolerance must be a positive length"):
+        fit_patch(small_scan.points, tolerance=0.0)
+
+
+def test_residual_warning_rule():
+    from swath.surface.fit import _residual_warnings
+
+    tol = 1e-3
+    assert _residual_warnings(np.r_[np.full(999, 5e-4), 2e-3], tol) == []       # 0.1 % just beyond
+    assert len(_residual_warnings(np.r_[np.full(999, 5e-4), 6e-3], tol)) == 1   # one point 6x beyond
+    warned = _residual_warnings(np.r_[np.full(990, 5e-4), np.full(10, 2e-3)], tol)  # 1 % beyond
+    assert len(warned) == 1 and warned[0].startswith("10 of 1000 points (1 %) lie more than 1 mm")
+
+
+@pytest.mark.parametrize("how", ["rows", "projection"])
+def test_fit_reports_progress_at_every_stage(small_scan, how):
+    calls = []
+    kwargs = {"rows": small_scan.rows} if how == "rows" else {"parameterization": "projection"}
+    fit_patch(small_scan.points, progress=lambda *call: calls.append(call), **kwargs)
+    assert all(isinstance(s, str) and s.startswith("fit: ") and 0 <= d <= t and t >= 1 for s, d, t in calls)
+    stages = list(dict.fromkeys(s for s, _, _ in calls))
+    assert stages[0] == "fit: checking the points" and stages[-1] == "fit: done" and calls[-1] == ("fit: done", 1, 1)
+    assert "fit: measuring the distances of the points to the patch" in stages
+    if how == "projection":
+        assert stages[1].startswith("fit: parameterising the points")
+        assert "fit: pilot fits that place the knots by curvature" in stages
+    else:
+        assert "fit: skinning the scan rows (pilot fits that place the knots)" in stages
+    # the smoothing search counts every length it tries, up to its total
+    gcv = [(d, t) for s, d, t in calls if s == "fit: choosing the smoothing by cross-validation"]
+    assert len(gcv) > 10 and [d for d, _ in gcv] == sorted(d for d, _ in gcv) and gcv[-1][0] <= gcv[-1][1]
+
+
+def test_swath_fit_writes_its_warnings_and_reports_every_stage(small_scan, tmp_path):
+    from swath.fitjob import FitSettings, run_fit
+
+    np.savetxt(tmp_path / "scan.xyz", small_scan.points)
+    calls = []
+    doc = run_fit(FitSettings(scan=str(tmp_path / "scan.xyz"), out=str(tmp_path / "o"), tolerance=2.5e-4),
+                  progress=lambda *call: calls.append(call))
+    saved = json.loads((tmp_path / "o" / "fit.json").read_text())
+    assert saved["warnings"] == doc["warnings"] and len(doc["warnings"]) == 1
+    assert "fit tolerance" in doc["warnings"][0] and doc["figures"]["fit_tolerance_m"] == 2.5e-4
+    assert "<b>Warnings</b>" in (tmp_path / "o" / "fit.html").read_text()
+    stages = list(dict.fromkeys(s for s, _, _ in calls))
+    for stage in ("loading scan", "fit: checking the points", "fit: done", "measuring residuals",
+                  "finding the scanned area (footprint)", "writing fit report", "done"):
+        assert stage in stages
+    doc = run_fit(FitSettings(scan=str(tmp_path / "scan.xyz"), out=str(tmp_path / "o2")))
+    assert doc["warnings"] == [] and "<b>Warnings</b>" not in (tmp_path / "o2" / "fit.html").read_text()

@@ -208,7 +208,7 @@ def default_surface_spacing(patch, footprint=None) -> float:
     return float(np.clip(extent / SPACING_DIVISOR, SPACING_MIN, SPACING_MAX))
 
 
-def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
+def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None, tolerance=None, progress=None):
     """Fit a B-spline patch to a scan (:func:`swath.surface.fit.fit_patch`).
 
     Parameters
@@ -221,6 +221,10 @@ def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
     side : str or (3,) float, optional
         The direction the tool comes from: the patch normal is turned to face it.  Default: the
         side the scan's normals (or a mesh's winding) give, else the convex side.
+    tolerance : float, optional
+        Fit tolerance, m (see ``fit_patch``; default its default).
+    progress : callable, optional
+        ``progress(stage, done, total)`` at every stage of the fit (see ``fit_patch``).
 
     Returns
     -------
@@ -248,7 +252,8 @@ def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
         raise InputError("parameterization 'lscm' needs a mesh (triangles); this scan is a point cloud: "
                          "use auto, projection or rows")
     patch, report = fit_patch(scan.points, normals=scan.normals, mesh_faces=scan.faces, rows=rows,
-                              parameterization=parameterization)
+                              parameterization=parameterization, progress=progress,
+                              **({} if tolerance is None else {"tolerance": tolerance}))
     if side is not None:
         from .io.mesh import parse_side
 
@@ -466,11 +471,14 @@ def scan_footprint(patch, points, u, v, *, faces=None, rms: float = 0.0, max_cel
     uv = np.column_stack([np.asarray(u, float), np.asarray(v, float)])
     if faces is not None:            # a mesh: its triangles are data too, not only its vertices
         F = np.asarray(faces)
-        extra = np.concatenate([X[F].mean(axis=1), 0.5 * (X[F[:, 0]] + X[F[:, 1]]),
-                                0.5 * (X[F[:, 1]] + X[F[:, 2]]), 0.5 * (X[F[:, 2]] + X[F[:, 0]])])
-        eu, ev, _ = patch.project(extra)
-        X = np.concatenate([X, extra])
-        uv = np.concatenate([uv, np.column_stack([eu, ev])])
+        def midpoints(A):
+            return np.concatenate([A[F].mean(axis=1), 0.5 * (A[F[:, 0]] + A[F[:, 1]]),
+                                   0.5 * (A[F[:, 1]] + A[F[:, 2]]), 0.5 * (A[F[:, 2]] + A[F[:, 0]])])
+
+        # their parameters are the same means of their corners' parameters (to second order in
+        # the triangle size, far below a cell), not four projections per triangle
+        X = np.concatenate([X, midpoints(X)])
+        uv = np.concatenate([uv, midpoints(uv)])
     tree_uv = cKDTree(uv)
     sample = uv[np.random.default_rng(0).choice(len(uv), size=min(len(uv), 5000), replace=False)]
     d, _ = tree_uv.query(sample, k=min(5, len(uv)))
@@ -557,6 +565,9 @@ class FitSettings:
         Direction the tool comes from (orients the patch normal).
     force_units : bool
         Accept a scan size outside 5 mm .. 20 m.
+    tolerance : float or None
+        Fit tolerance, m: points farther from the patch make a warning (default
+        :data:`swath.surface.fit.FIT_TOLERANCE`, 1 mm).
     """
 
     scan: str
@@ -566,6 +577,7 @@ class FitSettings:
     spacing: float | None = None
     side: str | None = None
     force_units: bool = False
+    tolerance: float | None = None
 
 
 def run_fit(settings: FitSettings, *, progress=None) -> dict:
@@ -591,9 +603,11 @@ def run_fit(settings: FitSettings, *, progress=None) -> dict:
     scan = load_scan(settings.scan, units=settings.units, side=settings.side, force_units=settings.force_units)
     say(f"fitting a B-spline patch to {len(scan.points)} {'vertices' if scan.faces is not None else 'points'}"
         f" ({settings.parameterization} parameterisation)", 0, 1)
-    patch, report = fit_scan(scan, parameterization=settings.parameterization, side=settings.side)
+    patch, report = fit_scan(scan, parameterization=settings.parameterization, side=settings.side,
+                             tolerance=settings.tolerance, progress=say)
     say("measuring residuals", 0, 1)
     r, u, v = signed_residuals(patch, scan.points)
+    say("finding the scanned area (footprint)", 0, 1)
     footprint = scan_footprint(patch, scan.points, u, v, faces=scan.faces, rms=report.rms)
     spacing = settings.spacing if settings.spacing is not None else default_surface_spacing(patch, footprint)
     how = "given" if settings.spacing is not None else "default: extent / 150 in 2..5 mm"
@@ -631,10 +645,11 @@ def fit_document(settings: FitSettings, scan: Scan, patch, report, residuals, su
         "n_ctrl_u": report.n_ctrl[0], "n_ctrl_v": report.n_ctrl[1],
         "n_degree_u": report.degree[0], "n_degree_v": report.degree[1],
         "smoothing_u_m": report.smoothing[0], "smoothing_v_m": report.smoothing[1],
-        "fit_time_s": report.time,
+        "fit_time_s": report.time, "fit_tolerance_m": report.tolerance,
     }
     return to_jsonable({
         "format_version": FORMAT_VERSION,
+        "warnings": list(report.warnings),
         "swath_version": __version__,
         "created_utc": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
         "input": {"scan": str(settings.scan), "units": settings.units, "kind": scan.kind,
@@ -713,6 +728,7 @@ def fit_html(doc: dict, png: bytes) -> str:
         ("mean signed residual", f"{f['residual_mean_m'] * 1e3:.4g} mm"),
         ("surface.ply", f"{doc['surface']['n_vertices']} vertices, {doc['surface']['n_faces']} triangles at "
                         f"{doc['surface']['spacing_m'] * 1e3:.3g} mm, area {doc['surface']['area_m2']:.4g} m²"),
+        ("fit tolerance (a warning beyond it)", f"{f['fit_tolerance_m'] * 1e3:.3g} mm"),
         ("fit time", f"{f['fit_time_s']:.2f} s"),
     ]
     table = "".join(f"<tr><td>{esc(k)}</td><td>{esc(str(v))}</td></tr>" for k, v in rows)
@@ -724,7 +740,10 @@ def fit_html(doc: dict, png: bytes) -> str:
         "table{border-collapse:collapse}td{border-bottom:1px solid #eee;padding:4px 14px 4px 0}"
         "img{max-width:100%;border:1px solid #eee}</style></head><body>"
         f"<h1>swath fit — {esc(Path(str(doc['input']['scan'])).name)}</h1>"
-        f"<table>{table}</table>"
+        + ("" if not doc.get("warnings") else
+           "<div style='border:1px solid #d9a400;background:#fff8e1;padding:8px 14px;margin:0 0 16px 0'>"
+           "<b>Warnings</b><ul>" + "".join(f"<li>{esc(w)}</li>" for w in doc["warnings"]) + "</ul></div>")
+        + f"<table>{table}</table>"
         "<p>Residual: signed distance of each scan point to the fitted patch along its normal. "
         "Figures with units in their names are in <code>fit.json</code>; the patch is "
         "<code>patch.json</code>.</p>"

@@ -49,11 +49,23 @@ from .fit_input import (
 )
 from .fit_knots import _knots_from_patch, _uniform_knots
 from .fit_rows import _fit_rows
-from .fit_solve import _aniso_step, _lambda_grid
+from .fit_solve import _aniso_step, _gcv_progress, _lambda_grid
 
 log = logging.getLogger(__name__)
 
 PARAMETERIZATIONS = ("auto", "projection", "lscm", "rows")
+
+#: Default fit tolerance, m: a point farther than this from the fitted patch makes a warning.  It
+#: is the default pad depression (1 mm at the set force): where the patch is off by as much as the
+#: pad is pressed in, the planned contact either loses the part or presses twice as hard, so the
+#: removal predicted there means nothing.  Scan noise alone (0.1 mm on a good laser scanner) stays
+#: well inside it.
+FIT_TOLERANCE = 1e-3
+#: A warning is given when more than this fraction of the points lie beyond the tolerance, or any
+#: point lies beyond WARN_FACTOR times it (a few points just beyond it, such as the last points of
+#: scan rows that skinning misses by a little over 1 mm, are not worth one).
+WARN_FRACTION = 0.005
+WARN_FACTOR = 5.0
 
 @dataclass(frozen=True)
 class FitReport:
@@ -80,6 +92,10 @@ class FitReport:
         (locally shorter where knots are dense).
     time : float
         Wall-clock time of the fit, s.
+    tolerance : float
+        Distance from the patch beyond which a point makes a warning, m.
+    warnings : tuple of str
+        What went wrong enough to tell the user (points farther than ``tolerance``), each one line.
     """
 
     rms: float
@@ -93,6 +109,8 @@ class FitReport:
     parameterization: str
     smoothing: tuple[float, float]
     time: float
+    tolerance: float = 1e-3
+    warnings: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         """A JSON-ready copy (SI units)."""
@@ -100,7 +118,7 @@ class FitReport:
                 "n_dropped": self.n_dropped, "n_ctrl": list(self.n_ctrl), "degree": list(self.degree),
                 "knots_u": self.knots_u.tolist(), "knots_v": self.knots_v.tolist(),
                 "parameterization": self.parameterization, "smoothing_m": list(self.smoothing),
-                "time_s": self.time}
+                "time_s": self.time, "tolerance_m": self.tolerance, "warnings": list(self.warnings)}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -109,7 +127,8 @@ class FitReport:
 def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterization: str = "auto",
               degree=3, n_ctrl=None, smoothing="gcv", knot_curvature_weight: float = 0.5,
               max_turn: float = 0.1, max_ctrl_spacing: float | None = None, knot_rounds: int = 2,
-              reparam_rounds: int = 1) -> tuple[BSplinePatch, FitReport]:
+              reparam_rounds: int = 1, tolerance: float = FIT_TOLERANCE,
+              progress=None) -> tuple[BSplinePatch, FitReport]:
     """Fit a smooth B-spline patch to a noisy point cloud or mesh patch.
 
     Parameters
@@ -147,6 +166,14 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
         Pilot-fit/knot-placement rounds (0 = uniform knots).
     reparam_rounds : int
         Parameter-correction rounds (project, refit).
+    tolerance : float
+        Largest acceptable distance of a point from the patch, m (default :data:`FIT_TOLERANCE`,
+        the default pad depression): more than :data:`WARN_FRACTION` of the points beyond it, or
+        any point beyond :data:`WARN_FACTOR` times it, make a warning (logged, and in
+        ``report.warnings``).
+    progress : callable, optional
+        ``progress(stage, done, total)``, called at every stage of the fit (stage names start with
+        ``"fit: "``) and at every smoothing length tried by cross-validation.
 
     Returns
     -------
@@ -165,7 +192,8 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
         return _fit_patch(points, normals=normals, mesh_faces=mesh_faces, rows=rows,
                           parameterization=parameterization, degree=degree, n_ctrl=n_ctrl, smoothing=smoothing,
                           knot_curvature_weight=knot_curvature_weight, max_turn=max_turn,
-                          max_ctrl_spacing=max_ctrl_spacing, knot_rounds=knot_rounds, reparam_rounds=reparam_rounds)
+                          max_ctrl_spacing=max_ctrl_spacing, knot_rounds=knot_rounds, reparam_rounds=reparam_rounds,
+                          tolerance=tolerance, progress=progress)
 
 
 def _single_threaded_blas():
@@ -181,7 +209,9 @@ def _single_threaded_blas():
 
 
 def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n_ctrl, smoothing,
-               knot_curvature_weight, max_turn, max_ctrl_spacing, knot_rounds, reparam_rounds):
+               knot_curvature_weight, max_turn, max_ctrl_spacing, knot_rounds, reparam_rounds, tolerance,
+               progress):
+    say = progress or (lambda stage, done, total: None)
 
     t_start = time.perf_counter()
     X = np.asarray(points, dtype=float)
@@ -209,6 +239,8 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
             raise InputError(f"smoothing must be a non-negative length in metres, got {smoothing!r}")
     if not (max_turn > 0):
         raise InputError(f"max_turn must be a positive angle in radians, got {max_turn!r}")
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        raise InputError(f"tolerance must be a positive length in metres, got {tolerance!r}")
     N_in = _optional_array(normals, (len(X), 3), "normals", float)
     F = _optional_array(mesh_faces, (None, 3), "mesh_faces", int)
     if F is not None and (F.min() < 0 or F.max() >= len(X)):
@@ -222,6 +254,7 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
     if n_ctrl_req is not None and (n_ctrl_req[0] < p + 1 or n_ctrl_req[1] < q + 1):
         raise InputError(f"n_ctrl must be at least the degree + 1 = ({p + 1}, {q + 1}), got {n_ctrl!r}")
 
+    say("fit: checking the points", 0, 1)
     _check_spread(X)
     # One patch: no separate pieces (stray specks of < 1 % are dropped with a warning).
     n_dropped = 0
@@ -237,12 +270,13 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
             R_ids = None if R_ids is None else R_ids[keep]
     opts = dict(p=p, q=q, n_ctrl=n_ctrl_req, smoothing=smoothing, qk=float(knot_curvature_weight),
                 max_turn=float(max_turn), h_max=max_ctrl_spacing, knot_rounds=int(knot_rounds),
-                reparam_rounds=int(reparam_rounds))
+                reparam_rounds=int(reparam_rounds), say=say)
 
     method = parameterization
     if method == "auto" and R_ids is not None:
         method = "rows"
     if method in ("auto", "projection"):
+        say("fit: parameterising the points (projection on their best-fit plane)", 0, 1)
         uv, folds, why = _projection_parameters(X, F)
         if folds:
             if method == "projection":
@@ -257,6 +291,7 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
         else:
             method = "projection"
     if method == "lscm":
+        say("fit: parameterising the mesh (least-squares conformal map)", 0, 1)
         uv = _lscm_parameters(X, F)
 
     if method == "rows":
@@ -270,20 +305,41 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
     if flipped:
         u0, u1 = patch.domain[0]
         u = (u0 + u1) - u
+    say("fit: measuring the distances of the points to the patch", 0, 1)
     _, _, dist = patch.project(X, initial=(u, v))
+    warnings = _residual_warnings(dist, tolerance)
+    for w in warnings:
+        log.warning("fit_patch: %s", w)
     report = FitReport(rms=float(np.sqrt(np.mean(dist**2))), max_error=float(dist.max()), n_points=len(X),
                        n_dropped=n_dropped, n_ctrl=patch.shape, degree=patch.degree,
                        knots_u=np.array(patch.knots_u), knots_v=np.array(patch.knots_v),
-                       parameterization=method, smoothing=lengths, time=time.perf_counter() - t_start)
+                       parameterization=method, smoothing=lengths, time=time.perf_counter() - t_start,
+                       tolerance=float(tolerance), warnings=tuple(warnings))
     log.info("fit_patch: %s, %d points, control net %dx%d, rms %.3g m, max %.3g m, %.2f s", method, len(X),
              *patch.shape, report.rms, report.max_error, report.time)
+    say("fit: done", 1, 1)
     return patch, report
+
+
+def _residual_warnings(dist: np.ndarray, tolerance: float) -> list[str]:
+    """Warnings ``[str]`` when distances ``dist`` ``(n,)`` (m) of the points to the patch exceed
+    ``tolerance`` (m) at more than :data:`WARN_FRACTION` of the points, or at any point by more
+    than :data:`WARN_FACTOR` times: how many points, how far, and what to do."""
+    far = dist > tolerance
+    if not (far.mean() > WARN_FRACTION or dist.max() > WARN_FACTOR * tolerance):
+        return []
+    n_far = int(far.sum())
+    return [f"{n_far} of {len(dist)} points ({100.0 * n_far / len(dist):.2g} %) lie more than "
+            f"{tolerance * 1e3:.3g} mm (the fit tolerance) from the fitted patch, up to "
+            f"{float(dist.max()) * 1e3:.3g} mm (rms {float(np.sqrt(np.mean(dist ** 2))) * 1e3:.3g} mm): the patch "
+            "does not follow the scan there (stray points, a fold or a sharp feature the smooth patch "
+            "cannot take); look at the residual map, clean the scan or fit the region on its own"]
 
 
 # ----------------------------------------------------------------------------------------------
 # Global fit (projection / LSCM parameters)
 # ----------------------------------------------------------------------------------------------
-def _fit_global(X, uv, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rounds, reparam_rounds):
+def _fit_global(X, uv, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rounds, reparam_rounds, say):
     """One penalised fit of all points over their parameters ``uv`` (projection or LSCM).
     Returns ``(patch, (ℓ_u, ℓ_v), u, v)``."""
     u, v = uv[:, 0].copy(), uv[:, 1].copy()
@@ -315,14 +371,17 @@ def _fit_global(X, uv, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rou
             kv = _knots_from_patch(patch, 1, req_v, q, opts, cap_v, min_span, dom_v)
         if r == max(knot_rounds, 0):
             break
+        say("fit: pilot fits that place the knots by curvature", r, max(knot_rounds, 0))
         span_u, span_v = Lu / (len(ku) - 2 * p - 1), Lv / (len(kv) - 2 * q - 1)
         patch, _ = _aniso_step(X, u, v, ku, kv, p, q, "fixed", grid_u, grid_v, span_u, span_v)
     # Final fit: smoothing along u and v by GCV (or as given), then parameter correction.
     ells = (None, None)
     for r in range(max(reparam_rounds, 0) + 1):
         if r > 0:
+            say("fit: correcting the parameters (projecting the points on the patch)", r - 1, max(reparam_rounds, 0))
             u, v, _ = patch.project(X, initial=(u, v), tol=1e-9)
-        patch, ells = _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, *ells)
+        patch, ells = _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, *ells,
+                                  progress=_gcv_progress(say, r))
     return patch, ells, u, v
 
 

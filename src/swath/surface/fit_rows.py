@@ -11,6 +11,7 @@ from .bspline import BSplinePatch
 from .bspline_basis import basis_derivatives
 from .fit_knots import _knots_from_patch, _uniform_knots
 from .fit_solve import (
+    _gcv_progress,
     _aniso_step,
     _design_1d,
     _lambda_grid,
@@ -115,7 +116,7 @@ def _row_fit(u, row_of, X, n_rows, ku, p, ell, density):
                               "points or more smoothing") from None
 
 
-def _fit_rows(X, rows, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rounds, reparam_rounds):
+def _fit_rows(X, rows, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rounds, reparam_rounds, say):
     """Skinning (Jaeger §3.2.2): rows smoothed into curves on one knot vector, their control points
     smoothed across the rows; then one penalised fit of all points with the across-row smoothing
     found at row level.  Returns ``(patch, (ℓ_u, ℓ_v), u, v)``."""
@@ -156,17 +157,21 @@ def _fit_rows(X, rows, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rou
         net = net.reshape(nv, nu, 3).transpose(1, 0, 2)
         return BSplinePatch(net, ku, kv, (p, q)), (ell_u, float(np.median(ell_v)))
 
+    say("fit: skinning the scan rows (pilot fits that place the knots)", 0, max(knot_rounds, 0) + 1)
     patch, ells = skin(u, ku, kv)
-    for _ in range(max(knot_rounds, 0)):
+    for r in range(max(knot_rounds, 0)):
         ku = _knots_from_patch(patch, 0, req_u, p, opts, cap_u, 2 * h_along, dom_u)
         kv = _knots_from_patch(patch, 1, req_v, q, opts, cap_v, 2.5 * h_across, dom_v)
         patch, ells = skin(u, ku, kv)
+        say("fit: skinning the scan rows (pilot fits that place the knots)", r + 1, max(knot_rounds, 0) + 1)
     # Final fit of all points at once (every knot span then holds points of many rows, which keeps
     # tight, densely knotted bends well conditioned): across the rows the smoothing found by
     # skinning, along the rows by GCV; parameters along the rows from projection on the current
     # patch (consistent from row to row).
     ells = (None, ells[1])
-    for _ in range(max(reparam_rounds, 0) + 1):
+    for r in range(max(reparam_rounds, 0) + 1):
+        say("fit: projecting the points on the patch (parameters along the rows)", r, max(reparam_rounds, 0) + 1)
         u = patch.project(X, initial=(u, v), tol=1e-9)[0]
-        patch, ells = _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, *ells)
+        patch, ells = _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, *ells,
+                                  progress=_gcv_progress(say, r))
     return patch, ells, u, v

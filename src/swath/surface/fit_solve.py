@@ -15,6 +15,10 @@ from .bspline_basis import basis_derivatives
 #: smoothing length scales as ``(h / h̄)^(γ/6)`` with the knot span ``h``.
 PENALTY_GAMMA = 6.0
 
+#: Bisection steps of the one-standard-error rule that lengthens a GCV smoothing length
+#: (see ``smoothest`` in :func:`_aniso_step`).
+ONE_SE_STEPS = 8
+
 
 
 # ----------------------------------------------------------------------------------------------
@@ -145,11 +149,19 @@ def _penalty_1d(knots: np.ndarray, p: int, density: float) -> np.ndarray:
     return _gram(knots, p, 3) * density / (2 * np.pi) ** 6
 
 
-def _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, ell_u=None, ell_v=None):
+def _gcv_progress(say, round_: int):
+    """``progress(done, total)`` of one penalised fit, as a fit stage."""
+    stage = ("fit: choosing the smoothing by cross-validation" if round_ == 0 else
+             f"fit: refitting after parameter correction {round_}")
+    return lambda done, total: say(stage, done, total)
+
+
+def _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, ell_u=None, ell_v=None, *, progress=None):
     """Penalised fit with separate smoothing lengths along u and v.
 
     Lengths given as None are chosen by GCV (golden-section search on a log scale); a numeric
     ``smoothing`` fixes both; ``"fixed"`` uses the given ones.  Returns ``(patch, (ell_u, ell_v))``.
+    ``progress(done, total)`` is called after every solve (each smoothing length tried, and the last).
 
     The normal equations are banded: control point ``(i, j)`` couples only to ``|Δi| ≤ p,
     |Δj| ≤ q`` (in the data term and in every penalty term), so with the unknowns ordered along
@@ -172,14 +184,29 @@ def _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, ell_u=None, el
     Gz = G @ probes
     both = np.concatenate([rhs, Gz], axis=1)
 
+    if smoothing == "fixed" or not isinstance(smoothing, str) or (ell_u is not None and ell_v is not None):
+        total = 1
+    elif ell_u is None and ell_v is None:
+        total = (12 + 2) + 2 * (8 + 2 + ONE_SE_STEPS + 1) + 1
+    else:
+        total = 12 + 2 + ONE_SE_STEPS + 1 + 1
+    done = [0]
+    say = progress or (lambda done, total: None)
+    say(0, total)
+
     def solve(lu, lv, score):
+        done[0] += 1
+        say(min(done[0], total), total)
         if not score:
             return system.solve(lu, lv, rhs)
         sol = system.solve(lu, lv, both)
         c, w = sol[:, :3], sol[:, 3:]
         rss = max(yty - 2 * float((c * rhs).sum()) + float((c * (G @ c)).sum()), 0.0)
         edf = float((probes * w).sum() / probes.shape[1])
+        edfs[(lu, lv)] = edf
         return N * rss / max(N - edf, 1e-9) ** 2
+
+    edfs = {}
 
     def golden(f, lo, hi, iters=14):
         a, b = math.log(lo), math.log(hi)
@@ -197,6 +224,27 @@ def _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, ell_u=None, el
                 f2 = f(math.exp(c2))
         return math.exp(c1 if f1 <= f2 else c2)
 
+    def smoothest(f, key, best, hi):
+        """The one-standard-error rule (Hastie, Tibshirani & Friedman, *Elements of Statistical
+        Learning* §7.10) on the GCV score: the longest smoothing length in ``[best, hi]`` whose
+        score exceeds the minimum by at most its relative standard error ``√(2 / (N − edf))`` (a
+        residual sum of squares is χ² with that many degrees of freedom).  The GCV curve of a
+        scan is flat near its minimum, and scan errors that are correlated along the rows (a
+        row's positioning offset) pull the minimum toward fitting them; of the lengths the data
+        cannot tell apart, this takes the smoothest."""
+        f_best = f(best)
+        target = f_best * (1.0 + math.sqrt(2.0 / max(N - edfs[key(best)], 1.0)))
+        a, b = math.log(best), math.log(hi)
+        if f(hi) <= target:
+            return hi
+        for _ in range(ONE_SE_STEPS - 1):
+            mid = 0.5 * (a + b)
+            if f(math.exp(mid)) <= target:
+                a = mid
+            else:
+                b = mid
+        return math.exp(a)
+
     if smoothing == "fixed":
         pass
     elif not isinstance(smoothing, str):
@@ -205,12 +253,18 @@ def _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, ell_u=None, el
         # One length for both first, then each direction within a factor 30 of it.
         lo, hi = min(grid_u[0], grid_v[0]), max(grid_u[-1], grid_v[-1])
         ell = golden(lambda e: solve(e, e, True), lo, hi, 12)
-        ell_u = golden(lambda e: solve(e, ell, True), max(lo, ell / 30), min(hi, ell * 30), 8)
-        ell_v = golden(lambda e: solve(ell_u, e, True), max(lo, ell / 30), min(hi, ell * 30), 8)
+        f_u = lambda e: solve(e, ell, True)                                          # noqa: E731
+        ell_u = smoothest(f_u, lambda e: (e, ell), golden(f_u, max(lo, ell / 30), min(hi, ell * 30), 8),
+                          min(hi, ell * 30))
+        f_v = lambda e: solve(ell_u, e, True)                                        # noqa: E731
+        ell_v = smoothest(f_v, lambda e: (ell_u, e), golden(f_v, max(lo, ell / 30), min(hi, ell * 30), 8),
+                          min(hi, ell * 30))
     elif ell_u is None:
-        ell_u = golden(lambda e: solve(e, ell_v, True), grid_u[0], grid_u[-1], 12)
+        f_u = lambda e: solve(e, ell_v, True)                                        # noqa: E731
+        ell_u = smoothest(f_u, lambda e: (e, ell_v), golden(f_u, grid_u[0], grid_u[-1], 12), grid_u[-1])
     elif ell_v is None:
-        ell_v = golden(lambda e: solve(ell_u, e, True), grid_v[0], grid_v[-1], 12)
+        f_v = lambda e: solve(ell_u, e, True)                                        # noqa: E731
+        ell_v = smoothest(f_v, lambda e: (ell_u, e), golden(f_v, grid_v[0], grid_v[-1], 12), grid_v[-1])
     c = solve(ell_u, ell_v, False)
     return BSplinePatch(c.reshape(nu, nv, 3), ku, kv, (p, q)), (float(ell_u), float(ell_v))
 
