@@ -1,4 +1,3 @@
-
 """Tensor-product B-spline (NURBS-capable) surface patches with exact differential geometry.
 
 A :class:`BSplinePatch` is ``S(u, v) = Σ N_i,p(u) N_j,q(v) w_ij P_ij / Σ N_i,p(u) N_j,q(v) w_ij``

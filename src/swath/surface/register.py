@@ -1,4 +1,3 @@
-
 """Rigid registration of a nominal CAD surface to a measured scan (Jaeger §3.3).
 
 Two entry points, one engine:
