@@ -64,7 +64,7 @@ def sample_scan(surface, n, rng, noise=1e-4, outliers=0.1):
 
 
 def errors(estimate, truth, points):
-    from swath.surface.register import rotation_angle
+    from swath.surface.register_result import rotation_angle
 
     angle = np.degrees(rotation_angle(estimate[:3, :3].T @ truth[:3, :3]))
     moved = points @ (estimate[:3, :3] - truth[:3, :3]).T + estimate[:3, 3] - truth[:3, 3]
@@ -84,7 +84,8 @@ def synthetic_rows(rng):
     from scipy.spatial.transform import Rotation
 
     from swath.surface import Surface
-    from swath.surface.register import register_on_table, register_rigid, rigid_matrix
+    from swath.surface.register import register_on_table, register_rigid
+    from swath.surface.register_result import rigid_matrix
 
     rows = []
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
@@ -122,7 +123,8 @@ def bezier_rows(starts, rng):
 
     from swath.io.mesh import load_mesh
     from swath.surface import Surface
-    from swath.surface.register import register_on_table, register_rigid, rigid_matrix, rotation_angle
+    from swath.surface.register import register_on_table, register_rigid
+    from swath.surface.register_result import rigid_matrix, rotation_angle
 
     cad = load_mesh(SHARED_MESHES / "bezier_dac_cad.ply")
     scan = load_mesh(SHARED_MESHES / "bezier_dac_scan.ply", all_pieces=True)

@@ -11,8 +11,10 @@ from scipy.interpolate import BSpline
 
 from swath.errors import InputError
 from swath.surface import Surface
-from swath.surface.bspline import (BSplinePatch, basis_derivatives, circle_arc, clamped_knots, nurbs_cylinder,
-                                   nurbs_sphere, nurbs_torus)
+from swath.io.patch import load_patch_json, save_patch_json
+from swath.surface.bspline import BSplinePatch
+from swath.surface.bspline_basis import basis_derivatives, clamped_knots
+from swath.surface.exact_shapes import circle_arc, nurbs_cylinder, nurbs_sphere, nurbs_torus
 
 
 def _dense(span, vals, n):
@@ -197,8 +199,8 @@ def test_json_round_trip_is_exact(tmp_path, rng):
     assert np.array_equal(again.weights, patch.weights)
     assert np.array_equal(again.knots_u, patch.knots_u) and again.degree == patch.degree
     path = tmp_path / "out" / "patch.json"
-    patch.save_json(path)
-    loaded = BSplinePatch.load_json(path)
+    save_patch_json(patch, path)
+    loaded = load_patch_json(path)
     u, v = rng.uniform(0, 1, 10), rng.uniform(0, 2, 10)
     assert np.array_equal(loaded.evaluate(u, v), patch.evaluate(u, v))
     assert [p.name for p in path.parent.iterdir()] == ["patch.json"]      # no temporary left behind
@@ -208,21 +210,21 @@ def test_json_round_trip_is_exact(tmp_path, rng):
 
 def test_load_json_refuses_bad_files(tmp_path):
     with pytest.raises(InputError, match="not found"):
-        BSplinePatch.load_json(tmp_path / "missing.json")
+        load_patch_json(tmp_path / "missing.json")
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     with pytest.raises(InputError, match="not valid JSON.*line 1"):
-        BSplinePatch.load_json(bad)
+        load_patch_json(bad)
     other = tmp_path / "other.json"
     other.write_text(json.dumps({"type": "mesh"}))
     with pytest.raises(InputError, match="not a swath B-spline patch"):
-        BSplinePatch.load_json(other)
+        load_patch_json(other)
     d = nurbs_cylinder(0.1, 0.2).to_dict()
     d["knots_u"] = d["knots_u"][:-1]
     broken = tmp_path / "broken.json"
     broken.write_text(json.dumps(d))
     with pytest.raises(InputError, match=r"broken.json.*knot vector u must have"):
-        BSplinePatch.load_json(broken)
+        load_patch_json(broken)
 
 
 def test_constructor_validates():

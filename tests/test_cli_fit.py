@@ -19,9 +19,10 @@ from swath.cli import main
 from swath.examples import doubly_curved_panel
 from swath.cli.fitjob import infer_scan_rows
 from swath.io.mesh import load_mesh, save_surface_ply
+from swath.io.patch import load_patch_json
 from swath.io.points import load_points
 from swath.surface import BSplinePatch, Surface
-from swath.surface.register import rigid_matrix, rotation_angle
+from swath.surface.register_result import rigid_matrix, rotation_angle
 from swath.surface.scansim import panel_patch, simulate_laser_scan
 from swath.trajectory import read_csv
 
@@ -82,7 +83,7 @@ def test_fit_writes_patch_surface_and_report(fitted, scan_files, truth):
     assert r.stdout.startswith(f"wrote {out}/patch.json")
     # the patch reloads, is in metres, and lies within 0.5 mm of the true panel wherever it was
     # scanned (0.25 mm over its domain less 5 % at the edges)
-    patch = BSplinePatch.load_json(out / "patch.json")
+    patch = load_patch_json(out / "patch.json")
     _, _, d = patch.project(scan.true_points)
     assert d.max() < 5e-4
     assert max_deviation(patch, truth) < 2.5e-4
@@ -128,7 +129,7 @@ def test_fit_rows_parameterisation_on_a_zigzag_scan(tmp_path, truth, capsys):
     doc = json.loads((tmp_path / "o" / "fit.json").read_text())
     assert doc["parameterization"] == "rows"
     assert doc["surface"]["spacing_m"] == pytest.approx(2e-3)        # default: 0.2 m / 150 -> 2 mm floor
-    patch = BSplinePatch.load_json(tmp_path / "o" / "patch.json")
+    patch = load_patch_json(tmp_path / "o" / "patch.json")
     assert max_deviation(patch, truth) < 2.5e-4
     # skinning is tighter than projection inside, but the last points of some rows miss by up
     # to ~0.9 mm (fit_patch's rows mode at the row ends)

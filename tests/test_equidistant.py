@@ -24,7 +24,9 @@ from swath.order import order_toolpath
 from swath.plan.raster import raster
 from swath.surface.topology import mesh_edges
 from swath.surface import Surface
-from swath.surface.bspline import BSplinePatch, clamped_knots, nurbs_cylinder
+from swath.surface.bspline import BSplinePatch
+from swath.surface.bspline_basis import clamped_knots
+from swath.surface.exact_shapes import nurbs_cylinder
 
 
 def equidistant(*args, **kwargs):

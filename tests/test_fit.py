@@ -11,8 +11,9 @@ import pytest
 from swath.contact import Tool, local_patch
 from swath.errors import InfeasibleError, InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
-from swath.surface.bspline import nurbs_sphere
-from swath.surface.fit import curvature_knots, fit_patch
+from swath.surface.exact_shapes import nurbs_sphere
+from swath.surface.fit import fit_patch
+from swath.surface.fit_knots import curvature_knots
 from swath.surface.scansim import blade_patch, panel_patch, simulate_laser_scan
 
 
@@ -342,3 +343,126 @@ def test_rows_fit_with_a_fixed_smoothing_length():
     _, _, dist = patch.project(scan.true_points[::50])
     assert report.rms < 3e-4
     assert np.percentile(dist, 95) < 3e-4
+
+
+# ----------------------------------------------------------------------------------------------
+# Trimming a fitted patch to its footprint (swath fit / plan --fit)
+# ----------------------------------------------------------------------------------------------
+def _rect_footprint(patch, cell):
+    """A footprint as scan_footprint lays it out: the domain ends on cell edges, one cell of
+    margin, every cell over the domain occupied."""
+    from swath.fitjob import Footprint
+
+    lo = patch.domain[:, 0]
+    n = np.ceil((patch.domain[:, 1] - lo) / cell).astype(int) + 2
+    return Footprint(lo - cell, cell, np.ones(n, dtype=bool)), n
+
+
+def test_footprint_cells_are_closed_on_their_edges():
+    from swath.fitjob import Footprint
+
+    mask = np.zeros((3, 3), dtype=bool)
+    mask[1, 1] = True
+    fp = Footprint(np.array([0.0, 0.0]), 0.1, mask)
+    # on the edge between an empty and the occupied cell (as computed, not exactly): in
+    edge = 0.1 * 3 / 3
+    assert fp.contains(np.array([edge, 0.15, 0.2 + 1e-12, 0.05]), np.array([0.15, edge, 0.15, 0.15])).tolist() == \
+        [True, True, True, False]
+
+
+def test_trimmed_triangulation_changes_only_locally_when_an_edge_cell_comes_or_goes():
+    # The same scan read in m and in mm fits to patches a few nm apart, whose footprints can differ
+    # by a cell at the rim; the trimmed surface (and so the plan) must not change by a whole row.
+    from swath.fitjob import Footprint, patch_surface
+
+    patch = panel_patch(size_x=0.2, size_y=0.15)
+    fp, n = _rect_footprint(patch, 2.2e-3)
+    base, _ = patch_surface(patch, spacing=2e-3, footprint=fp)
+    inner = np.zeros_like(fp.mask)
+    inner[3:-3, 3:-3] = True           # a scan that stops short of the domain, with a ragged rim
+    fp = Footprint(fp.origin, fp.cell, inner)
+    base, _ = patch_surface(patch, spacing=2e-3, footprint=fp)
+    for extra in ((2, n[1] // 2), (n[0] // 2, 2), (n[0] - 3, n[1] // 3)):
+        mask = fp.mask.copy()
+        mask[extra] = True             # one more cell at the rim, beyond the occupied box
+        other, _ = patch_surface(patch, spacing=2e-3, footprint=Footprint(fp.origin, fp.cell, mask))
+        assert abs(other.area - base.area) < 2e-3 * base.area
+        assert 0 <= len(other.vertices) - len(base.vertices) <= 2
+
+
+# ----------------------------------------------------------------------------------------------
+# Warnings beyond the fit tolerance, and progress
+# ----------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_scan():
+    return simulate_laser_scan(panel_patch(size_x=0.2, size_y=0.15), row_spacing=4e-3, point_spacing=2e-3,
+                               rng=np.random.default_rng(3))
+
+
+def test_fit_warns_when_points_lie_beyond_the_tolerance(small_scan, caplog):
+    from swath.surface.fit import FIT_TOLERANCE
+
+    # σ = 0.1 mm noise and 0.2 mm row offsets: within the default 1 mm, not within 0.25 mm
+    patch, report = fit_patch(small_scan.points, parameterization="projection")
+    assert report.warnings == () and report.tolerance == FIT_TOLERANCE == 1e-3
+    caplog.clear()
+    patch, report = fit_patch(small_scan.points, parameterization="projection", tolerance=2.5e-4)
+    _, _, dist = patch.project(small_scan.points)
+    n_far = int((dist > 2.5e-4).sum())
+    assert 0 < n_far < len(dist) // 4
+    assert len(report.warnings) == 1
+    assert report.warnings[0].startswith(f"{n_far} of {len(dist)} points") and "0.25 mm" in report.warnings[0]
+    assert f"up to {dist.max() * 1e3:.3g} mm" in report.warnings[0]
+    logged = [r for r in caplog.records if r.levelname == "WARNING" and "fit tolerance" in r.getMessage()]
+    assert len(logged) == 1
+    assert report.to_dict()["warnings"] == list(report.warnings) and report.to_dict()["tolerance_m"] == 2.5e-4
+    with pytest.raises(InputError, match="tolerance must be a positive length"):
+        fit_patch(small_scan.points, tolerance=0.0)
+
+
+def test_residual_warning_rule():
+    from swath.surface.fit import _residual_warnings
+
+    tol = 1e-3
+    assert _residual_warnings(np.r_[np.full(999, 5e-4), 2e-3], tol) == []       # 0.1 % just beyond
+    assert len(_residual_warnings(np.r_[np.full(999, 5e-4), 6e-3], tol)) == 1   # one point 6x beyond
+    warned = _residual_warnings(np.r_[np.full(990, 5e-4), np.full(10, 2e-3)], tol)  # 1 % beyond
+    assert len(warned) == 1 and warned[0].startswith("10 of 1000 points (1 %) lie more than 1 mm")
+
+
+@pytest.mark.parametrize("how", ["rows", "projection"])
+def test_fit_reports_progress_at_every_stage(small_scan, how):
+    calls = []
+    kwargs = {"rows": small_scan.rows} if how == "rows" else {"parameterization": "projection"}
+    fit_patch(small_scan.points, progress=lambda *call: calls.append(call), **kwargs)
+    assert all(isinstance(s, str) and s.startswith("fit: ") and 0 <= d <= t and t >= 1 for s, d, t in calls)
+    stages = list(dict.fromkeys(s for s, _, _ in calls))
+    assert stages[0] == "fit: checking the points" and stages[-1] == "fit: done" and calls[-1] == ("fit: done", 1, 1)
+    assert "fit: measuring the distances of the points to the patch" in stages
+    if how == "projection":
+        assert stages[1].startswith("fit: parameterising the points")
+        assert "fit: pilot fits that place the knots by curvature" in stages
+    else:
+        assert "fit: skinning the scan rows (pilot fits that place the knots)" in stages
+    # the smoothing search counts every length it tries, up to its total
+    gcv = [(d, t) for s, d, t in calls if s == "fit: choosing the smoothing by cross-validation"]
+    assert len(gcv) > 10 and [d for d, _ in gcv] == sorted(d for d, _ in gcv) and gcv[-1][0] <= gcv[-1][1]
+
+
+def test_swath_fit_writes_its_warnings_and_reports_every_stage(small_scan, tmp_path):
+    from swath.fitjob import FitSettings, run_fit
+
+    np.savetxt(tmp_path / "scan.xyz", small_scan.points)
+    calls = []
+    doc = run_fit(FitSettings(scan=str(tmp_path / "scan.xyz"), out=str(tmp_path / "o"), tolerance=2.5e-4),
+                  progress=lambda *call: calls.append(call))
+    saved = json.loads((tmp_path / "o" / "fit.json").read_text())
+    assert saved["warnings"] == doc["warnings"] and len(doc["warnings"]) == 1
+    assert "fit tolerance" in doc["warnings"][0] and doc["figures"]["fit_tolerance_m"] == 2.5e-4
+    assert "<b>Warnings</b>" in (tmp_path / "o" / "fit.html").read_text()
+    stages = list(dict.fromkeys(s for s, _, _ in calls))
+    for stage in ("loading scan", "fit: checking the points", "fit: done", "measuring residuals",
+                  "finding the scanned area (footprint)", "writing fit report", "done"):
+        assert stage in stages
+    doc = run_fit(FitSettings(scan=str(tmp_path / "scan.xyz"), out=str(tmp_path / "o2")))
+    assert doc["warnings"] == [] and "<b>Warnings</b>" not in (tmp_path / "o2" / "fit.html").read_text()

@@ -13,8 +13,8 @@ from conftest import shared_mesh
 from swath.errors import InfeasibleError, InputError
 from swath.examples import doubly_curved_panel, flat_plate
 from swath.surface import Surface
-from swath.surface.register import (Registration, register_on_table, register_rigid, rigid_matrix,
-                                    rotation_angle)
+from swath.surface.register import Registration, register_on_table, register_rigid
+from swath.surface.register_result import rigid_matrix, rotation_angle
 
 NOISE = 1e-4            # scan noise, m (0.1 mm)
 OUTLIERS = 0.10         # fraction of all points that are outliers
@@ -123,7 +123,7 @@ def test_registration_to_dict_is_json(panel, tilted_scan):
 
 def test_exact_closest_points_match_trimesh():
     """The search over the triangles round the nearest vertices agrees with trimesh's global one."""
-    from swath.surface.register import _Target
+    from swath.surface.register_target import _Target
 
     coarse = doubly_curved_panel(spacing=0.02)
     rng = np.random.default_rng(6)

@@ -15,21 +15,8 @@ import numpy as np
 
 from .errors import InputError
 from .surface import Surface
-
-
-def naca00_thickness(x: np.ndarray, thickness: float) -> np.ndarray:
-    """Half-thickness of a symmetric NACA 00xx profile of unit chord at chord fractions ``x``
-    (closed trailing edge variant), as a fraction of the chord."""
-    x = np.clip(x, 0.0, 1.0)
-    return 5.0 * thickness * (0.2969 * np.sqrt(x) - 0.1260 * x - 0.3516 * x**2 + 0.2843 * x**3 - 0.1036 * x**4)
-
-
-def grid_faces(n_u: int, n_v: int) -> np.ndarray:
-    """Triangles ``(2 (n_u−1)(n_v−1), 3)`` of a structured ``n_u × n_v`` vertex grid (row-major in u)."""
-    i, j = np.meshgrid(np.arange(n_u - 1), np.arange(n_v - 1), indexing="ij")
-    a = (i * n_v + j).ravel()
-    b, c, d = a + n_v, a + n_v + 1, a + 1
-    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+from .surface.exact_shapes import naca00_thickness
+from .surface.grid import grid_faces
 
 
 def _resample_by_size(curve: np.ndarray, size: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
 """The ``swath fit`` and ``swath register`` jobs: scans in, smooth patches and transforms out.
 
 * :func:`run_fit` — fit a B-spline patch to a scan (point cloud or mesh) and write
-  ``patch.json`` (reloadable with :meth:`BSplinePatch.load_json`; it also carries the patch's
+  ``patch.json`` (reloadable with :func:`swath.io.patch.load_patch_json`; it also carries the patch's
   :class:`Footprint`, the scanned part of its domain), ``surface.ply`` (the patch triangulated
   and trimmed to the footprint, per-vertex normals), ``fit.json`` (the figures, units in the key
   names) and ``fit.html`` / ``fit.png`` (residual map and histogram), atomically.
@@ -198,7 +198,7 @@ def default_surface_spacing(patch, footprint=None) -> float:
     (u0, u1), (v0, v1) = patch.domain
     if footprint is not None and footprint.mask.any():
         I, J = np.nonzero(footprint.mask)
-        pick = np.random.default_rng(0).choice(len(I), size=min(len(I), 4000), replace=False)
+        pick = _even_sample(len(I), 4000)
         U = np.clip(footprint.origin[0] + (I[pick] + 0.5) * footprint.cell, u0, u1)
         V = np.clip(footprint.origin[1] + (J[pick] + 0.5) * footprint.cell, v0, v1)
     else:
@@ -208,7 +208,7 @@ def default_surface_spacing(patch, footprint=None) -> float:
     return float(np.clip(extent / SPACING_DIVISOR, SPACING_MIN, SPACING_MAX))
 
 
-def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
+def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None, tolerance=None, progress=None):
     """Fit a B-spline patch to a scan (:func:`swath.surface.fit.fit_patch`).
 
     Parameters
@@ -221,6 +221,10 @@ def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
     side : str or (3,) float, optional
         The direction the tool comes from: the patch normal is turned to face it.  Default: the
         side the scan's normals (or a mesh's winding) give, else the convex side.
+    tolerance : float, optional
+        Fit tolerance, m (see ``fit_patch``; default its default).
+    progress : callable, optional
+        ``progress(stage, done, total)`` at every stage of the fit (see ``fit_patch``).
 
     Returns
     -------
@@ -248,7 +252,8 @@ def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None):
         raise InputError("parameterization 'lscm' needs a mesh (triangles); this scan is a point cloud: "
                          "use auto, projection or rows")
     patch, report = fit_patch(scan.points, normals=scan.normals, mesh_faces=scan.faces, rows=rows,
-                              parameterization=parameterization)
+                              parameterization=parameterization, progress=progress,
+                              **({} if tolerance is None else {"tolerance": tolerance}))
     if side is not None:
         from ..io.mesh import parse_side
 
@@ -274,7 +279,7 @@ def patch_surface(patch, *, spacing: float | None = None, name: str | None = Non
     footprint : Footprint, optional
         Keep only the triangles whose three vertices lie in the footprint (the scanned area).
     """
-    from ..examples import grid_faces
+    from ..surface.grid import grid_faces
     from ..io.mesh import remove_unreferenced
     from ..surface import Surface
 
@@ -299,26 +304,54 @@ def patch_surface(patch, *, spacing: float | None = None, name: str | None = Non
     return Surface(verts, faces, name=patch.name if name is None else name), float(spacing)
 
 
+def _even_sample(n: int, size: int) -> np.ndarray:
+    """Indices ``(min(n, size),)`` spread evenly over ``range(n)``.
+
+    The footprint's occupied cells are sampled this way rather than at random: a random choice
+    from a population of ``n`` reshuffles completely when ``n`` changes by one, so two fits that
+    differ by nanometres (the same scan read in m and in mm) could get footprints that differ by a
+    cell, speed estimates that differ by a percent, a triangulation grid one row longer, and a
+    trimmed surface whose boundary triangles (a spacing wide all round) come out differently.  An
+    even stride moves a sample by at most one cell instead."""
+    if n <= size:
+        return np.arange(n)
+    return np.unique(np.linspace(0, n - 1, size).round().astype(np.int64))
+
+
 def _footprint_grid(patch, footprint: Footprint, spacing: float):
     """Parameter grids ``(nu,)``, ``(nv,)`` over the footprint's occupied box, uniform in the
     parameters, with steps that make about ``spacing`` metres where the scan is (measured from
     the patch's first derivatives there; the arc length of the whole patch would count the parts
-    that shoot off beyond the data)."""
+    that shoot off beyond the data).
+
+    The grid lines are those of one lattice laid over the patch's whole domain (which the fit
+    fixes), kept where they cross the occupied box; so a cell at the edge of the footprint that
+    comes or goes (the footprint's thresholds meet some cell in every scan) adds or removes only
+    the grid nodes in that cell.  A grid stretched over the occupied box instead would shift every
+    node when the box grows by one cell, and with it whole rows of boundary triangles."""
     (u0, u1), (v0, v1) = patch.domain
     I, J = np.nonzero(footprint.mask)
     if len(I) == 0:
         raise InputError("the patch's footprint is empty: no part of the patch lies near the scan")
     lo = np.maximum(footprint.origin + footprint.cell * np.array([I.min(), J.min()]), [u0, v0])
     hi = np.minimum(footprint.origin + footprint.cell * np.array([I.max() + 1, J.max() + 1]), [u1, v1])
-    pick = np.random.default_rng(0).choice(len(I), size=min(len(I), 4000), replace=False)
-    cu = np.clip(footprint.origin[0] + (I[pick] + 0.5) * footprint.cell, u0, u1)
-    cv = np.clip(footprint.origin[1] + (J[pick] + 0.5) * footprint.cell, v0, v1)
+    # Speeds |S_u|, |S_v| at a fixed lattice of the domain, where the footprint is occupied.
+    g = (np.arange(64) + 0.5) / 64
+    cu, cv = (a.ravel() for a in np.meshgrid(u0 + (u1 - u0) * g, v0 + (v1 - v0) * g, indexing="ij"))
+    inside = footprint.contains(cu, cv)
+    if inside.sum() >= 16:
+        cu, cv = cu[inside], cv[inside]
     D = patch.derivatives(cu, cv, 1)
     speed = np.array([np.median(np.linalg.norm(D[:, 1, 0], axis=1)), np.median(np.linalg.norm(D[:, 0, 1], axis=1))])
-    n = np.maximum(np.ceil((hi - lo) * speed / spacing).astype(np.int64), 1) + 1
+    span = np.array([u1 - u0, v1 - v0])
+    n_dom = np.maximum(np.ceil(span * speed / spacing).astype(np.int64), 1) + 1
+    step = span / (n_dom - 1)
+    first = np.clip(np.ceil((lo - [u0, v0]) / step - 1e-9).astype(np.int64), 0, n_dom - 1)
+    last = np.clip(np.floor((hi - [u0, v0]) / step + 1e-9).astype(np.int64), first, n_dom - 1)
+    n = last - first + 1
     if n[0] * n[1] > 5_000_000:
         raise InputError(f"spacing {spacing:g} m gives {n[0]}x{n[1]} samples; choose a larger spacing")
-    return np.linspace(lo[0], hi[0], n[0]), np.linspace(lo[1], hi[1], n[1])
+    return (u0 + step[0] * np.arange(first[0], last[0] + 1), v0 + step[1] * np.arange(first[1], last[1] + 1))
 
 
 def signed_residuals(patch, points):
@@ -332,6 +365,10 @@ def signed_residuals(patch, points):
 # --------------------------------------------------------------------------------------------
 # footprint: where a fitted patch has data
 # --------------------------------------------------------------------------------------------
+#: Points this close to a footprint cell edge (in cells) count as in the cells on both sides.
+EDGE_TOLERANCE = 1e-7
+
+
 @dataclass(frozen=True)
 class Footprint:
     """Where a fitted patch is backed by scan points: an occupancy mask over its parameter domain.
@@ -354,12 +391,21 @@ class Footprint:
     mask: np.ndarray
 
     def contains(self, u, v) -> np.ndarray:
-        """Whether parameters ``u, v`` ``(k,)`` lie in an occupied cell, ``(k,)`` bool."""
-        i = np.floor((np.asarray(u, float) - self.origin[0]) / self.cell).astype(np.int64)
-        j = np.floor((np.asarray(v, float) - self.origin[1]) / self.cell).astype(np.int64)
-        inside = (i >= 0) & (i < self.mask.shape[0]) & (j >= 0) & (j < self.mask.shape[1])
-        out = np.zeros(i.shape, dtype=bool)
-        out[inside] = self.mask[i[inside], j[inside]]
+        """Whether parameters ``u, v`` ``(k,)`` lie in an occupied cell, ``(k,)`` bool.
+
+        Cells are closed: a point on the edge between two cells (within ``1e-7`` of a cell in
+        relative terms) is in both.  The patch's domain ends fall on cell edges by construction
+        (:func:`scan_footprint`), so without this a grid line along a domain end would be kept
+        or dropped whole by rounding."""
+        x = (np.asarray(u, float) - self.origin[0]) / self.cell
+        y = (np.asarray(v, float) - self.origin[1]) / self.cell
+        out = np.zeros(np.broadcast(x, y).shape, dtype=bool)
+        for dx in (-EDGE_TOLERANCE, EDGE_TOLERANCE):
+            for dy in (-EDGE_TOLERANCE, EDGE_TOLERANCE):
+                i = np.floor(x + dx).astype(np.int64)
+                j = np.floor(y + dy).astype(np.int64)
+                inside = (i >= 0) & (i < self.mask.shape[0]) & (j >= 0) & (j < self.mask.shape[1])
+                out[inside] |= self.mask[i[inside], j[inside]]
         return out
 
     @property
@@ -425,11 +471,14 @@ def scan_footprint(patch, points, u, v, *, faces=None, rms: float = 0.0, max_cel
     uv = np.column_stack([np.asarray(u, float), np.asarray(v, float)])
     if faces is not None:            # a mesh: its triangles are data too, not only its vertices
         F = np.asarray(faces)
-        extra = np.concatenate([X[F].mean(axis=1), 0.5 * (X[F[:, 0]] + X[F[:, 1]]),
-                                0.5 * (X[F[:, 1]] + X[F[:, 2]]), 0.5 * (X[F[:, 2]] + X[F[:, 0]])])
-        eu, ev, _ = patch.project(extra)
-        X = np.concatenate([X, extra])
-        uv = np.concatenate([uv, np.column_stack([eu, ev])])
+        def midpoints(A):
+            return np.concatenate([A[F].mean(axis=1), 0.5 * (A[F[:, 0]] + A[F[:, 1]]),
+                                   0.5 * (A[F[:, 1]] + A[F[:, 2]]), 0.5 * (A[F[:, 2]] + A[F[:, 0]])])
+
+        # their parameters are the same means of their corners' parameters (to second order in
+        # the triangle size, far below a cell), not four projections per triangle
+        X = np.concatenate([X, midpoints(X)])
+        uv = np.concatenate([uv, midpoints(uv)])
     tree_uv = cKDTree(uv)
     sample = uv[np.random.default_rng(0).choice(len(uv), size=min(len(uv), 5000), replace=False)]
     d, _ = tree_uv.query(sample, k=min(5, len(uv)))
@@ -479,22 +528,18 @@ def _tidy_mask(mask: np.ndarray, *, speck: float = 0.01, pinhole: int = 16) -> n
 
 
 def save_patch(patch, path, footprint: Footprint | None = None) -> None:
-    """Write ``patch`` as JSON (as :meth:`BSplinePatch.save_json`) with its footprint, atomically."""
-    from ..io.atomic import write_text_atomic
+    """Write ``patch`` as JSON (:func:`swath.io.patch.save_patch_json`) with its footprint, atomically."""
+    from ..io.patch import save_patch_json
 
-    doc = patch.to_dict()
-    if footprint is not None:
-        doc["footprint"] = footprint.to_dict()
-    write_text_atomic(path, json.dumps(doc) + "\n")
+    save_patch_json(patch, path, extra=None if footprint is None else {"footprint": footprint.to_dict()})
 
 
 def load_patch(path):
-    """Read a patch written by :func:`save_patch` (or :meth:`BSplinePatch.save_json`):
+    """Read a patch written by :func:`save_patch` (or :func:`swath.io.patch.save_patch_json`):
     ``(BSplinePatch, Footprint or None)``."""
-    from ..surface.bspline import BSplinePatch
+    from ..io.patch import read_patch_document
 
-    patch = BSplinePatch.load_json(path)
-    data = json.loads(Path(path).read_text(encoding="utf-8"))
+    patch, data = read_patch_document(path)
     fp = data.get("footprint")
     return patch, (None if fp is None else Footprint.from_dict(fp))
 
@@ -520,6 +565,9 @@ class FitSettings:
         Direction the tool comes from (orients the patch normal).
     force_units : bool
         Accept a scan size outside 5 mm .. 20 m.
+    tolerance : float or None
+        Fit tolerance, m: points farther from the patch make a warning (default
+        :data:`swath.surface.fit.FIT_TOLERANCE`, 1 mm).
     """
 
     scan: str
@@ -529,6 +577,8 @@ class FitSettings:
     spacing: float | None = None
     side: str | None = None
     force_units: bool = False
+    tolerance: float | None = None
+    overwrite: bool = False
 
 
 def run_fit(settings: FitSettings, *, progress=None) -> dict:
@@ -546,17 +596,21 @@ def run_fit(settings: FitSettings, *, progress=None) -> dict:
     dict
         The document written as ``fit.json``.
     """
-    from ..io.atomic import atomic_directory, write_text_atomic
+    from ..io.atomic import atomic_directory, check_output_dir, write_text_atomic
     from ..io.mesh import save_surface_ply
+
+    check_output_dir(settings.out, overwrite=settings.overwrite)          # before the fitting, not after
 
     say = progress or (lambda stage, done, total: None)
     say("loading scan", 0, 1)
     scan = load_scan(settings.scan, units=settings.units, side=settings.side, force_units=settings.force_units)
     say(f"fitting a B-spline patch to {len(scan.points)} {'vertices' if scan.faces is not None else 'points'}"
         f" ({settings.parameterization} parameterisation)", 0, 1)
-    patch, report = fit_scan(scan, parameterization=settings.parameterization, side=settings.side)
+    patch, report = fit_scan(scan, parameterization=settings.parameterization, side=settings.side,
+                             tolerance=settings.tolerance, progress=say)
     say("measuring residuals", 0, 1)
     r, u, v = signed_residuals(patch, scan.points)
+    say("finding the scanned area (footprint)", 0, 1)
     footprint = scan_footprint(patch, scan.points, u, v, faces=scan.faces, rms=report.rms)
     spacing = settings.spacing if settings.spacing is not None else default_surface_spacing(patch, footprint)
     how = "given" if settings.spacing is not None else "default: extent / 150 in 2..5 mm"
@@ -566,7 +620,7 @@ def run_fit(settings: FitSettings, *, progress=None) -> dict:
     doc["surface"]["footprint_fraction"] = footprint.fraction
     say("writing fit report", 0, 1)
     png = residual_figure_png(r, u, v, title=f"Fit of {scan.name}: residuals (point − patch, along the normal)")
-    with atomic_directory(settings.out) as tmp:
+    with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
         save_patch(patch, tmp / "patch.json", footprint)
         save_surface_ply(surface, tmp / "surface.ply")
         write_text_atomic(tmp / "fit.json", dumps(doc))
@@ -594,10 +648,11 @@ def fit_document(settings: FitSettings, scan: Scan, patch, report, residuals, su
         "n_ctrl_u": report.n_ctrl[0], "n_ctrl_v": report.n_ctrl[1],
         "n_degree_u": report.degree[0], "n_degree_v": report.degree[1],
         "smoothing_u_m": report.smoothing[0], "smoothing_v_m": report.smoothing[1],
-        "fit_time_s": report.time,
+        "fit_time_s": report.time, "fit_tolerance_m": report.tolerance,
     }
     return to_jsonable({
         "format_version": FORMAT_VERSION,
+        "warnings": list(report.warnings),
         "swath_version": __version__,
         "created_utc": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
         "input": {"scan": str(settings.scan), "units": settings.units, "kind": scan.kind,
@@ -676,6 +731,7 @@ def fit_html(doc: dict, png: bytes) -> str:
         ("mean signed residual", f"{f['residual_mean_m'] * 1e3:.4g} mm"),
         ("surface.ply", f"{doc['surface']['n_vertices']} vertices, {doc['surface']['n_faces']} triangles at "
                         f"{doc['surface']['spacing_m'] * 1e3:.3g} mm, area {doc['surface']['area_m2']:.4g} m²"),
+        ("fit tolerance (a warning beyond it)", f"{f['fit_tolerance_m'] * 1e3:.3g} mm"),
         ("fit time", f"{f['fit_time_s']:.2f} s"),
     ]
     table = "".join(f"<tr><td>{esc(k)}</td><td>{esc(str(v))}</td></tr>" for k, v in rows)
@@ -687,7 +743,10 @@ def fit_html(doc: dict, png: bytes) -> str:
         "table{border-collapse:collapse}td{border-bottom:1px solid #eee;padding:4px 14px 4px 0}"
         "img{max-width:100%;border:1px solid #eee}</style></head><body>"
         f"<h1>swath fit — {esc(Path(str(doc['input']['scan'])).name)}</h1>"
-        f"<table>{table}</table>"
+        + ("" if not doc.get("warnings") else
+           "<div style='border:1px solid #d9a400;background:#fff8e1;padding:8px 14px;margin:0 0 16px 0'>"
+           "<b>Warnings</b><ul>" + "".join(f"<li>{esc(w)}</li>" for w in doc["warnings"]) + "</ul></div>")
+        + f"<table>{table}</table>"
         "<p>Residual: signed distance of each scan point to the fitted patch along its normal. "
         "Figures with units in their names are in <code>fit.json</code>; the patch is "
         "<code>patch.json</code>.</p>"
@@ -743,6 +802,7 @@ class RegisterSettings:
     trim: float = 0.9
     max_iterations: int = 100
     force_units: bool = False
+    overwrite: bool = False
 
 
 def load_registration_inputs(settings: RegisterSettings):
@@ -795,7 +855,9 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
     InfeasibleError
         No overlap, unconstrained geometry, or ICP that does not converge.
     """
-    from ..io.atomic import atomic_directory, write_text_atomic
+    from ..io.atomic import atomic_directory, check_output_dir, write_text_atomic
+
+    check_output_dir(settings.out, overwrite=settings.overwrite)
     from ..io.mesh import parse_side
     from ..surface.register import register_on_table, register_rigid
 
@@ -822,7 +884,7 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
     elapsed = time.perf_counter() - t0
     doc = transform_document(settings, reg, method, elapsed)
     say("writing transform", 0, 1)
-    with atomic_directory(settings.out) as tmp:
+    with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
         write_text_atomic(tmp / "transform.json", dumps(doc))
         write_text_atomic(tmp / "residuals.csv", residuals_csv(cad.vertices, reg))
     say("done", 1, 1)

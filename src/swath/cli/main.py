@@ -120,6 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
                                   "(default: the scan's normals or winding, else the convex side)")
     f.add_argument("--force-units", action="store_true", help="accept a scan size outside 5 mm .. 20 m")
     f.add_argument("--out", required=True, help="output directory (written atomically)")
+    f.add_argument("--overwrite", action="store_true", help="replace an existing non-empty folder swath did not write")
 
     g = sub.add_parser("register", help="register a CAD mesh onto a scan: transform.json (cad2scan), residuals.csv")
     g.add_argument("cad", help="nominal CAD surface: mesh (STL, PLY, OBJ) or patch.json")
@@ -140,6 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--max-iterations", default="100", help="ICP steps per stage (default 100)")
     g.add_argument("--force-units", action="store_true", help="accept sizes outside 5 mm .. 20 m")
     g.add_argument("--out", required=True, help="output directory (written atomically)")
+    g.add_argument("--overwrite", action="store_true", help="replace an existing non-empty folder swath did not write")
 
     d = sub.add_parser("demo", help="plan the built-in helicopter-blade section with the uniform planner")
     d.add_argument("--part", default="example:blade", help="built-in part (example:blade, example:plate, example:panel)")
@@ -277,7 +279,8 @@ def _fit_settings_from_args(args):
         if not spacing > 0:
             raise InputError(f"--spacing must be a positive length, got {args.spacing!r}")
     return FitSettings(scan=args.scan, out=args.out, units=args.units, parameterization=args.parameterization,
-                       spacing=spacing, side=args.side, force_units=args.force_units)
+                       spacing=spacing, side=args.side, force_units=args.force_units,
+                       overwrite=args.overwrite)
 
 
 def _register_settings_from_args(args):
@@ -298,7 +301,8 @@ def _register_settings_from_args(args):
     return RegisterSettings(cad=args.cad, scan=args.scan, out=args.out, units=args.units,
                             scan_units=args.scan_units, table=args.table, keep_height=args.keep_height,
                             table_normal=args.table_normal, all_pieces=args.all_pieces, side=args.side,
-                            trim=trim, max_iterations=max_iterations, force_units=args.force_units)
+                            trim=trim, max_iterations=max_iterations, force_units=args.force_units,
+                            overwrite=args.overwrite)
 
 
 def _fit_summary(settings, doc: dict) -> str:

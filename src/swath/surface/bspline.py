@@ -12,130 +12,28 @@ planners need is exact, not finite-differenced:
   outside of a sphere with outward normals has ``k1 = k2 = +1/r``, as in
   :mod:`swath.surface.curvature`);
 * closest-point projection (vectorised Newton from a coarse-grid KD-tree start);
-* conversion to a triangulated :class:`~swath.surface.Surface`, and a JSON round trip.
+* conversion to a triangulated :class:`~swath.surface.Surface`, and a JSON-ready dictionary
+  (:meth:`BSplinePatch.to_dict`; patch files are read and written by :mod:`swath.io.patch`).
 
-Exact test geometry: :func:`nurbs_cylinder`, :func:`nurbs_sphere` and :func:`nurbs_torus` build
-rational patches that *are* those surfaces (not approximations); :func:`circle_arc`,
-:func:`revolve` and :func:`translational` are the building blocks.
+The basis functions are in :mod:`swath.surface.bspline_basis`; exact test geometry (cylinder,
+sphere, torus as rational patches) in :mod:`swath.surface.exact_shapes`.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from functools import cached_property
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from .bspline_basis import _check_knots, _span_samples, basis_derivatives
 from .curvature import PrincipalCurvature
 from .geometry import normalize
 
 #: The value of the ``"type"`` key in a patch's JSON document.
 JSON_TYPE = "swath.BSplinePatch"
 JSON_VERSION = 1
-
-
-# ----------------------------------------------------------------------------------------------
-# Basis functions
-# ----------------------------------------------------------------------------------------------
-def find_span(knots: np.ndarray, degree: int, x: np.ndarray) -> np.ndarray:
-    """Index ``i`` of the knot span ``[t_i, t_i+1)`` holding each ``x`` ``(k,)``, ``degree <= i < n``.
-
-    The right end of the domain belongs to the last non-empty span.
-    """
-    n = len(knots) - degree - 1
-    span = np.searchsorted(knots, x, side="right") - 1
-    span = np.clip(span, degree, n - 1)
-    # Inside the domain, a span that ends on the domain's right end may still be empty when the
-    # last knot is repeated; step back over empty spans (only happens at x == t_n).
-    empty = knots[span + 1] <= knots[span]
-    while np.any(empty):
-        span = np.where(empty, span - 1, span)
-        empty = knots[span + 1] <= knots[span]
-    return span
-
-
-def basis_derivatives(knots: np.ndarray, degree: int, x: np.ndarray, order: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """The ``degree + 1`` non-zero B-spline basis functions at ``x`` and their derivatives.
-
-    Cox–de Boor recursion with its derivative (the triangular table of lower-degree basis
-    functions is built once per point and differentiated with the knot-difference formula),
-    vectorised over the points.
-
-    Parameters
-    ----------
-    knots : (n + degree + 1,) float
-        Non-decreasing knot vector.
-    degree : int
-        Polynomial degree ``p``.
-    x : (k,) float
-        Parameter values inside ``[t_p, t_n]``.
-    order : int
-        Highest derivative wanted (derivatives above ``degree`` are zero).
-
-    Returns
-    -------
-    span : (k,) int
-        Knot span of each point; the non-zero functions are ``N_{span-p} .. N_{span}``.
-    ders : (order + 1, k, degree + 1) float
-        ``ders[d, i, a]`` is the ``d``-th derivative of ``N_{span_i - p + a}`` at ``x_i``.
-    """
-    t = np.asarray(knots, float)
-    p = int(degree)
-    x = np.asarray(x, float).ravel()
-    span = find_span(t, p, x)
-    k = x.size
-    ndu = np.empty((p + 1, p + 1, k))
-    left = np.empty((p + 1, k))
-    right = np.empty((p + 1, k))
-    ndu[0, 0] = 1.0
-    for j in range(1, p + 1):
-        left[j] = x - t[span + 1 - j]
-        right[j] = t[span + j] - x
-        saved = np.zeros(k)
-        for r in range(j):
-            ndu[j, r] = right[r + 1] + left[j - r]          # knot differences (lower triangle)
-            temp = ndu[r, j - 1] / ndu[j, r]
-            ndu[r, j] = saved + right[r + 1] * temp          # basis functions (upper triangle)
-            saved = left[j - r] * temp
-        ndu[j, j] = saved
-    ders = np.zeros((order + 1, k, p + 1))
-    ders[0] = ndu[:, p].T
-    top = min(order, p)
-    if top >= 1:
-        a = np.zeros((2, p + 1, k))
-        for r in range(p + 1):
-            s1, s2 = 0, 1
-            a[0, 0] = 1.0
-            for d in range(1, top + 1):
-                acc = np.zeros(k)
-                rk, pk = r - d, p - d
-                if r >= d:
-                    a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
-                    acc += a[s2, 0] * ndu[rk, pk]
-                j1 = 1 if rk >= -1 else -rk
-                j2 = d - 1 if r - 1 <= pk else p - r
-                for j in range(j1, j2 + 1):
-                    a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
-                    acc += a[s2, j] * ndu[rk + j, pk]
-                if r <= pk:
-                    a[s2, d] = -a[s1, d - 1] / ndu[pk + 1, r]
-                    acc += a[s2, d] * ndu[r, pk]
-                ders[d, :, r] = acc
-                s1, s2 = s2, s1
-        factor = float(p)
-        for d in range(1, top + 1):
-            ders[d] *= factor
-            factor *= p - d
-    return span, ders
-
-
-def clamped_knots(interior, degree: int, domain: tuple[float, float]) -> np.ndarray:
-    """A clamped (open) knot vector: ``degree + 1`` copies of each domain end around ``interior``."""
-    a, b = float(domain[0]), float(domain[1])
-    return np.concatenate([np.full(degree + 1, a), np.asarray(interior, float), np.full(degree + 1, b)])
 
 
 # ----------------------------------------------------------------------------------------------
@@ -548,7 +446,7 @@ class BSplinePatch:
         name : str, optional
             Name of the surface (default: the patch's name).
         """
-        from ..examples import grid_faces
+        from .grid import grid_faces
         from .surface import Surface
 
         gu, gv = self.grid_parameters(resolution=resolution, spacing=spacing)
@@ -603,71 +501,6 @@ class BSplinePatch:
         return cls(ctrl, ku, kv, tuple(data["degree"]) if isinstance(data["degree"], list) else data["degree"],
                    w, name=str(data.get("name", "")))
 
-    def save_json(self, path) -> None:
-        """Write the patch as JSON to ``path`` atomically (a temporary file renamed into place)."""
-        from ..io.atomic import write_text_atomic
-
-        write_text_atomic(path, json.dumps(self.to_dict()) + "\n")
-
-    @classmethod
-    def load_json(cls, path) -> "BSplinePatch":
-        """Read a patch written by :meth:`save_json`.
-
-        Raises
-        ------
-        InputError
-            When the file is missing, is not JSON, or does not describe a valid patch; the message
-            names the file.
-        """
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise InputError(f"patch file {path} not found") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(f"cannot read patch file {path}: {exc}") from None
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{path} is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}); "
-                             "expected a patch written by swath fit") from None
-        try:
-            return cls.from_dict(data)
-        except InputError as exc:
-            raise InputError(f"{path}: {exc}") from None
-
-
-def _check_knots(knots, n: int, degree: int, which: str) -> np.ndarray:
-    t = np.array(knots, dtype=float).ravel()
-    if t.size != n + degree + 1:
-        raise InputError(f"knot vector {which} must have {n + degree + 1} entries for {n} control points "
-                         f"of degree {degree}, got {t.size}")
-    if not np.isfinite(t).all():
-        raise InputError(f"knot vector {which} contains NaN or infinite values")
-    if np.any(np.diff(t) < 0):
-        raise InputError(f"knot vector {which} must be non-decreasing")
-    if not t[n] > t[degree]:
-        raise InputError(f"knot vector {which} gives an empty parameter domain")
-    inner = t[degree + 1:n]
-    if inner.size:
-        _, counts = np.unique(inner, return_counts=True)
-        if counts.max() > degree:
-            raise InputError(f"an interior knot in {which} is repeated {counts.max()} times; at most {degree} "
-                             "(the degree) keeps the patch continuous")
-    return t
-
-
-def _span_samples(knots: np.ndarray, degree: int, per_span: int, cap: int) -> np.ndarray:
-    """Parameter samples with ``per_span`` steps in every non-empty knot span (at most ``cap``)."""
-    n = len(knots) - degree - 1
-    breaks = np.unique(knots[degree:n + 1])
-    per = max(1, min(per_span, cap // max(breaks.size - 1, 1)))
-    if (breaks.size - 1) * per + 1 > cap:   # too many spans: uniform in the parameter instead
-        return np.linspace(breaks[0], breaks[-1], cap)
-    frac = np.arange(per) / per
-    out = (breaks[:-1, None] + frac[None, :] * np.diff(breaks)[:, None]).ravel()
-    return np.concatenate([out, breaks[-1:]])
-
 
 def _forms(D: np.ndarray):
     """First form ``(k,2,2)``, second form ``(k,2,2)`` and unit normals ``(k,3)`` from derivatives."""
@@ -713,113 +546,3 @@ def principal_from_derivatives(D: np.ndarray) -> PrincipalCurvature:
     d1 = normalize(d1 - np.einsum("ij,ij->i", d1, n)[:, None] * n)
     d2 = np.cross(n, d1)
     return PrincipalCurvature(k1, k2, d1, d2)
-
-
-# ----------------------------------------------------------------------------------------------
-# Exact constructions
-# ----------------------------------------------------------------------------------------------
-def circle_arc(radius: float, start: float, sweep: float, *, centre=(0.0, 0.0)):
-    """An exact rational quadratic circle arc in the plane.
-
-    Parameters
-    ----------
-    radius : float
-        Radius, m.
-    start, sweep : float
-        Start angle and signed sweep, rad (``|sweep| <= 2π``); split into arcs of at most 90°.
-    centre : (2,) float
-        Centre, m.
-
-    Returns
-    -------
-    control : (n, 2) float
-    weights : (n,) float
-    knots : (n + 3,) float
-        Clamped, on ``[0, 1]``, double interior knots between the sub-arcs.
-    """
-    if not (radius > 0 and 0 < abs(sweep) <= 2 * np.pi + 1e-12):
-        raise InputError("circle_arc needs radius > 0 and 0 < |sweep| <= 2π")
-    n_arcs = int(np.ceil(abs(sweep) / (np.pi / 2) - 1e-9))
-    delta = sweep / n_arcs
-    ang = start + delta * np.arange(2 * n_arcs + 1) / 2
-    rad = np.where(np.arange(2 * n_arcs + 1) % 2 == 1, radius / np.cos(delta / 2), radius)
-    ctrl = np.stack([np.cos(ang), np.sin(ang)], axis=1) * rad[:, None] + np.asarray(centre, float)
-    weights = np.where(np.arange(2 * n_arcs + 1) % 2 == 1, np.cos(delta / 2), 1.0)
-    interior = np.repeat(np.arange(1, n_arcs) / n_arcs, 2)
-    return ctrl, weights, clamped_knots(interior, 2, (0.0, 1.0))
-
-
-def revolve(profile, weights, knots, degree: int, *, start: float = 0.0, sweep: float = 2 * np.pi,
-            name: str = "") -> BSplinePatch:
-    """Surface of revolution about the z-axis: u along the profile, v around the axis.
-
-    Parameters
-    ----------
-    profile : (m, 2) float
-        Control points ``(r, z)`` of the generating curve, m (``r >= 0``).
-    weights : (m,) float
-        Its weights (ones for a polynomial curve).
-    knots : (m + degree + 1,) float
-        Its knot vector.
-    degree : int
-        Its degree.
-    start, sweep : float
-        Angular range of the revolution, rad.
-    """
-    prof = np.asarray(profile, float)
-    wp = np.asarray(weights, float)
-    circ, wc, kc = circle_arc(1.0, start, sweep)
-    ctrl = np.empty((len(prof), len(circ), 3))
-    ctrl[..., 0] = prof[:, None, 0] * circ[None, :, 0]
-    ctrl[..., 1] = prof[:, None, 0] * circ[None, :, 1]
-    ctrl[..., 2] = prof[:, None, 1]
-    return BSplinePatch(ctrl, knots, kc, (degree, 2), wp[:, None] * wc[None, :], name=name)
-
-
-def translational(curve_u, curve_v, *, name: str = "") -> BSplinePatch:
-    """The translational surface ``S(u, v) = C(u) + D(v)`` of two (rational) space curves.
-
-    Each curve is ``(control (n, 3), weights (n,), knots, degree)``.  With weights ``w_i`` and
-    ``ω_j`` the surface is exactly the NURBS with control points ``C_i + D_j`` and weights
-    ``w_i ω_j`` (the sum of two rational curves over a common denominator).
-    """
-    cu, wu, ku, pu = curve_u
-    cv, wv, kv, pv = curve_v
-    cu, cv = np.asarray(cu, float), np.asarray(cv, float)
-    ctrl = cu[:, None, :] + cv[None, :, :]
-    return BSplinePatch(ctrl, ku, kv, (pu, pv), np.outer(wu, wv), name=name)
-
-
-def nurbs_cylinder(radius: float, height: float, *, sweep: float = np.pi, outward: bool = True) -> BSplinePatch:
-    """An exact cylinder patch about the z-axis from ``z = 0`` to ``height``, angles ``[0, sweep]``.
-
-    u runs along the axis, v around it; normals point away from the axis when ``outward``.
-    """
-    if not (radius > 0 and height > 0):
-        raise InputError("nurbs_cylinder needs radius > 0 and height > 0")
-    prof = np.array([[radius, height], [radius, 0.0]])     # downward, so S_u × S_v points outward
-    patch = revolve(prof, [1.0, 1.0], [0.0, 0.0, 1.0, 1.0], 1, sweep=sweep, name="cylinder")
-    return patch if outward else patch.flipped()
-
-
-def nurbs_sphere(radius: float, *, lat=(-np.pi / 3, np.pi / 3), lon=(0.0, np.pi), outward: bool = True) -> BSplinePatch:
-    """An exact sphere patch centred at the origin between latitudes ``lat`` and longitudes ``lon`` (rad)."""
-    if not (radius > 0 and -np.pi / 2 <= lat[0] < lat[1] <= np.pi / 2 and lon[1] > lon[0]):
-        raise InputError("nurbs_sphere needs radius > 0, -π/2 <= lat0 < lat1 <= π/2 and lon1 > lon0")
-    # Meridian from lat1 down to lat0 in the (r, z) half plane: S_u × S_v then points outward.
-    prof, w, k = circle_arc(radius, lat[1], lat[0] - lat[1])
-    patch = revolve(prof, w, k, 2, start=lon[0], sweep=lon[1] - lon[0], name="sphere")
-    return patch if outward else patch.flipped()
-
-
-def nurbs_torus(major: float, minor: float, *, tube=(0.0, 2 * np.pi), sweep: float = 2 * np.pi,
-                outward: bool = True) -> BSplinePatch:
-    """An exact torus patch about the z-axis: tube centre at distance ``major`` (m), tube radius
-    ``minor`` (m), tube angles ``tube`` (rad, 0 on the outer equator, π/2 on top) and revolution
-    angles ``[0, sweep]``.  Principal curvatures (outward normals): ``1/minor`` round the tube and
-    ``cos θ / (major + minor cos θ)`` round the axis."""
-    if not (major > minor > 0):
-        raise InputError("nurbs_torus needs major > minor > 0")
-    prof, w, k = circle_arc(minor, tube[1], tube[0] - tube[1], centre=(major, 0.0))
-    patch = revolve(prof, w, k, 2, sweep=sweep, name="torus")
-    return patch if outward else patch.flipped()

@@ -12,7 +12,9 @@
    interior knots sit at ``R⁻¹(i/n)`` (:func:`curvature_knots`).
 3. **Fit with a smoothness penalty**: a third-order thin-plate energy of the surface
    (``∫∫ |S_uuu|² + 3|S_uuv|² + 3|S_uvv|² + |S_vvv|²``), relaxed where the knots are dense, with
-   smoothing lengths along u and v chosen by generalised cross-validation unless given.  Third
+   smoothing lengths along u and v chosen by generalised cross-validation unless given (without
+   scan rows, of the lengths whose score lies within one standard error of the minimum, the
+   longest: errors correlated along unknown rows would otherwise pass for shape).  Third
    derivatives leave constant curvature unpenalised, so curved parts and edges are not flattened.
    With "rows" the thesis's *skinning* comes first: each row is smoothed into a curve (all rows
    share one knot vector), then the curves' control points are smoothed across the rows — at
@@ -20,12 +22,18 @@
    across-row smoothing right; the final fit of all points keeps that smoothing across the rows.
 4. **Correct the parameters**: project the points on the fitted patch and refit.
 
+The normal equations are banded and solved as such (:mod:`swath.surface.fit_solve`), so a fit of
+~10⁵ points on a 130 × 100 control net takes seconds and a few hundred MB.  Points farther from the
+patch than a tolerance (default 1 mm, the pad depression) make a warning; every stage reports
+progress through an optional ``progress(stage, done, total)``.
+
 Refusals (with the reason and the fix in the message): too few points, points that do not form
 one patch (separate pieces, a closed mesh), and a parameterisation that folds over.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -34,23 +42,36 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InfeasibleError, InputError
-from .bspline import BSplinePatch, _span_samples, basis_derivatives, clamped_knots
-from .geometry import normalize
+from .bspline import BSplinePatch
+from .fit_input import (
+    _check_mesh_patch,
+    _check_spread,
+    _lscm_parameters,
+    _main_piece,
+    _nn_scale,
+    _optional_array,
+    _pair,
+    _projection_parameters,
+)
+from .fit_knots import _knots_from_patch, _uniform_knots
+from .fit_rows import _fit_rows
+from .fit_solve import _aniso_step, _gcv_progress, _lambda_grid
 
 log = logging.getLogger(__name__)
 
 PARAMETERIZATIONS = ("auto", "projection", "lscm", "rows")
 
-#: Exponent of the knot-spacing weights of the smoothness penalty (see :func:`_gram`): the local
-#: smoothing length scales as ``(h / h̄)^(γ/6)`` with the knot span ``h``.
-PENALTY_GAMMA = 6.0
-
-#: Total turning (rad) of a direction below which curvature hardly moves the knots.
-TURN_SIGNIFICANT = 0.2
-
-#: Knot spans are at most this many times shorter than even spacing.
-KNOT_CONCENTRATION = 4.0
-
+#: Default fit tolerance, m: a point farther than this from the fitted patch makes a warning.  It
+#: is the default pad depression (1 mm at the set force): where the patch is off by as much as the
+#: pad is pressed in, the planned contact either loses the part or presses twice as hard, so the
+#: removal predicted there means nothing.  Scan noise alone (0.1 mm on a good laser scanner) stays
+#: well inside it.
+FIT_TOLERANCE = 1e-3
+#: A warning is given when more than this fraction of the points lie beyond the tolerance, or any
+#: point lies beyond WARN_FACTOR times it (a few points just beyond it, such as the last points of
+#: scan rows that skinning misses by a little over 1 mm, are not worth one).
+WARN_FRACTION = 0.005
+WARN_FACTOR = 5.0
 
 @dataclass(frozen=True)
 class FitReport:
@@ -77,6 +98,10 @@ class FitReport:
         (locally shorter where knots are dense).
     time : float
         Wall-clock time of the fit, s.
+    tolerance : float
+        Distance from the patch beyond which a point makes a warning, m.
+    warnings : tuple of str
+        What went wrong enough to tell the user (points farther than ``tolerance``), each one line.
     """
 
     rms: float
@@ -90,6 +115,8 @@ class FitReport:
     parameterization: str
     smoothing: tuple[float, float]
     time: float
+    tolerance: float = FIT_TOLERANCE
+    warnings: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         """A JSON-ready copy (SI units)."""
@@ -97,7 +124,7 @@ class FitReport:
                 "n_dropped": self.n_dropped, "n_ctrl": list(self.n_ctrl), "degree": list(self.degree),
                 "knots_u": self.knots_u.tolist(), "knots_v": self.knots_v.tolist(),
                 "parameterization": self.parameterization, "smoothing_m": list(self.smoothing),
-                "time_s": self.time}
+                "time_s": self.time, "tolerance_m": self.tolerance, "warnings": list(self.warnings)}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -106,7 +133,8 @@ class FitReport:
 def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterization: str = "auto",
               degree=3, n_ctrl=None, smoothing="gcv", knot_curvature_weight: float = 0.5,
               max_turn: float = 0.1, max_ctrl_spacing: float | None = None, knot_rounds: int = 2,
-              reparam_rounds: int = 1) -> tuple[BSplinePatch, FitReport]:
+              reparam_rounds: int = 1, tolerance: float = FIT_TOLERANCE,
+              progress=None) -> tuple[BSplinePatch, FitReport]:
     """Fit a smooth B-spline patch to a noisy point cloud or mesh patch.
 
     Parameters
@@ -144,6 +172,14 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
         Pilot-fit/knot-placement rounds (0 = uniform knots).
     reparam_rounds : int
         Parameter-correction rounds (project, refit).
+    tolerance : float
+        Largest acceptable distance of a point from the patch, m (default :data:`FIT_TOLERANCE`,
+        the default pad depression): more than :data:`WARN_FRACTION` of the points beyond it, or
+        any point beyond :data:`WARN_FACTOR` times it, make a warning (logged, and in
+        ``report.warnings``).
+    progress : callable, optional
+        ``progress(stage, done, total)``, called at every stage of the fit (stage names start with
+        ``"fit: "``) and at every smoothing length tried by cross-validation.
 
     Returns
     -------
@@ -158,6 +194,31 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
         The points do not form one patch (separate pieces, a closed mesh), or the chosen
         parameterisation folds over.
     """
+    with _single_threaded_blas():
+        return _fit_patch(points, normals=normals, mesh_faces=mesh_faces, rows=rows,
+                          parameterization=parameterization, degree=degree, n_ctrl=n_ctrl, smoothing=smoothing,
+                          knot_curvature_weight=knot_curvature_weight, max_turn=max_turn,
+                          max_ctrl_spacing=max_ctrl_spacing, knot_rounds=knot_rounds, reparam_rounds=reparam_rounds,
+                          tolerance=tolerance, progress=progress)
+
+
+def _single_threaded_blas():
+    """A context in which BLAS runs on one thread (when threadpoolctl is installed).
+
+    The fit's factorisations are banded and small to medium; on a machine shared with other work,
+    multi-threaded OpenBLAS spins its idle threads and runs them tens of times slower."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n_ctrl, smoothing,
+               knot_curvature_weight, max_turn, max_ctrl_spacing, knot_rounds, reparam_rounds, tolerance,
+               progress):
+    say = progress or (lambda stage, done, total: None)
+
     t_start = time.perf_counter()
     X = np.asarray(points, dtype=float)
     if X.ndim != 2 or X.shape[1] != 3:
@@ -184,6 +245,8 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
             raise InputError(f"smoothing must be a non-negative length in metres, got {smoothing!r}")
     if not (max_turn > 0):
         raise InputError(f"max_turn must be a positive angle in radians, got {max_turn!r}")
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        raise InputError(f"tolerance must be a positive length in metres, got {tolerance!r}")
     N_in = _optional_array(normals, (len(X), 3), "normals", float)
     F = _optional_array(mesh_faces, (None, 3), "mesh_faces", int)
     if F is not None and (F.min() < 0 or F.max() >= len(X)):
@@ -197,6 +260,7 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
     if n_ctrl_req is not None and (n_ctrl_req[0] < p + 1 or n_ctrl_req[1] < q + 1):
         raise InputError(f"n_ctrl must be at least the degree + 1 = ({p + 1}, {q + 1}), got {n_ctrl!r}")
 
+    say("fit: checking the points", 0, 1)
     _check_spread(X)
     # One patch: no separate pieces (stray specks of < 1 % are dropped with a warning).
     n_dropped = 0
@@ -212,12 +276,13 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
             R_ids = None if R_ids is None else R_ids[keep]
     opts = dict(p=p, q=q, n_ctrl=n_ctrl_req, smoothing=smoothing, qk=float(knot_curvature_weight),
                 max_turn=float(max_turn), h_max=max_ctrl_spacing, knot_rounds=int(knot_rounds),
-                reparam_rounds=int(reparam_rounds))
+                reparam_rounds=int(reparam_rounds), say=say)
 
     method = parameterization
     if method == "auto" and R_ids is not None:
         method = "rows"
     if method in ("auto", "projection"):
+        say("fit: parameterising the points (projection on their best-fit plane)", 0, 1)
         uv, folds, why = _projection_parameters(X, F)
         if folds:
             if method == "projection":
@@ -232,6 +297,7 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
         else:
             method = "projection"
     if method == "lscm":
+        say("fit: parameterising the mesh (least-squares conformal map)", 0, 1)
         uv = _lscm_parameters(X, F)
 
     if method == "rows":
@@ -245,486 +311,41 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
     if flipped:
         u0, u1 = patch.domain[0]
         u = (u0 + u1) - u
+    say("fit: measuring the distances of the points to the patch", 0, 1)
     _, _, dist = patch.project(X, initial=(u, v))
+    warnings = _residual_warnings(dist, tolerance)
+    for w in warnings:
+        log.warning("fit_patch: %s", w)
     report = FitReport(rms=float(np.sqrt(np.mean(dist**2))), max_error=float(dist.max()), n_points=len(X),
                        n_dropped=n_dropped, n_ctrl=patch.shape, degree=patch.degree,
                        knots_u=np.array(patch.knots_u), knots_v=np.array(patch.knots_v),
-                       parameterization=method, smoothing=lengths, time=time.perf_counter() - t_start)
+                       parameterization=method, smoothing=lengths, time=time.perf_counter() - t_start,
+                       tolerance=float(tolerance), warnings=tuple(warnings))
     log.info("fit_patch: %s, %d points, control net %dx%d, rms %.3g m, max %.3g m, %.2f s", method, len(X),
              *patch.shape, report.rms, report.max_error, report.time)
+    say("fit: done", 1, 1)
     return patch, report
 
 
-# ----------------------------------------------------------------------------------------------
-# Input checks
-# ----------------------------------------------------------------------------------------------
-def _pair(value, name: str) -> tuple[int, int]:
-    arr = np.broadcast_to(np.asarray(value), (2,)) if np.ndim(value) <= 1 else None
-    if arr is None or arr.shape != (2,):
-        raise InputError(f"{name} must be an int or a pair of ints, got {value!r}")
-    try:
-        a, b = (int(x) for x in arr)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be an int or a pair of ints, got {value!r}") from None
-    if a != arr[0] or b != arr[1]:
-        raise InputError(f"{name} must be integers, got {value!r}")
-    return a, b
-
-
-def _optional_array(a, shape, name, dtype):
-    if a is None:
-        return None
-    arr = np.asarray(a)
-    if arr.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, arr.shape)):
-        want = "(" + ", ".join("k" if s is None else str(s) for s in shape) + ")"
-        raise InputError(f"expected {name} of shape {want}, got {arr.shape}")
-    if dtype is int:
-        if not np.issubdtype(arr.dtype, np.integer):
-            if not (np.isfinite(arr).all() and np.all(np.mod(arr, 1) == 0)):
-                raise InputError(f"{name} must be integers")
-        return arr.astype(np.int64)
-    arr = arr.astype(float)
-    if not np.isfinite(arr).all():
-        raise InputError(f"{name} contain NaN or infinite values")
-    return arr
-
-
-def _check_spread(X: np.ndarray) -> None:
-    c = X.mean(axis=0)
-    ev = np.linalg.eigvalsh(np.cov((X - c).T))
-    if not ev[2] > 0:
-        raise InputError("all points coincide; a surface cannot be fitted")
-    if ev[1] <= 1e-8 * ev[2]:
-        raise InputError("the points are (nearly) collinear; a surface patch needs points spread in two directions")
-
-
-def _nn_scale(X: np.ndarray, tree=None, k: int = 8, sample: int = 5000, nearest_pct: float = 50.0):
-    """A percentile (default the median) of the nearest-neighbour distance and the 95th
-    percentile of the k-th neighbour distance, m (estimated on a sample of the points)."""
-    from scipy.spatial import cKDTree
-
-    tree = tree if tree is not None else cKDTree(X)
-    rng = np.random.default_rng(0)
-    idx = rng.choice(len(X), size=min(sample, len(X)), replace=False)
-    d, _ = tree.query(X[idx], k=min(k + 1, len(X)))
-    return float(np.percentile(d[:, 1], nearest_pct)), float(np.percentile(d[:, -1], 95))
-
-
-def _main_piece(X: np.ndarray) -> np.ndarray:
-    """Mask of the points in the largest connected piece; refuses several sizeable pieces.
-
-    Connectivity: points are voxelised at three times the 95th-percentile 8th-neighbour distance
-    and voxels touching (26-neighbourhood) are joined.
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    _, d8 = _nn_scale(X)
-    cell = 3.0 * max(d8, 1e-12)
-    ijk = np.floor((X - X.min(axis=0)) / cell).astype(np.int64)
-    dims = ijk.max(axis=0) + 3
-    keys = ((ijk[:, 0] + 1) * dims[1] + (ijk[:, 1] + 1)) * dims[2] + (ijk[:, 2] + 1)
-    vox, inv = np.unique(keys, return_inverse=True)
-    inv = inv.ravel()
-    src, dst = [], []
-    for dx in (-1, 0, 1):
-        for dy in (-1, 0, 1):
-            for dz in (-1, 0, 1):
-                if (dx, dy, dz) <= (0, 0, 0):
-                    continue
-                nb = vox + (dx * dims[1] + dy) * dims[2] + dz
-                pos = np.clip(np.searchsorted(vox, nb), 0, len(vox) - 1)
-                hit = vox[pos] == nb
-                src.append(np.nonzero(hit)[0])
-                dst.append(pos[hit])
-    src, dst = np.concatenate(src), np.concatenate(dst)
-    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(len(vox), len(vox)))
-    n_comp, label = connected_components(graph, directed=False)
-    if n_comp == 1:
-        return np.ones(len(X), dtype=bool)
-    sizes = np.bincount(label[inv], minlength=n_comp)
-    order = np.argsort(-sizes)
-    big = sizes >= max(0.01 * len(X), 10)
-    if big.sum() > 1:
-        shown = ", ".join(str(s) for s in sizes[order][:5])
-        raise InfeasibleError(f"the points form {int(big.sum())} separate pieces (sizes {shown} points; gaps wider "
-                              f"than {cell * 1e3:.3g} mm), not one patch; fit each piece separately")
-    return label[inv] == order[0]
-
-
-def _check_mesh_patch(n_vertices: int, F: np.ndarray) -> None:
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    from .topology import boundary_edges
-
-    used = np.unique(F)
-    if len(used) < n_vertices:
-        raise InputError(f"{n_vertices - len(used)} points are not used by any face; pass only the mesh's "
-                         "vertices with mesh_faces (or fit the points without faces)")
-    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    graph = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices))
-    n_comp, label = connected_components(graph, directed=False)
-    if n_comp > 1:
-        sizes = np.sort(np.bincount(label))[::-1]
-        raise InfeasibleError(f"the mesh has {n_comp} separate pieces (sizes {', '.join(map(str, sizes[:5]))} "
-                              "vertices), not one patch; fit each piece separately")
-    if len(boundary_edges(F)) == 0:
-        raise InfeasibleError("the mesh is closed (no boundary), so one patch cannot cover it; cut it into "
-                              "open patches first")
-
-
-# ----------------------------------------------------------------------------------------------
-# Parameterisations
-# ----------------------------------------------------------------------------------------------
-def _signed_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-
-
-def _flipped_triangles(uv: np.ndarray, F: np.ndarray) -> tuple[int, int]:
-    """Count of triangles with negative and positive signed area in the parameter plane (area
-    below 1e-9 of the mean is ignored)."""
-    area = _signed_areas(uv, F)
-    eps = 1e-9 * np.abs(area).mean()
-    return int((area < -eps).sum()), int((area > eps).sum())
-
-
-def _projection_parameters(X: np.ndarray, F):
-    """Coordinates ``(n, 2)`` in the best-fit plane, and whether (and why) the projection folds."""
-    from scipy.spatial import cKDTree
-
-    c = X.mean(axis=0)
-    _, vecs = np.linalg.eigh(np.cov((X - c).T))
-    e1, e2 = vecs[:, 2], vecs[:, 1]
-    uv = np.stack([(X - c) @ e1, (X - c) @ e2], axis=1)
-    if F is not None:
-        neg, pos = _flipped_triangles(uv, F)
-        if pos < neg:                       # winding says the normal side is -e3: mirror v
-            e2 = -e2
-            uv[:, 1] *= -1
-            neg, pos = pos, neg
-        if neg > 0:
-            return uv, True, f"{neg} of {len(F)} triangles flip over in the plane"
-        return uv, False, ""
-    # Without faces: points that are neighbours in the plane but far apart in space lie on
-    # different layers of a fold.
-    h, _ = _nn_scale(X)
-    k = min(9, len(X))
-    d2, idx = cKDTree(uv).query(uv, k=k)
-    d3 = np.linalg.norm(X[idx] - X[:, None, :], axis=2)
-    layered = np.any(d3 > 3.0 * d2 + 10.0 * h, axis=1)
-    frac = layered.mean()
-    if frac > 0.005:
-        return uv, True, f"{100 * frac:.1f} % of the points lie over other points"
-    return uv, False, ""
-
-
-def _lscm_parameters(X: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Least-squares conformal map of the mesh, rotated to its principal axes and scaled so the
-    parameter area equals the surface area (parameters in metres, roughly arc length)."""
-    try:
-        import igl
-    except ImportError:  # pragma: no cover - libigl is a dependency
-        raise InputError("the 'lscm' parameterisation needs libigl (pip install libigl)") from None
-    from .geometry import face_normals_and_areas
-
-    Fi = np.ascontiguousarray(F, dtype=np.int64)
-    bnd = np.asarray(igl.boundary_loop(Fi), dtype=np.int64)
-    a = bnd[np.argmax(np.linalg.norm(X[bnd] - X[bnd[0]], axis=1))]
-    b = bnd[np.argmax(np.linalg.norm(X[bnd] - X[a], axis=1))]
-    d = float(np.linalg.norm(X[a] - X[b]))
-    res = igl.lscm(np.ascontiguousarray(X), Fi, np.array([a, b], dtype=np.int64),
-                   np.array([[0.0, 0.0], [d, 0.0]]))
-    uv = np.asarray(res[0] if isinstance(res, tuple) else res, dtype=float)
-    if not np.isfinite(uv).all():
-        raise InfeasibleError("the LSCM parameterisation failed (non-finite result); check the mesh for "
-                              "degenerate or non-manifold triangles")
-    uv = uv - uv.mean(axis=0)
-    _, vecs = np.linalg.eigh(np.cov(uv.T))
-    uv = uv @ vecs[:, ::-1]
-    neg, pos = _flipped_triangles(uv, F)
-    if pos < neg:
-        uv[:, 1] *= -1
-        neg, pos = pos, neg
-    if neg > 0:
-        raise InfeasibleError(f"the LSCM parameterisation folds over: {neg} of {len(F)} triangles are flipped in "
-                              "the parameter plane; repair the mesh (fold-overs, spikes) or cut it into simpler "
-                              "patches")
-    _, area3 = face_normals_and_areas(X, F)
-    area2 = np.abs(_signed_areas(uv, F)).sum()
-    return uv * np.sqrt(area3.sum() / area2)
-
-
-# ----------------------------------------------------------------------------------------------
-# Penalised least squares
-# ----------------------------------------------------------------------------------------------
-def _gram(knots: np.ndarray, degree: int, order: int) -> np.ndarray:
-    """Weighted Gram matrix ``∫ w(t) N_i^(order)(t) N_j^(order)(t) dt`` ``(n, n)`` of a B-spline basis.
-
-    Exact (Gauss–Legendre, three points per knot span).  The weight is constant on each span,
-    ``w = (h / h̄)^γ`` with ``h`` the span, ``h̄`` the mean span and γ = :data:`PENALTY_GAMMA`: where
-    :func:`curvature_knots` packed the knots densely (high curvature) the penalty relaxes, so the
-    fit follows tight bends such as a leading edge while staying smooth elsewhere.
-    """
-    t = np.asarray(knots, float)
-    n = len(t) - degree - 1
-    if order > degree:
-        return np.zeros((n, n))
-    breaks = np.unique(t[degree:n + 1])
-    h = np.diff(breaks)
-    hbar = (breaks[-1] - breaks[0]) / (n - degree)
-    w = (h / hbar) ** PENALTY_GAMMA
-    gx, gw = np.polynomial.legendre.leggauss(3)
-    x = (0.5 * (breaks[:-1, None] + breaks[1:, None]) + 0.5 * h[:, None] * gx[None, :]).ravel()
-    weight = (0.5 * h[:, None] * gw[None, :] * w[:, None]).ravel()
-    span, N = basis_derivatives(t, degree, x, order)
-    cols = span[:, None] - degree + np.arange(degree + 1)
-    vals = N[order]
-    idx = cols[:, :, None] * n + cols[:, None, :]
-    G = np.bincount(idx.ravel(), weights=(weight[:, None, None] * vals[:, :, None] * vals[:, None, :]).ravel(),
-                    minlength=n * n)
-    return G.reshape(n, n)
-
-
-def _spd_solve(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve ``A x = rhs`` for a symmetric positive-definite ``A`` ``(n, n)`` (Cholesky)."""
-    from scipy.linalg import cho_factor, cho_solve
-
-    return cho_solve(cho_factor(A), rhs)
-
-
-def _lambda_grid(h_min: float, L: float) -> np.ndarray:
-    """Candidate smoothing lengths, m, log-spaced over a generous range."""
-    return np.geomspace(max(h_min, 1e-9) / 20.0, max(L, h_min) * 20.0, 90)
-
-
-def _smooth_columns(G: np.ndarray, rhs: np.ndarray, yty: np.ndarray, P: np.ndarray, n_obs: int, smoothing,
-                    ell_grid: np.ndarray, *, pool: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Minimise ``|B c − y|² + ℓ⁶ cᵀ P c`` for every column of ``y`` (skinning, stage 2).
-
-    ``G = BᵀB`` ``(n, n)``, ``rhs = Bᵀy`` ``(n, m)``, ``yty = Σ y²`` per column ``(m,)``; the columns
-    come in threes (a control point's x, y, z).  With ``smoothing == "gcv"`` the length ``ℓ`` of
-    every such group minimises the generalised cross-validation score
-    ``n_obs · RSS / (n_obs − edf)²`` over ``ell_grid``, the RSS pooled over the ``pool`` groups on
-    either side; one simultaneous diagonalisation of ``G`` and ``P`` serves every length.
-    Returns ``(c (n, m), ℓ (m,))``.
-    """
-    from scipy.linalg import eigh, solve_triangular
-    from scipy.ndimage import uniform_filter1d
-
-    n, m = rhs.shape
-    ridge = 1e-11 * max(np.trace(G), np.trace(P), 1e-300) / n * np.eye(n)
-    if not isinstance(smoothing, str):
-        ell = float(smoothing)
-        return _spd_solve(G + ell**6 * P + ridge, rhs), np.full(m, ell)
-    # X^T (G + P) X = I, X^T G X = diag(mu), X^T P X = diag(1 - mu).
-    Lc = np.linalg.cholesky(G + P + ridge)
-    M = solve_triangular(Lc, solve_triangular(Lc, G, lower=True).T, lower=True)
-    mu, Q = eigh(0.5 * (M + M.T))
-    mu = np.clip(mu, 0.0, 1.0)
-    Xm = solve_triangular(Lc.T, Q, lower=False)
-    z = Xm.T @ rhs                                                    # (n, m)
-    d = 1.0 / (mu[None, :] + ell_grid[:, None] ** 6 * (1.0 - mu[None, :]) + 1e-300)     # (g, n)
-    edf = (mu[None, :] * d).sum(axis=1)                               # (g,)
-    rss = yty[None, :] - (2 * d - mu[None, :] * d * d) @ (z * z)      # (g, m)
-    rss = rss.reshape(len(ell_grid), m // 3, 3).sum(axis=2)
-    pooled = uniform_filter1d(rss, size=2 * pool + 1, axis=1, mode="nearest")
-    gcv = n_obs * np.maximum(pooled, 0.0) / np.maximum(n_obs - edf, 1e-9)[:, None] ** 2
-    gcv[edf >= n_obs - 1] = np.inf
-    ell = np.repeat(ell_grid[np.argmin(gcv, axis=0)], 3)
-    dcol = 1.0 / (mu[:, None] + ell[None, :] ** 6 * (1.0 - mu[:, None]) + 1e-300)   # (n, m)
-    return Xm @ (dcol * z), ell
-
-
-def _design_2d(u, v, ku, kv, p, q, nu, nv):
-    """Sparse design matrix ``(k, nu·nv)`` of the tensor-product basis (flat index ``i·nv + j``)."""
-    from scipy.sparse import csr_matrix
-
-    su, Nu = basis_derivatives(ku, p, u, 0)
-    sv, Nv = basis_derivatives(kv, q, v, 0)
-    iu = su[:, None] - p + np.arange(p + 1)
-    iv = sv[:, None] - q + np.arange(q + 1)
-    cols = (iu[:, :, None] * nv + iv[:, None, :]).reshape(len(u), -1)
-    vals = (Nu[0][:, :, None] * Nv[0][:, None, :]).reshape(len(u), -1)
-    k = cols.shape[1]
-    return csr_matrix((vals.ravel(), cols.ravel(), np.arange(0, len(u) * k + 1, k)), shape=(len(u), nu * nv))
-
-
-def _design_1d(x, knots, p, n) -> np.ndarray:
-    """Dense design matrix ``(k, n)`` of a B-spline basis."""
-    span, Nb = basis_derivatives(knots, p, x, 0)
-    B = np.zeros((len(x), n))
-    np.put_along_axis(B, span[:, None] - p + np.arange(p + 1), Nb[0], axis=1)
-    return B
-
-
-def _penalty_2d(ku: np.ndarray, kv: np.ndarray, p: int, q: int, density: float) -> list[np.ndarray]:
-    """Third-order thin-plate energy ``∫∫ w (|S_uuu|² + 3|S_uuv|² + 3|S_uvv|² + |S_vvv|²) du dv`` as
-    quadratic forms in the control points, one per term: ``[T_0, T_1, T_2, T_3]`` with ``T_k`` the
-    term with ``k`` derivatives in u, each ``(nu·nv, nu·nv)``.
-
-    With smoothing lengths ``ℓ_u, ℓ_v`` the penalty is ``Σ_k ℓ_u^(2k) ℓ_v^(2(3−k)) T_k`` (for one
-    length ``ℓ⁶ Σ T_k``), scaled so that features shorter than about ``ℓ`` metres are damped
-    (``density`` = points per m² of parameter domain).  Third derivatives leave quadratic shapes
-    (constant curvature) unpenalised, so the penalty neither flattens curved regions nor pulls
-    the patch's edges toward zero curvature.  The weight ``w`` relaxes it where knots are dense
-    (see :func:`_gram`).  Degrees are at least 3."""
-    Gu = [_gram(ku, p, k) for k in range(4)]
-    Gv = [_gram(kv, q, k) for k in range(4)]
-    scale = density / (2 * np.pi) ** 6
-    return [math.comb(3, k) * scale * np.kron(Gu[k], Gv[3 - k]) for k in range(4)]
-
-
-def _combine(parts: list[np.ndarray], ell_u: float, ell_v: float) -> np.ndarray:
-    return sum(ell_u ** (2 * k) * ell_v ** (2 * (3 - k)) * T for k, T in enumerate(parts))
-
-
-def _penalty_1d(knots: np.ndarray, p: int, density: float) -> np.ndarray:
-    """Third-derivative energy of a curve, weighted as in :func:`_gram` (``density`` = points
-    per m), scaled like :func:`_penalty_2d`."""
-    return _gram(knots, p, 3) * density / (2 * np.pi) ** 6
-
-
-# ----------------------------------------------------------------------------------------------
-# Knots
-# ----------------------------------------------------------------------------------------------
-def curvature_knots(s: np.ndarray, kappa2: np.ndarray, n_spans: int, *, q: float = 0.5,
-                    min_span: float = 0.0, kappa_abs: np.ndarray | None = None,
-                    max_turn: float | None = None) -> np.ndarray:
-    """Interior knots placed by the curvature-based distribution ``R(s) = q·b(s)/B + (1−q)·s/L``.
-
-    ``b(s) = ∫₀ˢ κ²``, ``B = b(L)``; the knots are ``R⁻¹(i / n_spans)``.  ``R'(s)`` is the knot
-    density; two optional bounds keep it practical: it is capped where it would space knots
-    closer than ``min_span``, and raised where a span would turn by more than ``max_turn``
-    (``|κ| / (n·max_turn)``); the difference is taken from (or given to) the rest in proportion, so
-    ``R`` keeps the thesis's shape wherever no bound is active.
-
-    Parameters
-    ----------
-    s : (m,) float
-        Increasing positions along the curve (arc length, or a parameter proportional to it), m.
-    kappa2 : (m,) float
-        Squared curvature at ``s``, 1/m².
-    n_spans : int
-        Number of knot spans wanted.
-    q : float
-        Weight of curvature (0 = even spacing).
-    min_span : float
-        Smallest span wanted, m.
-    kappa_abs : (m,) float, optional
-        ``|κ|`` at ``s`` (1/m), with ``max_turn`` (rad): the largest turning wanted per span.
-
-    Returns
-    -------
-    (n_spans − 1,) float
-        Interior knots.
-    """
-    s = np.asarray(s, float)
-    kappa2 = np.asarray(kappa2, float)
-    if s.ndim != 1 or len(s) < 2 or kappa2.shape != s.shape:
-        raise InputError(f"expected s and kappa2 of the same shape (m >= 2,), got {s.shape} and {kappa2.shape}")
-    if not (np.all(np.diff(s) > 0) and np.isfinite(kappa2).all() and (kappa2 >= 0).all()):
-        raise InputError("s must increase strictly and kappa2 be finite and non-negative")
-    n_spans = int(n_spans)
-    if n_spans < 1:
-        raise InputError(f"n_spans must be at least 1, got {n_spans}")
-    L = s[-1] - s[0]
-    ds = np.diff(s)
-    B = _trapz(kappa2, ds)
-    dens = (q * kappa2 / B if B > 0 else 0.0) + (1 - q) / L
-    cap = 1.0 / (n_spans * min_span) if min_span > 0 else np.inf
-    if cap * L < 1.0:
-        cap = 1.0 / L
-    floor = np.zeros_like(s)
-    if kappa_abs is not None and max_turn:
-        floor = np.minimum(np.asarray(kappa_abs, float) / (n_spans * max_turn), cap)
-    for _ in range(200):
-        d = np.clip(dens, floor, cap)
-        mass = _trapz(d, ds)
-        free = (dens > floor) & (dens < cap)
-        if abs(mass - 1.0) < 1e-9 or not free.any():
-            break
-        fixed = _trapz(np.where(free, 0.0, d), ds)
-        loose = _trapz(np.where(free, d, 0.0), ds)
-        if loose <= 0 or fixed >= 1.0:
-            break
-        dens = np.where(free, d * (1.0 - fixed) / loose, d)
-    dens = np.clip(dens, floor, cap)
-    R = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * ds)])
-    R /= R[-1]
-    return np.interp(np.arange(1, n_spans) / n_spans, R, s)
-
-
-def _trapz(f, ds):
-    return float(np.sum(0.5 * (f[1:] + f[:-1]) * ds))
-
-
-def _profile(patch: BSplinePatch, direction: int, n_other: int = 12):
-    """Along ``direction`` (0 = u, 1 = v): parameters ``(m,)``, mean speed ``|S_d|``, mean squared
-    and mean absolute normal curvature of the iso-curves (averaged over the other direction)."""
-    ta = _span_samples(patch.knots_u if direction == 0 else patch.knots_v, patch.degree[direction], 8, cap=3000)
-    (u0, u1), (v0, v1) = patch.domain
-    other = np.linspace(*((v0, v1) if direction == 0 else (u0, u1)), n_other + 2)[1:-1]
-    A, O = np.meshgrid(ta, other, indexing="ij")
-    u, v = (A, O) if direction == 0 else (O, A)
-    D = patch.derivatives(u.ravel(), v.ravel(), 2)
-    Sd = D[:, 1, 0] if direction == 0 else D[:, 0, 1]
-    Sdd = D[:, 2, 0] if direction == 0 else D[:, 0, 2]
-    n = normalize(np.cross(D[:, 1, 0], D[:, 0, 1]))
-    speed2 = np.einsum("ij,ij->i", Sd, Sd)
-    kappa = np.einsum("ij,ij->i", n, Sdd) / np.maximum(speed2, 1e-300)
-    shape = A.shape
-    k2 = (kappa**2).reshape(shape).mean(1)
-    kabs = np.abs(kappa).reshape(shape).mean(1)
-    # The first and last knot spans of a fit are the least certain (data on one side only): hold
-    # the curvature there at its value one span inside, so edge noise does not attract knots.
-    knots = patch.knots_u if direction == 0 else patch.knots_v
-    breaks = np.unique(knots)
-    if len(breaks) >= 4:
-        lo, hi = breaks[1], breaks[-2]
-        for arr in (k2, kabs):
-            arr[ta < lo] = np.interp(lo, ta, arr)
-            arr[ta > hi] = np.interp(hi, ta, arr)
-    return ta, np.sqrt(speed2).reshape(shape).mean(1), k2, kabs
-
-
-def _spans_for(L: float, turning: float, max_turn: float, h_max: float, cap: int) -> int:
-    return int(np.clip(math.ceil(L / h_max) + math.ceil(turning / max_turn), 1, max(cap, 1)))
-
-
-def _knots_from_patch(patch: BSplinePatch, direction: int, n_spans_req, degree: int, opts, cap: int,
-                      min_span: float, domain) -> np.ndarray:
-    """Knot vector along ``direction`` from the curvature of ``patch`` (a pilot fit)."""
-    t, speed, k2, kabs = _profile(patch, direction)
-    s = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))])
-    L = s[-1]
-    turning = _trapz(kabs, np.diff(s))
-    if n_spans_req is None:
-        h_max = opts["h_max"] if opts["h_max"] is not None else min(0.05, L / 4)
-        n_spans = _spans_for(L, turning, opts["max_turn"], h_max, cap)
-        n_spans = max(1, min(n_spans, int(L / max(min_span, 1e-12))))
-    else:
-        n_spans = n_spans_req
-    # Knot spans at least min_span and at most KNOT_CONCENTRATION times denser than even spacing.
-    # A direction that hardly turns (total turning well below TURN_SIGNIFICANT) keeps nearly even
-    # knots, so noise in a flat direction does not attract knots.
-    min_span = max(min_span, L / (KNOT_CONCENTRATION * n_spans))
-    q_eff = opts["qk"] * turning**2 / (turning**2 + TURN_SIGNIFICANT**2)
-    interior_s = curvature_knots(s, k2, n_spans, q=q_eff, min_span=min_span, kappa_abs=kabs,
-                                 max_turn=opts["max_turn"])
-    interior = np.interp(interior_s, s, t)
-    return clamped_knots(interior, degree, domain)
-
-
-def _uniform_knots(n_spans: int, degree: int, domain) -> np.ndarray:
-    return clamped_knots(np.linspace(domain[0], domain[1], n_spans + 1)[1:-1], degree, domain)
+def _residual_warnings(dist: np.ndarray, tolerance: float) -> list[str]:
+    """Warnings ``[str]`` when distances ``dist`` ``(n,)`` (m) of the points to the patch exceed
+    ``tolerance`` (m) at more than :data:`WARN_FRACTION` of the points, or at any point by more
+    than :data:`WARN_FACTOR` times: how many points, how far, and what to do."""
+    far = dist > tolerance
+    if not (far.mean() > WARN_FRACTION or dist.max() > WARN_FACTOR * tolerance):
+        return []
+    n_far = int(far.sum())
+    return [f"{n_far} of {len(dist)} points ({100.0 * n_far / len(dist):.2g} %) lie more than "
+            f"{tolerance * 1e3:.3g} mm (the fit tolerance) from the fitted patch, up to "
+            f"{float(dist.max()) * 1e3:.3g} mm (rms {float(np.sqrt(np.mean(dist ** 2))) * 1e3:.3g} mm): the patch "
+            "does not follow the scan there (stray points, a fold or a sharp feature the smooth patch "
+            "cannot take); look at the residual map, clean the scan or fit the region on its own"]
 
 
 # ----------------------------------------------------------------------------------------------
 # Global fit (projection / LSCM parameters)
 # ----------------------------------------------------------------------------------------------
-def _fit_global(X, uv, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rounds, reparam_rounds):
+def _fit_global(X, uv, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rounds, reparam_rounds, say):
     """One penalised fit of all points over their parameters ``uv`` (projection or LSCM).
     Returns ``(patch, (ℓ_u, ℓ_v), u, v)``."""
     u, v = uv[:, 0].copy(), uv[:, 1].copy()
@@ -756,238 +377,18 @@ def _fit_global(X, uv, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rou
             kv = _knots_from_patch(patch, 1, req_v, q, opts, cap_v, min_span, dom_v)
         if r == max(knot_rounds, 0):
             break
+        say("fit: pilot fits that place the knots by curvature", r, max(knot_rounds, 0))
         span_u, span_v = Lu / (len(ku) - 2 * p - 1), Lv / (len(kv) - 2 * q - 1)
         patch, _ = _aniso_step(X, u, v, ku, kv, p, q, "fixed", grid_u, grid_v, span_u, span_v)
     # Final fit: smoothing along u and v by GCV (or as given), then parameter correction.
     ells = (None, None)
     for r in range(max(reparam_rounds, 0) + 1):
         if r > 0:
+            say("fit: correcting the parameters (projecting the points on the patch)", r - 1, max(reparam_rounds, 0))
             u, v, _ = patch.project(X, initial=(u, v), tol=1e-9)
-        patch, ells = _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, *ells)
+        patch, ells = _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, *ells,
+                                  progress=_gcv_progress(say, r), one_se=True)
     return patch, ells, u, v
-
-
-# ----------------------------------------------------------------------------------------------
-# Skinning along scan rows
-# ----------------------------------------------------------------------------------------------
-def _row_structure(X: np.ndarray, rows: np.ndarray, p: int, q: int):
-    """Group points by row (rows sorted by id, points in input order), orient every row like the
-    first, and parameterise: normalised smoothed arc length along each row (scaled to the mean row
-    length) and cumulative distance between rows across."""
-    from scipy.ndimage import uniform_filter1d
-
-    order = np.argsort(rows, kind="stable")
-    ids, starts, counts = np.unique(rows[order], return_index=True, return_counts=True)
-    if len(ids) < q + 3:
-        raise InputError(f"skinning needs at least {q + 3} scan rows, got {len(ids)}")
-    if counts.min() < p + 3:
-        raise InputError(f"scan row {ids[np.argmin(counts)]} has only {counts.min()} points; every row needs at "
-                         f"least {p + 3} (drop short rows)")
-    order = order.copy()
-    # Scan order: consecutive points of a row are neighbours (a jump of 20 typical steps is not).
-    step = np.linalg.norm(np.diff(X[order], axis=0), axis=1)
-    same_row = np.diff(rows[order]) == 0
-    typical = float(np.median(step[same_row])) if same_row.any() else 0.0
-    t = np.empty(len(X))
-    lengths = np.empty(len(ids))
-    prev_first = prev_last = None
-    for r, (a, n) in enumerate(zip(starts, counts)):
-        idx = order[a:a + n].copy()
-        P = X[idx]
-        if prev_first is not None:
-            # Bidirectional scans: run every row the same way as the previous one.
-            same = np.linalg.norm(P[0] - prev_first) + np.linalg.norm(P[-1] - prev_last)
-            swap = np.linalg.norm(P[-1] - prev_first) + np.linalg.norm(P[0] - prev_last)
-            if swap < same:
-                idx = idx[::-1].copy()
-                order[a:a + n] = idx
-                P = X[idx]
-        prev_first, prev_last = P[0], P[-1]
-        raw = np.linalg.norm(np.diff(P, axis=0), axis=1)
-        if raw.max() > 20 * max(typical, 1e-12):
-            raise InputError(f"scan row {ids[r]} jumps by {raw.max() * 1e3:.3g} mm between consecutive points "
-                             f"(typical step {typical * 1e3:.3g} mm); rows must hold their points in scan "
-                             "order without gaps")
-        Ps = uniform_filter1d(P, size=min(5, n), axis=0, mode="nearest")
-        seg = np.linalg.norm(np.diff(Ps, axis=0), axis=1)
-        s = np.concatenate([[0.0], np.cumsum(seg)])
-        lengths[r] = s[-1]
-        t[idx] = s / max(s[-1], 1e-300)
-    Lbar = float(lengths.mean())
-    row_of = np.empty(len(X), dtype=np.int64)
-    for r, (a, n) in enumerate(zip(starts, counts)):
-        row_of[order[a:a + n]] = r
-    # Across: every row resampled at common normalised positions; the rows' positioning errors
-    # are smoothed out of this stack (a wide moving average over rows) before measuring the
-    # distances between consecutive rows, so they do not accumulate into v.
-    grid = np.linspace(0, 1, 64)
-    Q = np.empty((len(ids), 64, 3))
-    for r, (a, n) in enumerate(zip(starts, counts)):
-        idx = order[a:a + n]
-        for c in range(3):
-            Q[r, :, c] = np.interp(grid, t[idx], X[idx, c])
-    width = int(min(len(ids), max(9, len(ids) // 8)))
-    Qs = uniform_filter1d(Q, size=width, axis=0, mode="nearest")
-    # Near the ends the one-sided average lags: extrapolate from the inner rows linearly.
-    half = width // 2
-    if len(ids) > 2 * half + 2 and half > 0:
-        lo_slope = (Qs[half + 1] - Qs[half])
-        hi_slope = (Qs[-half - 1] - Qs[-half - 2])
-        Qs[:half] = Qs[half] - lo_slope * np.arange(half, 0, -1)[:, None, None]
-        Qs[-half:] = Qs[-half - 1] + hi_slope * np.arange(1, half + 1)[:, None, None]
-    gaps = np.linalg.norm(np.diff(Qs, axis=0), axis=2).mean(axis=1)
-    v_rows = np.concatenate([[0.0], np.cumsum(gaps)])
-    return t * Lbar, row_of, v_rows, Lbar, order
-
-
-def _row_fit(u, row_of, X, n_rows, ku, p, ell, density):
-    """Stage 1 of skinning: every row smoothed into a curve on the common knot vector ``ku`` with
-    smoothing length ``ell`` (m).  Returns the control points ``(R, n, 3)``."""
-    n = len(ku) - p - 1
-    span, Nb = basis_derivatives(ku, p, u, 0)
-    cols = span[:, None] - p + np.arange(p + 1)
-    vals = Nb[0]
-    ii = (row_of[:, None, None] * n + cols[:, :, None]) * n + cols[:, None, :]
-    G = np.bincount(ii.ravel(), weights=(vals[:, :, None] * vals[:, None, :]).ravel(),
-                    minlength=n_rows * n * n).reshape(n_rows, n, n)
-    jj = (row_of[:, None] * n + cols).ravel()
-    rhs = np.stack([np.bincount(jj, weights=(vals * X[:, c, None]).ravel(), minlength=n_rows * n)
-                    for c in range(3)], axis=-1).reshape(n_rows, n, 3)
-    P = _penalty_1d(ku, p, density)
-    scale = np.trace(G, axis1=1, axis2=2).mean() / n
-    A = G + ell**6 * P + 1e-9 * max(scale, 1e-300) * np.eye(n)
-    try:
-        return np.linalg.solve(A, rhs)
-    except np.linalg.LinAlgError:
-        raise InfeasibleError("a scan row has too few points for the knot vector; give fewer control "
-                              "points or more smoothing") from None
-
-
-def _fit_rows(X, rows, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rounds, reparam_rounds):
-    """Skinning (Jaeger §3.2.2): rows smoothed into curves on one knot vector, their control points
-    smoothed across the rows; then one penalised fit of all points with the across-row smoothing
-    found at row level.  Returns ``(patch, (ℓ_u, ℓ_v), u, v)``."""
-    u, row_of, v_rows, Lbar, _ = _row_structure(X, rows, p, q)
-    R = len(v_rows)
-    Lv = float(v_rows[-1])
-    dom_u, dom_v = (0.0, Lbar), (0.0, Lv)
-    pts_per_row = len(X) / R
-    h_along = Lbar / pts_per_row
-    h_across = Lv / max(R - 1, 1)
-    cap_u = max(1, min(150, int(pts_per_row / 3)))
-    cap_v = max(1, min(150, (R - 1) // 3))
-    opts = dict(qk=qk, max_turn=max_turn, h_max=h_max)
-    req_u = None if n_ctrl is None else n_ctrl[0] - p
-    req_v = None if n_ctrl is None else n_ctrl[1] - q
-    hmu = h_max if h_max is not None else min(0.05, Lbar / 4)
-    hmv = h_max if h_max is not None else min(0.05, Lv / 4)
-    nsu = req_u if req_u is not None else min(cap_u, math.ceil(Lbar / hmu) + 4)
-    nsv = req_v if req_v is not None else min(cap_v, math.ceil(Lv / hmv) + 4)
-    ku, kv = _uniform_knots(nsu, p, dom_u), _uniform_knots(nsv, q, dom_v)
-    v = v_rows[row_of]
-    grid_u = _lambda_grid(h_along, Lbar)
-    grid_v = _lambda_grid(h_across, Lv)
-    fixed = not isinstance(smoothing, str)
-
-    def skin(u, ku, kv):
-        # Stage 1: each row on its own, smoothed at the scale of the knot spans (or as asked).
-        ell_u = float(smoothing) if fixed else (ku[-1] - ku[0]) / (len(ku) - 2 * p - 1)
-        coef = _row_fit(u, row_of, X, R, ku, p, ell_u, pts_per_row / Lbar)
-        # Stage 2: the rows' control points smoothed across the rows, the smoothing chosen by GCV
-        # per control column (row-to-row positioning errors are the noise at this level).
-        nv = len(kv) - q - 1
-        nu = coef.shape[1]
-        Bv = _design_1d(v_rows, kv, q, nv)
-        Y = coef.reshape(R, nu * 3)
-        P = _penalty_1d(kv, q, R / Lv)
-        net, ell_v = _smooth_columns(Bv.T @ Bv, Bv.T @ Y, (Y * Y).sum(axis=0), P, R, smoothing, grid_v)
-        net = net.reshape(nv, nu, 3).transpose(1, 0, 2)
-        return BSplinePatch(net, ku, kv, (p, q)), (ell_u, float(np.median(ell_v)))
-
-    patch, ells = skin(u, ku, kv)
-    for _ in range(max(knot_rounds, 0)):
-        ku = _knots_from_patch(patch, 0, req_u, p, opts, cap_u, 2 * h_along, dom_u)
-        kv = _knots_from_patch(patch, 1, req_v, q, opts, cap_v, 2.5 * h_across, dom_v)
-        patch, ells = skin(u, ku, kv)
-    # Final fit of all points at once (every knot span then holds points of many rows, which keeps
-    # tight, densely knotted bends well conditioned): across the rows the smoothing found by
-    # skinning, along the rows by GCV; parameters along the rows from projection on the current
-    # patch (consistent from row to row).
-    ells = (None, ells[1])
-    for _ in range(max(reparam_rounds, 0) + 1):
-        u = patch.project(X, initial=(u, v), tol=1e-9)[0]
-        patch, ells = _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, *ells)
-    return patch, ells, u, v
-
-
-def _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, ell_u=None, ell_v=None):
-    """Penalised fit with separate smoothing lengths along u and v.
-
-    Lengths given as None are chosen by GCV (golden-section search on a log scale); a numeric
-    ``smoothing`` fixes both; ``"fixed"`` uses the given ones.  Returns ``(patch, (ell_u, ell_v))``.
-    """
-    from scipy.linalg import LinAlgError, cho_factor, cho_solve
-
-    nu, nv = len(ku) - p - 1, len(kv) - q - 1
-    B = _design_2d(u, v, ku, kv, p, q, nu, nv)
-    G = (B.T @ B).toarray()
-    rhs = B.T @ X
-    yty = float((X * X).sum())
-    Lu, Lv = ku[-1] - ku[0], kv[-1] - kv[0]
-    parts = _penalty_2d(ku, kv, p, q, len(X) / (Lu * Lv))
-    ridge = 1e-11 * max(np.trace(G), 1e-300) / len(G) * np.eye(len(G))
-    N = len(X)
-    # Fixed Rademacher probes for a Hutchinson estimate of the effective degrees of freedom: GCV
-    # depends on them only through (1 − edf/N)², so a rough estimate is plenty.
-    probes = np.random.default_rng(0).choice([-1.0, 1.0], size=(len(G), 8))
-    Gz = G @ probes
-
-    def solve(lu, lv, score):
-        A = G + _combine(parts, lu, lv) + ridge
-        try:
-            cho = cho_factor(A)
-        except LinAlgError:
-            raise InfeasibleError("the fit is under-determined (too few points spread over the patch for the "
-                                  "control net); give fewer control points (n_ctrl) or some smoothing") from None
-        c = cho_solve(cho, rhs)
-        if not score:
-            return c
-        rss = max(yty - 2 * float((c * rhs).sum()) + float((c * (G @ c)).sum()), 0.0)
-        edf = float((probes * cho_solve(cho, Gz)).sum() / probes.shape[1])
-        return N * rss / max(N - edf, 1e-9) ** 2
-
-    def golden(f, lo, hi, iters=14):
-        a, b = math.log(lo), math.log(hi)
-        g = (math.sqrt(5) - 1) / 2
-        c1, c2 = b - g * (b - a), a + g * (b - a)
-        f1, f2 = f(math.exp(c1)), f(math.exp(c2))
-        for _ in range(iters):
-            if f1 <= f2:
-                b, c2, f2 = c2, c1, f1
-                c1 = b - g * (b - a)
-                f1 = f(math.exp(c1))
-            else:
-                a, c1, f1 = c1, c2, f2
-                c2 = a + g * (b - a)
-                f2 = f(math.exp(c2))
-        return math.exp(c1 if f1 <= f2 else c2)
-
-    if smoothing == "fixed":
-        pass
-    elif not isinstance(smoothing, str):
-        ell_u = ell_v = float(smoothing)
-    elif ell_u is None and ell_v is None:
-        # One length for both first, then each direction within a factor 30 of it.
-        lo, hi = min(grid_u[0], grid_v[0]), max(grid_u[-1], grid_v[-1])
-        ell = golden(lambda e: solve(e, e, True), lo, hi, 12)
-        ell_u = golden(lambda e: solve(e, ell, True), max(lo, ell / 30), min(hi, ell * 30), 8)
-        ell_v = golden(lambda e: solve(ell_u, e, True), max(lo, ell / 30), min(hi, ell * 30), 8)
-    elif ell_u is None:
-        ell_u = golden(lambda e: solve(e, ell_v, True), grid_u[0], grid_u[-1], 12)
-    elif ell_v is None:
-        ell_v = golden(lambda e: solve(ell_u, e, True), grid_v[0], grid_v[-1], 12)
-    c = solve(ell_u, ell_v, False)
-    return BSplinePatch(c.reshape(nu, nv, 3), ku, kv, (p, q)), (float(ell_u), float(ell_v))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -23,7 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .bspline import BSplinePatch, _span_samples, circle_arc, clamped_knots, translational
+from .bspline import BSplinePatch
+from .bspline_basis import _span_samples, clamped_knots
+from .exact_shapes import circle_arc, naca00_thickness, translational
 
 
 @dataclass(frozen=True)
@@ -226,8 +228,6 @@ def blade_patch(*, chord: float = 0.4, span: float = 0.6, thickness: float = 0.1
     material.  The profile is a cubic spline interpolating ~5000 exact profile points (position
     error well below 1 µm)."""
     from scipy.interpolate import make_interp_spline
-
-    from ..examples import naca00_thickness
 
     if not (0.05 <= thickness <= 0.3 and 0.0 < lower_start <= 1.0 and chord > 0 and span > 0):
         raise InputError("blade_patch needs chord, span > 0, thickness in [0.05, 0.3] and lower_start in (0, 1]")
