@@ -15,3 +15,10 @@ from .solve import JointSolution, Margins, UnreachableStretch, flips_inside_pass
 __all__ = ["Cell", "JointSolution", "Margins", "ROBOTS", "RobotModel", "UnreachableStretch", "dh_robot",
            "flips_inside_passes", "format_pose", "get_robot", "parse_pose", "retime_joints", "retime_trajectory",
            "solve_trajectory"]
+
+from .placement import Placement, search_placement  # noqa: E402
+from .reach import ReachMap, reachability_map  # noqa: E402
+from .stage import RobotResult, robot_options_from_mapping, run_robot_stage  # noqa: E402
+
+__all__ += ["Placement", "ReachMap", "RobotResult", "reachability_map", "robot_options_from_mapping",
+            "run_robot_stage", "search_placement"]
