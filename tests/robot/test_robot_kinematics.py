@@ -9,7 +9,13 @@ from swath.errors import InputError
 from swath.robot import dh_robot, get_robot
 from swath.robot.chain import wrap_angle
 from swath.robot.opw import OPWParameters, opw_ik
-from swath.robot.pose import matrix_to_quat, matrix_to_zyx, pose_error, quat_to_matrix, zyx_to_matrix
+from swath.robot.pose import (
+    matrix_to_quat,
+    matrix_to_zyx,
+    pose_error,
+    quat_to_matrix,
+    zyx_to_matrix,
+)
 
 MODELS = ["ur3e", "ur5e", "ur10e", "ur16e", "irb4600-60/2.05", "kr120r2700-2"]
 

@@ -1,5 +1,6 @@
 """Robot programs: each format is written, parsed back by its reader and compared with the trajectory/joints."""
 
+import itertools
 import math
 
 import numpy as np
@@ -7,8 +8,20 @@ import pytest
 
 from swath.robot import Cell, get_robot, run_robot_stage
 from swath.robot.pose import pose_error, poses_from_trajectory
-from swath.robot.programs import FLANGE2KUKA_FLANGE, ProgramInput, abb_confdata, decimate, kuka_status_turn
-from swath.robot.readers import read_joint_csv, read_krl, read_rapid, read_ros_yaml, read_urscript
+from swath.robot.programs import (
+    FLANGE2KUKA_FLANGE,
+    ProgramInput,
+    abb_confdata,
+    decimate,
+    kuka_status_turn,
+)
+from swath.robot.readers import (
+    read_joint_csv,
+    read_krl,
+    read_rapid,
+    read_ros_yaml,
+    read_urscript,
+)
 
 
 @pytest.fixture(scope="module")
@@ -49,7 +62,7 @@ def test_decimation_keeps_pass_ends_and_tolerance(plate_trajectory):
         members = np.flatnonzero((tr.pass_index == p) & tr.contact)
         assert members[0] in idx and members[-1] in idx
     # every dropped sample lies within 0.1 mm of the chord between its kept neighbours
-    for a, b in zip(idx[:-1], idx[1:]):
+    for a, b in itertools.pairwise(idx):
         if b - a < 2:
             continue
         u = tr.position[b] - tr.position[a]

@@ -31,10 +31,15 @@ def test_reachability_map_splits_a_plate_at_the_reach_limit(plate):
 
 
 def test_robot_figures_render(plate, tmp_path):
-    from swath.report.robot_plots import joint_plot_figure, reachability_figure, robot_png_bytes, write_robot_plots
-    from swath.trajectory import FeedLimit, time_path
-    from swath.plan.raster import raster
     from swath.contact import Tool
+    from swath.plan.raster import raster
+    from swath.report.robot_plots import (
+        joint_plot_figure,
+        reachability_figure,
+        robot_png_bytes,
+        write_robot_plots,
+    )
+    from swath.trajectory import FeedLimit, time_path
 
     model = get_robot("ur10e")
     cell = Cell.from_text("0.5,-0.15,0,0,0,0", "0,0,100mm,0,0,0")

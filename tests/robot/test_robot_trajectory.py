@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 
 from swath.errors import InputError, UnreachableError
-from swath.robot import Cell, Margins, flips_inside_passes, get_robot, parse_pose, run_robot_stage, solve_trajectory
+from swath.robot import (
+    Cell,
+    Margins,
+    flips_inside_passes,
+    get_robot,
+    parse_pose,
+    run_robot_stage,
+    solve_trajectory,
+)
 from swath.robot.retime import joint_accel_ratio, joint_speed_ratio, retime_joints
 from swath.robot.solve import choose_branches
 
@@ -101,3 +109,31 @@ def test_placement_search_finds_a_reachable_placement(plate_trajectory):
     assert best.reachable_fraction == 1.0
     assert best.z == pytest.approx(-plate_trajectory.position[:, 2].min())
     assert np.hypot(best.x, best.y) < model.reach
+
+
+def test_singularity_margin_rejects_a_straight_wrist():
+    from swath.robot.solve import branch_table
+
+    model = get_robot("irb4600")
+    q = np.radians([[10, 20, -10, 30, 2.0, 40], [10, 20, -10, 30, 30.0, 40]])   # wrist at 2° and 30°
+    qs, feasible, reason = branch_table(model.fk(q), model, same_pass=np.zeros(2, bool))
+    slot = np.argmin(np.abs(qs[0] - q[0]).max(axis=1))
+    assert not feasible[0, slot] and reason[0, slot] == 3
+    assert feasible[1, slot]
+    m = model.singularity_measures(q)
+    np.testing.assert_allclose(m["wrist"], np.abs(np.sin(np.radians([2.0, 30.0]))))
+
+
+def test_robot_options_from_cli_text():
+    from swath.robot import robot_options_from_mapping
+
+    opts = robot_options_from_mapping({"robot": "irb4600", "base": "1200mm,0,300mm,0,0,90deg", "tcp": "0,0,0.15,0,0,0",
+                                       "program": "rapid, csv", "place": "auto", "table-z": "700mm"})
+    assert opts["robot"] == "irb4600" and opts["programs"] == ["rapid", "csv"] and opts["place"] is True
+    assert opts["table_z"] == pytest.approx(0.7)
+    np.testing.assert_allclose(opts["cell"].base2part[:3, 3], [1.2, 0, 0.3])
+    np.testing.assert_allclose(opts["cell"].flange2tcp[:3, 3], [0, 0, 0.15])
+    with pytest.raises(InputError, match="unknown robot setting"):
+        robot_options_from_mapping({"robto": "ur5e"})
+    with pytest.raises(InputError, match="auto"):
+        robot_options_from_mapping({"place": "yes"})

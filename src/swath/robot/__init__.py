@@ -10,15 +10,34 @@
 from .cell import Cell, format_pose, parse_pose
 from .models import ROBOTS, RobotModel, dh_robot, get_robot
 from .retime import retime_joints, retime_trajectory
-from .solve import JointSolution, Margins, UnreachableStretch, flips_inside_passes, solve_trajectory
+from .solve import (
+           JointSolution,
+           Margins,
+           UnreachableStretch,
+           flips_inside_passes,
+           solve_trajectory,
+)
 
-__all__ = ["Cell", "JointSolution", "Margins", "ROBOTS", "RobotModel", "UnreachableStretch", "dh_robot",
-           "flips_inside_passes", "format_pose", "get_robot", "parse_pose", "retime_joints", "retime_trajectory",
-           "solve_trajectory"]
+__all__ = [
+           "ROBOTS",
+           "Cell",
+           "JointSolution",
+           "Margins",
+           "RobotModel",
+           "UnreachableStretch",
+           "dh_robot",
+           "flips_inside_passes",
+           "format_pose",
+           "get_robot",
+           "parse_pose",
+           "retime_joints",
+           "retime_trajectory",
+           "solve_trajectory",
+]
 
-from .placement import Placement, search_placement  # noqa: E402
-from .reach import ReachMap, reachability_map  # noqa: E402
-from .stage import RobotResult, robot_options_from_mapping, run_robot_stage  # noqa: E402
+from .placement import Placement, search_placement
+from .reach import ReachMap, reachability_map
+from .stage import RobotResult, robot_options_from_mapping, run_robot_stage
 
 __all__ += ["Placement", "ReachMap", "RobotResult", "reachability_map", "robot_options_from_mapping",
             "run_robot_stage", "search_placement"]

@@ -86,7 +86,7 @@ class Cell:
     flange2tcp: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     @classmethod
-    def from_text(cls, base: str | None = None, tcp: str | None = None) -> "Cell":
+    def from_text(cls, base: str | None = None, tcp: str | None = None) -> Cell:
         """A cell from ``--base`` and ``--tcp`` texts (see :func:`parse_pose`)."""
         return cls(base2part=np.eye(4) if base is None else parse_pose(base),
                    flange2tcp=np.eye(4) if tcp is None else parse_pose(tcp))
@@ -104,7 +104,7 @@ class Cell:
         """(n, 4, 4) TCP poses in the part frame for flange poses in the base frame."""
         return invert(self.base2part) @ np.asarray(base2flange) @ self.flange2tcp
 
-    def with_base(self, base2part) -> "Cell":
+    def with_base(self, base2part) -> Cell:
         return Cell(base2part=np.asarray(base2part, dtype=float), flange2tcp=self.flange2tcp)
 
     def as_record(self) -> dict:

@@ -114,7 +114,7 @@ class RobotModel:
             return _ur_ik(self, t)
         return _numeric_ik(self, t, seed)
 
-    def with_limits(self, *, max_speed=None, max_accel=None, lower=None, upper=None) -> "RobotModel":
+    def with_limits(self, *, max_speed=None, max_accel=None, lower=None, upper=None) -> RobotModel:
         """A copy with other limits (rad, rad/s, rad/s²; scalars or (6,))."""
         def arr(v, old):
             return old if v is None else np.broadcast_to(np.asarray(v, dtype=float), (6,)).copy()

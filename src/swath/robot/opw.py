@@ -42,7 +42,7 @@ class OPWParameters:
 
     def chain(self) -> Chain:
         """The arm as a :class:`Chain` (flange z out of the flange)."""
-        t = lambda x, y, z: make_transform(np.eye(3), [x, y, z])  # noqa: E731
+        t = lambda x, y, z: make_transform(np.eye(3), [x, y, z])
         fixed = np.array([np.eye(4), t(self.a1, self.b, self.c1), t(0, 0, self.c2), t(self.a2, 0, 0),
                           t(0, 0, self.c3), np.eye(4), t(0, 0, self.c4)])
         return Chain(fixed=fixed, axes=("z", "y", "y", "z", "y", "z"), sign=np.asarray(self.sign, dtype=float),

@@ -62,8 +62,8 @@ def _placement(x, y, z_origin, yaw) -> np.ndarray:
     return make_transform(rot_z(yaw), [x, y, z_origin])
 
 
-def search_placement(trajectory, model: RobotModel, cell: Cell = Cell(), *, table_z: float = 0.0,
-                     n_xy: int = 9, yaws=None, margins: Margins = Margins(), n_sample: int = 150,
+def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *, table_z: float = 0.0,
+                     n_xy: int = 9, yaws=None, margins: Margins | None = None, n_sample: int = 150,
                      n_refine: int = 4) -> Placement:
     """Search the part placement that reaches the whole job with the largest margin.
 
@@ -72,8 +72,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell = Cell(), *, tabl
     trajectory : Trajectory
         TCP poses in the part frame, m.
     model : RobotModel
-    cell : Cell
-        Its tool (``flange2tcp``) is kept; its placement is replaced.
+    cell : Cell, optional
+        Its tool (``flange2tcp``) is kept; its placement is replaced (default: TCP on the flange).
     table_z : float
         Height of the part's lowest trajectory point in the base frame, m (default 0: the robot
         stands on the table).
@@ -81,7 +81,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell = Cell(), *, tabl
         Grid points per axis over ``x`` in [0.25, 0.95]·reach and ``y`` in [−0.6, 0.6]·reach.
     yaws : sequence of float, optional
         Part yaw angles, rad (default 0, 90°, 180°, 270°).
-    margins : Margins
+    margins : Margins, optional
+        Default :class:`Margins`.
     n_sample : int
         Contact samples scored per grid cell.
     n_refine : int
@@ -91,6 +92,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell = Cell(), *, tabl
     -------
     Placement
     """
+    cell = Cell() if cell is None else cell
+    margins = Margins() if margins is None else margins
     yaws = (0.0, math.pi / 2, math.pi, 1.5 * math.pi) if yaws is None else tuple(yaws)
     part2tcp = poses_from_trajectory(trajectory)
     centre = 0.5 * (trajectory.position.min(axis=0) + trajectory.position.max(axis=0))

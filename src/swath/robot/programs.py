@@ -33,7 +33,13 @@ import numpy as np
 from ..io.atomic import write_text_atomic
 from .cell import Cell
 from .models import RobotModel
-from .pose import matrix_to_quat, matrix_to_zyx, make_transform, poses_from_trajectory, rot_y
+from .pose import (
+    make_transform,
+    matrix_to_quat,
+    matrix_to_zyx,
+    poses_from_trajectory,
+    rot_y,
+)
 from .solve import JointSolution, segments
 
 #: Formats and their writers' file names.
@@ -146,7 +152,7 @@ def urscript_text(data: ProgramInput) -> str:
     base2tcp = cell.base2part @ poses_from_trajectory(tr)[idx]
     rv = _rotvec(base2tcp[:, :3, :3])
     tcp = np.concatenate([cell.flange2tcp[:3, 3], _rotvec(cell.flange2tcp[:3, :3])])
-    lines = [f"def swath_job():", f"  # swath robot program for {data.model.name}; poses in the base frame (m, rotation vector)",
+    lines = ["def swath_job():", f"  # swath robot program for {data.model.name}; poses in the base frame (m, rotation vector)",
              f"  set_tcp(p[{_fmt(tcp, 7)}])"]
     lines.append(f"  movej([{_fmt(sol.q[idx[0]], 8)}], a=0.5, v=0.3)")
     in_force = False
@@ -211,7 +217,7 @@ def rapid_text(data: ProgramInput) -> str:
     for k in range(len(idx)):
         lines.append(f"  CONST robtarget p{k} := [[{_fmt(part2tcp[k, :3, 3] * 1e3, 4)}],[{_fmt(quat[k], 9)}],"
                      f"[{','.join(str(int(c)) for c in conf[k])}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
-    body = [f"    MoveJ p0, v100, fine, tSwath\\WObj:=wSwath;"]
+    body = ["    MoveJ p0, v100, fine, tSwath\\WObj:=wSwath;"]
     for k, i in enumerate(idx[1:], start=1):
         v = round(max(float(tr.feed[i]), 1e-3) * 1e3, 1)
         name = speeds.setdefault(v, f"vSw{len(speeds)}")
@@ -286,9 +292,9 @@ def ros_yaml_text(data: ProgramInput) -> str:
     vel = np.where(np.isfinite(vel), vel, 0.0)
     points = []
     for ti, qi, vi in zip(t, q, vel):
-        secs = int(math.floor(ti))
+        secs = math.floor(ti)
         points.append({"positions": [float(v) for v in qi], "velocities": [float(v) for v in vi],
-                       "time_from_start": {"secs": secs, "nsecs": int(round((ti - secs) * 1e9))}})
+                       "time_from_start": {"secs": secs, "nsecs": round((ti - secs) * 1e9)}})
     msg = {"header": {"frame_id": "base_link"}, "joint_names": joint_names(data.model), "points": points}
     return yaml.safe_dump(msg, sort_keys=False, default_flow_style=None)
 

@@ -58,7 +58,7 @@ def _frames_along(normals) -> np.ndarray:
 
 
 def reachability_map(surface, model: RobotModel, cell: Cell, *, max_vertices: int = 1500, n_headings: int = 8,
-                     margins: Margins = Margins(), seed: int = 0) -> ReachMap:
+                     margins: Margins | None = None, seed: int = 0) -> ReachMap:
     """Reachability of the surface with the tool normal to it.
 
     Parameters
@@ -71,7 +71,8 @@ def reachability_map(surface, model: RobotModel, cell: Cell, *, max_vertices: in
         At most this many vertices (a seeded random subset when the surface has more).
     n_headings : int
         Tool headings tried about the normal.
-    margins : Margins
+    margins : Margins, optional
+        Default :class:`Margins`.
     seed : int
         Seed of the vertex subset.
     """
@@ -80,6 +81,7 @@ def reachability_map(surface, model: RobotModel, cell: Cell, *, max_vertices: in
     idx = np.arange(len(verts))
     if len(idx) > max_vertices:
         idx = np.sort(np.random.default_rng(seed).choice(len(verts), max_vertices, replace=False))
+    margins = Margins() if margins is None else margins
     rot = _frames_along(normals[idx])
     m = len(idx)
     best_manip = np.zeros(m)

@@ -107,7 +107,7 @@ def read_rapid(path) -> dict:
 
 
 def _krl_frame(body: str) -> tuple[np.ndarray, dict]:
-    vals = dict((k, float(v)) for k, v in re.findall(r"([A-Z]\d?)\s+(" + _NUM + ")", body))
+    vals = {k: float(v) for k, v in re.findall(r"([A-Z]\d?)\s+(" + _NUM + ")", body)}
     rot = zyx_to_matrix(*np.radians([vals["A"], vals["B"], vals["C"]]))
     return make_transform(rot, np.array([vals["X"], vals["Y"], vals["Z"]]) * 1e-3), vals
 

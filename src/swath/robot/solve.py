@@ -133,7 +133,7 @@ def segments(trajectory) -> list[tuple[int, int, bool]]:
     return out
 
 
-def branch_table(base2flange, model: RobotModel, margins: Margins = Margins(), *, seed=None, same_pass=None):
+def branch_table(base2flange, model: RobotModel, margins: Margins | None = None, *, seed=None, same_pass=None):
     """Every branch's unwrapped joint values and feasibility along a pose sequence.
 
     Parameters
@@ -157,6 +157,7 @@ def branch_table(base2flange, model: RobotModel, margins: Margins = Margins(), *
     reason : (n, B) int
         0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump.
     """
+    margins = Margins() if margins is None else margins
     raw = model.ik(base2flange, seed=seed)
     n, nb, _ = raw.shape
     lo, hi = model.lower + margins.joint_limit, model.upper - margins.joint_limit
@@ -173,6 +174,12 @@ def branch_table(base2flange, model: RobotModel, margins: Margins = Margins(), *
         if model.kind != "numeric":
             # the 2π-equivalent nearest the reference, then pulled inside the limits if a turn does it
             cand = cur + two_pi * np.round((ref - cur) / two_pi)
+            # a half-turn (e.g. the tool turning round on a link) can go either way: take the way
+            # toward the middle of the range, so repeated turns do not wind a joint onto its limit
+            alt = cand - two_pi * np.sign(cand - mid)
+            near_half = np.abs(alt - ref) < np.abs(cand - ref) + 0.6
+            better = near_half & (np.abs(alt - mid) < np.abs(cand - mid)) & (alt >= lo) & (alt <= hi)
+            cand = np.where(better, alt, cand)
             cand = np.where(cand > hi, cand - two_pi, cand)
             cand = np.where(cand < lo, cand + two_pi, cand)
         else:
@@ -248,7 +255,7 @@ def choose_branches(feasible: np.ndarray, segs) -> np.ndarray:
     return branch
 
 
-def solve_trajectory(trajectory, model: RobotModel, cell: Cell = Cell(), *, margins: Margins = Margins(),
+def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *, margins: Margins | None = None,
                      strict: bool = False, seed=None) -> JointSolution:
     """Joint values along ``trajectory`` on one continuous configuration branch.
 
@@ -257,10 +264,10 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell = Cell(), *, marg
     trajectory : Trajectory
         TCP poses in the part frame (m).
     model : RobotModel
-    cell : Cell
-        Part placement and tool.
-    margins : Margins
-        Singularity and limit margins.
+    cell : Cell, optional
+        Part placement and tool (default: part at the base origin, TCP on the flange).
+    margins : Margins, optional
+        Singularity and limit margins (default :class:`Margins`).
     strict : bool
         Raise :class:`UnreachableError` on any unreachable sample instead of reporting it.
     seed : (6,) float, optional
@@ -275,6 +282,8 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell = Cell(), *, marg
     UnreachableError
         With ``strict`` and an unreachable stretch (the message names the first stretches).
     """
+    cell = Cell() if cell is None else cell
+    margins = Margins() if margins is None else margins
     segs = segments(trajectory)
     flange = cell.base2flange(poses_from_trajectory(trajectory))
     n = len(trajectory)

@@ -71,7 +71,7 @@ def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell
 
 def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell | None = None,
                     programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
-                    margins: Margins = Margins(), strict: bool = False, force: float = 20.0) -> RobotResult:
+                    margins: Margins | None = None, strict: bool = False, force: float = 20.0) -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -100,6 +100,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     -------
     RobotResult
     """
+    margins = Margins() if margins is None else margins
     model = get_robot(robot) if isinstance(robot, str) else robot
     cell = Cell() if cell is None else cell
     if not len(trajectory):
