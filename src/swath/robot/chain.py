@@ -12,9 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .pose import make_transform, rot_x, rot_y, rot_z
+from .pose import make_transform, rot_x
 
-_AXIS_ROT = {"x": rot_x, "y": rot_y, "z": rot_z}
 _AXIS_VEC = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}
 
 
@@ -63,10 +62,9 @@ class Chain:
         theta = self.chain_angles(q)
         n = len(q)
         out = np.empty((n, self.n_joints + 1, 4, 4))
-        current = np.broadcast_to(self.fixed[0], (n, 4, 4)).copy()
+        current = np.broadcast_to(self.fixed[0], (n, 4, 4))
         for i, axis in enumerate(self.axes):
-            rot = make_transform(_AXIS_ROT[axis](theta[:, i]))
-            current = current @ rot
+            current = current @ _joint_rotation(axis, theta[:, i])
             out[:, i] = current
             current = current @ self.fixed[i + 1]
         out[:, -1] = current
@@ -90,6 +88,24 @@ class Chain:
             jac[:, :3, i] = np.cross(w, p_end - frames[:, i, :3, 3])
             jac[:, 3:, i] = w
         return jac
+
+
+_AXIS_PLANE = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}
+
+
+def _joint_rotation(axis: str, angle) -> np.ndarray:
+    """(n, 4, 4) homogeneous rotations about the local ``axis`` by ``angle`` (n,) rad."""
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros((len(c), 4, 4))
+    a, b = _AXIS_PLANE[axis]
+    k = 3 - a - b
+    out[:, k, k] = 1.0
+    out[:, 3, 3] = 1.0
+    out[:, a, a] = c
+    out[:, b, b] = c
+    out[:, a, b] = -s
+    out[:, b, a] = s
+    return out
 
 
 def dh_chain(d, a, alpha, *, sign=None, offset=None) -> Chain:

@@ -266,8 +266,9 @@ def dh_robot(name: str, d, a, alpha, *, lower, upper, max_speed, max_accel, reac
     Notes
     -----
     No well-kept kinematics library (pinocchio, roboticstoolbox) is installed in this environment;
-    the IK is ``scipy.optimize.least_squares`` on the pose error with the geometric Jacobian,
-    seeded from the previous pose, so it follows one branch but cannot enumerate branches.
+    the IK is a damped Newton iteration on the pose error with the geometric Jacobian (with
+    ``scipy.optimize.least_squares`` as a bounded fallback), seeded from the previous pose, so it
+    follows one branch but cannot enumerate branches.
     """
     arrs = [np.asarray(v, dtype=float) for v in (d, a, alpha, lower, upper, max_speed, max_accel)]
     if any(v.shape != (6,) for v in arrs):
@@ -279,18 +280,39 @@ def dh_robot(name: str, d, a, alpha, *, lower, upper, max_speed, max_accel, reac
                       kind="numeric", dh=(tuple(d), tuple(a), tuple(alpha)), source="user DH parameters")
 
 
-def _numeric_ik(model: RobotModel, t: np.ndarray, seed) -> np.ndarray:
-    from scipy.optimize import least_squares
+def _pose_residual(model: RobotModel, q, target) -> np.ndarray:
+    """(6,) target minus current: position (m, divided by the reach) and rotation vector (rad), base frame."""
+    cur = model.chain.fk(q[None])[0]
+    rel = cur[:3, :3].T @ target[:3, :3]
+    ang_axis = np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / 2
+    s = np.linalg.norm(ang_axis)
+    angle = math.atan2(s, (np.trace(rel) - 1) / 2)
+    rot = cur[:3, :3] @ (ang_axis * (angle / s) if s > 1e-15 else ang_axis)
+    return np.concatenate([(target[:3, 3] - cur[:3, 3]) / model.reach, rot])
 
+
+def _newton(model: RobotModel, q, target, *, iterations: int = 30):
+    """Newton steps on the pose residual (damped far from the answer); returns (q, converged)."""
+    for _ in range(iterations):
+        r = _pose_residual(model, q, target)
+        err = np.max(np.abs(r))
+        if err < 1e-14:
+            return q, True
+        j = model.chain.jacobian(q[None])[0].copy()
+        j[:3] /= model.reach
+        if err < 1e-4:
+            step = np.linalg.lstsq(j, r, rcond=None)[0]
+        else:
+            step = np.linalg.solve(j.T @ j + 1e-4 * np.eye(6), j.T @ r)
+        q = np.clip(q + step, model.lower, model.upper)
+    return q, np.max(np.abs(_pose_residual(model, q, target))) < 1e-11
+
+
+def _numeric_ik(model: RobotModel, t: np.ndarray, seed) -> np.ndarray:
+    """Seeded IK along a pose sequence: damped Newton, then scipy least squares (bounded) as fallback."""
     q = np.clip(np.zeros(6) if seed is None else np.asarray(seed, dtype=float), model.lower, model.upper)
     out = np.full((len(t), 1, 6), np.nan)
     lo, hi = model.lower, model.upper
-
-    def residual(x, target):
-        cur = model.chain.fk(x[None])[0]
-        rel = cur[:3, :3].T @ target[:3, :3]
-        rot = cur[:3, :3] @ np.array([rel[2, 1] - rel[1, 2], rel[0, 2] - rel[2, 0], rel[1, 0] - rel[0, 1]]) / 2
-        return np.concatenate([(target[:3, 3] - cur[:3, 3]) / model.reach, rot])
 
     def jac(x, target):
         j = model.chain.jacobian(x[None])[0].copy()
@@ -298,15 +320,20 @@ def _numeric_ik(model: RobotModel, t: np.ndarray, seed) -> np.ndarray:
         return -j
 
     for i, target in enumerate(t):
-        best = None
-        for start in (q, np.clip(q + 0.3, lo, hi), np.clip(q - 0.3, lo, hi)):
-            sol = least_squares(residual, start, jac=jac, args=(target,), bounds=(lo, hi), xtol=1e-15, ftol=1e-15,
-                                gtol=1e-15, max_nfev=200, method="trf")
-            dp, da = pose_error(model.chain.fk(sol.x[None])[0], target)
-            if dp < 1e-10 and da < 1e-10:
-                best = sol.x
-                break
-        if best is not None:
+        best, ok = _newton(model, q.copy(), target)
+        if not ok:
+            from scipy.optimize import least_squares
+
+            for start in (q, np.clip(q + 0.3, lo, hi), np.clip(q - 0.3, lo, hi)):
+                sol = least_squares(lambda x, tg: _pose_residual(model, x, tg), start, jac=jac, args=(target,),
+                                    bounds=(lo, hi), xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200, method="trf")
+                best, ok = _newton(model, sol.x, target, iterations=5)
+                if ok:
+                    break
+        if ok:
+            dp, da = pose_error(model.chain.fk(best[None])[0], target)
+            ok = dp < 1e-10 and da < 1e-10
+        if ok:
             out[i, 0] = best
             q = best
     return out

@@ -43,6 +43,8 @@ class RobotResult:
     trajectory : Trajectory
         The re-timed trajectory (same samples, new times).
     placement : Placement or None
+    reach_map : ReachMap or None
+        Reachability over the part's vertices (when a surface was given).
     files : list of Path
     metrics : dict
         Units in the keys: ``ik_time_s``, ``reachable_fraction``, ``n_unreachable_stretches``,
@@ -56,6 +58,7 @@ class RobotResult:
     solution: JointSolution
     trajectory: object
     placement: Placement | None = None
+    reach_map: object = None
     files: list = field(default_factory=list)
     metrics: dict = field(default_factory=dict)
 
@@ -71,7 +74,8 @@ def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell
 
 def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell | None = None,
                     programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
-                    margins: Margins | None = None, strict: bool = False, force: float = 20.0) -> RobotResult:
+                    margins: Margins | None = None, strict: bool = False, force: float = 20.0,
+                    surface=None, reach_vertices: int = 1500) -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -95,6 +99,11 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         Raise :class:`swath.errors.UnreachableError` on any unreachable pose.
     force : float
         Contact force for URScript ``force_mode``, N.
+    surface : Surface, optional
+        The part; when given, a reachability map over its vertices is added (tool normal to the
+        surface; :func:`swath.robot.reachability_map`).
+    reach_vertices : int
+        At most this many vertices in the reachability map.
 
     Returns
     -------
@@ -135,13 +144,19 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     }
     if placement is not None:
         metrics.update(placement.as_record())
+    reach_map = None
+    if surface is not None:
+        from .reach import reachability_map
+
+        reach_map = reachability_map(surface, model, cell, max_vertices=reach_vertices, margins=margins)
+        metrics["surface_reachable_fraction"] = reach_map.reachable_fraction
     files = []
     if out_dir is not None and programs:
         if not len(idx):
             raise InputError(f"no pose of the trajectory is reachable for {model.name}; no program written")
         files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
     return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
-                       files=files, metrics=metrics)
+                       reach_map=reach_map, files=files, metrics=metrics)
 
 
 def robot_options_from_mapping(values: dict) -> dict:
