@@ -86,7 +86,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     n_sample : int
         Contact samples scored per grid cell.
     n_refine : int
-        Best grid cells solved on the whole trajectory.
+        Best grid cells solved on the whole trajectory (after a local refinement of the best
+        cell: half grid steps in x and y, 22.5° in yaw).
 
     Returns
     -------
@@ -103,21 +104,29 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         pick = np.arange(len(trajectory))
     pick = pick[np.linspace(0, len(pick) - 1, min(n_sample, len(pick))).astype(int)]
     sample = part2tcp[pick]
-    scored = []
     reach = model.reach
-    for yaw in yaws:
+    inv_tool = np.linalg.inv(cell.flange2tcp)
+    no_pass = np.zeros(len(sample), bool)
+
+    def score(x, y, yaw):
         # place the part centre (not its origin) on the grid point
         c_rot = rot_z(yaw) @ centre
-        for x in np.linspace(0.25, 0.95, n_xy) * reach:
-            for y in np.linspace(-0.6, 0.6, n_xy) * reach:
-                base2part = _placement(x - c_rot[0], y - c_rot[1], z_origin, yaw)
-                flange = base2part @ sample @ np.linalg.inv(cell.flange2tcp)
-                q, feas, _ = branch_table(flange, model, margins, same_pass=np.zeros(len(flange), bool))
-                frac = feas.any(axis=1).mean()
-                best = feas.sum(axis=0).argmax()
-                ok = feas[:, best]
-                manip = model.singularity_measures(q[ok, best])["manipulability"].mean() if ok.any() else 0.0
-                scored.append((ok.mean(), frac, manip, base2part, (x, y, yaw)))
+        base2part = _placement(x - c_rot[0], y - c_rot[1], z_origin, yaw)
+        q, feas, _ = branch_table(base2part @ sample @ inv_tool, model, margins, same_pass=no_pass)
+        best = feas.sum(axis=0).argmax()
+        ok = feas[:, best]
+        manip = model.singularity_measures(q[ok, best])["manipulability"].mean() if ok.any() else 0.0
+        return (ok.mean(), feas.any(axis=1).mean(), manip, base2part, (x, y, yaw))
+
+    xs = np.linspace(0.25, 0.95, n_xy) * reach
+    ys = np.linspace(-0.6, 0.6, n_xy) * reach
+    scored = [score(x, y, yaw) for yaw in yaws for x in xs for y in ys]
+    # local refinement around the best grid cell: half steps in x, y and 22.5° in yaw
+    scored.sort(key=lambda s: (s[0], s[1], s[2]), reverse=True)
+    x0, y0, yaw0 = scored[0][4]
+    dx, dy = 0.5 * (xs[1] - xs[0]), 0.5 * (ys[1] - ys[0])
+    scored += [score(x0 + i * dx, y0 + j * dy, yaw0 + k * math.pi / 8)
+               for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)]
     scored.sort(key=lambda s: (s[0], s[1], s[2]), reverse=True)
     best = None
     for frac_branch, frac, manip, base2part, _ in scored[:n_refine]:
