@@ -1,0 +1,169 @@
+"""Readers for the programs :mod:`swath.robot.programs` writes (own parsers; used by the round-trip tests).
+
+Each returns plain arrays in SI units (m, rad, s) and the frames the program states, so a test can
+compare them with the trajectory and joint solution they were written from.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .pose import make_transform, quat_to_matrix, zyx_to_matrix
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def _rotvec_to_matrix(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    ang = np.linalg.norm(v, axis=-1, keepdims=True)
+    axis = np.where(ang > 0, v / np.where(ang > 0, ang, 1), 0.0)
+    half = ang[..., 0] / 2
+    q = np.concatenate([np.cos(half)[..., None], axis * np.sin(half)[..., None]], axis=-1)
+    return quat_to_matrix(q)
+
+
+def _nums(text: str) -> list[float]:
+    return [float(x) for x in re.findall(_NUM, text)]
+
+
+def read_urscript(path) -> dict:
+    """Parse a URScript written by swath.
+
+    Returns
+    -------
+    dict
+        ``tcp`` (4, 4) flange2tcp; ``base2tcp`` (m, 4, 4) movel targets (m); ``blend`` (m,) m;
+        ``speed`` (m,) m/s; ``in_force`` (m,) bool (target inside force_mode); ``movej`` list of (6,)
+        joint values (rad); ``force`` list of wrench z values (N).
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    tcp = None
+    poses, blend, speed, in_force, movej, forces = [], [], [], [], [], []
+    force = False
+    for line in text.splitlines():
+        s = line.strip()
+        if s.startswith("set_tcp("):
+            v = _nums(s[s.index("p[") + 2: s.index("]")])
+            tcp = make_transform(_rotvec_to_matrix(v[3:]), v[:3])
+        elif s.startswith("movej(["):
+            movej.append(np.array(_nums(s[7: s.index("]")])))
+        elif s.startswith("force_mode("):
+            force = True
+            forces.append(_nums(s.split("[")[2])[2])
+        elif s.startswith("end_force_mode"):
+            force = False
+        elif s.startswith("movel(p["):
+            v = _nums(s[8: s.index("]")])
+            opts = dict(re.findall(r"(\w)=(" + _NUM + ")", s[s.index("]"):]))
+            poses.append(make_transform(_rotvec_to_matrix(v[3:6]), v[:3]))
+            blend.append(float(opts["r"]))
+            speed.append(float(opts["v"]))
+            in_force.append(force)
+    if tcp is None:
+        raise InputError(f"{path}: no set_tcp line; not a swath URScript")
+    return {"tcp": tcp, "base2tcp": np.array(poses), "blend": np.array(blend), "speed": np.array(speed),
+            "in_force": np.array(in_force), "movej": movej, "force": forces}
+
+
+def _rapid_frame(text: str) -> np.ndarray:
+    v = _nums(text)
+    return make_transform(quat_to_matrix(v[3:7]), np.array(v[:3]) * 1e-3)
+
+
+def read_rapid(path) -> dict:
+    """Parse a RAPID module written by swath.
+
+    Returns
+    -------
+    dict
+        ``tool`` (4, 4) flange2tcp, ``wobj`` (4, 4) base2part (m); ``targets`` (m, 4, 4) part2tcp in
+        move order (m); ``conf`` (m, 4) int; ``speed`` (m,) TCP speed, m/s (MoveJ: nan); ``zone`` list.
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    tool = re.search(r"tooldata\s+\w+\s*:=\s*\[TRUE,(\[\[.*?\]\])", text)
+    wobj = re.search(r"wobjdata\s+\w+\s*:=\s*\[FALSE,TRUE,\"[^\"]*\",(\[\[.*?\]\])", text)
+    if tool is None or wobj is None:
+        raise InputError(f"{path}: no tooldata/wobjdata; not a swath RAPID module")
+    robt = {}
+    for name, body in re.findall(r"CONST robtarget (\w+) := \[(.*?)\];", text):
+        groups = re.findall(r"\[([^\[\]]*)\]", body)
+        pos, quat, conf = _nums(groups[0]), _nums(groups[1]), _nums(groups[2])
+        robt[name] = (make_transform(quat_to_matrix(quat), np.array(pos) * 1e-3), np.array(conf, dtype=int))
+    speeds = {n: _nums(b)[0] * 1e-3 for n, b in re.findall(r"CONST speeddata (\w+) := \[(.*?)\];", text)}
+    targets, conf, speed, zone = [], [], [], []
+    for kind, name, sp, zn in re.findall(r"Move([LJ]) (\w+), (\w+), (\w+),", text):
+        t, c = robt[name]
+        targets.append(t)
+        conf.append(c)
+        speed.append(speeds.get(sp, math.nan) if kind == "L" else math.nan)
+        zone.append(zn)
+    return {"tool": _rapid_frame(tool.group(1)), "wobj": _rapid_frame(wobj.group(1)), "targets": np.array(targets),
+            "conf": np.array(conf), "speed": np.array(speed), "zone": zone}
+
+
+def _krl_frame(body: str) -> tuple[np.ndarray, dict]:
+    vals = {k: float(v) for k, v in re.findall(r"([A-Z]\d?)\s+(" + _NUM + ")", body)}
+    rot = zyx_to_matrix(*np.radians([vals["A"], vals["B"], vals["C"]]))
+    return make_transform(rot, np.array([vals["X"], vals["Y"], vals["Z"]]) * 1e-3), vals
+
+
+def read_krl(src_path, dat_path) -> dict:
+    """Parse a KRL .src/.dat pair written by swath.
+
+    Returns
+    -------
+    dict
+        ``base`` (4, 4) base2part, ``tool`` (4, 4) KUKA flange2tcp (m); ``targets`` (m, 4, 4) TCP poses in
+        $BASE in move order; ``status``, ``turn`` (m,) int; ``speed`` (m,) $VEL.CP in force (m/s);
+        ``approx`` (m,) bool (C_DIS).
+    """
+    dat = Path(dat_path).read_text(encoding="utf-8")
+    src = Path(src_path).read_text(encoding="utf-8")
+    frames = dict(re.findall(r"DECL FRAME (\w+)=\{(.*?)\}", dat))
+    points = dict(re.findall(r"DECL E6POS (\w+)=\{(.*?)\}", dat))
+    if "BASE_SWATH" not in frames or "TOOL_SWATH" not in frames:
+        raise InputError(f"{dat_path}: no BASE_SWATH/TOOL_SWATH frames; not a swath KRL program")
+    targets, status, turn, speed, approx = [], [], [], [], []
+    v = math.nan
+    for line in src.splitlines():
+        s = line.strip()
+        if s.startswith("$VEL.CP="):
+            v = float(s.split("=")[1])
+        m = re.match(r"(LIN|PTP) (\w+)( C_DIS)?", s)
+        if m:
+            t, vals = _krl_frame(points[m.group(2)])
+            targets.append(t)
+            status.append(int(vals["S"]))
+            turn.append(int(vals["T"]))
+            speed.append(v if m.group(1) == "LIN" else math.nan)
+            approx.append(bool(m.group(3)))
+    return {"base": _krl_frame(frames["BASE_SWATH"])[0], "tool": _krl_frame(frames["TOOL_SWATH"])[0],
+            "targets": np.array(targets), "status": np.array(status), "turn": np.array(turn),
+            "speed": np.array(speed), "approx": np.array(approx)}
+
+
+def read_ros_yaml(path) -> dict:
+    """Parse a JointTrajectory YAML: ``joint_names``, ``t`` (m,) s, ``q`` (m, 6) rad, ``qd`` (m, 6) rad/s."""
+    import yaml
+
+    msg = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    pts = msg["points"]
+    t = np.array([p["time_from_start"]["secs"] + p["time_from_start"]["nsecs"] * 1e-9 for p in pts])
+    return {"joint_names": msg["joint_names"], "t": t, "q": np.array([p["positions"] for p in pts]),
+            "qd": np.array([p["velocities"] for p in pts])}
+
+
+def read_joint_csv(path) -> dict:
+    """Parse ``joints.csv``: ``t`` (m,) s, ``q`` (m, 6) rad, ``contact``, ``pass_index``, ``branch`` (m,)."""
+    path = Path(path)
+    header = path.read_text(encoding="utf-8").splitlines()[0].split(",")
+    if header[:7] != ["t", "q1", "q2", "q3", "q4", "q5", "q6"]:
+        raise InputError(f"{path}: expected columns t,q1..q6 first, got {','.join(header[:7])}")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return {"t": data[:, 0], "q": data[:, 1:7], "contact": data[:, 7] > 0.5, "pass_index": data[:, 8].astype(int),
+            "branch": data[:, 9].astype(int)}

@@ -1,0 +1,341 @@
+"""Inverse kinematics along a whole trajectory on one continuous configuration branch.
+
+Steps (:func:`solve_trajectory`):
+
+1. every TCP pose goes to a flange pose in the base frame (:class:`Cell`), and the model returns
+   every branch's joint values (:meth:`RobotModel.ik`);
+2. per branch, joint values are unwrapped along time (the 2π-equivalent nearest the previous sample,
+   inside the joint limits) and a sample is *feasible* where it exists, lies inside the joint
+   limits, keeps the singularity margins and does not jump (> ``max_step``) from the previous one;
+3. the branch is chosen at the start as the one feasible for the longest stretch; it is kept through
+   every contact pass (no flips inside a pass); on an air link before a pass the current branch is
+   kept when it covers that pass, otherwise the branch that reaches furthest from the pass's start
+   is taken, switching on the link (reported in :attr:`JointSolution.switches`);
+4. samples no branch can serve are reported as :class:`UnreachableStretch` with their pass and
+   position, and their joint rows are NaN.
+
+The re-timing to joint speed and acceleration limits is in :mod:`swath.robot.retime`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import UnreachableError
+from .cell import Cell
+from .models import RobotModel
+from .pose import poses_from_trajectory
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Margins:
+    """How far from singularities and limits a feasible configuration must stay.
+
+    Attributes
+    ----------
+    wrist : float
+        Minimum |sin θ5| (default sin 5°).
+    elbow : float
+        Minimum |sin| of the elbow stretch angle (default sin 5°).
+    shoulder : float
+        Minimum distance of the wrist centre from the axis-1 singular line, m (default 0.05).
+    joint_limit : float
+        Minimum distance from any joint position limit, rad (default 0).
+    max_step : float
+        Largest joint change between consecutive samples on one branch, rad (default 0.5);
+        a larger change is a discontinuity, not a motion.
+    """
+
+    wrist: float = math.sin(math.radians(5.0))
+    elbow: float = math.sin(math.radians(5.0))
+    shoulder: float = 0.05
+    joint_limit: float = 0.0
+    max_step: float = 0.5
+
+
+@dataclass(frozen=True)
+class UnreachableStretch:
+    """A run of consecutive samples no allowed branch reaches.
+
+    Attributes
+    ----------
+    start, stop : int
+        Sample indices ``[start, stop)``.
+    pass_index : int
+        Contact pass of the first sample (-1 on a link).
+    position : (3,) float
+        TCP position of the first sample in the part frame, m.
+    reason : str
+    """
+
+    start: int
+    stop: int
+    pass_index: int
+    position: tuple
+    reason: str
+
+    def describe(self) -> str:
+        where = f"pass {self.pass_index}" if self.pass_index >= 0 else "an air link"
+        x, y, z = (1e3 * v for v in self.position)
+        return (f"samples {self.start}..{self.stop - 1} on {where}, starting at ({x:.1f}, {y:.1f}, {z:.1f}) mm "
+                f"in the part frame: {self.reason}")
+
+
+@dataclass(frozen=True, eq=False)
+class JointSolution:
+    """Joint values along a trajectory.
+
+    Attributes
+    ----------
+    q : (n, 6) float
+        Joint values, rad; NaN on unreachable samples.
+    branch : (n,) int
+        Branch slot of each sample (-1 unreachable).
+    reachable : (n,) bool
+    switches : list of dict
+        Branch switches: ``sample``, ``from``, ``to`` (branch names), ``pass_after``.
+    stretches : list of UnreachableStretch
+    measures : dict of (n,) float
+        ``wrist``, ``elbow``, ``shoulder_m``, ``manipulability``, ``joint_limit_margin_rad`` of the
+        chosen configuration (NaN where unreachable).
+    branch_names : tuple of str
+    """
+
+    q: np.ndarray
+    branch: np.ndarray
+    reachable: np.ndarray
+    switches: list = field(default_factory=list)
+    stretches: list = field(default_factory=list)
+    measures: dict = field(default_factory=dict)
+    branch_names: tuple = ()
+
+    @property
+    def reachable_fraction(self) -> float:
+        return float(self.reachable.mean()) if len(self.reachable) else 1.0
+
+
+def segments(trajectory) -> list[tuple[int, int, bool]]:
+    """``(start, stop, is_pass)`` runs: contact passes (same pass index, in contact) and air links."""
+    n = len(trajectory)
+    key = np.where(trajectory.contact, trajectory.pass_index, -1)
+    out = []
+    start = 0
+    for i in range(1, n + 1):
+        if i == n or key[i] != key[start]:
+            out.append((start, i, bool(key[start] >= 0)))
+            start = i
+    return out
+
+
+def branch_table(base2flange, model: RobotModel, margins: Margins | None = None, *, seed=None, same_pass=None):
+    """Every branch's unwrapped joint values and feasibility along a pose sequence.
+
+    Parameters
+    ----------
+    base2flange : (n, 4, 4) float
+        Flange poses in the base frame, m.
+    model : RobotModel
+    margins : Margins
+    seed : (6,) float, optional
+        Start of a numerical model's solver, rad.
+    same_pass : (n,) bool, optional
+        True where sample i and i−1 belong to one contact pass; only there does a step larger than
+        ``margins.max_step`` count as a jump (on air links a large joint move is a real motion,
+        e.g. the tool turning round between passes).  Default: everywhere.
+
+    Returns
+    -------
+    q : (n, B, 6) float
+        Joint values per branch, rad (NaN where none).
+    feasible : (n, B) bool
+    reason : (n, B) int
+        0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump.
+    """
+    margins = Margins() if margins is None else margins
+    raw = model.ik(base2flange, seed=seed)
+    n, nb, _ = raw.shape
+    lo, hi = model.lower + margins.joint_limit, model.upper - margins.joint_limit
+    q = np.full_like(raw, np.nan)
+    reason = np.where(np.isfinite(raw[..., 0]), 0, 1)
+    two_pi = 2 * math.pi
+    mid = 0.5 * (lo + hi)
+    prev = np.full((nb, 6), np.nan)
+    jumps = np.zeros((n, nb), bool)
+    for i in range(n):
+        cur = raw[i]
+        ok = np.isfinite(cur[:, 0])
+        ref = np.where(np.isfinite(prev), prev, mid)
+        if model.kind != "numeric":
+            # the 2π-equivalent nearest the reference, then pulled inside the limits if a turn does it
+            cand = cur + two_pi * np.round((ref - cur) / two_pi)
+            # a half-turn (e.g. the tool turning round on a link) can go either way: take the way
+            # toward the middle of the range, so repeated turns do not wind a joint onto its limit
+            alt = cand - two_pi * np.sign(cand - mid)
+            near_half = np.abs(alt - ref) < np.abs(cand - ref) + 0.6
+            better = near_half & (np.abs(alt - mid) < np.abs(cand - mid)) & (alt >= lo) & (alt <= hi)
+            cand = np.where(better, alt, cand)
+            cand = np.where(cand > hi, cand - two_pi, cand)
+            cand = np.where(cand < lo, cand + two_pi, cand)
+        else:
+            cand = cur
+        inside = np.all((cand >= lo - 1e-12) & (cand <= hi + 1e-12), axis=1)
+        has_prev = np.isfinite(prev[:, 0])
+        step = np.max(np.abs(cand - np.where(has_prev[:, None], prev, cand)), axis=1)
+        jump = ok & inside & has_prev & (step > margins.max_step) & (same_pass is None or same_pass[i])
+        jumps[i] = jump
+        reason[i] = np.where(ok & ~inside, 2, reason[i])
+        q[i] = np.where(ok[:, None], cand, np.nan)
+        good = ok & inside
+        prev = np.where(good[:, None], cand, np.nan)
+    flat = q.reshape(-1, 6)
+    valid = np.isfinite(flat[:, 0])
+    sing_ok = np.zeros(len(flat), bool)
+    if valid.any():
+        m = model.singularity_measures(flat[valid])
+        sing_ok[valid] = (m["wrist"] >= margins.wrist) & (m["elbow"] >= margins.elbow) & (m["shoulder_m"] >= margins.shoulder)
+    sing_ok = sing_ok.reshape(n, nb)
+    reason = np.where((reason == 0) & ~sing_ok, 3, reason)
+    reason = np.where((reason == 0) & jumps, 4, reason)
+    return q, reason == 0, reason
+
+
+_REASONS = {1: "no inverse-kinematics solution (out of reach)", 2: "outside the joint limits",
+            3: "too close to a singularity", 4: "a joint would jump between samples"}
+
+
+def _run_lengths(feasible: np.ndarray) -> np.ndarray:
+    """(n, B) number of consecutive feasible samples starting at each sample."""
+    n = len(feasible)
+    run = np.zeros((n + 1,) + feasible.shape[1:], int)
+    for i in range(n - 1, -1, -1):
+        run[i] = np.where(feasible[i], run[i + 1] + 1, 0)
+    return run[:n]
+
+
+def choose_branches(feasible: np.ndarray, segs) -> np.ndarray:
+    """(n,) branch per sample: constant inside passes, switched only on links (-1 never)."""
+    n, nb = feasible.shape
+    run = _run_lengths(feasible)
+    branch = np.zeros(n, int)
+    current = int(np.argmax(run[0])) if n else 0
+    for k, (s, e, is_pass) in enumerate(segs):
+        if is_pass:
+            branch[s:e] = current
+            continue
+        # A link: decide the branch for the next pass (or the rest when no pass follows).
+        nxt = next(((s2, e2) for s2, e2, p2 in segs[k + 1:] if p2), None)
+        target_start, target_len = (nxt[0], nxt[1] - nxt[0]) if nxt else (e, 0)
+        if target_start >= n:
+            branch[s:e] = current
+            continue
+        if run[target_start, current] >= target_len and np.all(feasible[s:target_start, current]):
+            branch[s:e] = current
+            continue
+        cover = np.array([feasible[target_start:target_start + max(target_len, 1), b].sum() for b in range(nb)])
+        score = cover * (n + 1) + run[target_start]
+        new = int(np.argmax(score))
+        if score[current] >= score[new]:
+            new = current
+        if new == current:
+            branch[s:e] = current
+            continue
+        # switch at the latest point from which the new branch is feasible up to the pass start
+        j = e
+        while j > s and feasible[j - 1, new]:
+            j -= 1
+        branch[s:j] = current
+        branch[j:e] = new
+        current = new
+    return branch
+
+
+def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *, margins: Margins | None = None,
+                     strict: bool = False, seed=None) -> JointSolution:
+    """Joint values along ``trajectory`` on one continuous configuration branch.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        TCP poses in the part frame (m).
+    model : RobotModel
+    cell : Cell, optional
+        Part placement and tool (default: part at the base origin, TCP on the flange).
+    margins : Margins, optional
+        Singularity and limit margins (default :class:`Margins`).
+    strict : bool
+        Raise :class:`UnreachableError` on any unreachable sample instead of reporting it.
+    seed : (6,) float, optional
+        Start configuration of a numerical model, rad.
+
+    Returns
+    -------
+    JointSolution
+
+    Raises
+    ------
+    UnreachableError
+        With ``strict`` and an unreachable stretch (the message names the first stretches).
+    """
+    cell = Cell() if cell is None else cell
+    margins = Margins() if margins is None else margins
+    segs = segments(trajectory)
+    flange = cell.base2flange(poses_from_trajectory(trajectory))
+    n = len(trajectory)
+    same_pass = np.zeros(n, bool)
+    same_pass[1:] = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0)
+    q_all, feasible, reason = branch_table(flange, model, margins, seed=seed, same_pass=same_pass)
+    branch = choose_branches(feasible, segs)
+    rows = np.arange(n)
+    ok = feasible[rows, branch]
+    q = np.where(ok[:, None], q_all[rows, branch], np.nan)
+    names = model.branch_names
+    switches = []
+    for i in np.flatnonzero(np.diff(branch)) + 1:
+        after = trajectory.pass_index[i:][trajectory.contact[i:]]
+        switches.append({"sample": int(i), "from": names[branch[i - 1]], "to": names[branch[i]],
+                         "pass_after": int(after[0]) if len(after) else -1})
+    stretches = []
+    bad = ~ok
+    i = 0
+    while i < n:
+        if not bad[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and bad[j] and trajectory.pass_index[j] == trajectory.pass_index[i]:
+            j += 1
+        why = np.bincount(reason[i:j, branch[i]], minlength=5)[1:]
+        stretches.append(UnreachableStretch(start=i, stop=j, pass_index=int(trajectory.pass_index[i]),
+                                            position=tuple(float(v) for v in trajectory.position[i]),
+                                            reason=_REASONS[int(np.argmax(why)) + 1] + f" on branch {names[branch[i]]}"))
+        i = j
+    if stretches:
+        msg = (f"{int(bad.sum())} of {n} poses are unreachable for {model.name} in this cell; first: "
+               + "; ".join(s.describe() for s in stretches[:3])
+               + ". Move the part (--base, or --place auto) or choose a larger robot.")
+        if strict:
+            raise UnreachableError(msg)
+        log.warning(msg)
+    measures = {k: np.full(n, np.nan) for k in ("wrist", "elbow", "shoulder_m", "manipulability", "joint_limit_margin_rad")}
+    if ok.any():
+        m = model.singularity_measures(q[ok])
+        for k, v in m.items():
+            measures[k][ok] = v
+        measures["joint_limit_margin_rad"][ok] = model.joint_limit_margin(q[ok])
+    branch = np.where(ok, branch, -1)
+    return JointSolution(q=q, branch=branch, reachable=ok, switches=switches, stretches=stretches,
+                         measures=measures, branch_names=names)
+
+
+def flips_inside_passes(solution: JointSolution, trajectory) -> int:
+    """Number of branch changes between consecutive reachable samples of the same contact pass."""
+    b = solution.branch
+    same = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0)
+    both = (b[1:] >= 0) & (b[:-1] >= 0)
+    return int(np.sum(same & both & (b[1:] != b[:-1])))

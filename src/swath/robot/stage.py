@@ -1,0 +1,187 @@
+"""The robot stage's entry point: trajectory in, joints, re-timed trajectory, reachability and programs out.
+
+CLI flags / job keys the stage reads (the lead wires them; see :func:`robot_options_from_mapping`):
+
+``--robot ur10e`` (a name from :data:`swath.robot.ROBOTS`), ``--base "x,y,z,rx,ry,rz"`` (part placement
+in the robot base frame; mm/m and deg/rad suffixes, bare numbers m and deg), ``--tcp "x,y,z,rx,ry,rz"``
+(TCP in the flange frame), ``--program urscript,rapid,krl,ros,csv``, ``--place auto`` (search the
+placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fail on any unreachable pose).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .cell import Cell, parse_pose
+from .models import RobotModel, get_robot
+from .placement import Placement, search_placement
+from .pose import pose_error, poses_from_trajectory
+from .programs import ProgramInput, write_programs
+from .retime import joint_speed_ratio, retime_trajectory
+from .solve import JointSolution, Margins, flips_inside_passes, solve_trajectory
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class RobotResult:
+    """What :func:`run_robot_stage` returns.
+
+    Attributes
+    ----------
+    model : RobotModel
+    cell : Cell
+        The cell used (the placement found when searched).
+    solution : JointSolution
+        Joint values on the original trajectory's samples.
+    trajectory : Trajectory
+        The re-timed trajectory (same samples, new times).
+    placement : Placement or None
+    reach_map : ReachMap or None
+        Reachability over the part's vertices (when a surface was given).
+    files : list of Path
+    metrics : dict
+        Units in the keys: ``ik_time_s``, ``reachable_fraction``, ``n_unreachable_stretches``,
+        ``n_branch_switches``, ``configuration_flips_in_passes``, ``max_fk_position_error_m``,
+        ``max_fk_angle_error_rad``, ``max_joint_speed_ratio``, ``max_joint_accel_ratio``,
+        ``retime_added_s``, ``min_manipulability``, ``min_joint_limit_margin_rad`` …
+    """
+
+    model: RobotModel
+    cell: Cell
+    solution: JointSolution
+    trajectory: object
+    placement: Placement | None = None
+    reach_map: object = None
+    files: list = field(default_factory=list)
+    metrics: dict = field(default_factory=dict)
+
+
+def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell):
+    """Position (m) and angle (rad) errors of FK of every reachable joint row against its TCP pose."""
+    idx = np.flatnonzero(solution.reachable)
+    if not len(idx):
+        return np.zeros(0), np.zeros(0)
+    got = cell.part2tcp(model.fk(solution.q[idx]))
+    return pose_error(got, poses_from_trajectory(trajectory)[idx])
+
+
+def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell | None = None,
+                    programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
+                    margins: Margins | None = None, strict: bool = False, force: float = 20.0,
+                    surface=None, reach_vertices: int = 1500) -> RobotResult:
+    """Solve, re-time and write robot programs for a trajectory.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        TCP poses in the part frame, m.
+    robot : str or RobotModel
+        Catalogue name (``ur10e``, ``irb4600``, ``kr120`` …) or a model.
+    cell : Cell, optional
+        Part placement and tool (default: part at the base origin, TCP on the flange).
+    programs : sequence of str
+        Formats to write: ``urscript``, ``rapid``, ``krl``, ``ros``, ``csv``.
+    out_dir : path, optional
+        Where the programs go (nothing written when None).
+    place : bool
+        Search the part placement first (:func:`search_placement`; ``cell``'s tool is kept).
+    table_z : float
+        Height of the part's lowest point for the placement search, m.
+    margins : Margins
+    strict : bool
+        Raise :class:`swath.errors.UnreachableError` on any unreachable pose.
+    force : float
+        Contact force for URScript ``force_mode``, N.
+    surface : Surface, optional
+        The part; when given, a reachability map over its vertices is added (tool normal to the
+        surface; :func:`swath.robot.reachability_map`).
+    reach_vertices : int
+        At most this many vertices in the reachability map.
+
+    Returns
+    -------
+    RobotResult
+    """
+    margins = Margins() if margins is None else margins
+    model = get_robot(robot) if isinstance(robot, str) else robot
+    cell = Cell() if cell is None else cell
+    if not len(trajectory):
+        raise InputError("the robot stage needs a trajectory with at least one sample")
+    placement = None
+    t0 = time.perf_counter()
+    if place:
+        placement = search_placement(trajectory, model, cell, table_z=table_z, margins=margins)
+        cell = placement.cell
+    t_place = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict)
+    t_ik = time.perf_counter() - t0
+    retimed, rt = retime_trajectory(trajectory, solution, model)
+    dp, da = fk_errors(retimed, solution, model, cell)
+    idx = np.flatnonzero(solution.reachable)
+    speed_ratio = joint_speed_ratio(retimed.t[idx], solution.q[idx], model.max_speed) if len(idx) > 1 else np.zeros(1)
+    meas = solution.measures
+    metrics = {
+        "robot": model.name, "n_poses": len(trajectory), "ik_time_s": t_ik, "placement_time_s": t_place,
+        "reachable_fraction": solution.reachable_fraction, "n_unreachable_stretches": len(solution.stretches),
+        "n_branch_switches": len(solution.switches),
+        "configuration_flips_in_passes": flips_inside_passes(solution, trajectory),
+        "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
+        "max_joint_speed_ratio": float(np.max(speed_ratio, initial=0.0)), "max_joint_accel_ratio": rt.max_accel_ratio,
+        "retime_added_s": rt.added_time, "retime_stretched_steps": rt.stretched_steps,
+        "duration_s": retimed.duration,
+        "min_manipulability": float(np.nanmin(meas["manipulability"])) if len(idx) else float("nan"),
+        "min_joint_limit_margin_rad": float(np.nanmin(meas["joint_limit_margin_rad"])) if len(idx) else float("nan"),
+        "min_wrist_sin": float(np.nanmin(meas["wrist"])) if len(idx) else float("nan"),
+        **cell.as_record(),
+    }
+    if placement is not None:
+        metrics.update(placement.as_record())
+    reach_map = None
+    if surface is not None:
+        from .reach import reachability_map
+
+        reach_map = reachability_map(surface, model, cell, max_vertices=reach_vertices, margins=margins)
+        metrics["surface_reachable_fraction"] = reach_map.reachable_fraction
+    files = []
+    if out_dir is not None and programs:
+        if not len(idx):
+            raise InputError(f"no pose of the trajectory is reachable for {model.name}; no program written")
+        files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
+    return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
+                       reach_map=reach_map, files=files, metrics=metrics)
+
+
+def robot_options_from_mapping(values: dict) -> dict:
+    """Keyword arguments of :func:`run_robot_stage` from CLI/TOML text values.
+
+    Keys: ``robot``, ``base``, ``tcp``, ``program`` (comma list), ``place`` (``auto`` or absent),
+    ``table_z`` (length), ``robot_strict`` (bool).
+    """
+    from ..units import parse_quantity
+
+    known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict"}
+    unknown = set(values) - known
+    if unknown:
+        raise InputError(f"unknown robot setting(s) {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
+    place = str(values.get("place", "")).strip().lower()
+    if place not in ("", "auto", "none", "false"):
+        raise InputError(f"--place takes 'auto' (search the part placement), got {values['place']!r}")
+    programs = values.get("program", "csv")
+    programs = [p.strip() for p in programs.split(",")] if isinstance(programs, str) else list(programs)
+    base = values.get("base")
+    tcp = values.get("tcp")
+    table = values.get("table_z", values.get("table-z"))
+    return {"robot": values.get("robot", "ur10e"),
+            "cell": Cell(base2part=np.eye(4) if base is None else parse_pose(base),
+                         flange2tcp=np.eye(4) if tcp is None else parse_pose(tcp)),
+            "programs": programs, "place": place == "auto",
+            "table_z": 0.0 if table is None else parse_quantity(table, "length"),
+            "strict": bool(values.get("robot_strict", values.get("robot-strict", False)))}

@@ -1,0 +1,139 @@
+"""IK along a trajectory: one branch, switches only on links, unreachable reports, re-timing, placement."""
+
+import math
+
+import numpy as np
+import pytest
+
+from swath.errors import InputError, UnreachableError
+from swath.robot import (
+    Cell,
+    Margins,
+    flips_inside_passes,
+    get_robot,
+    parse_pose,
+    run_robot_stage,
+    solve_trajectory,
+)
+from swath.robot.retime import joint_accel_ratio, joint_speed_ratio, retime_joints
+from swath.robot.solve import choose_branches
+
+
+@pytest.fixture(scope="module")
+def plate_trajectory():
+    from swath.job import JobSettings, load_part_info, make_plan
+    from swath.trajectory import time_path
+
+    settings = JobSettings(part="example:plate", out="unused", spacing=0.1, point_spacing=4e-3)
+    surface, _ = load_part_info(settings)
+    toolpath = make_plan(surface, settings)
+    return time_path(toolpath, settings.constraints(), links=settings.links())
+
+
+def test_parse_pose_units_and_defaults():
+    t = parse_pose("800mm, 0.1, 20mm, 0, 0, 90deg")
+    np.testing.assert_allclose(t[:3, 3], [0.8, 0.1, 0.02])
+    np.testing.assert_allclose(t[:3, :3] @ [1, 0, 0], [0, 1, 0], atol=1e-15)
+    np.testing.assert_allclose(parse_pose("0,0,0,0,0,90")[:3, :3], t[:3, :3])       # bare angles are degrees
+    np.testing.assert_allclose(parse_pose("0,0,0,0,0,1.5707963267948966rad")[:3, :3], t[:3, :3], atol=1e-15)
+    with pytest.raises(InputError, match="six values"):
+        parse_pose("1,2,3")
+    with pytest.raises(InputError, match="unit"):
+        parse_pose("1furlong,0,0,0,0,0")
+
+
+@pytest.mark.parametrize("robot,base", [("ur10e", "0.55,-0.15,0,0,0,0"), ("irb4600", "1.1,-0.15,0.3,0,0,0"),
+                                        ("kr120", "1.5,-0.15,0.4,0,0,0")])
+def test_whole_trajectory_on_one_branch_within_limits(plate_trajectory, robot, base):
+    tr = plate_trajectory
+    model = get_robot(robot)
+    result = run_robot_stage(tr, robot=model, cell=Cell.from_text(base, "0,0,120mm,0,0,0"), programs=[])
+    sol = result.solution
+    assert sol.reachable.all()
+    assert flips_inside_passes(sol, tr) == 0
+    assert len(np.unique(sol.branch)) == 1
+    assert result.metrics["max_fk_position_error_m"] < 1e-9
+    assert result.metrics["max_fk_angle_error_rad"] < 1e-9
+    q = sol.q
+    assert np.all(q >= model.lower) and np.all(q <= model.upper)
+    t = result.trajectory.t
+    assert joint_speed_ratio(t, q, model.max_speed).max() <= 1.0
+    assert joint_accel_ratio(t, q, model.max_accel).max() <= 1.0
+    assert result.trajectory.duration >= tr.duration
+    # within a pass no joint jumps more than the margin allows
+    same = (tr.pass_index[1:] == tr.pass_index[:-1]) & (tr.pass_index[1:] >= 0)
+    assert np.abs(np.diff(q, axis=0))[same].max() < Margins().max_step
+
+
+def test_unreachable_stretch_is_reported_with_pass_and_position(plate_trajectory):
+    tr = plate_trajectory
+    far = Cell.from_text("1.2,-0.15,0,0,0,0")          # plate from x = 1.2 m to 1.6 m: beyond a UR10e's 1.3 m
+    sol = solve_trajectory(tr, get_robot("ur10e"), far)
+    assert 0 < sol.reachable_fraction < 1
+    s = sol.stretches[0]
+    assert s.pass_index == tr.pass_index[s.start]
+    np.testing.assert_allclose(s.position, tr.position[s.start])
+    assert np.all(np.isnan(sol.q[s.start:s.stop]))
+    assert "out of reach" in " ".join(x.reason for x in sol.stretches)
+    with pytest.raises(UnreachableError, match="pass|link"):
+        solve_trajectory(tr, get_robot("ur10e"), far, strict=True)
+
+
+def test_branch_switches_only_on_links():
+    # 3 branches; pass A (samples 2..5) only on branch 0, pass B (8..11) only on branch 2
+    feasible = np.zeros((12, 3), bool)
+    feasible[0:7, 0] = True
+    feasible[6:12, 2] = True
+    segs = [(0, 2, False), (2, 6, True), (6, 8, False), (8, 12, True)]
+    branch = choose_branches(feasible, segs)
+    np.testing.assert_array_equal(branch, [0, 0, 0, 0, 0, 0, 2, 2, 2, 2, 2, 2])
+
+
+def test_retime_stretches_only_where_a_joint_is_too_fast():
+    t = np.linspace(0, 1, 11)
+    q = np.zeros((11, 6))
+    q[:, 0] = np.linspace(0, 1.0, 11)              # 1 rad/s on joint 1
+    q[6:, 0] = q[5, 0] + np.linspace(0.3, 1.5, 5)  # then 3 rad/s
+    rt = retime_joints(t, q, np.full(6, 2.0), np.full(6, 1e6))
+    assert joint_speed_ratio(rt.t, q, np.full(6, 2.0)).max() <= 1.0
+    np.testing.assert_allclose(np.diff(rt.t)[:5], 0.1)       # slow part untouched
+    np.testing.assert_allclose(np.diff(rt.t)[6:], 0.3 / 2.0 / 0.999)
+
+
+def test_placement_search_finds_a_reachable_placement(plate_trajectory):
+    from swath.robot import search_placement
+
+    model = get_robot("ur10e")
+    best = search_placement(plate_trajectory, model, Cell(flange2tcp=parse_pose("0,0,100mm,0,0,0")), n_xy=4,
+                            yaws=(0.0, math.pi / 2), n_sample=40, n_refine=2)
+    assert best.reachable_fraction == 1.0
+    assert best.z == pytest.approx(-plate_trajectory.position[:, 2].min())
+    assert np.hypot(best.x, best.y) < model.reach
+
+
+def test_singularity_margin_rejects_a_straight_wrist():
+    from swath.robot.solve import branch_table
+
+    model = get_robot("irb4600")
+    q = np.radians([[10, 20, -10, 30, 2.0, 40], [10, 20, -10, 30, 30.0, 40]])   # wrist at 2° and 30°
+    qs, feasible, reason = branch_table(model.fk(q), model, same_pass=np.zeros(2, bool))
+    slot = np.argmin(np.abs(qs[0] - q[0]).max(axis=1))
+    assert not feasible[0, slot] and reason[0, slot] == 3
+    assert feasible[1, slot]
+    m = model.singularity_measures(q)
+    np.testing.assert_allclose(m["wrist"], np.abs(np.sin(np.radians([2.0, 30.0]))))
+
+
+def test_robot_options_from_cli_text():
+    from swath.robot import robot_options_from_mapping
+
+    opts = robot_options_from_mapping({"robot": "irb4600", "base": "1200mm,0,300mm,0,0,90deg", "tcp": "0,0,0.15,0,0,0",
+                                       "program": "rapid, csv", "place": "auto", "table-z": "700mm"})
+    assert opts["robot"] == "irb4600" and opts["programs"] == ["rapid", "csv"] and opts["place"] is True
+    assert opts["table_z"] == pytest.approx(0.7)
+    np.testing.assert_allclose(opts["cell"].base2part[:3, 3], [1.2, 0, 0.3])
+    np.testing.assert_allclose(opts["cell"].flange2tcp[:3, 3], [0, 0, 0.15])
+    with pytest.raises(InputError, match="unknown robot setting"):
+        robot_options_from_mapping({"robto": "ur5e"})
+    with pytest.raises(InputError, match="auto"):
+        robot_options_from_mapping({"place": "yes"})
