@@ -163,7 +163,7 @@ def child_simulated(spec: dict) -> list[dict]:
 
 def child_scan(spec: dict) -> dict:
     """In a child process: ``swath fit`` (``run_fit``) on a real scan, as the command line runs it."""
-    from swath.fitjob import FitSettings, run_fit
+    from swath.cli.fitjob import FitSettings, run_fit
 
     calls = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -56,7 +56,7 @@ def ik_speed_rows(n: int = 1000) -> list[dict]:
 
 
 def job_trajectory(part: str, units: str, point_spacing: float):
-    from swath.job import JobSettings, load_part_info, make_plan
+    from swath.cli.job import JobSettings, load_part_info, make_plan
     from swath.trajectory import time_path
 
     s = JobSettings(part=part, out="unused", units=units, planner="raster", point_spacing=point_spacing)

@@ -58,7 +58,7 @@ def load(name: str):
 
 def one_part(name: str) -> dict:
     """Run the stages on one part in this process; the figures as a dict."""
-    from swath.job import make_plan, settings_from_mapping
+    from swath.cli.job import make_plan, settings_from_mapping
     from swath.report import write_report
     from swath.simulate import simulate_removal
     from swath.trajectory import time_path

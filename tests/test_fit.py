@@ -351,7 +351,7 @@ def test_rows_fit_with_a_fixed_smoothing_length():
 def _rect_footprint(patch, cell):
     """A footprint as scan_footprint lays it out: the domain ends on cell edges, one cell of
     margin, every cell over the domain occupied."""
-    from swath.fitjob import Footprint
+    from swath.cli.fitjob import Footprint
 
     lo = patch.domain[:, 0]
     n = np.ceil((patch.domain[:, 1] - lo) / cell).astype(int) + 2
@@ -359,7 +359,7 @@ def _rect_footprint(patch, cell):
 
 
 def test_footprint_cells_are_closed_on_their_edges():
-    from swath.fitjob import Footprint
+    from swath.cli.fitjob import Footprint
 
     mask = np.zeros((3, 3), dtype=bool)
     mask[1, 1] = True
@@ -373,7 +373,7 @@ def test_footprint_cells_are_closed_on_their_edges():
 def test_trimmed_triangulation_changes_only_locally_when_an_edge_cell_comes_or_goes():
     # The same scan read in m and in mm fits to patches a few nm apart, whose footprints can differ
     # by a cell at the rim; the trimmed surface (and so the plan) must not change by a whole row.
-    from swath.fitjob import Footprint, patch_surface
+    from swath.cli.fitjob import Footprint, patch_surface
 
     patch = panel_patch(size_x=0.2, size_y=0.15)
     fp, n = _rect_footprint(patch, 2.2e-3)
@@ -450,7 +450,7 @@ def test_fit_reports_progress_at_every_stage(small_scan, how):
 
 
 def test_swath_fit_writes_its_warnings_and_reports_every_stage(small_scan, tmp_path):
-    from swath.fitjob import FitSettings, run_fit
+    from swath.cli.fitjob import FitSettings, run_fit
 
     np.savetxt(tmp_path / "scan.xyz", small_scan.points)
     calls = []

@@ -26,7 +26,7 @@ from swath.robot.readers import (
 
 @pytest.fixture(scope="module")
 def plate_trajectory():
-    from swath.job import JobSettings, load_part_info, make_plan
+    from swath.cli.job import JobSettings, load_part_info, make_plan
     from swath.trajectory import time_path
 
     settings = JobSettings(part="example:plate", out="unused", spacing=0.1, point_spacing=4e-3)

@@ -92,7 +92,7 @@ class BatchJob:
 
     job_id: str
     values: dict
-    settings: object          # swath.job.JobSettings
+    settings: object          # swath.cli.job.JobSettings
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@
 * :func:`run_register` — register a CAD mesh onto a scan and write ``transform.json`` (the 4x4
   ``cad2scan`` matrix and its quality) and ``residuals.csv`` (per-point residuals), atomically.
 * :func:`load_scan`, :func:`fit_scan` and :func:`patch_surface` are the pieces that
-  ``swath plan --fit`` and ``swath plan patch.json`` use (see :func:`swath.job.load_part`).
+  ``swath plan --fit`` and ``swath plan patch.json`` use (see :func:`swath.cli.job.load_part`).
 
 A scan file is a point cloud (``.xyz .txt .csv .pts .pcd``, or a ``.ply`` without faces) or a
 mesh (``.stl .obj``, or a ``.ply`` with faces).  A mesh's triangles make the LSCM

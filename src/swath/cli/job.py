@@ -130,8 +130,27 @@ def make_plan(surface, settings: JobSettings, *, progress=None):
     from ..plan import get_planner
 
     planner = get_planner(settings.planner)
-    toolpath = planner(surface, settings.tool(), **planner_arguments(settings, progress=progress))
-    return order_toolpath(toolpath, method=settings.order)
+    arguments = planner_arguments(settings, progress=progress)
+    if settings.segment == "auto":
+        from .stages import segmented_plan
+
+        toolpath = segmented_plan(surface, settings.tool(), planner, settings, arguments)
+    else:
+        toolpath = planner(surface, settings.tool(), **arguments)
+    return order_toolpath(toolpath, method=settings.order, **order_options(toolpath, settings))
+
+
+def order_options(toolpath, settings) -> dict:
+    """Options for the tour methods of the order stage: links costed by time under the job's own
+    link speed and angular-speed limit (a snake's 180-degree turn costs seconds, not millimetres)."""
+    from ..order import ORDER_METHODS, sequence
+
+    method = settings.order or toolpath.metadata.get("order_hint", "snake")
+    if ORDER_METHODS.get(method) in (sequence.snake, sequence.zigzag):
+        return {}
+    links = settings.links()
+    return {"clearance": links.clearance, "link_speed": links.speed, "link_acceleration": links.acceleration,
+            "omega_max": settings.max_angular}
 
 
 def run_job(settings: JobSettings, *, progress=None) -> dict:
@@ -182,11 +201,18 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
     timings["trajectory_s"] = time.perf_counter() - t0
 
-    extra_metrics, figures, force = {}, {}, None
+    extra_metrics, figures, force, robot = {}, {}, None, None
+    if settings.robot:
+        t0 = time.perf_counter()
+        say(f"robot: inverse kinematics for {settings.robot}", 0, 1)
+        trajectory, robot, robot_metrics = stages.robot_stage(trajectory, surface, settings)
+        extra_metrics.update(robot_metrics)
+        timings["robot_s"] = time.perf_counter() - t0
     if settings.force_control:
         t0 = time.perf_counter()
         say("simulating force control", 0, 1)
-        trajectory, force, extra_metrics = stages.force_stage(trajectory, surface, tool, settings)
+        trajectory, force, force_metrics = stages.force_stage(trajectory, surface, tool, settings)
+        extra_metrics.update(force_metrics)
         timings["force_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -212,6 +238,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     say("writing report", 0, 1)
     with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
         trajectory.write_csv(tmp / "trajectory.csv")
+        if robot is not None:
+            figures.update(stages.write_robot_outputs(robot, surface, settings, tmp / "robot"))
         if part_info.get("patch") is not None:
             from .fitjob import save_patch
 

@@ -74,6 +74,17 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="replace an existing non-empty output folder that swath did not write")
     p.add_argument("--memory-budget", help="refuse work estimated to need more memory than this, e.g. 8GiB "
                                            "(default: 3/4 of this machine's memory)")
+    p.add_argument("--segment", help="auto: split the part into regions that parallel passes cross without breaks "
+                                      "(Wang), plan each, visit them in the order with least air (gtsp); none")
+    r = p.add_argument_group("robot (kinematics, reachability, programs)")
+    r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120")
+    r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")
+    r.add_argument("--tcp", help="the tool (TCP) pose in the flange frame, x,y,z,rx,ry,rz (e.g. 0,0,150mm,0,0,0)")
+    r.add_argument("--program", dest="programs",
+                   help="robot programs to write: urscript, rapid, krl, ros, csv (comma-separated; default csv)")
+    r.add_argument("--place", action="store_true", default=None,
+                   help="search where to put the part so the whole job is reachable (x, y, yaw on the table)")
+    r.add_argument("--table-z", help="with --place: height of the part's lowest point in the base frame, e.g. 0mm")
     f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
     f.add_argument("--force-control", action="store_true",
                    help="simulate hybrid position/force control along the trajectory: a force column, a force plot, "
@@ -88,6 +99,18 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     f.add_argument("--grit", help="with --calibration: which grit's fit to use (default: the only or first)")
 
 
+class _DefaultsFormatter(argparse.HelpFormatter):
+    """Help that states each option's default where it has a real one (not None, False or a
+    default the help text already names)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if default in (None, False, argparse.SUPPRESS) or "default" in text or not action.option_strings:
+            return text
+        return f"{text} (default: {default})"
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
 
@@ -99,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add = sub.add_parser
 
     def add_parser(name, **kw):                 # every subcommand's --help shows its defaults
-        return _add(name, formatter_class=argparse.ArgumentDefaultsHelpFormatter, **kw)
+        return _add(name, formatter_class=_DefaultsFormatter, **kw)
 
     sub.add_parser = add_parser
 

@@ -85,6 +85,8 @@ class JobSettings:
     tcp: str | None = None
     programs: tuple = ()
     place: bool = False
+    table_z: float = 0.0
+    robot_strict: bool = False
 
     def tool(self):
         from ..contact import Tool
@@ -139,7 +141,7 @@ class JobSettings:
                           depth_tolerance_m=self.depth_tolerance)
         if self.robot:
             record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
-                          place=self.place)
+                          place=self.place, table_z_m=self.table_z)
         return record
 
 
@@ -214,6 +216,7 @@ SCHEMA: dict[str, Key] = {
     "target_map": Key("path"), "depth_tolerance": Key("length", lo=0.0, bare_max=1e-2, hint="um, e.g. 5um"),
     "optimise_spacing": Key("bool"),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
+    "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
 }
 
 #: Other spellings of keys.
@@ -335,6 +338,10 @@ def check_settings(settings: JobSettings) -> None:
     planner_arguments(settings)
     if settings.fit and str(settings.part).lower().endswith(".json"):
         raise InputError(f"{Path(settings.part).name} is already a fitted patch; drop --fit to plan on it")
+    if settings.robot or settings.programs or settings.place:
+        from .stages import robot_options
+
+        robot_options(settings)                     # robot name, base and tcp poses, program formats
     if settings.target_map and settings.target_depth:
         raise InputError("give either target_depth (a uniform depth) or target_map (a depth per vertex), not both")
 

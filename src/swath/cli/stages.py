@@ -32,3 +32,66 @@ def force_stage(trajectory, surface, tool, settings):
     controller = ForceController(gravity_compensation=settings.gravity_compensation)
     trace = simulate_force(trajectory, surface, tool, controller=controller, disturbance=disturbance)
     return trajectory_with_force(trajectory, trace), trace, dict(trace.metrics)
+
+
+def robot_options(settings) -> dict:
+    """Keyword arguments of :func:`swath.robot.run_robot_stage` from the job's settings (checked:
+    a known robot, parseable base and tcp poses, known program formats)."""
+    from ..errors import InputError
+    from ..robot import get_robot
+    from ..robot.programs import PROGRAM_FILES
+    from ..robot.stage import robot_options_from_mapping
+
+    if not settings.robot:
+        raise InputError("programs and placement need a robot: add --robot (e.g. ur10e, irb4600, kr120)")
+    get_robot(settings.robot)
+    unknown = set(settings.programs) - set(PROGRAM_FILES)
+    if unknown:
+        raise InputError(f"unknown program format(s) {', '.join(sorted(unknown))}; choose from "
+                         f"{', '.join(PROGRAM_FILES)}")
+    values = {"robot": settings.robot, "program": ",".join(settings.programs or ("csv",)),
+              "place": "auto" if settings.place else "", "table_z": settings.table_z,
+              "robot_strict": settings.robot_strict}
+    if settings.base:
+        values["base"] = settings.base
+    if settings.tcp:
+        values["tcp"] = settings.tcp
+    return robot_options_from_mapping(values)
+
+
+def robot_stage(trajectory, surface, settings):
+    """Inverse kinematics along the trajectory for the job's robot, re-timed where a joint limit
+    binds; returns the re-timed trajectory, the :class:`RobotResult` and its metrics (nothing is
+    written: see :func:`write_robot_outputs`)."""
+    from ..robot import run_robot_stage
+
+    result = run_robot_stage(trajectory, **robot_options(settings), out_dir=None, surface=surface,
+                             force=settings.force)
+    metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
+    return result.trajectory, result, metrics
+
+
+def write_robot_outputs(result, surface, settings, out_dir) -> dict:
+    """The robot programs and figures (joint plots, reachability map) into ``out_dir``; returns
+    the figures by name."""
+    from ..report.robot_plots import write_robot_plots
+    from ..robot.programs import ProgramInput, write_programs
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_programs(ProgramInput(result.trajectory, result.solution, result.model, result.cell, force=settings.force),
+                   out_dir, list(settings.programs or ("csv",)))
+    return write_robot_plots(out_dir, result=result, surface=surface, reach_map=result.reach_map)
+
+
+def segmented_plan(surface, tool, planner, settings, arguments: dict):
+    """Split the part into regions that sweep lines cross without breaks (Wang §1) and plan each;
+    a planner with a spacing gets the whole part's default spacing, so neighbouring regions meet."""
+    from ..plan.regions import plan_regions
+    from ..segment import segment
+
+    regions = segment(surface)
+    log.info("segmented %s into %d regions", surface.name, len(regions))
+    options = dict(arguments)
+    if "spacing" not in options and settings.planner == "raster":
+        options["spacing"] = planner(surface, tool, **arguments).metadata["spacing_m"]
+    return plan_regions(surface, tool, planner, regions, **options)
