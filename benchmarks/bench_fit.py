@@ -53,7 +53,7 @@ from common import SHARED_MESHES  # noqa: E402
 from swath.contact import Tool, local_patch  # noqa: E402
 from swath.surface.curvature import principal_curvatures  # noqa: E402
 from swath.surface.fit import fit_patch  # noqa: E402
-from swath.surface.scansim import blade_patch, panel_patch, simulate_laser_scan  # noqa: E402
+from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan  # noqa: E402
 
 TARGET_NORMAL_P95_DEG = 0.5
 TARGET_WIDTH_ERR = 0.05

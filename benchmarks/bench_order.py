@@ -25,7 +25,7 @@ import numpy as np
 from common import SHARED_MESH_UNITS, SHARED_MESHES, print_table
 
 from swath.contact.tool import Tool
-from swath.examples_hub import wheel_hub
+from swath.examples import wheel_hub
 from swath.io.mesh import load_mesh
 from swath.order import order_toolpath
 from swath.order.tour import (

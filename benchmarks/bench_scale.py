@@ -9,7 +9,7 @@ the removal simulation (default sampling) and the report (metrics.json, PNGs, re
 Columns: load / plan / trajectory / simulate / report wall times (s), the simulation per 100 m of
 contact path, and the child's peak RSS (MB).
 
-Table 2 slices the generated panel (:func:`swath.examples_large.large_panel`) at 18k, 80k and
+Table 2 slices the generated panel (:func:`swath.examples.large_panel`) at 18k, 80k and
 500k faces, in one process: the raster plan (fixed angle 0, so no direction search; and auto)
 and with the spacing given (``slice``: no contact-width analysis, so slicing, chaining and
 resampling only), against ``trimesh.intersections.mesh_multiplane`` cutting the same mesh with
@@ -48,7 +48,7 @@ def shared_folder() -> Path | None:
 
 def load(name: str):
     if name == LARGE:
-        from swath.examples_large import large_panel
+        from swath.examples import large_panel
 
         return large_panel(n_faces=500_000)
     from swath.io.mesh import load_mesh
@@ -115,7 +115,7 @@ def slicing_table(face_counts=(18_000, 80_000, 500_000), repeats: int = 3) -> li
     from trimesh.intersections import mesh_multiplane
 
     from swath.contact import Tool
-    from swath.examples_large import large_panel
+    from swath.examples import large_panel
     from swath.plan.raster import raster
 
     tool = Tool()

@@ -23,7 +23,7 @@ from swath.io.patch import load_patch_json
 from swath.io.points import load_points
 from swath.surface import BSplinePatch, Surface
 from swath.surface.register_result import rigid_matrix, rotation_angle
-from swath.surface.scansim import panel_patch, simulate_laser_scan
+from swath.examples.scansim import panel_patch, simulate_laser_scan
 from swath.trajectory import read_csv
 
 #: The scanned part: a 0.20 x 0.15 m piece of the doubly curved panel (radii 0.35 m and 0.9 m).

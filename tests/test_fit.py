@@ -14,7 +14,7 @@ from swath.examples import blade, doubly_curved_panel, flat_plate
 from swath.surface.exact_shapes import nurbs_sphere
 from swath.surface.fit import fit_patch
 from swath.surface.fit_knots import curvature_knots
-from swath.surface.scansim import blade_patch, panel_patch, simulate_laser_scan
+from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan
 
 
 def _errors(truth, patch, scan, rng, n_width=300):
@@ -335,7 +335,7 @@ def test_example_patches_match_the_example_meshes():
 def test_rows_fit_with_a_fixed_smoothing_length():
     # The numeric-smoothing path of the skinning (no cross-validation) fits as well as GCV here.
     from swath.surface.fit import fit_patch
-    from swath.surface.scansim import panel_patch, simulate_laser_scan
+    from swath.examples.scansim import panel_patch, simulate_laser_scan
 
     rng = np.random.default_rng(7)
     scan = simulate_laser_scan(panel_patch(), row_spacing=4e-3, point_spacing=2e-3, rng=rng)

@@ -8,7 +8,7 @@ import pytest
 from swath.contact.tool import Tool
 from swath.errors import InputError
 from swath.examples import flat_plate
-from swath.examples_hub import wheel_hub
+from swath.examples import wheel_hub
 from swath.order import order_toolpath
 from swath.order.tour import (
     group_variants,

@@ -27,7 +27,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import InputError
-from .bspline_basis import _check_knots, _span_samples, basis_derivatives
+from .bspline_basis import _check_knots, span_samples, basis_derivatives
 from .curvature import PrincipalCurvature
 from .geometry import normalize
 
@@ -272,8 +272,8 @@ class BSplinePatch:
         """(u, v, kd-tree) of a coarse grid for projection starts: a few samples per knot span."""
         from scipy.spatial import cKDTree
 
-        gu = _span_samples(self.knots_u, self.degree[0], 4, cap=400)
-        gv = _span_samples(self.knots_v, self.degree[1], 4, cap=400)
+        gu = span_samples(self.knots_u, self.degree[0], 4, cap=400)
+        gv = span_samples(self.knots_v, self.degree[1], 4, cap=400)
         U, V = np.meshgrid(gu, gv, indexing="ij")
         pts = self.evaluate(U.ravel(), V.ravel())
         return U.ravel(), V.ravel(), cKDTree(pts)
@@ -411,8 +411,8 @@ class BSplinePatch:
             if ru < 2 or rv < 2:
                 raise InputError(f"resolution must be at least 2 samples per direction, got {resolution!r}")
             return np.linspace(u0, u1, ru), np.linspace(v0, v1, rv)
-        gu = _span_samples(self.knots_u, self.degree[0], 8, cap=4000)
-        gv = _span_samples(self.knots_v, self.degree[1], 8, cap=4000)
+        gu = span_samples(self.knots_u, self.degree[0], 8, cap=4000)
+        gv = span_samples(self.knots_v, self.degree[1], 8, cap=4000)
         cu = np.linspace(v0, v1, 5)
         cv = np.linspace(u0, u1, 5)
         Pu = self.evaluate(np.repeat(gu[None, :], 5, 0).ravel(), np.repeat(cu[:, None], gu.size, 1).ravel())

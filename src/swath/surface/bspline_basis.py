@@ -128,7 +128,7 @@ def _check_knots(knots, n: int, degree: int, which: str) -> np.ndarray:
     return t
 
 
-def _span_samples(knots: np.ndarray, degree: int, per_span: int, cap: int) -> np.ndarray:
+def span_samples(knots: np.ndarray, degree: int, per_span: int, cap: int) -> np.ndarray:
     """Parameter samples with ``per_span`` steps in every non-empty knot span (at most ``cap``)."""
     n = len(knots) - degree - 1
     breaks = np.unique(knots[degree:n + 1])

@@ -149,7 +149,7 @@ def fit_patch(points, *, normals=None, mesh_faces=None, rows=None, parameterizat
         winding sets the normal side.
     rows : (n,) int, optional
         Scan-row id of each point, points of a row in scan order (as from
-        :func:`swath.surface.scansim.simulate_laser_scan`).  Enables ``"rows"`` (skinning).
+        :func:`swath.examples.scansim.simulate_laser_scan`).  Enables ``"rows"`` (skinning).
     parameterization : {"auto", "projection", "lscm", "rows"}
         ``"auto"``: the scan rows when ``rows`` are given; otherwise projection onto the best-fit
         plane if that does not fold over, else LSCM (faces given), else refuse.

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 from .bspline import BSplinePatch
-from .bspline_basis import _span_samples, clamped_knots
+from .bspline_basis import span_samples, clamped_knots
 from .geometry import normalize
 
 #: Total turning (rad) of a direction below which curvature hardly moves the knots.
@@ -97,7 +97,7 @@ def _trapz(f, ds):
 def _profile(patch: BSplinePatch, direction: int, n_other: int = 12):
     """Along ``direction`` (0 = u, 1 = v): parameters ``(m,)``, mean speed ``|S_d|``, mean squared
     and mean absolute normal curvature of the iso-curves (averaged over the other direction)."""
-    ta = _span_samples(patch.knots_u if direction == 0 else patch.knots_v, patch.degree[direction], 8, cap=3000)
+    ta = span_samples(patch.knots_u if direction == 0 else patch.knots_v, patch.degree[direction], 8, cap=3000)
     (u0, u1), (v0, v1) = patch.domain
     other = np.linspace(*((v0, v1) if direction == 0 else (u0, u1)), n_other + 2)[1:-1]
     A, O = np.meshgrid(ta, other, indexing="ij")

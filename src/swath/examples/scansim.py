@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .bspline import BSplinePatch
-from .bspline_basis import _span_samples, clamped_knots
-from .exact_shapes import circle_arc, naca00_thickness, translational
+from ..surface.bspline import BSplinePatch
+from ..surface.bspline_basis import span_samples, clamped_knots
+from ..surface.exact_shapes import circle_arc, naca00_thickness, translational
 
 
 @dataclass(frozen=True)
@@ -93,7 +93,7 @@ def simulate_laser_scan(target, *, row_spacing: float, point_spacing: float, sig
     -------
     LaserScan
     """
-    from .surface import Surface
+    from ..surface.surface import Surface
 
     for name, val in (("row_spacing", row_spacing), ("point_spacing", point_spacing)):
         if not (isinstance(val, (int, float)) and np.isfinite(val) and val > 0):
@@ -139,7 +139,7 @@ def simulate_laser_scan(target, *, row_spacing: float, point_spacing: float, sig
 def _arc_table(patch: BSplinePatch, direction: int, n_other: int = 5):
     """Parameters along ``direction`` and the mean arc length of the iso-curves there."""
     knots = patch.knots_u if direction == 0 else patch.knots_v
-    g = _span_samples(knots, patch.degree[direction], 8, cap=4000)
+    g = span_samples(knots, patch.degree[direction], 8, cap=4000)
     (u0, u1), (v0, v1) = patch.domain
     other = np.linspace(*((v0, v1) if direction == 0 else (u0, u1)), n_other)
     A, O = np.meshgrid(g, other, indexing="ij")

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
-from .surface import Surface
+from ..errors import InputError
+from ..surface import Surface
 
 
 def wheel_hub(*, diameter: float = 0.45, bore_diameter: float = 0.07, dish_depth: float = 0.035,

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
-from .surface import Surface
-from .surface.exact_shapes import naca00_thickness
-from .surface.grid import grid_faces
+from ..errors import InputError
+from ..surface import Surface
+from ..surface.exact_shapes import naca00_thickness
+from ..surface.grid import grid_faces
 
 
 def _resample_by_size(curve: np.ndarray, size: np.ndarray) -> np.ndarray:
@@ -107,15 +107,3 @@ def doubly_curved_panel(*, size_x: float = 0.5, size_y: float = 0.4, radius_x: f
     Z = (np.sqrt(radius_x**2 - X**2) - radius_x) + (np.sqrt(radius_y**2 - Y**2) - radius_y)
     v = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
     return Surface(v, grid_faces(len(xs), len(ys)), name="panel")
-
-
-#: Built-in parts by name, as the CLI knows them.
-PARTS = {"blade": blade, "plate": flat_plate, "panel": doubly_curved_panel}
-
-
-def example_part(name: str) -> Surface:
-    """The built-in part called ``name`` (``blade``, ``plate`` or ``panel``)."""
-    try:
-        return PARTS[name]()
-    except KeyError:
-        raise InputError(f"unknown example part {name!r}; choose one of {', '.join(PARTS)}") from None

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from swath.errors import InputError
-from swath.examples_large import large_panel
+from swath.examples import large_panel
 
 
 @pytest.mark.parametrize("n_faces", [20_000, 80_000])
