@@ -28,8 +28,8 @@ def main():
 
     from swath.contact import Tool
     from swath.plan.equidistant import equidistant
-    from swath.plan.spacing_check import pass_spacing
     from swath.plan.raster import raster
+    from swath.plan.spacing_check import pass_spacing
 
     tool = Tool()
     rows = []
@@ -65,10 +65,9 @@ def main():
 def _simulate(tp, surface, tool, key) -> dict:
     if tp.contact_length > 25.0:
         return {}
+    from swath.order import order_toolpath
     from swath.simulate import simulate_removal
     from swath.trajectory import FeedLimit, time_path
-
-    from swath.order import order_toolpath
 
     tr = time_path(order_toolpath(tp), [FeedLimit(0.05)])
     m = simulate_removal(tr, surface, tool).metrics

@@ -51,9 +51,9 @@ from scipy.spatial import cKDTree  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import SHARED_MESHES  # noqa: E402
 from swath.contact import Tool, local_patch  # noqa: E402
+from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan  # noqa: E402
 from swath.surface.curvature import principal_curvatures  # noqa: E402
 from swath.surface.fit import fit_patch  # noqa: E402
-from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan  # noqa: E402
 
 TARGET_NORMAL_P95_DEG = 0.5
 TARGET_WIDTH_ERR = 0.05

@@ -23,6 +23,7 @@ import math
 import time
 
 import numpy as np
+
 from common import print_table
 
 

@@ -22,8 +22,8 @@ import pickle
 import time
 
 import numpy as np
-from common import SHARED_MESH_UNITS, SHARED_MESHES, print_table
 
+from common import SHARED_MESH_UNITS, SHARED_MESHES, print_table
 from swath.contact.tool import Tool
 from swath.examples import wheel_hub
 from swath.io.mesh import load_mesh

@@ -26,6 +26,7 @@ import json
 import logging
 
 import numpy as np
+
 from common import SHARED_MESHES, Measure, print_table
 
 COLUMNS = [("case", "s"), ("points", "d"), ("time_s", ".2f"), ("rms_mm", ".3f"), ("inliers_pct", ".1f"),

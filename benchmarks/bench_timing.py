@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+
 from common import Measure, print_table
 
 
@@ -53,8 +54,7 @@ def main():
 
     from swath.examples import blade
     from swath.plan import ToolPath
-    from swath.trajectory import (AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit,
-                                  time_path)
+    from swath.trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit, time_path
 
     surface = blade()
     tp = ToolPath(surface, profile_passes(surface, args.spacing), "profile")

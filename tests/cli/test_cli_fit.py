@@ -16,14 +16,14 @@ from scipy.spatial.transform import Rotation
 
 from conftest import shared_mesh
 from swath.cli import main
-from swath.examples import doubly_curved_panel
 from swath.cli.fitjob import infer_scan_rows
+from swath.examples import doubly_curved_panel
+from swath.examples.scansim import panel_patch, simulate_laser_scan
 from swath.io.mesh import load_mesh, save_surface_ply
 from swath.io.patch import load_patch_json
 from swath.io.points import load_points
 from swath.surface import BSplinePatch, Surface
 from swath.surface.register_result import rigid_matrix, rotation_angle
-from swath.examples.scansim import panel_patch, simulate_laser_scan
 from swath.trajectory import read_csv
 
 #: The scanned part: a 0.20 x 0.15 m piece of the doubly curved panel (radii 0.35 m and 0.9 m).
@@ -326,8 +326,8 @@ def test_plan_refuses_a_point_cloud_without_fit_and_fit_on_a_patch(tmp_path, sca
 
 
 def test_job_settings_carry_the_fit_options():
-    from swath.errors import InputError
     from swath.cli.job import settings_from_mapping
+    from swath.errors import InputError
 
     s = settings_from_mapping({"part": "scan.xyz", "out": "o", "fit": True, "parameterization": "rows",
                                "surface_spacing": "3mm"})

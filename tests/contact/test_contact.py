@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+from shapes import cylinder_patch, sphere_cap
 from swath.contact import Tool, local_patch, mesh_contact, solve_sink
 from swath.errors import InputError
 from swath.examples import flat_plate
-
-from shapes import cylinder_patch, sphere_cap
 
 
 def test_tool_defaults_and_stiffness_from_depression():

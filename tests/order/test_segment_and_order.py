@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from swath.contact.tool import Tool
+from swath.core import Pass, ToolPath
 from swath.errors import InputError
-from swath.examples import flat_plate
-from swath.examples import wheel_hub
+from swath.examples import flat_plate, wheel_hub
 from swath.order import order_toolpath
 from swath.order.tour import (
     group_variants,
@@ -20,7 +20,6 @@ from swath.order.tour import (
 from swath.plan.raster import raster
 from swath.plan.regions import plan_regions
 from swath.plan.slicing import slice_mesh
-from swath.core import Pass, ToolPath
 from swath.segment import alpha_boundary, segment
 from swath.surface import Surface
 

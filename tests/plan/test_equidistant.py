@@ -13,20 +13,19 @@ from conftest import SHARED_MESH_UNITS, shared_mesh
 from swath.contact import Tool
 from swath.errors import InfeasibleError, InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
+from swath.order import order_toolpath
 from swath.plan.arclength import equidistant_patch
 from swath.plan.arclength_map import ArcLengthMap
 from swath.plan.equidistant import equidistant as plan_equidistant
+from swath.plan.raster import raster
 from swath.plan.seeds import boundary_seed
 from swath.plan.spacing_check import pass_levels, pass_spacing
-from swath.surface.geodesic import distance_field, locate_points, refine_mesh
-from swath.surface.topology import split_nonmanifold_vertices
-from swath.order import order_toolpath
-from swath.plan.raster import raster
-from swath.surface.topology import mesh_edges
 from swath.surface import Surface
 from swath.surface.bspline import BSplinePatch
 from swath.surface.bspline_basis import clamped_knots
 from swath.surface.exact_shapes import nurbs_cylinder
+from swath.surface.geodesic import distance_field, locate_points, refine_mesh
+from swath.surface.topology import mesh_edges, split_nonmanifold_vertices
 
 
 def equidistant(*args, **kwargs):
@@ -37,13 +36,13 @@ TOOL = Tool()                     # R = 38.1 mm
 R = TOOL.pad_radius
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def panel() -> Surface:
     """One panel for every test, so the planner's per-surface field cache is shared."""
     return doubly_curved_panel()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def load_shared(name: str) -> Surface:
     from swath.io.mesh import load_mesh
 

@@ -9,9 +9,9 @@ import pytest
 from conftest import SHARED_MESH_UNITS, shared_mesh
 from shapes import cylinder_patch
 from swath.contact import Tool, local_patch
+from swath.contact.widths import area_percentile, max_swath_widths, raster_spacing, swath_widths
 from swath.errors import InfeasibleError, InputError
 from swath.examples import doubly_curved_panel, flat_plate, grid_faces
-from swath.contact.widths import area_percentile, max_swath_widths, raster_spacing, swath_widths
 from swath.order import order_toolpath
 from swath.plan.raster import plane_offsets
 from swath.plan.raster import raster as plan_raster
@@ -27,7 +27,7 @@ TOOL = Tool()                     # R = 38.1 mm, 1 mm depression on flat
 R = TOOL.pad_radius
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def load_shared(name: str) -> Surface:
     """A shared mesh as a Surface (swath.io.mesh.load_mesh when available, else plain trimesh:
     merged vertices, largest connected piece, scaled to metres)."""
@@ -46,7 +46,7 @@ def load_shared(name: str) -> Surface:
     return load_mesh(path, units=units)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _mm_copy(surface: Surface) -> Surface:
     return Surface(surface.vertices * 1e3, surface.faces, name=surface.name)
 

@@ -8,8 +8,8 @@ import pytest
 from swath.errors import InputError
 from swath.examples import grid_faces
 from swath.plan.slicing import MERGE_TOLERANCE, resample, slice_mesh
-from swath.surface.topology import mesh_edges
 from swath.surface import Surface
+from swath.surface.topology import mesh_edges
 
 
 def grid(nx, ny, cell, z=None):

@@ -5,19 +5,18 @@ import math
 import numpy as np
 import pytest
 
+from shapes import cylinder_patch, grooved_plate
+from swath.cli.job import cycle_time_cost
 from swath.contact import Tool, local_patch
+from swath.core import ToolPath
 from swath.errors import InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
+from swath.order import order_toolpath
 from swath.plan.raster import raster
-from swath.core import ToolPath
 from swath.plan.uniform import uniform
 from swath.plan.uniform_passes import turn_curvature
 from swath.simulate import simulate_removal
-from swath.cli.job import cycle_time_cost
-from swath.order import order_toolpath
 from swath.trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, LinkSettings, time_path
-
-from shapes import cylinder_patch, grooved_plate
 
 TOOL = Tool()
 R = TOOL.pad_radius

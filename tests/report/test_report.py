@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from swath.core import Pass, ToolPath
 from swath.errors import InputError
 from swath.examples import doubly_curved_panel, flat_plate
-from swath.core import Pass, ToolPath
 from swath.report import write_report
 from swath.report.html import MAX_VIEW_FACES, display_mesh, figure_3d, write_report_html
 from swath.report.metrics import format_value, key_unit, to_jsonable, write_metrics_json

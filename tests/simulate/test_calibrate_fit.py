@@ -13,8 +13,17 @@ from swath.errors import InputError
 from swath.examples import flat_plate
 from swath.plan import Pass, ToolPath
 from swath.simulate import simulate_removal
-from swath.simulate.calibrate import (calibrate, exposure, load_calibration, make_trials, predict_depth,
-                                     predict_job_depth, read_trials, tool_with_calibration, write_calibration)
+from swath.simulate.calibrate import (
+    calibrate,
+    exposure,
+    load_calibration,
+    make_trials,
+    predict_depth,
+    predict_job_depth,
+    read_trials,
+    tool_with_calibration,
+    write_calibration,
+)
 from swath.simulate.preston_doe import factorial_design, write_doe
 from swath.trajectory import FeedLimit, time_path
 

@@ -8,8 +8,14 @@ import pytest
 from swath.contact import Tool
 from swath.examples import flat_plate
 from swath.plan import Pass, ToolPath
-from swath.simulate import (Disturbance, ForceController, gravity_for_tilt, simulate_force, simulate_removal,
-                            trajectory_with_force)
+from swath.simulate import (
+    Disturbance,
+    ForceController,
+    gravity_for_tilt,
+    simulate_force,
+    simulate_removal,
+    trajectory_with_force,
+)
 from swath.simulate.force_contact import contact_curves
 from swath.trajectory import FeedLimit, read_csv, time_path
 

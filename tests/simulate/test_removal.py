@@ -1,6 +1,5 @@
 """Preston removal against the analytic single-pass profile, and the plan metrics."""
 
-import math
 
 import numpy as np
 import pytest
@@ -8,7 +7,7 @@ import pytest
 from swath.contact import Tool
 from swath.examples import flat_plate
 from swath.plan import Pass, ToolPath
-from swath.simulate import coverage_lower_bound, simulate_removal
+from swath.simulate import simulate_removal
 from swath.trajectory import FeedLimit, Trajectory, time_path
 
 

@@ -10,8 +10,8 @@ import pytest
 from scipy.interpolate import BSpline
 
 from swath.errors import InputError
-from swath.surface import Surface
 from swath.io.patch import load_patch_json, save_patch_json
+from swath.surface import Surface
 from swath.surface.bspline import BSplinePatch
 from swath.surface.bspline_basis import basis_derivatives, clamped_knots
 from swath.surface.exact_shapes import circle_arc, nurbs_cylinder, nurbs_sphere, nurbs_torus

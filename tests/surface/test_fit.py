@@ -11,10 +11,10 @@ import pytest
 from swath.contact import Tool, local_patch
 from swath.errors import InfeasibleError, InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
+from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan
 from swath.surface.exact_shapes import nurbs_sphere
 from swath.surface.fit import fit_patch
 from swath.surface.fit_knots import curvature_knots
-from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan
 
 
 def _errors(truth, patch, scan, rng, n_width=300):
@@ -334,8 +334,8 @@ def test_example_patches_match_the_example_meshes():
 
 def test_rows_fit_with_a_fixed_smoothing_length():
     # The numeric-smoothing path of the skinning (no cross-validation) fits as well as GCV here.
-    from swath.surface.fit import fit_patch
     from swath.examples.scansim import panel_patch, simulate_laser_scan
+    from swath.surface.fit import fit_patch
 
     rng = np.random.default_rng(7)
     scan = simulate_laser_scan(panel_patch(), row_spacing=4e-3, point_spacing=2e-3, rng=rng)

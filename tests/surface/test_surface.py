@@ -3,11 +3,10 @@
 import numpy as np
 import pytest
 
+from shapes import cylinder_patch, sphere_cap
 from swath.errors import InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
 from swath.surface import Surface
-
-from shapes import cylinder_patch, sphere_cap
 
 
 def interior(surface, margin):

@@ -21,10 +21,24 @@ from swath.errors import InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate, grid_faces
 from swath.plan import Pass, ToolPath
 from swath.surface import Surface
-from swath.trajectory import (AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile, LinkSettings,
-                              TangentialAccelLimit, read_csv, time_path)
-from swath.trajectory.geometry import (curvature_vectors, darboux, local_quadratic, path_curvature,
-                                       resample_uniform, shape_tensors)
+from swath.trajectory import (
+    AngularSpeedLimit,
+    CentripetalLimit,
+    FeedLimit,
+    FeedProfile,
+    LinkSettings,
+    TangentialAccelLimit,
+    read_csv,
+    time_path,
+)
+from swath.trajectory.geometry import (
+    curvature_vectors,
+    darboux,
+    local_quadratic,
+    path_curvature,
+    resample_uniform,
+    shape_tensors,
+)
 from swath.trajectory.links import time_link
 
 TOL = 1.01          # "not above a limit by more than 1 %"
@@ -418,7 +432,7 @@ def test_link_timing_respects_speed_and_acceleration():
     ls = LinkSettings(speed=0.25, acceleration=1.0, step=1e-3)
     lp = time_link(route, q, q, ls)
     assert lp.method == "toppra"
-    t, p = lp.t, lp.position
+    p = lp.position
     assert np.allclose(p[0], route[0]) and np.allclose(p[-1], route[-1])
     # sampled every 0.1 mm along the rounded route: finite differences give speed and acceleration
     fine = time_link(route, q, q, LinkSettings(speed=0.25, acceleration=1.0, step=1e-4))

@@ -40,7 +40,6 @@ def test_constant_feed_orientation_and_sampling_limits():
 
 def test_air_moves_keep_clear_of_the_part():
     b = blade()
-    upper = Pass(np.array([[0.2, 0.1, 0.0], [0.2, 0.2, 0.0]]), np.array([[0, 0, 1.0]] * 2))
     # put pass points on the surface: project
     p, _, f = b.closest_points(np.array([[0.2, 0.1, 0.05], [0.2, 0.2, 0.05], [0.1, 0.3, -0.05], [0.1, 0.4, -0.05]]))
     n = b.interpolate_normals(p, f)

@@ -42,7 +42,7 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
     try:
         import ray
     except ImportError:
-        raise InputError("running on more than one worker needs Ray (pip install 'ray[default]'); "
+        raise InputError("running on more than one worker needs Ray (pip install 'swath[batch]'); "
                          "or run serially with --workers 1") from None
     started = False
     if not ray.is_initialized():

@@ -279,9 +279,9 @@ def patch_surface(patch, *, spacing: float | None = None, name: str | None = Non
     footprint : Footprint, optional
         Keep only the triangles whose three vertices lie in the footprint (the scanned area).
     """
-    from ..surface.grid import grid_faces
     from ..io.mesh import remove_unreferenced
     from ..surface import Surface
+    from ..surface.grid import grid_faces
 
     if spacing is None:
         spacing = default_surface_spacing(patch, footprint)
@@ -419,7 +419,7 @@ class Footprint:
                 "shape": list(self.mask.shape), "rows_hex": [np.packbits(r).tobytes().hex() for r in self.mask]}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Footprint":
+    def from_dict(cls, data: dict) -> Footprint:
         """Rebuild from :meth:`to_dict` output; raises InputError when malformed."""
         try:
             nu, nv = (int(x) for x in data["shape"])
@@ -654,7 +654,7 @@ def fit_document(settings: FitSettings, scan: Scan, patch, report, residuals, su
         "format_version": FORMAT_VERSION,
         "warnings": list(report.warnings),
         "swath_version": __version__,
-        "created_utc": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
+        "created_utc": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
         "input": {"scan": str(settings.scan), "units": settings.units, "kind": scan.kind,
                   "n_points": len(scan.points), "has_normals": scan.normals is not None},
         "parameterization": report.parameterization,
@@ -901,7 +901,7 @@ def transform_document(settings: RegisterSettings, reg, method: str, elapsed: fl
     return to_jsonable({
         "format_version": FORMAT_VERSION,
         "swath_version": __version__,
-        "created_utc": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
+        "created_utc": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
         "cad": str(settings.cad), "scan": str(settings.scan),
         "units": settings.units, "scan_units": settings.scan_units or settings.units,
         "cad2scan": np.asarray(reg.matrix),

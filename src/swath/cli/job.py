@@ -101,7 +101,6 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
         planners that do.
     """
     from ..plan import planner_options, planners_taking
-
     from .settings import SCHEMA, parse_value
 
     takes = planner_options(settings.planner)

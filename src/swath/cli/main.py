@@ -292,8 +292,8 @@ def main(argv=None) -> int:
 
 
 def _fit_settings_from_args(args):
-    from .fitjob import FitSettings
     from ..units import length_unit_factor, parse_quantity
+    from .fitjob import FitSettings
 
     length_unit_factor(args.units)                 # refuses an unknown unit by name
     spacing = None
@@ -307,8 +307,8 @@ def _fit_settings_from_args(args):
 
 
 def _register_settings_from_args(args):
-    from .fitjob import RegisterSettings
     from ..units import length_unit_factor
+    from .fitjob import RegisterSettings
 
     for unit in (args.units, args.scan_units):
         if unit is not None:

@@ -45,10 +45,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import local_patch
-from .model import LocalPatch
 from ..errors import InputError
 from ..surface.curvature import PrincipalCurvature, principal_curvatures
+from .model import LocalPatch, local_patch
 
 log = logging.getLogger("swath.plan")
 

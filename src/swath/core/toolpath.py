@@ -69,11 +69,11 @@ class Pass:
         """Polyline length, m."""
         return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
 
-    def reversed(self) -> "Pass":
+    def reversed(self) -> Pass:
         """The same pass run the other way."""
         return dataclasses.replace(self, points=self.points[::-1], normals=self.normals[::-1])
 
-    def replace(self, **changes) -> "Pass":
+    def replace(self, **changes) -> Pass:
         """A copy with some fields changed (``level``, ``region``, ``kind``, ...)."""
         return dataclasses.replace(self, **changes)
 
@@ -163,7 +163,7 @@ class ToolPath:
         """(n_passes,) int level of each pass."""
         return np.array([p.level for p in self.passes], dtype=int)
 
-    def replace(self, **changes) -> "ToolPath":
+    def replace(self, **changes) -> ToolPath:
         """A copy with some fields changed; changing ``passes`` drops links unless new ones are given."""
         if "passes" in changes and "links" not in changes:
             changes["links"] = None

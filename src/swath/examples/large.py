@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..surface.grid import grid_faces
 from ..surface import Surface
+from ..surface.grid import grid_faces
 
 
 def large_panel(*, n_faces: int = 500_000, size_x: float = 1.2, size_y: float = 0.8, radius_x: float = 1.5,

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..surface.bspline import BSplinePatch
-from ..surface.bspline_basis import span_samples, clamped_knots
+from ..surface.bspline_basis import clamped_knots, span_samples
 from ..surface.exact_shapes import circle_arc, naca00_thickness, translational
 
 

@@ -35,12 +35,14 @@ import time
 
 import numpy as np
 
+from ..contact.widths import SPACING_PERCENTILE, area_percentile, patch_widths
+from ..core import Pass, ToolPath
 from ..errors import InfeasibleError, InputError
 from ..surface.curvature import PrincipalCurvature
-from .common import MIN_PASS_FRACTION, is_number as _is_number, positive as _positive
-from ..core import Pass, ToolPath
-from ..contact.widths import SPACING_PERCENTILE, area_percentile, patch_widths
 from .arclength_map import ArcLengthMap
+from .common import MIN_PASS_FRACTION
+from .common import is_number as _is_number
+from .common import positive as _positive
 
 log = logging.getLogger("swath.plan")
 

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import logging
+
 import numpy as np
+
 from ..errors import InputError
 
 log = logging.getLogger(__name__)

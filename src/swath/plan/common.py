@@ -117,6 +117,7 @@ def plane_passes(polylines, feed, face_normals, point_spacing, *, region: int = 
         oriented.sort(key=lambda pl: float(pl.points[0] @ feed))
         for pl in oriented:
             sm = resample(pl, point_spacing)
+            assert sm.values is not None          # slices carry the vertex normals as values
             normals = normalize(sm.values)
             bad = np.linalg.norm(normals, axis=1) < 0.5
             if bad.any():   # opposite vertex normals across a fold: fall back to the facet normal

@@ -44,17 +44,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InfeasibleError, InputError
-from ..surface.geometry import face_normals_and_areas, normalize
-from .common import (MIN_PASS_FRACTION, feed_and_cross, is_number as _is_number, plane_passes, positive as _positive,
-                     select_direction, split_direction)
-from ..surface.polyline import densify
-from ..surface.geodesic import DISTANCE_METHODS, distance_field, face_gradients, locate_points, refine_mesh
-from ..surface.topology import boundary_loops, split_nonmanifold_vertices, vertex_components
-from .slicing import level_sets
-from ..core import ToolPath
 from ..contact.widths import SPACING_PERCENTILE, area_percentile, gap_fraction, pad_scale_samples, patch_widths
+from ..core import ToolPath
+from ..errors import InfeasibleError, InputError
+from ..surface.geodesic import DISTANCE_METHODS, distance_field, face_gradients, locate_points, refine_mesh
+from ..surface.geometry import face_normals_and_areas, normalize
+from ..surface.polyline import densify
+from ..surface.topology import boundary_loops, split_nonmanifold_vertices, vertex_components
+from .common import MIN_PASS_FRACTION, feed_and_cross, plane_passes, select_direction, split_direction
+from .common import is_number as _is_number
+from .common import positive as _positive
 from .seeds import boundary_seed, polyline_band
+from .slicing import level_sets
 
 log = logging.getLogger("swath.plan")
 
@@ -109,7 +110,7 @@ class _Fields:
 #: Per surface (a Surface is immutable), the refined field meshes and the distance fields solved
 #: on them: planning the same part again (another spacing, the automatic direction's candidates)
 #: reuses them.  At most :data:`_CACHE_ENTRIES` entries per surface.
-_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _CACHE_ENTRIES = 24
 
 

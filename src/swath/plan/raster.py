@@ -15,11 +15,11 @@ import time
 
 import numpy as np
 
+from ..contact.widths import raster_spacing
+from ..core import ToolPath
 from ..errors import InfeasibleError, InputError
 from .common import check_min_pass_length, feed_and_cross, plane_passes, positive, select_direction, split_direction
 from .slicing import slice_mesh
-from ..core import ToolPath
-from ..contact.widths import raster_spacing
 
 log = logging.getLogger("swath.plan")
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import inspect
 import logging
 
-from ..errors import InfeasibleError, InputError
 from ..core import ToolPath
+from ..errors import InfeasibleError, InputError
 
 log = logging.getLogger("swath.plan")
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import logging
 import math
+
 import numpy as np
+
 from ..surface.geometry import normalize
 
 log = logging.getLogger(__name__)

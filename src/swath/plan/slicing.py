@@ -70,12 +70,12 @@ class SlicePolyline:
         """Polyline length, m."""
         return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
 
-    def reversed(self) -> "SlicePolyline":
+    def reversed(self) -> SlicePolyline:
         """The same polyline run the other way."""
         vals = None if self.values is None else self.values[::-1].copy()
         return SlicePolyline(self.points[::-1].copy(), self.faces[::-1].copy(), vals, self.plane, self.closed)
 
-    def rolled(self, start: int) -> "SlicePolyline":
+    def rolled(self, start: int) -> SlicePolyline:
         """A closed polyline restarted at point ``start`` (same loop, same direction)."""
         if not self.closed:
             raise InputError("only a closed polyline can be restarted at another point")

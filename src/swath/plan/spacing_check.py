@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+
 import numpy as np
+
 from ..errors import InputError
-from .seeds import polyline_band
 from ..surface.geodesic import distance_field, locate_points, refine_mesh
+from .seeds import polyline_band
 
 log = logging.getLogger(__name__)
 

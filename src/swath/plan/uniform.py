@@ -35,13 +35,13 @@ import time
 
 import numpy as np
 
+from ..core import ToolPath
 from ..errors import InfeasibleError, InputError
 from ..surface.geometry import normalize
 from .common import feed_and_cross
 from .slicing import level_sets, resample, slice_mesh
-from ..core import ToolPath
-from .uniform_passes import _area, _finished, _insert_near, _on_surface_pass, _touch_up, _touched_by
 from .uniform_model import _Context
+from .uniform_passes import _area, _finished, _insert_near, _on_surface_pass, _touch_up, _touched_by
 
 log = logging.getLogger("swath.plan")
 

@@ -5,13 +5,15 @@ from __future__ import annotations
 import logging
 import math
 import time
+
 import numpy as np
 from scipy.spatial import cKDTree
-from ..surface.curvature import PrincipalCurvature
-from ..surface.geometry import normalize
-from ..surface.geodesic import FaceGradient
-from ..surface.topology import mesh_edges
+
 from ..contact.widths import patch_rows, unique_patches
+from ..surface.curvature import PrincipalCurvature
+from ..surface.geodesic import FaceGradient
+from ..surface.geometry import normalize
+from ..surface.topology import mesh_edges
 
 log = logging.getLogger(__name__)
 

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import logging
 import math
+
 import numpy as np
-from ..surface.polyline import resample_uniform
-from ..surface.geometry import normalize
-from .slicing import resample, slice_mesh
+
 from ..core import Pass
+from ..surface.geometry import normalize
+from ..surface.polyline import resample_uniform
+from .slicing import resample, slice_mesh
 
 log = logging.getLogger(__name__)
 

@@ -326,7 +326,7 @@ def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, m
     name = surface.name or "part"
     title = title or f"swath report — {name}"
     planner = toolpath.planner if toolpath is not None else settings.get("planner", "–")
-    now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
+    now = _dt.datetime.now(_dt.UTC).replace(microsecond=0)
 
     fig = figure_3d(surface, toolpath=toolpath, trajectory=trajectory, removal=removal, max_faces=max_faces,
                     max_line_points=max_line_points)

@@ -179,7 +179,7 @@ def metrics_document(metrics: dict, settings: dict) -> dict:
     return {
         "format_version": METRICS_JSON_VERSION,
         "swath_version": __version__,
-        "created_utc": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
+        "created_utc": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
         "metrics": to_jsonable(metrics),
         "settings": to_jsonable(settings),
     }

@@ -1,10 +1,18 @@
 """The ``simulate`` stage: predicted material removal, the plan's metrics, the force control, and
 the Preston calibration from trials."""
 
-from .calibrate import (Calibration, PrestonFit, calibrate, load_calibration, predict_depth, predict_job_depth,
-                        read_trials, tool_with_calibration, write_calibration)
-from .force import (Disturbance, ForceController, ForceTrace, gravity_for_tilt, simulate_force,
-                    trajectory_with_force)
+from .calibrate import (
+                        Calibration,
+                        PrestonFit,
+                        calibrate,
+                        load_calibration,
+                        predict_depth,
+                        predict_job_depth,
+                        read_trials,
+                        tool_with_calibration,
+                        write_calibration,
+)
+from .force import Disturbance, ForceController, ForceTrace, gravity_for_tilt, simulate_force, trajectory_with_force
 from .preston_doe import factorial_design, write_doe
 from .removal import RemovalMap, coverage_lower_bound, plan_metrics, simulate_removal
 

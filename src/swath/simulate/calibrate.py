@@ -112,7 +112,7 @@ class Trials:
     def __len__(self) -> int:
         return len(self.depth)
 
-    def subset(self, mask: np.ndarray) -> "Trials":
+    def subset(self, mask: np.ndarray) -> Trials:
         return Trials(**{k: getattr(self, k)[mask] for k in self.__dataclass_fields__})
 
     @property

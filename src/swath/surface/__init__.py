@@ -9,11 +9,11 @@ a triangulation), fitted to scans by :func:`fit_patch`; a nominal CAD surface is
 by :func:`register_rigid` or :func:`register_on_table`, which return a :class:`Registration`.
 """
 
-from .surface import Surface
-from .curvature import PrincipalCurvature, principal_curvatures
 from .bspline import BSplinePatch
+from .curvature import PrincipalCurvature, principal_curvatures
 from .fit import FitReport, fit_patch
 from .register import Registration, register_on_table, register_rigid
+from .surface import Surface
 
 __all__ = ["Surface", "PrincipalCurvature", "principal_curvatures", "BSplinePatch", "FitReport", "fit_patch",
            "Registration", "register_on_table", "register_rigid"]

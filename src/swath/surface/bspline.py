@@ -27,7 +27,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import InputError
-from .bspline_basis import _check_knots, span_samples, basis_derivatives
+from .bspline_basis import _check_knots, basis_derivatives, span_samples
 from .curvature import PrincipalCurvature
 from .geometry import normalize
 
@@ -245,7 +245,7 @@ class BSplinePatch:
         return principal_from_derivatives(self.derivatives(u, v, 2))
 
     # --- orientation ------------------------------------------------------------------------------
-    def flipped(self) -> "BSplinePatch":
+    def flipped(self) -> BSplinePatch:
         """The same surface with the u direction reversed, hence the normal side flipped."""
         u0, u1 = self.domain[0]
         knots = (u0 + u1) - self.knots_u[::-1]
@@ -470,7 +470,7 @@ class BSplinePatch:
         }
 
     @classmethod
-    def from_dict(cls, data: dict) -> "BSplinePatch":
+    def from_dict(cls, data: dict) -> BSplinePatch:
         """Rebuild a patch from :meth:`to_dict` output.
 
         Raises

@@ -371,6 +371,7 @@ def _fit_global(X, uv, *, p, q, n_ctrl, smoothing, qk, max_turn, h_max, knot_rou
     nsv = req_v if req_v is not None else min(cap_v, math.ceil(Lv / hmv) + 4)
     ku, kv = _uniform_knots(nsu, p, dom_u), _uniform_knots(nsv, q, dom_v)
     grid_u, grid_v = _lambda_grid(h_pts, Lu), _lambda_grid(h_pts, Lv)
+    patch = None                      # the pilot fit of the previous round (set before it is read)
     for r in range(max(knot_rounds, 0) + 1):
         if r > 0:
             ku = _knots_from_patch(patch, 0, req_u, p, opts, cap_u, min_span, dom_u)

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 from .bspline import BSplinePatch
-from .bspline_basis import span_samples, clamped_knots
+from .bspline_basis import clamped_knots, span_samples
 from .geometry import normalize
 
 #: Total turning (rad) of a direction below which curvature hardly moves the knots.

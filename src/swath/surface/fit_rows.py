@@ -11,9 +11,9 @@ from .bspline import BSplinePatch
 from .bspline_basis import basis_derivatives
 from .fit_knots import _knots_from_patch, _uniform_knots
 from .fit_solve import (
-    _gcv_progress,
     _aniso_step,
     _design_1d,
+    _gcv_progress,
     _lambda_grid,
     _penalty_1d,
     _smooth_columns,

@@ -248,7 +248,7 @@ def distance_field(vertices: np.ndarray, faces: np.ndarray, *, source_vertices, 
     if len(sv) == 0 or len(sd) != len(sv):
         raise InputError(f"a distance field needs sources with one distance each, got {len(sv)} and {len(sd)}")
     if method == "fmm":
-        curves = [[(int(i), [])] for i in sv]
+        curves: list[list[tuple[int, list]]] = [[(int(i), [])] for i in sv]
         try:
             fmm = solver if solver is not None else pp3d.MeshFastMarchingDistanceSolver(V, F)
             d = np.asarray(fmm.compute_distance(curves, [[float(x)] for x in sd], False)).ravel()

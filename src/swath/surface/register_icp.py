@@ -271,7 +271,6 @@ def _system(src, tgt, m, basis, trim, cos_max, boundary, exact, frozen, keep_fix
             # the perimeter residual lies in the table plane: trim on its in-plane length
             off = pb - qb
             dpl = np.linalg.norm(off - np.einsum("anj,j->an", off, k)[..., None] * k, axis=2)
-            rb = np.einsum("anj,anj->an", off, ub)
             # gate on the in-plane distance, not the residual along the perimeter normal: a point
             # matched far along a straight edge has a small residual but no true counterpart
             kb = np.where(fz, kb_fixed, _gate(dpl, _trim_mask(dpl, np.ones_like(dpl, bool), trim), src.size))

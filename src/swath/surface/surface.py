@@ -206,7 +206,7 @@ class Surface:
         n = np.einsum("ki,kij->kj", bary, self.normals[self.faces[face]])
         return geometry.normalize(n)
 
-    def subdivided(self, max_edge: float) -> "Surface":
+    def subdivided(self, max_edge: float) -> Surface:
         """A copy whose edges are all at most ``max_edge`` metres (same shape, finer sampling)."""
         import trimesh
 

@@ -63,7 +63,8 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     for start in range(len(bnd)):
         if used[start]:
             continue
-        loop, e = [], start
+        loop: list[int] = []
+        e: int | None = start
         while e is not None and not used[e]:
             used[e] = True
             loop.append(heads[e])

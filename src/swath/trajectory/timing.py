@@ -49,11 +49,19 @@ import logging
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..errors import InputError
 from ..core import Pass, ToolPath
-from .constraints import (CONSTRAINT_TYPES, AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile, PassGrid,
-                          TangentialAccelLimit, speed_profile)
+from ..errors import InputError
 from ..surface.polyline import densify, resample_uniform
+from .constraints import (
+    CONSTRAINT_TYPES,
+    AngularSpeedLimit,
+    CentripetalLimit,
+    FeedLimit,
+    FeedProfile,
+    PassGrid,
+    TangentialAccelLimit,
+    speed_profile,
+)
 from .geometry import rotation_steps, smoothed_directions
 from .links import AirGuard, LinkSettings, time_link
 from .orientation import make_continuous, quaternions_from_frames, tool_frames
