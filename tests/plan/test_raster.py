@@ -260,8 +260,8 @@ def test_shared_meshes_at_every_spacing(name):
 
 def test_wavy_mesh_drops_short_fragments_and_counts_them():
     s = load_shared("noether_wavy_mesh_with_hole.ply")
-    a = raster(s, TOOL, spacing=0.02, point_spacing=5e-3)
-    b = raster(s, TOOL, spacing=0.02, point_spacing=5e-3, min_pass_length=0.0)
+    a = raster(s, TOOL, spacing=0.02, point_spacing=5e-3, direction=0.0, fill_gaps=False)
+    b = raster(s, TOOL, spacing=0.02, point_spacing=5e-3, min_pass_length=0.0, direction=0.0, fill_gaps=False)
     assert a.metadata["min_pass_length_m"] == pytest.approx(R / 4)
     assert a.metadata["dropped_fragments"] >= 1 and b.metadata["dropped_fragments"] == 0
     assert len(b.passes) == len(a.passes) + a.metadata["dropped_fragments"]

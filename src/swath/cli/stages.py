@@ -92,6 +92,8 @@ def segmented_plan(surface, tool, planner, settings, arguments: dict):
     regions = segment(surface)
     log.info("segmented %s into %d regions", surface.name, len(regions))
     options = dict(arguments)
-    if "spacing" not in options and settings.planner == "raster":
-        options["spacing"] = planner(surface, tool, **arguments).metadata["spacing_m"]
+    if settings.planner == "raster":
+        if "spacing" not in options:
+            options["spacing"] = planner(surface, tool, **arguments).metadata["spacing_m"]
+        options["fill_gaps"] = False      # a region's edge is its neighbour's: judged on the whole part only
     return plan_regions(surface, tool, planner, regions, **options)

@@ -154,9 +154,14 @@ def coverage_lower_bound(surface, tool, *, samples: PadSamples | None = None) ->
     lower bound.
     """
     s = samples if samples is not None else pad_scale_samples(surface, tool)
-    patch, inverse = unique_patches(s.curvature.k1, s.curvature.k2, tool, 180)
+    return float(np.sum(lower_bound_density(s, tool)))
+
+
+def lower_bound_density(samples: PadSamples, tool) -> np.ndarray:
+    """Each pad-scale sample's share ``a / w_max`` (m) of the coverage lower bound ``L*``."""
+    patch, inverse = unique_patches(samples.curvature.k1, samples.curvature.k2, tool, 180)
     w = patch_rows(patch, inverse, lambda p, rows: p.max_width(36))
-    return float(np.sum(s.areas / np.maximum(w, 1e-9)))
+    return samples.areas / np.maximum(w, 1e-9)
 
 
 def unique_patches(k1, k2, tool, n_rays):

@@ -132,3 +132,15 @@ def _orient(pl, travel):
     if not pl.closed:
         return pl if proj[-1] >= proj[0] else pl.reversed()
     return pl.rolled(int(np.argmin(proj[:-1])))
+
+
+def slice_passes(surface, faces, cross, offset: float, feed, point_spacing: float) -> list:
+    """The fragments of the plane ``x·cross = offset`` through ``surface``'s faces ``faces``, each
+    running along ``feed``, resampled at ``point_spacing``: ``[(points (k, 3), normals (k, 3))]``."""
+    from .slicing import slice_mesh
+
+    out = []
+    for p in plane_passes(slice_mesh(surface.vertices, surface.faces[faces], cross, [offset], values=surface.normals),
+                          feed, surface.face_normals[faces], point_spacing):
+        out.append((p.points, p.normals))
+    return out

@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from ..contact.widths import raster_spacing
-from ..core import ToolPath
+from ..core import Pass, ToolPath
 from ..errors import InfeasibleError, InputError
 from .common import check_min_pass_length, feed_and_cross, plane_passes, positive, select_direction, split_direction
 from .slicing import slice_mesh
@@ -32,7 +32,8 @@ AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
 
 
 def raster(surface, tool, *, spacing: float | None = None, direction=None, point_spacing: float = 1e-3,
-           min_pass_length: float | None = None, cross_direction=None, progress=None) -> ToolPath:
+           min_pass_length: float | None = None, cross_direction=None, fill_gaps: bool = True,
+           progress=None) -> ToolPath:
     """Cover a surface with parallel plane slices, visited in snake order.
 
     Parameters
@@ -68,15 +69,22 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         plan) the area within 0.75 R of a dropped fragment and of no kept pass is at most 0.23 %
         (one fragment on bezier_complex_shape), typically below 0.05 %.
 
+    fill_gaps : bool
+        After the planes, check where the passes really leave the surface untouched (beside holes,
+        at a piece's far side, where slivers were dropped, in the corners a diagonal direction
+        leaves; :mod:`swath.plan.gaps`) and add a short fill pass across each such patch (default
+        True).  ``predicted_gap_fraction`` is then measured from where the passes fall.
     progress : callable, optional
         Unused (raster is fast); accepted so every planner has the same call shape.
 
     Returns
     -------
     ToolPath
-        Passes level by level (``Pass.level`` = plane index, increasing along the cross direction),
-        each running along the feed, several fragments on a plane in order along it; the ``order``
-        stage's ``snake`` method turns every other plane round (boustrophedon).  Points lie exactly on
+        Passes piece by piece (``Pass.region``; every connected piece gets planes over its own
+        extent), level by level (``Pass.level`` = plane index, increasing along the cross
+        direction), each running along the feed, several fragments on a plane in order along it;
+        fill passes (``kind="touch_up"``) on the level nearest to them.  The ``order`` stage's
+        ``snake`` method turns every other plane round (boustrophedon).  Points lie exactly on
         the mesh, ``≤ point_spacing`` apart along the pass; normals are the smooth vertex normals
         interpolated barycentrically in the face holding each point.
         ``metadata``: spacing_m, angle_rad, feed_direction, cross_direction, n_planes, n_passes,
@@ -99,11 +107,11 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
     min_pass_length = check_min_pass_length(min_pass_length, tool.pad_radius)
     angle, vector = split_direction(direction)
 
-    choice = None
-    direction_rule = "given direction" if vector is not None else "given angle"
-    if angle is None and vector is None:
-        angle, choice, direction_rule = choose_angle(surface, tool, spacing=spacing)
+    if angle is None and vector is None and cross_direction is None:
+        return _auto_direction(surface, tool, spacing=spacing, point_spacing=point_spacing,
+                               min_pass_length=min_pass_length, fill_gaps=fill_gaps, t_start=t_start)
     feed, cross = feed_and_cross(surface, angle=angle or 0.0, direction=vector)
+    direction_rule = "given direction" if vector is not None else "given angle"
     if cross_direction is not None:
         c = np.asarray(cross_direction, float).reshape(-1)
         if c.shape != (3,) or not np.isfinite(c).all() or np.linalg.norm(c) == 0:
@@ -114,7 +122,45 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
             raise InputError("cross_direction is along the feed direction; give a feed across the planes")
         feed = f / np.linalg.norm(f)
         direction_rule = "given cutting-plane normal"
+    return _plan_along(surface, tool, feed, cross, angle=angle or 0.0, direction_rule=direction_rule, spacing=spacing,
+                       point_spacing=point_spacing, min_pass_length=min_pass_length, fill_gaps=fill_gaps,
+                       t_start=t_start)
 
+
+#: Contact length (m) one more pass is worth when directions are compared: its approach, retract
+#: and the move to the next pass take about as long as this much contact at a 50 mm/s feed.
+PASS_ALLOWANCE = 0.1
+
+
+def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, fill_gaps, t_start):
+    """Plan along each of :data:`AUTO_ANGLES` and keep the cheapest: contact length plus
+    :data:`PASS_ALLOWANCE` per pass, fill passes included (near-ties within 2 % go to the earlier
+    angle, the principal axis first)."""
+    rows = []
+    for a in AUTO_ANGLES:
+        feed, cross = feed_and_cross(surface, angle=a)
+        tp = _plan_along(surface, tool, feed, cross, angle=a, direction_rule="candidate", spacing=spacing,
+                         point_spacing=point_spacing, min_pass_length=min_pass_length, fill_gaps=fill_gaps,
+                         t_start=t_start)
+        rows.append((a, tp.contact_length + PASS_ALLOWANCE * len(tp.passes), tp))
+    cheapest = min(r[1] for r in rows)
+    best = next(r for r in rows if r[1] <= 1.02 * cheapest)
+    summary = ", ".join(f"{math.degrees(a):.0f} deg: {len(tp.passes)} passes, {tp.contact_length:.2f} m"
+                        for a, _, tp in rows)
+    rule = (f"auto: least contact length + {PASS_ALLOWANCE:g} m per pass (fill passes included) among "
+            f"({summary})")
+    log.info("raster direction %s", rule)
+    meta = dict(best[2].metadata, direction_rule=rule,
+                candidates=[dict(direction_deg=math.degrees(a), length_m=tp.contact_length, n_passes=len(tp.passes),
+                                 predicted_gap_fraction=tp.metadata.get("predicted_gap_fraction"))
+                            for a, _, tp in rows])
+    return best[2].replace(metadata=meta)
+
+
+def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, point_spacing, min_pass_length,
+                fill_gaps, t_start):
+    """The raster plan with this feed and cutting-plane normal (see :func:`raster`)."""
+    choice = None
     if spacing is None:
         if choice is None:
             choice = raster_spacing(surface, tool, cross)
@@ -123,38 +169,51 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         rule = "given"
         choice = None
 
-    offsets, margin = plane_offsets(surface.vertices @ cross, spacing)
-    slices = slice_mesh(surface.vertices, surface.faces, cross, offsets, values=surface.normals)
-
-    lengths = np.array([pl.length for pl in slices])
-    short = lengths < min_pass_length
-    dropped, dropped_length = int(short.sum()), float(lengths[short].sum())
-    kept = [pl for pl, s in zip(slices, short) if not s]
-    if not kept:
+    # Planes for each connected piece over its own extent, so no piece is left between two planes.
+    pieces = surface.face_pieces()
+    passes, n_planes, margin, dropped, dropped_length, n_slices = [], 0, 0.0, 0, 0.0, 0
+    for k, faces in enumerate(pieces):
+        piece_v = surface.vertices[np.unique(surface.faces[faces])]
+        offsets, m = plane_offsets(piece_v @ cross, spacing)
+        margin = max(margin, m)
+        n_planes += len(offsets)
+        slices = slice_mesh(surface.vertices, surface.faces[faces], cross, offsets, values=surface.normals)
+        n_slices += len(slices)
+        lengths = np.array([pl.length for pl in slices])
+        short = lengths < min_pass_length
+        dropped += int(short.sum())
+        dropped_length += float(lengths[short].sum())
+        kept = [pl for pl, sh in zip(slices, short) if not sh]
+        passes += plane_passes(kept, feed, surface.face_normals[faces], point_spacing, region=k)
+    if not passes:
         along = float(np.ptp(surface.vertices @ feed))
         raise InfeasibleError(
-            f"raster found no pass: {len(slices)} slice fragments on {len(offsets)} planes, all shorter than "
+            f"raster found no pass: {n_slices} slice fragments on {n_planes} planes, all shorter than "
             f"min_pass_length={min_pass_length * 1e3:.1f} mm (the part spans {along * 1e3:.1f} mm along the feed); "
             "lower min_pass_length or choose a feed direction along the part")
 
-    passes = plane_passes(kept, feed, surface.face_normals, point_spacing)
+    n_fill, gap = 0, None
+    if fill_gaps:
+        passes, n_fill, gap = _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacing)
     metadata = dict(
         spacing_m=float(spacing), angle_rad=float(angle or 0.0), direction_rule=direction_rule,
         feed_direction=feed.tolist(),
-        cross_direction=cross.tolist(), n_planes=int(len(offsets)), n_passes=len(passes),
-        dropped_fragments=dropped, dropped_length_m=dropped_length, point_spacing_m=float(point_spacing),
-        min_pass_length_m=float(min_pass_length), margin_m=float(margin), spacing_rule=rule,
+        cross_direction=cross.tolist(), n_planes=int(n_planes), n_pieces=len(pieces), n_passes=len(passes),
+        n_fill_passes=n_fill, dropped_fragments=dropped, dropped_length_m=dropped_length,
+        point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length), margin_m=float(margin),
+        spacing_rule=rule,
     )
-    if choice is not None:
+    if gap is not None:
+        metadata["predicted_gap_fraction"] = gap
+        if gap > 5e-3:
+            msg = (f"raster: {100 * gap:.1f} % of {surface.name or 'the surface'} is predicted to stay untouched even "
+                   "after the fill passes; lower the spacing, choose another direction or segment the part")
+            log.warning("%s", msg)
+            metadata["warnings"] = [msg]
+    elif choice is not None:
         metadata["predicted_gap_fraction"] = choice.gap_fraction
-        if choice.gap_fraction > 5e-3:
-            log.warning("raster: about %.1f%% of %s is predicted to fall between swaths at the default spacing "
-                        "%.1f mm (%.1f%% of the area lies within 30 degrees of parallel to the cutting planes); "
-                        "choose an angle/direction whose planes cut across the steep parts, or segment the part "
-                        "first", 100 * choice.gap_fraction, surface.name or "the surface", spacing * 1e3,
-                        100 * choice.steep_fraction)
-    log.info("raster %s: spacing %.1f mm, %d planes, %d passes, %d fragments dropped, %d points, %.2f s",
-             surface.name, spacing * 1e3, len(offsets), len(passes), dropped, sum(len(p.points) for p in passes),
+    log.info("raster %s: spacing %.1f mm, %d planes, %d passes (%d fill), %d fragments dropped, %d points, %.2f s",
+             surface.name, spacing * 1e3, n_planes, len(passes), n_fill, dropped, sum(len(p.points) for p in passes),
              time.perf_counter() - t_start)
     return ToolPath(surface, passes, "raster", metadata)
 
@@ -215,3 +274,42 @@ def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, floa
     return offsets, margin
 
 
+
+
+#: At most this many rounds of fill passes.
+FILL_ROUNDS = 3
+
+
+def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacing):
+    """Add fill passes where the plan leaves the surface untouched; returns the passes (sorted by
+    piece, level and position along the feed), how many were added and the predicted gap share."""
+    from .common import slice_passes
+    from .gaps import CoverageCheck, fill_passes
+
+    check = CoverageCheck(surface, tool, feed)
+    piece_of_vertex = np.full(len(surface.vertices), -1)
+    for k, faces in enumerate(pieces):
+        piece_of_vertex[surface.faces[faces].ravel()] = k
+    added = 0
+    for _ in range(FILL_ROUNDS):
+        patches = check.gap_patches(passes)
+        if not patches:
+            break
+        new = []
+        for idx in patches:
+            nearest = surface.kdtree.query(check.points[idx[len(idx) // 2]])[1]
+            k = int(max(piece_of_vertex[nearest], 0))
+
+            def slicer(offset, faces=pieces[k]):
+                return slice_passes(surface, faces, cross, offset, feed, point_spacing)
+
+            for pts, nrm, off in fill_passes(check, [idx], slicer, feed, cross, tool.pad_radius):
+                level = int(np.argmin([abs(off - float(np.mean(p.points @ cross))) if p.region == k else np.inf
+                                       for p in passes]))
+                new.append(Pass(pts, nrm, level=passes[level].level, region=k, kind="touch_up"))
+        if not new:
+            break
+        passes = passes + new
+        added += len(new)
+    passes.sort(key=lambda p: (p.region, p.level, float(p.points[0] @ feed)))
+    return passes, added, check.gap_fraction(passes)

@@ -109,6 +109,13 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         ``kind="touch_up"``), candidates (per direction: length_m, cost) for automatic direction,
         order_hint ``"zigzag"``.  Each pass's ``level`` is its generation.
     """
+    pieces = surface.face_pieces()
+    if len(pieces) > 1:
+        # Each piece is covered on its own: a distance field from one piece's seed never reaches another.
+        options = dict(overlap=overlap, direction=direction, seed=seed, point_spacing=point_spacing,
+                       min_pass_length=min_pass_length, max_passes=max_passes, feed=feed, max_angular=max_angular,
+                       cost=cost, work_spacing=work_spacing, progress=progress)
+        return _per_piece(surface, tool, pieces, options)
     if not (isinstance(overlap, (int, float)) and 0.0 <= overlap < 0.9):
         raise InputError(f"overlap must be a fraction in [0, 0.9), e.g. 0.1 for 10 %, got {overlap!r}")
     if not (np.isfinite(point_spacing) and point_spacing > 0):
@@ -150,6 +157,7 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     step = min(2e-3, 0.5 * ctx.work_spacing)
 
     generations = []          # each: list of (points (k,3), widths (k,))
+    notes: list[str] = []     # what the kept plan must warn about
     covered = np.zeros(len(W.vertices), bool)
     current = _seed_curves(ctx, seed, cross, step)
     reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
@@ -204,13 +212,15 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
         log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
                   len(pieces), len(new), _area(W, left))
         if not (gained & ~covered).any():
-            log.warning("uniform: a pass generation covered nothing new; stopping")
+            notes.append("uniform: a pass generation covered nothing new, so the planner stopped there")
+            log.info("%s", notes[-1])
             break
         generations.append(new)
         covered |= gained
         sources = None
     else:
-        log.warning("uniform: stopped after max_passes=%d generations", max_passes)
+        notes.append(f"uniform: stopped after max_passes={max_passes} generations")
+        log.info("%s", notes[-1])
 
     passes_pts = [p for gen in generations for p, _ in gen]
     generation_of = {id(p): g for g, gen in enumerate(generations) for p, _ in gen}
@@ -225,11 +235,14 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
     # capped as in _Context.touched); the simulator's figure is the one to trust.
     covered_pred = float(W.vertex_areas[covered].sum() / W.area)
+    if covered_pred < 0.995:
+        notes.append(f"uniform: {100 * (1 - covered_pred):.1f} % of {ctx.surface.name or 'the part'} is predicted to "
+                     "stay untouched (regions no pass reaches); lower the overlap's step or segment the part")
     meta = dict(overlap_fraction=float(overlap), direction_rad=float(angle), direction_rule=rule,
                 predicted_coverage_fraction=covered_pred,
                 feed_direction=feed_dir.tolist(), seed=seed if isinstance(seed, str) else "polyline",
                 n_passes=len(passes), n_generations=len(generations), n_touch_up_passes=len(touch_ups),
-                touch_up_passes=touch_up_index, order_hint="zigzag",
+                touch_up_passes=touch_up_index, order_hint="zigzag", warnings=notes,
                 work_spacing_m=ctx.work_spacing,
                 point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
                 plan_time_s=time.perf_counter() - t0)
@@ -351,3 +364,21 @@ def _boundary_seed(W, feed, h, R) -> np.ndarray:
     return pts[run] if len(run) >= 2 else pts[[start, (start + 1) % n]]
 
 
+
+
+def _per_piece(surface, tool, pieces, options) -> ToolPath:
+    """Plan every connected piece with :func:`uniform` and join them (``Pass.region`` = piece)."""
+    passes, metas, covered = [], [], 0.0
+    for k, faces in enumerate(pieces):
+        sub = surface.sub_surface(faces, name=f"{surface.name}[piece {k}]")
+        tp = uniform(sub, tool, **options)
+        passes += [p.replace(region=k) for p in tp.passes]
+        metas.append(tp.metadata)
+        covered += tp.metadata["predicted_coverage_fraction"] * sub.area
+    meta = dict(metas[0])
+    meta.update(n_pieces=len(pieces), n_passes=len(passes), pieces=metas,
+                predicted_coverage_fraction=covered / surface.area, order_hint="zigzag",
+                touch_up_passes=[i for i, p in enumerate(passes) if p.kind == "touch_up"],
+                n_touch_up_passes=sum(p.kind == "touch_up" for p in passes))
+    log.info("uniform %s: %d pieces planned one by one, %d passes", surface.name, len(pieces), len(passes))
+    return ToolPath(surface, passes, "uniform", meta)

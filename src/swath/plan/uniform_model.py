@@ -65,6 +65,9 @@ class _Context:
         while not given and len(self.work.vertices) > 1.3 * MAX_WORK_VERTICES and work_spacing < R / 4.0:
             work_spacing = min(work_spacing * math.sqrt(len(self.work.vertices) / MAX_WORK_VERTICES), R / 4.0)
             self.work = surface.subdivided(work_spacing)
+        if len(np.unique(self.work.faces)) < len(self.work.vertices):
+            # vertices no face uses (a hole cut out of a grid): the distance solver refuses them
+            self.work = self.work.sub_surface(np.arange(len(self.work.faces)))
         self.work_spacing = float(work_spacing)
         W = self.work
         self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))

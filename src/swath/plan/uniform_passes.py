@@ -169,7 +169,7 @@ def _touch_up(ctx, passes: list[np.ndarray], covered: np.ndarray, step: float, m
     pad_area = math.pi * R * R
     big = _uncovered_pockets(ctx, covered, pad_area * (1 + 1e-9))
     if big:           # larger than the pad: not a pocket between passes (max_passes, or passes dropped)
-        log.warning("uniform: %d uncovered regions larger than the pad (%.4f m2 in all) left as they are",
+        log.info("uniform: %d uncovered regions larger than the pad (%.4f m2 in all) left as they are",
                     len(big), sum(_area(W, b) for b in big))
     blobs = _uncovered_pockets(ctx, covered, min_area, pad_area)
     if not blobs:

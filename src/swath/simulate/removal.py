@@ -17,7 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..contact import Tool, mesh_contact
-from ..contact.widths import coverage_lower_bound
+from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
@@ -207,8 +207,9 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
 
     ``coverage_fraction`` is the area fraction the pressed pad touched (``effective_coverage_fraction``:
     the fraction that received at least 10 % of the median depth); ``removal_cov`` the
-    area-weighted coefficient of variation of depth over the touched area; ``efficiency`` is
-    ``L* / L_contact``.
+    area-weighted coefficient of variation of depth over the touched area; ``efficiency`` is ``L*`` of
+    the touched area (``covered_lower_bound_m``) over ``L_contact``, at most 1 for any plan up to the
+    sampling (``coverage_lower_bound_m`` is ``L*`` of the whole part).
     """
     a = removal.surface.vertex_areas
     d = removal.depth
@@ -229,7 +230,14 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         # The trajectory never touched the part: no depth statistics (NaN), zero coverage.
         mean = std = median = effective = p5 = p95 = float("nan")
     L_contact = trajectory.contact_length
-    L_star = coverage_lower_bound(surface, tool)
+    # L* over the whole part, and over the part the plan touched: efficiency compares the path run
+    # with the shortest that could have covered what it covered, so it cannot pass 1 by leaving
+    # area untouched.
+    pad = pad_scale_samples(surface, tool)
+    density = lower_bound_density(pad, tool)
+    L_star = float(density.sum())
+    touched = d[removal.surface.kdtree.query(pad.points)[1]] > 0 if len(d) else np.zeros(len(density), bool)
+    L_star_touched = float(density[touched].sum())
     return {
         "surface_area_m2": total,
         "covered_area_m2": covered_area,
@@ -247,7 +255,8 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         "cycle_time_s": trajectory.duration,
         "contact_time_s": float(contact_dwell(trajectory).sum()),
         "coverage_lower_bound_m": L_star,
-        "efficiency": L_star / L_contact if L_contact > 0 else float("nan"),
+        "covered_lower_bound_m": L_star_touched,
+        "efficiency": L_star_touched / L_contact if L_contact > 0 else float("nan"),
         "n_passes": int(trajectory.pass_index.max() + 1) if len(trajectory) else 0,
         "n_samples": int(len(trajectory)),
         "n_removal_samples": int(len(d)),

@@ -206,6 +206,22 @@ class Surface:
         n = np.einsum("ki,kij->kj", bary, self.normals[self.faces[face]])
         return geometry.normalize(n)
 
+    def face_pieces(self) -> list[np.ndarray]:
+        """Face indices ``(k,) int`` of each connected piece (faces sharing vertices), largest first."""
+        n, label = topology.vertex_components(len(self.vertices), self.faces)
+        face_label = label[self.faces[:, 0]]
+        groups = [np.flatnonzero(face_label == i) for i in range(n)]
+        groups = [g for g in groups if len(g)]
+        groups.sort(key=lambda g: -float(self.face_areas[g].sum()))
+        return groups
+
+    def sub_surface(self, face_index, *, name: str | None = None) -> Surface:
+        """The surface made of the faces ``face_index`` ``(k,) int`` only (vertices renumbered)."""
+        faces = self.faces[np.asarray(face_index, np.int64)]
+        used, inverse = np.unique(faces, return_inverse=True)
+        return Surface(self.vertices[used], inverse.reshape(-1, 3), name=name or self.name,
+                       normal_smoothing=self.normal_smoothing, curvature_neighbours=self.curvature_neighbours)
+
     def subdivided(self, max_edge: float) -> Surface:
         """A copy whose edges are all at most ``max_edge`` metres (same shape, finer sampling)."""
         import trimesh

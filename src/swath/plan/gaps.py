@@ -1,0 +1,126 @@
+"""Where a plan's passes really leave the surface untouched, and the short passes that close it.
+
+A planner's spacing rule says how far apart passes may be; it does not see a hole's edge, a
+piece's far side, a dropped sliver or the corner a diagonal direction leaves.  Here the surface is
+sampled finely and each sample is counted as covered when a pass point lies within half the
+pad's contact chord of it (the chord across the pass, from the local contact model at pad scale).
+The uncovered samples, grouped into patches, get a fill pass each: the slice through the patch
+along the plan's feed direction, clipped to the patch's extent plus half a pad.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from ..contact.widths import pad_scale_samples, patch_widths
+
+log = logging.getLogger("swath.plan")
+
+#: Relative slack on the half chord: the default spacing makes neighbouring swaths just touch, so
+#: the midline between two passes lies a rounding error from either.
+CHORD_TOLERANCE = 5e-3
+#: Uncovered patches smaller than this share of the surface are not worth a pass.
+MIN_GAP_SHARE = 2e-4
+
+
+class CoverageCheck:
+    """Fine samples of a surface with the contact chord across a given feed direction.
+
+    Parameters
+    ----------
+    surface : Surface
+    tool : Tool
+    feed : (3,) float
+        The plan's feed direction (passes run along it); the chord is measured across it.
+    step : float, optional
+        Sample spacing, m (default R/8).
+    """
+
+    def __init__(self, surface, tool, feed, *, step: float | None = None):
+        R = tool.pad_radius
+        step = R / 8.0 if step is None else float(step)
+        fine = surface.subdivided(step)
+        self.points = fine.vertices
+        self.areas = fine.vertex_areas
+        self.total = float(self.areas.sum())
+        pad = pad_scale_samples(surface, tool)
+        along = np.cross(np.cross(pad.normals, np.asarray(feed, float)), pad.normals)   # feed in each tangent plane
+        along /= np.maximum(np.linalg.norm(along, axis=1, keepdims=True), 1e-12)
+        chord = patch_widths(pad.curvature, pad.normals, along, tool)
+        nearest = cKDTree(pad.points).query(self.points)[1]
+        self.half_chord = 0.5 * np.minimum(chord[nearest], 2 * R)
+        self.step = step
+
+    def covered(self, passes) -> np.ndarray:
+        """(s,) bool: samples within half a chord of a pass point."""
+        if not passes:
+            return np.zeros(len(self.points), bool)
+        pts = np.vstack([p.points for p in passes])
+        reach = self.half_chord * (1.0 + CHORD_TOLERANCE)
+        d = cKDTree(pts).query(self.points, distance_upper_bound=float(reach.max()) + 1e-9)[0]
+        return d <= reach
+
+    def gap_fraction(self, passes) -> float:
+        """Area share of the surface no pass reaches, 0..1."""
+        return float(self.areas[~self.covered(passes)].sum() / self.total)
+
+    def gap_patches(self, passes, *, min_share: float = MIN_GAP_SHARE) -> list[np.ndarray]:
+        """Sample indices of each connected uncovered patch larger than ``min_share`` of the surface."""
+        free = np.flatnonzero(~self.covered(passes))
+        if len(free) == 0:
+            return []
+        pairs = cKDTree(self.points[free]).query_pairs(1.5 * self.step, output_type="ndarray")
+        n = len(free)
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else \
+            coo_matrix((n, n))
+        _, label = connected_components(graph, directed=False)
+        out = []
+        for lab in np.unique(label):
+            idx = free[label == lab]
+            if self.areas[idx].sum() >= min_share * self.total:
+                out.append(idx)
+        return out
+
+
+def fill_passes(check: CoverageCheck, patches, slicer, feed, cross, pad_radius: float) -> list:
+    """One fill pass per uncovered patch: the slice through the patch's middle (along the cross
+    direction), clipped to the patch's extent along the feed plus half a pad either side.
+
+    Parameters
+    ----------
+    check : CoverageCheck
+    patches : list of (k,) int
+        Sample indices of each patch (:meth:`CoverageCheck.gap_patches`).
+    slicer : callable
+        ``slicer(offset) -> list of (points (k, 3), normals (k, 3))``: the fragments of the plane
+        ``x·cross = offset`` through the surface, resampled, normals toward the tool.
+    feed, cross : (3,) float
+    pad_radius : float, m
+
+    Returns
+    -------
+    list of (points, normals, offset)
+    """
+    out = []
+    for idx in patches:
+        p = check.points[idx]
+        off = float(np.median(p @ cross))
+        lo, hi = float((p @ feed).min()) - 0.5 * pad_radius, float((p @ feed).max()) + 0.5 * pad_radius
+        for pts, nrm in slicer(off):
+            s = pts @ feed
+            keep = (s >= lo) & (s <= hi)
+            if keep.sum() < 2:
+                continue
+            # the longest run of kept points (a fragment may leave and re-enter the window)
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(int), [0]])))
+            runs = edges.reshape(-1, 2)
+            a, b = max(runs, key=lambda r: r[1] - r[0])
+            if b - a >= 2 and np.min(np.linalg.norm(p[:, None, :] - pts[None, a:b:max((b - a) // 50, 1)], axis=2)) \
+                    <= 2 * pad_radius:
+                out.append((pts[a:b], nrm[a:b], off))
+    return out
