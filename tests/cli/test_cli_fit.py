@@ -16,12 +16,12 @@ from scipy.spatial.transform import Rotation
 
 from conftest import shared_mesh
 from swath.cli import main
-from swath.cli.fitjob import infer_scan_rows
 from swath.examples import doubly_curved_panel
 from swath.examples.scansim import panel_patch, simulate_laser_scan
 from swath.io.mesh import load_mesh, save_surface_ply
 from swath.io.patch import load_patch_json
 from swath.io.points import load_points
+from swath.io.scan import infer_scan_rows
 from swath.surface import BSplinePatch, Surface
 from swath.surface.register_result import rigid_matrix, rotation_angle
 from swath.trajectory import read_csv

@@ -351,7 +351,7 @@ def test_rows_fit_with_a_fixed_smoothing_length():
 def _rect_footprint(patch, cell):
     """A footprint as scan_footprint lays it out: the domain ends on cell edges, one cell of
     margin, every cell over the domain occupied."""
-    from swath.cli.fitjob import Footprint
+    from swath.surface.footprint import Footprint
 
     lo = patch.domain[:, 0]
     n = np.ceil((patch.domain[:, 1] - lo) / cell).astype(int) + 2
@@ -359,7 +359,7 @@ def _rect_footprint(patch, cell):
 
 
 def test_footprint_cells_are_closed_on_their_edges():
-    from swath.cli.fitjob import Footprint
+    from swath.surface.footprint import Footprint
 
     mask = np.zeros((3, 3), dtype=bool)
     mask[1, 1] = True
@@ -373,7 +373,7 @@ def test_footprint_cells_are_closed_on_their_edges():
 def test_trimmed_triangulation_changes_only_locally_when_an_edge_cell_comes_or_goes():
     # The same scan read in m and in mm fits to patches a few nm apart, whose footprints can differ
     # by a cell at the rim; the trimmed surface (and so the plan) must not change by a whole row.
-    from swath.cli.fitjob import Footprint, patch_surface
+    from swath.surface.footprint import Footprint, patch_surface
 
     patch = panel_patch(size_x=0.2, size_y=0.15)
     fp, n = _rect_footprint(patch, 2.2e-3)

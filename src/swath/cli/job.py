@@ -31,6 +31,9 @@ def load_part_info(settings: JobSettings, *, progress=None):
     """
     from pathlib import PurePath
 
+    from ..io.patch_files import load_patch
+    from ..io.scan import is_point_cloud_file, load_scan, scan_from_surface
+    from ..surface.footprint import patch_surface, scan_footprint
     from . import fitjob
 
     say = progress or (lambda stage, done, total: None)
@@ -41,20 +44,20 @@ def load_part_info(settings: JobSettings, *, progress=None):
         surface = example_part(part.split(":", 1)[1])
         if not settings.fit:
             return surface, {}
-        scan = fitjob.scan_from_surface(surface)
+        scan = scan_from_surface(surface)
     elif PurePath(part).suffix.lower() == ".json":
         if settings.fit:
             raise InputError(f"{PurePath(part).name} is already a fitted patch; drop --fit to plan on it")
-        patch, footprint = fitjob.load_patch(part)
-        surface, spacing = fitjob.patch_surface(patch, spacing=settings.surface_spacing, name=PurePath(part).stem,
+        patch, footprint = load_patch(part)
+        surface, spacing = patch_surface(patch, spacing=settings.surface_spacing, name=PurePath(part).stem,
                                                 footprint=footprint)
         say(f"triangulated the patch at {spacing * 1e3:.3g} mm"
             + ("" if footprint is None else ", trimmed to the scanned area"), 0, 1)
         return surface, {"patch": patch, "footprint": footprint, "metrics": {"surface_spacing_m": spacing}}
     elif settings.fit:
-        scan = fitjob.load_scan(part, units=settings.units, side=settings.side, force_units=settings.force_units)
+        scan = load_scan(part, units=settings.units, side=settings.side, force_units=settings.force_units)
     else:
-        if fitjob.is_point_cloud_file(part):
+        if is_point_cloud_file(part):
             raise InputError(f"{PurePath(part).name} is a point cloud, not a mesh; add --fit to plan on a B-spline "
                              "patch fitted to it (or run `swath fit` and plan its patch.json)")
         from ..io.mesh import load_mesh
@@ -64,8 +67,8 @@ def load_part_info(settings: JobSettings, *, progress=None):
     say(f"fitting a B-spline patch to {len(scan.points)} points ({settings.parameterization} parameterisation)", 0, 1)
     patch, report = fitjob.fit_scan(scan, parameterization=settings.parameterization, side=settings.side)
     u, v, _ = patch.project(scan.points)
-    footprint = fitjob.scan_footprint(patch, scan.points, u, v, faces=scan.faces, rms=report.rms)
-    surface, spacing = fitjob.patch_surface(patch, spacing=settings.surface_spacing, name=scan.name,
+    footprint = scan_footprint(patch, scan.points, u, v, faces=scan.faces, rms=report.rms)
+    surface, spacing = patch_surface(patch, spacing=settings.surface_spacing, name=scan.name,
                                             footprint=footprint)
     say(f"fit rms {report.rms * 1e3:.3g} mm; triangulated the patch at {spacing * 1e3:.3g} mm, trimmed to the scan"
         + ("" if settings.surface_spacing is not None else " (default: extent / 150 in 2..5 mm)"), 0, 1)
@@ -240,7 +243,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         if robot is not None:
             figures.update(stages.write_robot_outputs(robot, surface, settings, tmp / "robot"))
         if part_info.get("patch") is not None:
-            from .fitjob import save_patch
+            from ..io.patch_files import save_patch
 
             save_patch(part_info["patch"], tmp / "patch.json", part_info.get("footprint"))
         if force is not None:

@@ -264,7 +264,7 @@ def main(argv=None) -> int:
                 print(_fit_summary(settings, doc))
             return 0
         if args.command == "register":
-            from .fitjob import run_register
+            from .registerjob import run_register
 
             settings = _register_settings_from_args(args)
             doc = run_register(settings, progress=progress)
@@ -308,7 +308,7 @@ def _fit_settings_from_args(args):
 
 def _register_settings_from_args(args):
     from ..units import length_unit_factor
-    from .fitjob import RegisterSettings
+    from .registerjob import RegisterSettings
 
     for unit in (args.units, args.scan_units):
         if unit is not None:
