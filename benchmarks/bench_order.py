@@ -28,6 +28,7 @@ from swath.contact.tool import Tool
 from swath.examples import wheel_hub
 from swath.io.mesh import load_mesh
 from swath.order import order_toolpath
+from swath.order.sequence import snake
 from swath.order.tour import (
     group_variants,
     held_karp,
@@ -49,7 +50,8 @@ def hub_table():
     t0 = time.perf_counter()
     regions = segment(hub)
     t_seg = time.perf_counter() - t0
-    tp = plan_regions(hub, tool, raster, regions)
+    spacing = raster(hub, tool).metadata["spacing_m"]            # one spacing for all regions
+    tp = snake(plan_regions(hub, tool, raster, regions, spacing=spacing, fill_gaps=False))
     print(f"\n## 1. wheel hub: {len(regions)} regions ({t_seg:.2f} s), {len(tp.passes)} raster passes, "
           f"{hub.area * 1e4:.0f} cm²")
     rows = []
@@ -75,7 +77,7 @@ def hub_table():
 
 def _region_groups(tp):
     groups = {}
-    for i, r in enumerate(tp.metadata["pass_region"]):
+    for i, r in enumerate(tp.regions.tolist()):
         groups.setdefault(r, []).append(i)
     return list(groups.values())
 
@@ -106,7 +108,7 @@ def optimality_table(instances):
 
 def subsets(name, tp, k, n_inst, rng):
     """Instances of k single-pass groups drawn from a tool path."""
-    from swath.plan.toolpath import ToolPath
+    from swath.core import ToolPath
 
     out = []
     for j in range(n_inst):
@@ -147,19 +149,20 @@ def parts_table(hub, hub_tp, removal: bool, uniform_pickle: str | None):
             surfaces.append((file, load_mesh(path, units=SHARED_MESH_UNITS[file])))
     for name, surf in surfaces:
         big = surf.area > 1.0
-        whole = raster(surf, tool)
+        whole = snake(raster(surf, tool))                          # the planner's own order
         rows.append(trajectory_row(name, "raster", whole, tool, removal and not big))
-        rows.append(trajectory_row(name, "raster + gtsp", order_toolpath(whole), tool, removal and not big))
-        rows.append(trajectory_row(name, "raster + gtsp(time)", order_toolpath(whole, **TIMED), tool, False))
+        rows.append(trajectory_row(name, "raster + gtsp", order_toolpath(whole, method="gtsp"), tool, removal and not big))
+        rows.append(trajectory_row(name, "raster + gtsp(time)", order_toolpath(whole, method="gtsp", **TIMED), tool, False))
         try:
             regions = segment(surf)
-            seg = hub_tp if name == "wheel_hub" else plan_regions(surf, tool, raster, regions)
+            seg = hub_tp if name == "wheel_hub" else snake(plan_regions(
+                surf, tool, raster, regions, spacing=whole.metadata["spacing_m"], fill_gaps=False))
             rows.append(trajectory_row(name, f"segment({len(regions)}) raster", seg, tool, removal and not big))
             rows.append(trajectory_row(name, f"segment({len(regions)}) raster + gtsp",
-                                       order_toolpath(seg, groups=[[i] for i in range(len(seg.passes))]),
+                                       order_toolpath(seg, method="gtsp", groups=[[i] for i in range(len(seg.passes))]),
                                        tool, removal and not big))
             rows.append(trajectory_row(name, f"segment({len(regions)}) raster + gtsp(time)",
-                                       order_toolpath(seg, groups=[[i] for i in range(len(seg.passes))], **TIMED),
+                                       order_toolpath(seg, method="gtsp", groups=[[i] for i in range(len(seg.passes))], **TIMED),
                                        tool, False))
         except Exception as exc:  # noqa: BLE001 - a benchmark reports and goes on
             rows.append(dict(part=name, plan=f"segment failed: {type(exc).__name__}: {exc}"[:90]))
@@ -168,8 +171,8 @@ def parts_table(hub, hub_tp, removal: bool, uniform_pickle: str | None):
             uni = pickle.load(fh)
         name = uni.surface.name
         rows.append(trajectory_row(name, "uniform", uni, tool, False))
-        rows.append(trajectory_row(name, "uniform + gtsp", order_toolpath(uni), tool, False))
-        rows.append(trajectory_row(name, "uniform + gtsp(time)", order_toolpath(uni, **TIMED), tool, False))
+        rows.append(trajectory_row(name, "uniform + gtsp", order_toolpath(uni, method="gtsp"), tool, False))
+        rows.append(trajectory_row(name, "uniform + gtsp(time)", order_toolpath(uni, method="gtsp", **TIMED), tool, False))
     print_table(rows, [("part", ""), ("plan", ""), ("passes", "d"), ("contact_m", ".2f"), ("air_m", ".2f"),
                        ("cycle_s", ".1f"), ("beyond_box_m", ".3f"), ("coverage_pct", ".2f"), ("time_s", ".1f")])
     return rows

@@ -1,0 +1,103 @@
+"""Job files and flags are checked key by key before any work; every mistake is one line naming the key."""
+
+import pytest
+
+from swath.cli import main
+from swath.cli.settings import settings_from_mapping
+from swath.errors import InputError
+
+BASE = {"part": "example:plate", "out": "o"}
+
+
+@pytest.mark.parametrize("key", ["all_pieces", "force_units", "fit", "overwrite"])
+def test_a_quoted_boolean_is_refused(key):
+    with pytest.raises(InputError, match=f"{key} must be true or false"):
+        settings_from_mapping({**BASE, key: "false"})
+
+
+@pytest.mark.parametrize("values,fragment", [
+    ({"planner": ["raster", "uniform"]}, "planner must be text"),
+    ({"units": ["mm"]}, "units must be text"),
+    ({"feed": 50}, "feed = 50 has no unit"),
+    ({"pad_radius": "38.1"}, "pad_radius = 38.1 has no unit"),
+    ({"feed": "-5mm/s"}, "feed must be positive"),
+    ({"max_accel": "0m/s2"}, "max_accel must be positive"),
+    ({"overlap": "150%"}, "overlap = '150%' is out of range"),
+    ({"overlap": "10%"}, "the raster planner does not take 'overlap'; planners that do: uniform"),
+    ({"planner_options": {"spacing": "abc"}}, "planner_options.spacing"),
+    ({"planner_options": {"spcing": "20mm"}}, "the raster planner does not take 'spcing'"),
+    ({"planner_options": "x"}, "planner_options must be a table"),
+    ({"colour": "red"}, "unknown job setting 'colour'"),
+])
+def test_bad_values_name_their_key(values, fragment):
+    with pytest.raises(InputError, match=fragment.replace("(", r"\(").replace(")", r"\)")):
+        settings_from_mapping({**BASE, **values})
+
+
+def test_unit_names_and_case_are_accepted():
+    assert settings_from_mapping({**BASE, "units": "MM"}).units == "mm"
+    assert settings_from_mapping({**BASE, "units": "inch"}).units == "in"
+    assert settings_from_mapping({**BASE, "units": "Millimetres"}).units == "mm"
+
+
+@pytest.mark.parametrize("text,fragment", [
+    ('job = "x"\n', "'job' must be a table"),
+    ('part = "example:plate"\nout = "o"\nplanner = ["raster"]\n', "planner must be text"),
+    ('part = "example:plate"\nout = "o"\nall_pieces = "false"\n', "all_pieces must be true or false"),
+    ('part = "example:plate"\nout = "o"\n[planner_options]\nspcing = "20mm"\n', "does not take 'spcing'"),
+])
+def test_job_files_fail_with_one_line_and_exit_2(tmp_path, capsys, text, fragment):
+    job = tmp_path / "job.toml"
+    job.write_text(text)
+    assert main(["-q", "run", str(job)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("swath: error:") and fragment in err[0]
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_directory_as_the_job_file_is_refused(tmp_path, capsys):
+    assert main(["-q", "run", str(tmp_path)]) == 2
+    assert "is a directory" in capsys.readouterr().err
+
+
+def test_values_are_refused_before_the_part_is_loaded(tmp_path, capsys):
+    """A bad limit with a part file that does not exist: the limit is named, not the file."""
+    code = main(["-q", "plan", str(tmp_path / "missing.stl"), "--max-accel=0", "--out", str(tmp_path / "o")])
+    assert code == 2
+    assert "max_accel must be positive" in capsys.readouterr().err
+
+
+def test_a_negative_value_reaches_the_check_instead_of_argparse(tmp_path, capsys):
+    assert main(["-q", "plan", "example:plate", "--feed", "-5mm/s", "--out", str(tmp_path / "o")]) == 2
+    assert "feed must be positive" in capsys.readouterr().err
+
+
+def test_a_calibration_file_round_trips_into_a_plan(tmp_path):
+    """swath calibrate on trials made with a known k_p, then swath plan --calibration plans with it."""
+    import json
+    import math
+
+    import numpy as np
+
+    from swath.simulate.calibrate import exposure, make_trials
+
+    rng = np.random.default_rng(3)
+    force = np.repeat([10.0, 20.0, 30.0], 4)
+    rpm = np.tile([6000.0, 10000.0], 6)
+    feed = np.tile([0.02, 0.02, 0.05, 0.05], 3)
+    k_true = 2.0e-10
+    t = make_trials(force=force, spindle_speed=rpm * 2 * math.pi / 60, feed=feed, passes=3, depth=1.0,
+                    orbit_radius=2.5e-3)
+    depth = k_true * exposure(t) * (1 + 0.03 * rng.standard_normal(len(force)))
+    rows = ["trial,grit,force_N,spindle_speed_rpm,orbit_radius_m,pad_radius_m,feed_m_per_s,passes,depth_m"]
+    rows += [f"{i + 1},120,{f},{r},0.0025,0.0381,{v},3,{d:.6e}" for i, (f, r, v, d) in enumerate(zip(force, rpm, feed, depth))]
+    trials = tmp_path / "trials.csv"
+    trials.write_text("\n".join(rows) + "\n")
+    assert main(["-q", "calibrate", str(trials), "--out", str(tmp_path / "cal")]) == 0
+    cal = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    fitted = json.dumps(cal)
+    assert "preston" in fitted
+    assert main(["-q", "plan", "example:plate", "--spacing", "80mm", "--calibration",
+                 str(tmp_path / "cal" / "calibration.json"), "--out", str(tmp_path / "o")]) == 0
+    used = json.loads((tmp_path / "o" / "metrics.json").read_text())["metrics"]["preston_coefficient_per_Pa"]
+    assert used == pytest.approx(k_true, rel=0.05)
