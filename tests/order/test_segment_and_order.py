@@ -196,7 +196,7 @@ def _half_pipe(radius=0.1, length=0.3, span=4 * np.pi / 3, n_a=80, n_l=40):
 
 @pytest.mark.parametrize("make", [_half_pipe, lambda: wheel_hub(edge=10e-3)])
 def test_air_routes_stay_near_the_part(make):
-    from swath.trajectory.links import AirGuard
+    from swath.order.routing import AirGuard
 
     surface = make()
     guard = AirGuard(surface, 0.02, pad_radius=0.03)
@@ -235,3 +235,26 @@ def test_time_ordering_weighs_the_tool_turn_against_the_move():
     # each link: 0.04 m of retract/approach plus the 1.00125 m diagonal, trapezoid at 0.25 m/s, 1 m/s²
     L = 0.04 + np.hypot(1.0, 0.05)
     assert one_way.metadata["link_time_after_s"] == pytest.approx(2 * (L / 0.25 + 0.25))
+
+
+def test_the_order_stage_routes_every_link_and_the_trajectory_follows_it():
+    from swath.examples import blade
+    from swath.order import route_links
+    from swath.trajectory import FeedLimit, time_path
+
+    b = blade(span=0.2)
+    tp = route_links(order_toolpath(raster(b, Tool(), direction=0.0), method="snake"), clearance=0.02,
+                     pad_radius=0.0381)
+    assert len(tp.links) == len(tp.passes) - 1
+    lo, hi = b.bounds
+    for link, a, c in zip(tp.links, tp.passes[:-1], tp.passes[1:]):
+        w = link.waypoints
+        assert np.allclose(w[0], a.points[-1]) and np.allclose(w[-1], c.points[0])
+        assert np.all(w >= lo - 0.0581 - 1e-9) and np.all(w <= hi + 0.0581 + 1e-9)   # inside the reach box
+        _, dist, _ = b.closest_points(w[1:-1])
+        assert dist.min() >= 0.01 - 1e-9                                           # clear of the part
+    tr = time_path(tp, [FeedLimit(0.05)])
+    air = tr.position[~tr.contact]
+    assert np.all(air >= lo - 0.0581 - 1e-6) and np.all(air <= hi + 0.0581 + 1e-6)
+    routed = sum(link.length for link in tp.links) + 2 * 0.02          # links + approach and retract
+    assert 0.9 * routed <= tr.air_length <= routed                     # corners rounded, never longer

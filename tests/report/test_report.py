@@ -275,10 +275,12 @@ def test_write_report_outputs_offline_html(tmp_path, job):
     assert "<script src" not in text      # (plotly.js itself names a CDN only as its unused geo-map default)
     assert "Plotly.newPlot" in text and len(text) > 3_000_000            # plotly.js is inlined
     data, layout = _plotly_call(text)
-    assert [t["type"] for t in data] == ["mesh3d", "scatter3d", "scatter3d", "scatter3d"]
-    assert [t.get("name") for t in data[1:]] == ["passes", "start", "air moves"]
+    assert [t["type"] for t in data] == ["mesh3d"] + ["scatter3d"] * 5
+    assert [t.get("name") for t in data[1:]] == ["passes", "travel direction", None, "start", "air moves"]
     assert data[0]["i"]["dtype"] == "i4"                                # compact binary arrays
-    assert layout["scene"]["aspectmode"] == "data"
+    assert layout["scene"]["aspectmode"] == "data"                      # axes to scale, spanning the part
+    lo, hi = surface.vertices.min(axis=0), surface.vertices.max(axis=0)
+    assert layout["scene"]["xaxis"]["range"][0] < lo[0] and layout["scene"]["xaxis"]["range"][1] > hi[0]
     assert data[0]["colorbar"]["title"]["text"] == "removal depth (µm)"
     assert len(re.findall(r"<img alt='[^']+' src='data:image/png;base64,", text)) == 3
     # Metrics and settings in human units; the raw keys alongside.
@@ -292,7 +294,8 @@ def test_write_report_outputs_offline_html(tmp_path, job):
 def test_figure_3d_content(job):
     surface, toolpath, traj, removal, *_ = job
     fig = figure_3d(surface, toolpath=toolpath, trajectory=traj, removal=removal)
-    mesh, passes, start, air = fig.data
+    mesh, passes, strokes, heads, start, air = fig.data
+    assert len(heads.x) == len(toolpath.passes)                        # a travel-direction tip per pass
     assert len(mesh.i) == len(surface.faces)
     assert np.asarray(mesh.intensity).max() == pytest.approx(PEAK_DEPTH * 1e6, rel=1e-3)
     assert np.asarray(mesh.intensity).min() == 0.0
@@ -353,8 +356,9 @@ def test_report_renders_in_headless_chromium(tmp_path, job):
     # Put the 3D view at the top of the page so the screenshot shows it.
     page = tmp_path / "view.html"
     text = html.read_text(encoding="utf-8")
-    page.write_text(text.replace("<section><h2>Summary</h2>", "<section style='display:none'><h2>Summary</h2>", 1),
-                    encoding="utf-8")
+    for panel in ("<section><h2>Summary</h2>", "<section class='ok'>", "<section class='warn'>"):
+        text = text.replace(panel, panel.replace("<section", "<section style='display:none'"), 1)
+    page.write_text(text, encoding="utf-8")
     png = tmp_path / "shot.png"
     screenshot(page, png, tmp_path / "profile")
     img = _image(png)[..., :3]

@@ -128,7 +128,7 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
 def make_plan(surface, settings: JobSettings, *, progress=None):
     """Run the job's planner on ``surface`` and order its passes; returns a ToolPath.
     ``progress(stage, done, total)`` hears about long planning steps."""
-    from ..order import order_toolpath
+    from ..order import order_toolpath, route_links
     from ..plan import get_planner
 
     planner = get_planner(settings.planner)
@@ -139,7 +139,8 @@ def make_plan(surface, settings: JobSettings, *, progress=None):
         toolpath = segmented_plan(surface, settings.tool(), planner, settings, arguments)
     else:
         toolpath = planner(surface, settings.tool(), **arguments)
-    return order_toolpath(toolpath, method=settings.order, **order_options(toolpath, settings))
+    ordered = order_toolpath(toolpath, method=settings.order, **order_options(toolpath, settings))
+    return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius)
 
 
 def order_options(toolpath, settings) -> dict:

@@ -11,6 +11,8 @@ Methods (:data:`ORDER_METHODS`, name -> function ``f(toolpath) -> ToolPath``):
     pass groups (a segmented part's regions, else single passes) visited nearest-entry first, as a
     generalised TSP (Noon–Bean transform + LKH), or exactly (Held–Karp, small instances)
     (:mod:`.tour`); inside a region the passes keep their snake order.
+
+:func:`route_links` then gives every move between passes its air route (:mod:`.routing`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 from ..core import ToolPath
 from ..errors import InputError
 from . import sequence, tour
+from .routing import AirGuard, route_links
 
 
 def _tour(method: str, *, snake_regions: bool = True):
@@ -64,4 +67,4 @@ def order_toolpath(toolpath: ToolPath, *, method: str | None = None, **options) 
     return fn(toolpath, **options)
 
 
-__all__ = ["ORDER_METHODS", "order_toolpath", "sequence", "tour"]
+__all__ = ["AirGuard", "ORDER_METHODS", "order_toolpath", "route_links", "sequence", "tour"]

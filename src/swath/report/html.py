@@ -219,6 +219,21 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
                       showscale=True, colorbar=dict(title=dict(text="pass order", side="right"), x=1.12,
                                                     len=0.8, tick0=1, dtick=max(1, int(np.ceil(len(lines) / 10))))),
             customdata=val, hovertemplate="pass %{customdata:.0f}<extra></extra>"))
+        # Travel direction: from every pass start a short thick stroke along the pass, ending in a dot.
+        strokes = []
+        for ln in lines:
+            run = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(ln, axis=0), axis=1))])
+            k = int(np.searchsorted(run, 0.06 * diag))
+            if len(ln) > 1:
+                strokes.append(ln[:max(min(k, len(ln) - 1), 1) + 1])
+        if strokes:
+            pts, _ = _polylines_with_gaps(strokes, max_line_points)
+            tips = np.array([st[-1] for st in strokes])
+            traces.append(go.Scatter3d(x=pts[:, 0], y=pts[:, 1], z=pts[:, 2], mode="lines", name="travel direction",
+                                       line=dict(width=9, color="rgb(210,40,40)"), hoverinfo="skip"))
+            traces.append(go.Scatter3d(x=tips[:, 0], y=tips[:, 1], z=tips[:, 2], mode="markers", showlegend=False,
+                                       marker=dict(size=4, symbol="diamond", color="rgb(210,40,40)"),
+                                       hovertemplate="travel direction<extra></extra>"))
         start = lines[0][0]
         traces.append(go.Scatter3d(x=[start[0]], y=[start[1]], z=[start[2]], mode="markers", name="start",
                                    marker=dict(size=5, color="white", line=dict(color="black", width=2)),
@@ -234,11 +249,15 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
     # Look at the side the surface faces, tilted a little, with its normal axis pointing up.
     u, v, w = frame.axes
     eye = w - 0.55 * v + 0.2 * u
-    eye = 2.8 * eye / np.linalg.norm(eye)
+    eye = 2.2 * eye / np.linalg.norm(eye)
     axis = dict(showbackground=False, gridcolor="rgb(225,225,225)", zerolinecolor="rgb(200,200,200)")
+    # The view spans the part and a margin, so far air moves do not shrink the part to a speck.
+    lo, hi = surface.vertices.min(axis=0) - 0.08 * diag, surface.vertices.max(axis=0) + 0.08 * diag
     fig.update_layout(
-        scene=dict(aspectmode="data", xaxis=dict(title=dict(text="x (m)"), **axis),
-                   yaxis=dict(title=dict(text="y (m)"), **axis), zaxis=dict(title=dict(text="z (m)"), **axis),
+        scene=dict(aspectmode="data",
+                   xaxis=dict(title=dict(text="x (m)"), range=[lo[0], hi[0]], **axis),
+                   yaxis=dict(title=dict(text="y (m)"), range=[lo[1], hi[1]], **axis),
+                   zaxis=dict(title=dict(text="z (m)"), range=[lo[2], hi[2]], **axis),
                    camera=dict(eye=dict(x=eye[0], y=eye[1], z=eye[2]), up=dict(x=w[0], y=w[1], z=w[2]))),
         margin=dict(l=0, r=0, t=10, b=0), height=680, paper_bgcolor="white",
         legend=dict(x=0.0, y=1.0, bgcolor="rgba(255,255,255,0.7)"),

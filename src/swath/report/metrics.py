@@ -241,7 +241,7 @@ def format_value(key: str, value) -> str:
     if isinstance(value, str):
         return value
     if isinstance(value, (dict, list, tuple, np.ndarray)):
-        return json.dumps(to_jsonable(value))
+        return json.dumps(_rounded(to_jsonable(value)))
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -273,4 +273,17 @@ def format_value(key: str, value) -> str:
         return f"{_num(v * 100, 3)} %"
     if ku.kind == "count":
         return f"{int(v):,}" if v == int(v) else _num(v)
+    if ku.unit == "rad":
+        return f"{_num(math.degrees(v))}°"
     return f"{_num(v)} {ku.unit}".strip()
+
+
+def _rounded(value, digits: int = 4):
+    """Floats in nested lists/dicts rounded to ``digits`` significant figures (for display)."""
+    if isinstance(value, float):
+        return float(f"{value:.{digits}g}")
+    if isinstance(value, list):
+        return [_rounded(v, digits) for v in value]
+    if isinstance(value, dict):
+        return {k: _rounded(v, digits) for k, v in value.items()}
+    return value

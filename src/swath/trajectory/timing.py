@@ -51,6 +51,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ..core import Pass, ToolPath
 from ..errors import InputError
+from ..order.routing import AirGuard
 from ..surface.polyline import densify, resample_uniform
 from .constraints import (
     CONSTRAINT_TYPES,
@@ -63,7 +64,7 @@ from .constraints import (
     speed_profile,
 )
 from .geometry import rotation_steps, smoothed_directions
-from .links import AirGuard, LinkSettings, time_link
+from .links import LinkSettings, time_link
 from .orientation import make_continuous, quaternions_from_frames, tool_frames
 from .trajectory import Trajectory
 
@@ -157,7 +158,10 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
         emit(tp["position"], tp["quaternion"], True, tp["speed"], i, tp["omega"], tp["t"], tp["t"][-1])
         if i + 1 < len(timed):
             nxt = timed[i + 1]
-            route = guard.route(tp["position"][-1], tp["normal_end"], nxt["position"][0], nxt["normal_start"])
+            if toolpath.links is not None:              # routed by the order stage
+                route = toolpath.links[i].waypoints
+            else:
+                route = guard.route(tp["position"][-1], tp["normal_end"], nxt["position"][0], nxt["normal_start"])
             emit_link(route, tp["quaternion"][-1], nxt["quaternion"][0], include_start=False, include_end=False)
     above = last["position"][-1] + links.clearance * last["normal_end"]
     emit_link(np.array([last["position"][-1], above]), last["quaternion"][-1], last["quaternion"][-1],
