@@ -6,6 +6,8 @@ from __future__ import annotations
 import logging
 import os
 
+import numpy as np
+
 from ..errors import InfeasibleError
 
 log = logging.getLogger(__name__)
@@ -42,8 +44,21 @@ def estimate_bytes(surface, settings) -> dict:
 
 
 def check_budget(surface, settings) -> dict:
-    """Refuse the job when :func:`estimate_bytes` exceeds the budget (``settings.memory_budget`` or
-    3/4 of the machine's memory); returns the estimate."""
+    """Refuse the job when the part is smaller than the pad (a unit slip, or the wrong pad), or when
+    :func:`estimate_bytes` exceeds the budget (``settings.memory_budget`` or 3/4 of the machine's
+    memory); returns the estimate."""
+    size = float(np.ptp(surface.vertices, axis=0).max())
+    if size < 2 * settings.pad_radius and not settings.force_units:
+        from ..io.checks import likely_unit
+        from ..units import length_unit_factor
+
+        in_file = size / length_unit_factor(settings.units)
+        guess = likely_unit(in_file, exclude=settings.units)
+        hint = (f"; read in {guess} it would be {in_file * length_unit_factor(guess):.3g} m across (--units {guess})"
+                if guess else "")
+        raise InfeasibleError(f"{surface.name or 'the part'} is {size * 1e3:.1f} mm across, smaller than the pad "
+                              f"({2e3 * settings.pad_radius:.1f} mm){hint}; or choose a smaller --pad-radius, or "
+                              "pass --force-units")
     est = estimate_bytes(surface, settings)
     budget = settings.memory_budget or DEFAULT_SHARE * machine_memory()
     log.info("estimated peak memory %.2f GB (budget %.2f GB), %d removal samples", est["bytes"] / 1e9, budget / 1e9,
