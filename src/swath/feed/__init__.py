@@ -1,0 +1,17 @@
+"""The ``feed`` stage: dwell (feed-rate) and pass-spacing optimisation to a target depth map.
+
+Between planning and timing: any planner's :class:`~swath.plan.ToolPath` goes in with a target
+depth map; a :class:`~swath.trajectory.FeedProfile` comes out for :func:`swath.trajectory.time_path`.
+
+* :mod:`.kernel` — the removal kernel (depth per second of dwell, per dwell node, per surface sample);
+* :mod:`.optimise` — :func:`optimise_feed`: match a target (L1 / minimax) or Wang's maximal removal
+  without over-grinding, under feed, acceleration, centripetal and angular-speed limits (HiGHS);
+* :mod:`.spacing` — raster passes at chosen offsets; greedy (pattern search) and joint spacing + feed;
+* :mod:`.targets` — target depth maps: uniform, per-vertex from a file, scan excess over a CAD.
+"""
+
+from .kernel import DwellNodes, RemovalKernel, build_kernel, dwell_nodes, interior_mask, trajectory_node_dwell
+from .optimise import FeedResult, node_speed_caps, optimise_feed, removal_stats
+
+__all__ = ["DwellNodes", "FeedResult", "RemovalKernel", "build_kernel", "dwell_nodes", "interior_mask",
+           "node_speed_caps", "optimise_feed", "removal_stats", "trajectory_node_dwell"]

@@ -1,0 +1,406 @@
+"""Feed (dwell) optimisation to a target depth map, as a linear programme solved by HiGHS.
+
+Variables are the dwell times ``t_i`` (s) of the dwell nodes (:mod:`.kernel`); removal is ``K t``.
+With ``Δs_i`` the node length the feed through node ``i`` is ``v_i = Δs_i / t_i``.
+
+Constraints (all linear in ``t``)
+---------------------------------
+* feed ``v_min <= v_i <= cap_i``: the bounds ``Δs_i / cap_i <= t_i <= Δs_i / v_min``, with ``cap_i``
+  the smallest of the feed limit and the centripetal ``sqrt(a_c / κ)`` and angular ``ω_max / ρ``
+  caps along the node, computed on the timing grid exactly as :func:`swath.trajectory.time_path`
+  does (:func:`node_speed_caps`);
+* never over-grind: ``(K t)_j <= target_j + tolerance`` at every sample of the optimised region
+  (touched samples at least ``boundary_margin`` from the open boundary);
+* tangential acceleration ``|dv/dt| <= a_t``: with the pace ``p = 1/v = t/Δs``, ``dv/dt = −p'/p³``, so
+  ``|p_{i+1} − p_i| <= a_t Δc p³`` between neighbouring nodes ``Δc`` apart.  ``p³`` is replaced by its
+  tangent at ``p_ref = 1 / v_max`` (below ``p³`` for every ``p >= p_ref``), written at both nodes:
+  a conservative linearisation.
+
+Objectives
+----------
+* ``mode="match"``, ``objective="l1"``: minimise the area-weighted ``Σ a_j |(K t)_j − target_j|``;
+  ``objective="minimax"``: minimise the largest under-removal ``max_j (target_j − (K t)_j)``.
+* ``mode="max_removal"`` (Wang, hub grinding §2): maximise the removed volume ``Σ a_j (K t)_j``
+  subject to the constraints above.
+
+Depths are scaled to micrometres inside the solver so that HiGHS's absolute tolerances (1e-7) are
+far below anything that matters.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import linprog
+
+from ..errors import InfeasibleError, InputError
+from ..plan.toolpath import ToolPath
+from ..trajectory.constraints import (AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile,
+                                      TangentialAccelLimit)
+from ..trajectory.geometry import arc_length, path_curvature, resample_uniform, rotation_steps, smoothed_directions
+from ..trajectory.orientation import tool_frames
+from .kernel import RemovalKernel, build_kernel, interior_mask
+
+log = logging.getLogger(__name__)
+
+#: Depth unit inside the solver, m (micrometres).
+_DEPTH_UNIT = 1e-6
+#: Grid step (m) at which the speed caps are evaluated along the passes (the timing grid's).
+_CAP_STEP = 1e-3
+
+MODES = ("match", "max_removal")
+OBJECTIVES = ("l1", "minimax")
+
+
+@dataclass(frozen=True, eq=False)
+class FeedResult:
+    """An optimised feed and what it is predicted to do.
+
+    Attributes
+    ----------
+    profile : FeedProfile
+        One speed (m/s) per point of every pass; give it to :func:`swath.trajectory.time_path`.
+    dwell : (n,) float
+        Dwell per node, s.
+    speed : (n,) float
+        Feed through each node, m/s.
+    kernel : RemovalKernel
+    target : (S,) float
+        Target depth on the kernel's samples, m.
+    predicted : (S,) float
+        Predicted removal ``K @ dwell``, m.
+    region : (S,) bool
+        Samples the optimisation was asked to match (touched, at least ``boundary_margin`` in).
+    metrics : dict
+        Figures with units in their keys: ``status``, ``solve_time_s``, ``kernel_time_s``,
+        ``removal_cov``, ``removal_mean_m``, ``target_mean_m``, ``max_over_removal_m``,
+        ``max_under_removal_m``, ``residual_rms_m``, ``contact_time_s``, ``fastest_contact_time_s``, ...
+    """
+
+    profile: FeedProfile
+    dwell: np.ndarray
+    speed: np.ndarray
+    kernel: RemovalKernel
+    target: np.ndarray
+    predicted: np.ndarray
+    region: np.ndarray
+    metrics: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------------------------
+# Speed caps per node
+# ----------------------------------------------------------------------------------------------
+def split_constraints(constraints) -> dict:
+    """The trajectory constraint objects by type (one each at most; a :class:`FeedLimit` required)."""
+    if isinstance(constraints, (FeedLimit, CentripetalLimit, AngularSpeedLimit, TangentialAccelLimit)):
+        constraints = [constraints]
+    out = {}
+    for c in constraints:
+        if isinstance(c, FeedProfile):
+            continue                                   # an earlier plan's profile: replaced here
+        if not isinstance(c, (FeedLimit, CentripetalLimit, AngularSpeedLimit, TangentialAccelLimit)):
+            raise InputError(f"feed optimisation does not know the constraint {c!r}; give FeedLimit, "
+                             "CentripetalLimit, AngularSpeedLimit and TangentialAccelLimit objects")
+        if type(c) in out:
+            raise InputError(f"two {type(c).__name__} constraints given; give each kind at most once")
+        out[type(c)] = c
+    if FeedLimit not in out:
+        raise InputError("feed optimisation needs a FeedLimit: the largest feed (m/s) along the passes")
+    return out
+
+
+def node_speed_caps(toolpath: ToolPath, nodes, constraints, *, heading_scale: float = 5e-3) -> np.ndarray:
+    """Largest feed (m/s) in every node ``(n,)``: the smallest cap on the node's stretch of pass.
+
+    The caps are those of :func:`swath.trajectory.time_path`: the :class:`FeedLimit`, the
+    centripetal ``sqrt(a_max / κ)`` with κ read at the limit's scale (:func:`path_curvature`), and
+    the angular ``ω_max / ρ`` with ρ the tool frame's turn per metre (:func:`tool_frames` on the
+    smoothed travel directions), on a 1 mm grid along each pass.
+    """
+    cons = split_constraints(constraints)
+    caps = np.full(len(nodes), cons[FeedLimit].speed)
+    cl, al = cons.get(CentripetalLimit), cons.get(AngularSpeedLimit)
+    if cl is None and al is None:
+        return caps
+    for k, p in enumerate(toolpath.passes):
+        s, pts, nrm = resample_uniform(p.points, _CAP_STEP, p.normals)
+        if len(s) < 3:
+            continue
+        h = float(s[1] - s[0])
+        grid_cap = np.full(len(s), np.inf)
+        if cl is not None:
+            kappa = path_curvature(pts, h, cl.scale)
+            grid_cap = np.minimum(grid_cap, np.sqrt(cl.a_max / np.maximum(kappa, 1e-12)))
+        if al is not None:
+            nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+            frames = tool_frames(nrm, smoothed_directions(pts, h, heading_scale))
+            ds = np.maximum(np.linalg.norm(np.diff(pts, axis=0), axis=1), 1e-12)
+            rho = np.linalg.norm(rotation_steps(frames), axis=1) / ds
+            rho_node = np.maximum(np.concatenate([[0.0], rho]), np.concatenate([rho, [0.0]]))
+            grid_cap = np.minimum(grid_cap, al.omega_max / np.maximum(rho_node, 1e-12))
+        a, b = nodes.pass_start[k], nodes.pass_start[k + 1]
+        # smallest grid cap within each node's interval (grid points inside or at its ends)
+        lo = np.searchsorted(s, nodes.s_start[a:b], side="left")
+        hi = np.searchsorted(s, nodes.s_end[a:b], side="right")
+        hi = np.maximum(hi, lo + 1)
+        cm = np.array([grid_cap[i:j].min() for i, j in zip(lo, np.minimum(hi, len(s)))])
+        caps[a:b] = np.minimum(caps[a:b], cm)
+    return caps
+
+
+# ----------------------------------------------------------------------------------------------
+# The linear programme
+# ----------------------------------------------------------------------------------------------
+def _accel_rows(nodes, a_t: float, p_ref: float):
+    """Rows ``G t <= h`` of the linearised tangential-acceleration limit between neighbouring nodes."""
+    same = nodes.pass_index[1:] == nodes.pass_index[:-1]
+    i = np.flatnonzero(same)
+    if len(i) == 0:
+        return sp.csr_matrix((0, len(nodes))), np.zeros(0)
+    j = i + 1
+    L = nodes.length
+    dc = nodes.s_mid[j] - nodes.s_mid[i]
+    c = a_t * dc * p_ref**2                       # |p_j - p_i| <= c (3 p_k - 2 p_ref), k in {i, j}
+    rows, cols, vals, rhs = [], [], [], []
+    r = 0
+    for sign in (1.0, -1.0):
+        for k_is_i in (True, False):
+            # sign (p_j - p_i) - 3 c p_k <= -2 c p_ref
+            pi_coef = -sign / L[i]
+            pj_coef = sign / L[j]
+            if k_is_i:
+                pi_coef = pi_coef - 3 * c / L[i]
+            else:
+                pj_coef = pj_coef - 3 * c / L[j]
+            n = len(i)
+            rows += [np.arange(r, r + n), np.arange(r, r + n)]
+            cols += [i, j]
+            vals += [pi_coef, pj_coef]
+            rhs.append(-2 * c * p_ref)
+            r += n
+    G = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, len(nodes)))
+    # scale each row to pace units of the reference pace
+    return G / p_ref, np.concatenate(rhs) / p_ref
+
+
+def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min: np.ndarray,
+                t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
+                a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0):
+    """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
+
+    Raises
+    ------
+    InfeasibleError
+        When the fastest feed already removes more than ``target + tolerance`` somewhere in the
+        region, or HiGHS reports the programme infeasible.
+    """
+    if mode not in MODES:
+        raise InputError(f"mode must be one of {MODES}, got {mode!r}")
+    if objective not in OBJECTIVES:
+        raise InputError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
+    K = kernel.matrix
+    rows = np.flatnonzero(region)
+    A = (K[rows] / _DEPTH_UNIT).tocsr()                    # µm per s
+    d = target[rows] / _DEPTH_UNIT
+    u = d + tolerance / _DEPTH_UNIT
+    w = kernel.samples.vertex_areas[rows]
+    w = w / w.mean()
+    n = K.shape[1]
+    r0 = A @ t_min
+    excess = r0 - u
+    if len(rows) and excess.max() > 1e-9:
+        j = int(np.argmax(excess))
+        where = kernel.samples.vertices[rows[j]]
+        share = float(np.mean(excess > 1e-9))
+        raise InfeasibleError(
+            f"the fastest allowed feed already removes {r0[j]:.3g} um at ({where[0]:.4f}, {where[1]:.4f}, "
+            f"{where[2]:.4f}) m, more than the target {d[j]:.3g} um plus the tolerance "
+            f"{tolerance / _DEPTH_UNIT:.3g} um ({100 * share:.1f} % of the optimised samples are over); raise the "
+            f"target to at least {float(r0.max() - tolerance / _DEPTH_UNIT):.3g} um or the tolerance, raise the "
+            "feed limit, or plan the passes farther apart")
+    G = sp.csr_matrix((0, n))
+    h = np.zeros(0)
+    if a_t is not None and v_max is not None:
+        G, h = _accel_rows(kernel.nodes, a_t, 1.0 / v_max)
+    m = len(rows)
+    if mode == "max_removal":
+        c = -(w @ A)
+        A_ub = sp.vstack([A, G]).tocsc()
+        b_ub = np.concatenate([u, h])
+        bounds = np.stack([t_min, t_max], axis=1)
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs",
+                      options={"time_limit": time_limit, "presolve": True})
+        x = res.x
+    elif objective == "l1":
+        # A t - e+ + e- = d, 0 <= e+ <= tol, e- >= 0; minimise w (e+ + e-)
+        I = sp.identity(m, format="csr")
+        A_eq = sp.hstack([A, -I, I]).tocsc()
+        c = np.concatenate([np.zeros(n), w, w])
+        G_full = sp.hstack([G, sp.csr_matrix((G.shape[0], 2 * m))]).tocsc() if G.shape[0] else None
+        tol_um = tolerance / _DEPTH_UNIT
+        bounds = np.concatenate([np.stack([t_min, t_max], axis=1),
+                                 np.tile([0.0, tol_um], (m, 1)), np.tile([0.0, np.inf], (m, 1))])
+        res = linprog(c, A_ub=G_full, b_ub=h if G.shape[0] else None, A_eq=A_eq, b_eq=d, bounds=bounds,
+                      method="highs", options={"time_limit": time_limit, "presolve": True})
+        x = None if res.x is None else res.x[:n]
+    else:
+        # minimise z: d - A t <= z, A t <= u
+        col = sp.csr_matrix(np.ones((m, 1)))
+        A_ub = sp.vstack([sp.hstack([-A, -col]), sp.hstack([A, sp.csr_matrix((m, 1))]),
+                          sp.hstack([G, sp.csr_matrix((G.shape[0], 1))])]).tocsc()
+        b_ub = np.concatenate([-d, u, h])
+        c = np.concatenate([np.zeros(n), [1.0]])
+        bounds = np.concatenate([np.stack([t_min, t_max], axis=1), [[0.0, np.inf]]])
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs",
+                      options={"time_limit": time_limit, "presolve": True})
+        x = None if res.x is None else res.x[:n]
+    if res.status == 2:
+        raise InfeasibleError(f"the feed optimisation is infeasible ({res.message}); the acceleration limit, the "
+                              "speed caps and the over-removal tolerance cannot all hold: raise the tolerance or "
+                              "the acceleration limit")
+    if x is None:
+        raise InfeasibleError(f"the feed optimisation stopped without a solution: {res.message}")
+    return np.clip(x, t_min, t_max), f"{res.status}: {res.message}"
+
+
+# ----------------------------------------------------------------------------------------------
+# From dwell to a feed profile
+# ----------------------------------------------------------------------------------------------
+def dwell_to_profile(toolpath: ToolPath, nodes, dwell: np.ndarray) -> FeedProfile:
+    """A :class:`FeedProfile` (one speed per pass point, m/s) whose pace ``1/v`` is interpolated
+    linearly between the node middles, so that each node is crossed in about its dwell."""
+    pace = dwell / nodes.length
+    speeds = []
+    for k, p in enumerate(toolpath.passes):
+        a, b = nodes.pass_start[k], nodes.pass_start[k + 1]
+        s = arc_length(p.points)
+        speeds.append(1.0 / np.interp(s, nodes.s_mid[a:b], pace[a:b]))
+    return FeedProfile(tuple(speeds))
+
+
+def resolve_target(target, samples) -> np.ndarray:
+    """Target depth ``(S,)`` (m) on the kernel's samples from a number (uniform depth, m), an
+    ``(S,)`` array, or an object with ``depth_on(surface)`` (:class:`swath.feed.targets.TargetMap`)."""
+    S = len(samples.vertices)
+    if hasattr(target, "depth_on"):
+        out = np.asarray(target.depth_on(samples), float)
+    elif np.ndim(target) == 0:
+        out = np.full(S, float(target))
+    else:
+        out = np.asarray(target, float)
+    if out.shape != (S,) or not np.isfinite(out).all() or (out < 0).any():
+        raise InputError(f"the target depth must be one finite depth >= 0 m per sample ({S}), got shape "
+                         f"{out.shape}; give a depth in m, a per-sample array or a TargetMap")
+    return out
+
+
+def removal_stats(depth: np.ndarray, target: np.ndarray, areas: np.ndarray, mask: np.ndarray) -> dict:
+    """Removal figures over ``mask``: CoV, mean, residual and the worst over/under-removal (m)."""
+    if not mask.any():
+        nan = float("nan")
+        return {"removal_cov": nan, "removal_mean_m": nan, "target_mean_m": nan, "max_over_removal_m": nan,
+                "max_under_removal_m": nan, "residual_rms_m": nan, "region_area_m2": 0.0}
+    a, d, t = areas[mask], depth[mask], target[mask]
+    mean = float(np.average(d, weights=a))
+    std = float(np.sqrt(np.average((d - mean) ** 2, weights=a)))
+    r = d - t
+    return {"removal_cov": std / mean if mean > 0 else float("nan"), "removal_mean_m": mean,
+            "target_mean_m": float(np.average(t, weights=a)), "max_over_removal_m": float(r.max()),
+            "max_under_removal_m": float(-r.min()), "residual_rms_m": float(np.sqrt(np.average(r**2, weights=a))),
+            "region_area_m2": float(a.sum())}
+
+
+def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: float, mode: str = "match",
+                  objective: str = "l1", v_min: float | None = None, boundary_margin: float | None = None,
+                  kernel: RemovalKernel | None = None, node_spacing: float | None = None,
+                  sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
+                  progress=None) -> FeedResult:
+    """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
+
+    Parameters
+    ----------
+    toolpath : ToolPath
+        Passes from any planner.
+    tool : Tool
+    constraints : sequence
+        The trajectory constraints: a :class:`FeedLimit` (the largest feed, m/s) and optionally
+        :class:`CentripetalLimit`, :class:`AngularSpeedLimit`, :class:`TangentialAccelLimit`.
+    target : float, (S,) float or TargetMap
+        Target depth, m: a uniform depth, one per kernel sample, or a
+        :class:`swath.feed.targets.TargetMap`.
+    tolerance : float
+        Largest allowed removal above the target, m (a hard constraint at every optimised sample).
+    mode : {"match", "max_removal"}
+        Match the target (``objective`` ``"l1"`` or ``"minimax"``) or Wang's maximal removal without
+        over-grinding.
+    v_min : float, optional
+        Slowest feed, m/s (default a tenth of the feed limit).
+    boundary_margin : float, optional
+        Samples closer than this (m) to the open boundary are not optimised (default the pad radius;
+        the pad hangs over the edge there).
+    kernel : RemovalKernel, optional
+        A kernel already built for ``toolpath`` (else built here with ``node_spacing`` and
+        ``sample_spacing``, m).
+    heading_scale : float
+        As in :func:`swath.trajectory.time_path`, m (for the angular-speed caps).
+    time_limit : float
+        HiGHS time limit, s.
+    progress : callable, optional
+        ``progress(stage, done, total)`` with ``stage`` in ``"kernel"``, ``"solve"``.
+
+    Returns
+    -------
+    FeedResult
+
+    Raises
+    ------
+    InfeasibleError
+        When even the largest allowed feed removes more than ``target + tolerance`` somewhere (the
+        message names the sample, both depths and the least feasible target).
+    """
+    cons = split_constraints(constraints)
+    v_max = cons[FeedLimit].speed
+    v_min = 0.1 * v_max if v_min is None else float(v_min)
+    if not (np.isfinite(v_min) and 0 < v_min <= v_max):
+        raise InputError(f"v_min must lie in (0, feed limit {v_max:g}] m/s, got {v_min!r}")
+    if not (np.isfinite(tolerance) and tolerance >= 0):
+        raise InputError(f"tolerance must be a depth >= 0 m, got {tolerance!r}")
+    margin = tool.pad_radius if boundary_margin is None else float(boundary_margin)
+    t0 = time.perf_counter()
+    if kernel is None:
+        cb = None if progress is None else (lambda done, total: progress("kernel", done, total))
+        kernel = build_kernel(toolpath, tool, node_spacing=node_spacing, sample_spacing=sample_spacing, progress=cb)
+    t_kernel = time.perf_counter() - t0
+    nodes = kernel.nodes
+    target_s = resolve_target(target, kernel.samples)
+    caps = np.clip(node_speed_caps(toolpath, nodes, list(cons.values()), heading_scale=heading_scale), v_min, v_max)
+    t_min, t_max = nodes.length / caps, nodes.length / v_min
+    touched = np.diff(kernel.matrix.tocsr().indptr) > 0
+    region = touched & interior_mask(kernel.samples, margin)
+    if progress is not None:
+        progress("solve", 0, 1)
+    tl = cons.get(TangentialAccelLimit)
+    t1 = time.perf_counter()
+    dwell, status = solve_dwell(kernel, target_s, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
+                                mode=mode, objective=objective, a_t=None if tl is None else tl.a_t, v_max=v_max,
+                                time_limit=time_limit)
+    t_solve = time.perf_counter() - t1
+    if progress is not None:
+        progress("solve", 1, 1)
+    predicted = kernel.removal(dwell)
+    speed = nodes.length / dwell
+    metrics = {"status": status, "mode": mode, "objective": objective, "kernel_time_s": t_kernel,
+               "solve_time_s": t_solve, "n_nodes": len(nodes), "n_region_samples": int(region.sum()),
+               "kernel_nonzeros": int(kernel.matrix.nnz), "tolerance_m": float(tolerance),
+               "v_min_m_per_s": v_min, "v_max_m_per_s": v_max, "contact_time_s": float(dwell.sum()),
+               "fastest_contact_time_s": float(t_min.sum()), "speed_mean_m_per_s": float(np.mean(speed)),
+               "speed_min_m_per_s": float(speed.min()), "speed_max_m_per_s": float(speed.max())}
+    metrics.update(removal_stats(predicted, target_s, kernel.samples.vertex_areas, region))
+    log.info("feed optimisation (%s/%s): %d nodes, %d samples, CoV %.3f, solve %.1f s", mode, objective, len(nodes),
+             region.sum(), metrics["removal_cov"], t_solve)
+    return FeedResult(dwell_to_profile(toolpath, nodes, dwell), dwell, speed, kernel, target_s, predicted, region,
+                      metrics)
