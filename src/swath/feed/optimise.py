@@ -189,7 +189,8 @@ def _accel_rows(nodes, a_t: float, p_ref: float):
 
 def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min: np.ndarray,
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
-                a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0):
+                a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
+                smoothing: float = 2e-2):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     Raises
@@ -227,37 +228,53 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
     if a_t is not None and v_max is not None:
         G, h = _accel_rows(kernel.nodes, a_t, 1.0 / v_max)
     m = len(rows)
+    # Smoothing: g_e >= |p_j - p_i| / p_ref between neighbouring nodes, at a small cost.  Dwell along
+    # a pass is otherwise free to alternate (the pad spans many nodes, so only window sums matter).
+    nodes = kernel.nodes
+    p_ref = 1.0 / (v_max if v_max is not None else float(np.max(nodes.length / t_min)))
+    e = np.flatnonzero(nodes.pass_index[1:] == nodes.pass_index[:-1])
+    E = len(e)
+    Dm = sp.csr_matrix((np.concatenate([-1.0 / nodes.length[e], 1.0 / nodes.length[e + 1]]) / p_ref,
+                        (np.tile(np.arange(E), 2), np.concatenate([e, e + 1]))), shape=(E, n))
+    col_weight = np.asarray(w @ A).ravel() * nodes.length          # objective change per unit pace
+    lam = smoothing * float(np.mean(col_weight)) * p_ref if n else 0.0
+    IE = sp.identity(E, format="csr")
+    S_rows = sp.vstack([sp.hstack([Dm, -IE]), sp.hstack([-Dm, -IE])])   # on [t, g]
+    opts = {"time_limit": time_limit, "presolve": True}
+
+    def pad(M, k):                                   # M on t -> on [t, g, k extra]
+        return sp.hstack([M, sp.csr_matrix((M.shape[0], E + k))])
+
+    t_bounds = np.stack([t_min, t_max], axis=1)
+    g_bounds = np.tile([0.0, np.inf], (E, 1))
     if mode == "max_removal":
-        c = -(w @ A)
-        A_ub = sp.vstack([A, G]).tocsc()
-        b_ub = np.concatenate([u, h])
-        bounds = np.stack([t_min, t_max], axis=1)
-        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs",
-                      options={"time_limit": time_limit, "presolve": True})
-        x = res.x
+        c = np.concatenate([-(w @ A), np.full(E, lam)])
+        A_ub = sp.vstack([pad(A, 0), pad(G, 0), S_rows]).tocsc()
+        b_ub = np.concatenate([u, h, np.zeros(2 * E)])
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=np.concatenate([t_bounds, g_bounds]), method="highs",
+                      options=opts)
     elif objective == "l1":
         # A t - e+ + e- = d, 0 <= e+ <= tol, e- >= 0; minimise w (e+ + e-)
         I = sp.identity(m, format="csr")
-        A_eq = sp.hstack([A, -I, I]).tocsc()
-        c = np.concatenate([np.zeros(n), w, w])
-        G_full = sp.hstack([G, sp.csr_matrix((G.shape[0], 2 * m))]).tocsc() if G.shape[0] else None
+        A_eq = sp.hstack([A, sp.csr_matrix((m, E)), -I, I]).tocsc()
+        c = np.concatenate([np.zeros(n), np.full(E, lam), w, w])
+        A_ub = sp.vstack([pad(G, 2 * m), sp.hstack([S_rows, sp.csr_matrix((2 * E, 2 * m))])]).tocsc()
+        b_ub = np.concatenate([h, np.zeros(2 * E)])
         tol_um = tolerance / _DEPTH_UNIT
-        bounds = np.concatenate([np.stack([t_min, t_max], axis=1),
-                                 np.tile([0.0, tol_um], (m, 1)), np.tile([0.0, np.inf], (m, 1))])
-        res = linprog(c, A_ub=G_full, b_ub=h if G.shape[0] else None, A_eq=A_eq, b_eq=d, bounds=bounds,
-                      method="highs", options={"time_limit": time_limit, "presolve": True})
-        x = None if res.x is None else res.x[:n]
+        bounds = np.concatenate([t_bounds, g_bounds, np.tile([0.0, tol_um], (m, 1)), np.tile([0.0, np.inf], (m, 1))])
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=d, bounds=bounds, method="highs", options=opts)
     else:
         # minimise z: d - A t <= z, A t <= u
         col = sp.csr_matrix(np.ones((m, 1)))
-        A_ub = sp.vstack([sp.hstack([-A, -col]), sp.hstack([A, sp.csr_matrix((m, 1))]),
-                          sp.hstack([G, sp.csr_matrix((G.shape[0], 1))])]).tocsc()
-        b_ub = np.concatenate([-d, u, h])
-        c = np.concatenate([np.zeros(n), [1.0]])
-        bounds = np.concatenate([np.stack([t_min, t_max], axis=1), [[0.0, np.inf]]])
-        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs",
-                      options={"time_limit": time_limit, "presolve": True})
-        x = None if res.x is None else res.x[:n]
+        zero = sp.csr_matrix((m, E))
+        A_ub = sp.vstack([sp.hstack([-A, zero, -col]), sp.hstack([A, zero, sp.csr_matrix((m, 1))]),
+                          pad(G, 1), sp.hstack([S_rows, sp.csr_matrix((2 * E, 1))])]).tocsc()
+        b_ub = np.concatenate([-d, u, h, np.zeros(2 * E)])
+        zscale = float(np.mean(col_weight)) * p_ref if n else 1.0
+        c = np.concatenate([np.zeros(n), np.full(E, lam), [zscale]])
+        bounds = np.concatenate([t_bounds, g_bounds, [[0.0, np.inf]]])
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs", options=opts)
+    x = None if res.x is None else res.x[:n]
     if res.status == 2:
         raise InfeasibleError(f"the feed optimisation is infeasible ({res.message}); the acceleration limit, the "
                               "speed caps and the over-removal tolerance cannot all hold: raise the tolerance or "

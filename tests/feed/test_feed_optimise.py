@@ -1,0 +1,93 @@
+"""Feed optimisation against analytic answers on a flat plate (uniform pad pressure F / (π R²))."""
+
+import math
+
+import numpy as np
+import pytest
+
+from swath.contact import Tool
+from swath.errors import InfeasibleError
+from swath.examples import flat_plate
+from swath.feed import build_kernel, optimise_feed, trajectory_node_dwell
+from swath.plan.toolpath import Pass, ToolPath
+from swath.simulate.removal import simulate_removal
+from swath.trajectory import FeedLimit, TangentialAccelLimit, time_path
+
+TOOL = Tool(pad_radius=0.02, force=20.0)
+R = TOOL.pad_radius
+V_MAX = 0.05
+
+
+def _line(x0, x1, y, step=1e-3):
+    n = int(round(abs(x1 - x0) / step)) + 1
+    pts = np.stack([np.linspace(x0, x1, n), np.full(n, y), np.zeros(n)], axis=1)
+    return Pass(pts, np.tile([0.0, 0.0, 1.0], (n, 1)))
+
+
+def _centre_rate():
+    """Removal rate (m/s) under a pressed flat pad: k_p · F/(πR²) · v_rel."""
+    return TOOL.preston * TOOL.force / (math.pi * R**2) * TOOL.relative_speed(0.0)
+
+
+@pytest.fixture(scope="module")
+def plate():
+    return flat_plate(size_x=0.24, size_y=0.2, spacing=2.5e-3)
+
+
+def test_kernel_reproduces_simulator(plate):
+    tp = ToolPath(plate, [_line(0.04, 0.2, 0.08), _line(0.2, 0.04, 0.11)], "test")
+    k = build_kernel(tp, TOOL)
+    traj = time_path(tp, [FeedLimit(0.03), TangentialAccelLimit(0.5)])
+    sim = simulate_removal(traj, plate, TOOL)
+    pred = k.removal(trajectory_node_dwell(traj, k.nodes, tp))
+    on = sim.depth > 0.2 * sim.depth.max()
+    rel = np.abs(pred[on] - sim.depth[on]) / sim.depth[on]
+    assert rel.mean() < 0.04
+    # total removed volume agrees closely
+    a = k.samples.vertex_areas
+    assert abs(a @ pred / (a @ sim.depth) - 1) < 0.01
+
+
+def test_straight_pass_uniform_target_needs_constant_feed(plate):
+    """The target is what one constant feed v* removes (uniform along the pass, the pad's own
+    profile across it): the optimum is that constant feed, and its centre line depth is rate·2R/v*."""
+    tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
+    k = build_kernel(tp, TOOL)
+    v_star = 0.02
+    target = k.removal(k.dwell_at_speed(v_star))
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=0.05 * target.max(),
+                        kernel=k, boundary_margin=0.0)
+    mid = np.abs(k.nodes.s_mid - 0.1) < 0.06                         # away from the pass ends
+    np.testing.assert_allclose(res.speed[mid], v_star, rtol=0.02)
+    np.testing.assert_allclose(res.profile.speeds[0][40:160], v_star, rtol=0.02)
+    centre = (np.abs(k.samples.vertices[:, 1] - 0.1) < 1e-6) & (np.abs(k.samples.vertices[:, 0] - 0.12) < 0.05)
+    # pose discretisation (poses one sample spacing apart) leaves a +-5 % ripple on single samples
+    np.testing.assert_allclose(target[centre], _centre_rate() * 2 * R / v_star, rtol=0.06)
+    assert np.mean(target[centre]) == pytest.approx(_centre_rate() * 2 * R / v_star, rel=0.04)
+
+
+@pytest.mark.parametrize("mode, objective", [("match", "l1"), ("match", "minimax"), ("max_removal", "l1")])
+def test_over_removal_never_exceeds_tolerance(plate, mode, objective):
+    tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
+    k = build_kernel(tp, TOOL)
+    fastest = k.removal(k.dwell_at_speed(V_MAX))
+    D = 1.1 * fastest.max()
+    tol = 0.05 * D
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX), TangentialAccelLimit(0.2)], target=D, tolerance=tol,
+                        mode=mode, objective=objective, kernel=k, boundary_margin=0.0)
+    over = res.predicted[res.region] - D
+    assert over.max() <= tol * (1 + 1e-6)
+    assert (res.speed <= V_MAX * (1 + 1e-9)).all() and (res.speed >= 0.1 * V_MAX * (1 - 1e-9)).all()
+    # linearised acceleration limit: |dv/dt| = |dp/ds| / p^3 <= a_t between neighbouring nodes
+    pace = 1 / res.speed
+    same = k.nodes.pass_index[1:] == k.nodes.pass_index[:-1]
+    dpds = np.abs(np.diff(pace)) / np.diff(k.nodes.s_mid)
+    assert (dpds[same] / np.minimum(pace[1:], pace[:-1])[same] ** 3 <= 0.2 * (1 + 1e-6)).all()
+
+
+def test_infeasible_target_names_the_numbers(plate):
+    tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
+    single = _centre_rate() * 2 * R / V_MAX                          # removed at the fastest feed
+    with pytest.raises(InfeasibleError, match=r"already removes .* um .* target 0\.1 um"):
+        optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=0.1e-6, tolerance=0.0, boundary_margin=0.0)
+    assert single > 0.1e-6
