@@ -66,6 +66,38 @@ def test_straight_pass_uniform_target_needs_constant_feed(plate):
     assert np.mean(target[centre]) == pytest.approx(_centre_rate() * 2 * R / v_star, rel=0.04)
 
 
+def test_two_overlapping_passes_change_feed_where_they_overlap(plate):
+    """Pass A (x 0.02..0.22) and pass B (x 0.12..0.22) d = R/2 apart; the target is a uniform depth D
+    on both centre lines (one pad radius in from the pass ends).  A centre line gets rate·2R per unit pace from its own pass and
+    rate·2·sqrt(R² − d²) from the neighbour (the pad chord at lateral offset d).  So where A runs alone
+    its feed is v = rate·2R / D; where the two overlap both run at v = rate·(2R + 2 sqrt(R² − d²)) / D:
+    the optimum changes speed exactly over the overlap (it speeds up there: each line is also ground
+    by the other pass)."""
+    d = R / 2
+    y0 = 0.1 - d / 2
+    tp = ToolPath(plate, [_line(0.02, 0.22, y0), _line(0.12, 0.22, y0 + d)], "test")
+    k = build_kernel(tp, TOOL)
+    x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
+    # the centre lines, one pad radius in from each pass's ends
+    on_lines = (((np.abs(y - y0) < 1e-6) & (x >= 0.02 + R) & (x <= 0.22 - R))
+                | ((np.abs(y - y0 - d) < 1e-6) & (x >= 0.12 + R) & (x <= 0.22 - R)))
+    D = 8e-6
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=D, tolerance=0.05 * D, kernel=k, region=on_lines)
+    rate = _centre_rate()
+    v_alone = rate * 2 * R / D
+    v_overlap = rate * (2 * R + 2 * math.sqrt(R**2 - d**2)) / D
+    assert v_overlap < V_MAX
+    nodes, s = k.nodes, k.nodes.s_mid
+    a, b = nodes.pass_index == 0, nodes.pass_index == 1
+    alone = a & (s > 0.03) & (s < 0.07)                        # x 0.05..0.09: B's pad is > R away
+    overlap_a = a & (s > 0.135) & (s < 0.165)                   # x 0.155..0.185
+    overlap_b = b & (s > 0.035) & (s < 0.065)                   # x 0.155..0.185 (B starts at x = 0.12)
+    assert np.mean(res.speed[alone]) == pytest.approx(v_alone, rel=0.04)
+    assert np.mean(res.speed[overlap_a]) == pytest.approx(v_overlap, rel=0.05)
+    assert np.mean(res.speed[overlap_b]) == pytest.approx(v_overlap, rel=0.05)
+    assert res.metrics["max_over_removal_m"] <= 0.05 * D * (1 + 1e-9)
+
+
 @pytest.mark.parametrize("mode, objective", [("match", "l1"), ("match", "minimax"), ("max_removal", "l1")])
 def test_over_removal_never_exceeds_tolerance(plate, mode, objective):
     tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")

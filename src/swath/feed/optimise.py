@@ -238,6 +238,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
                         (np.tile(np.arange(E), 2), np.concatenate([e, e + 1]))), shape=(E, n))
     col_weight = np.asarray(w @ A).ravel() * nodes.length          # objective change per unit pace
     lam = smoothing * float(np.mean(col_weight)) * p_ref if n else 0.0
+    log.debug("smoothing weight %g (column weight %g, p_ref %g)", lam, float(np.mean(col_weight)), p_ref)
     IE = sp.identity(E, format="csr")
     S_rows = sp.vstack([sp.hstack([Dm, -IE]), sp.hstack([-Dm, -IE])])   # on [t, g]
     opts = {"time_limit": time_limit, "presolve": True}
@@ -335,7 +336,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   objective: str = "l1", v_min: float | None = None, boundary_margin: float | None = None,
                   kernel: RemovalKernel | None = None, node_spacing: float | None = None,
                   sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
-                  progress=None) -> FeedResult:
+                  region: np.ndarray | None = None, smoothing: float = 2e-2, progress=None) -> FeedResult:
     """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
 
     Parameters
@@ -364,6 +365,11 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         ``sample_spacing``, m).
     heading_scale : float
         As in :func:`swath.trajectory.time_path`, m (for the angular-speed caps).
+    region : (S,) bool, optional
+        Kernel samples to match (instead of every touched sample ``boundary_margin`` in).
+    smoothing : float
+        Weight of the cost on pace changes between neighbouring nodes, relative to the objective
+        (ties between dwell distributions with the same removal go to the smoother one).
     time_limit : float
         HiGHS time limit, s.
     progress : callable, optional
@@ -397,14 +403,20 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     caps = np.clip(node_speed_caps(toolpath, nodes, list(cons.values()), heading_scale=heading_scale), v_min, v_max)
     t_min, t_max = nodes.length / caps, nodes.length / v_min
     touched = np.diff(kernel.matrix.tocsr().indptr) > 0
-    region = touched & interior_mask(kernel.samples, margin)
+    if region is None:
+        region = touched & interior_mask(kernel.samples, margin)
+    else:
+        region = np.asarray(region, bool)
+        if region.shape != touched.shape:
+            raise InputError(f"region must be one bool per kernel sample ({len(touched)}), got shape {region.shape}")
+        region = region & touched
     if progress is not None:
         progress("solve", 0, 1)
     tl = cons.get(TangentialAccelLimit)
     t1 = time.perf_counter()
     dwell, status = solve_dwell(kernel, target_s, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
                                 mode=mode, objective=objective, a_t=None if tl is None else tl.a_t, v_max=v_max,
-                                time_limit=time_limit)
+                                time_limit=time_limit, smoothing=smoothing)
     t_solve = time.perf_counter() - t1
     if progress is not None:
         progress("solve", 1, 1)
