@@ -149,7 +149,7 @@ def _sub_poses(toolpath, nodes: DwellNodes, step: float):
 
 
 def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sample_spacing: float | None = None,
-                 pose_step: float | None = None, chunk: int = 2000, progress=None) -> RemovalKernel:
+                 pose_step: float | None = None, samples=None, chunk: int = 2000, progress=None) -> RemovalKernel:
     """Build the removal kernel of ``toolpath`` on its surface.
 
     Parameters
@@ -164,8 +164,11 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
         Largest edge of the sampled surface, m (default: the simulator's,
         :func:`swath.simulate.removal.sample_spacing_for`).
     pose_step : float, optional
-        Spacing of the contact poses averaged within a node, m (default: the sample spacing, as in
-        the simulator).
+        Spacing of the contact poses averaged within a node, m (default: half the sample spacing,
+        which halves the ripple a pose grid leaves on single samples).
+    samples : Surface, optional
+        The sampled surface to use (``toolpath.surface.subdivided(sample_spacing)``), when the
+        caller already has it (saves the subdivision and its KD-tree when many kernels are built).
     chunk : int
         Poses per vectorised batch (memory about ``chunk ×`` samples under the pad pairs).
     progress : callable, optional
@@ -181,8 +184,9 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     if not (np.isfinite(spacing) and spacing > 0):
         raise InputError(f"sample spacing must be a positive length in m, got {sample_spacing!r}")
     nodes = dwell_nodes(toolpath, node_spacing=default_node_spacing(tool) if node_spacing is None else node_spacing)
-    step = spacing if pose_step is None else float(pose_step)
-    samples = toolpath.surface.subdivided(spacing)
+    step = 0.5 * spacing if pose_step is None else float(pose_step)
+    if samples is None:
+        samples = toolpath.surface.subdivided(spacing)
     pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
     tree = samples.kdtree
     position, axes, node, weight = _sub_poses(toolpath, nodes, step)

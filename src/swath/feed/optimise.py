@@ -190,7 +190,7 @@ def _accel_rows(nodes, a_t: float, p_ref: float):
 def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min: np.ndarray,
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
                 a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
-                smoothing: float = 2e-2):
+                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 20000):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     Raises
@@ -204,12 +204,14 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
     if objective not in OBJECTIVES:
         raise InputError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
     K = kernel.matrix
-    rows = np.flatnonzero(region)
+    rows, w = thin_rows(kernel.samples, region, max_rows)
     A = (K[rows] / _DEPTH_UNIT).tocsr()                    # µm per s
     d = target[rows] / _DEPTH_UNIT
     u = d + tolerance / _DEPTH_UNIT
-    w = kernel.samples.vertex_areas[rows]
     w = w / w.mean()
+    if method is None:
+        method = "highs-ipm" if (mode == "match" and objective == "l1") else "highs"
+
     n = K.shape[1]
     r0 = A @ t_min
     excess = r0 - u
@@ -252,7 +254,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
         c = np.concatenate([-(w @ A), np.full(E, lam)])
         A_ub = sp.vstack([pad(A, 0), pad(G, 0), S_rows]).tocsc()
         b_ub = np.concatenate([u, h, np.zeros(2 * E)])
-        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=np.concatenate([t_bounds, g_bounds]), method="highs",
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=np.concatenate([t_bounds, g_bounds]), method=method,
                       options=opts)
     elif objective == "l1":
         # A t - e+ + e- = d, 0 <= e+ <= tol, e- >= 0; minimise w (e+ + e-)
@@ -263,7 +265,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
         b_ub = np.concatenate([h, np.zeros(2 * E)])
         tol_um = tolerance / _DEPTH_UNIT
         bounds = np.concatenate([t_bounds, g_bounds, np.tile([0.0, tol_um], (m, 1)), np.tile([0.0, np.inf], (m, 1))])
-        res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=d, bounds=bounds, method="highs", options=opts)
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=d, bounds=bounds, method=method, options=opts)
     else:
         # minimise z: d - A t <= z, A t <= u
         col = sp.csr_matrix(np.ones((m, 1)))
@@ -274,7 +276,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
         zscale = float(np.mean(col_weight)) * p_ref if n else 1.0
         c = np.concatenate([np.zeros(n), np.full(E, lam), [zscale]])
         bounds = np.concatenate([t_bounds, g_bounds, [[0.0, np.inf]]])
-        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs", options=opts)
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method=method, options=opts)
     x = None if res.x is None else res.x[:n]
     if res.status == 2:
         raise InfeasibleError(f"the feed optimisation is infeasible ({res.message}); the acceleration limit, the "
@@ -283,6 +285,22 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
     if x is None:
         raise InfeasibleError(f"the feed optimisation stopped without a solution: {res.message}")
     return np.clip(x, t_min, t_max), f"{res.status}: {res.message}"
+
+
+def thin_rows(samples, region: np.ndarray, max_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """At most about ``max_rows`` region samples for the programme: one per cell of a cubic grid
+    sized so the region's area gives about ``max_rows`` cells, weighted by the area of its cell's
+    region samples.  Returns ``(rows (k,) int, weights (k,) float m²)``; all region samples when they
+    are few enough."""
+    rows = np.flatnonzero(region)
+    areas = samples.vertex_areas
+    if len(rows) <= max_rows:
+        return rows, areas[rows]
+    cell = float(np.sqrt(areas[rows].sum() / max_rows))
+    key = np.floor(samples.vertices[rows] / cell).astype(np.int64)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    weight = np.bincount(inverse.ravel(), weights=areas[rows])
+    return rows[first], weight
 
 
 # ----------------------------------------------------------------------------------------------
@@ -336,7 +354,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   objective: str = "l1", v_min: float | None = None, boundary_margin: float | None = None,
                   kernel: RemovalKernel | None = None, node_spacing: float | None = None,
                   sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
-                  region: np.ndarray | None = None, smoothing: float = 2e-2, progress=None) -> FeedResult:
+                  region: np.ndarray | None = None, smoothing: float = 2e-2, cap_margin: float = 0.3,
+                  max_rows: int = 20000, progress=None) -> FeedResult:
     """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
 
     Parameters
@@ -367,6 +386,13 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         As in :func:`swath.trajectory.time_path`, m (for the angular-speed caps).
     region : (S,) bool, optional
         Kernel samples to match (instead of every touched sample ``boundary_margin`` in).
+    cap_margin : float
+        Fraction of ``tolerance`` held back for the difference between the kernel and the timed
+        trajectory (the simulator's pose discretisation moves single samples by a few %): the
+        programme caps the kernel removal at ``target + (1 − cap_margin)·tolerance``.
+    max_rows : int
+        Largest number of sample rows in the programme (more region samples are thinned to one per
+        grid cell, area-weighted; see :func:`thin_rows`).
     smoothing : float
         Weight of the cost on pace changes between neighbouring nodes, relative to the objective
         (ties between dwell distributions with the same removal go to the smoother one).
@@ -414,9 +440,11 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         progress("solve", 0, 1)
     tl = cons.get(TangentialAccelLimit)
     t1 = time.perf_counter()
-    dwell, status = solve_dwell(kernel, target_s, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
+    if not (0 <= cap_margin < 1):
+        raise InputError(f"cap_margin must lie in [0, 1), got {cap_margin!r}")
+    dwell, status = solve_dwell(kernel, target_s, tolerance=(1 - cap_margin) * tolerance, t_min=t_min, t_max=t_max, region=region,
                                 mode=mode, objective=objective, a_t=None if tl is None else tl.a_t, v_max=v_max,
-                                time_limit=time_limit, smoothing=smoothing)
+                                time_limit=time_limit, smoothing=smoothing, max_rows=max_rows)
     t_solve = time.perf_counter() - t1
     if progress is not None:
         progress("solve", 1, 1)

@@ -165,7 +165,7 @@ def greedy_offsets(surface, tool, constraints, *, target, angle: float = 0.0, di
             except InfeasibleError:
                 cache[key] = np.zeros(len(h))
             else:
-                k = build_kernel(tp, tool)
+                k = build_kernel(tp, tool, samples=samples)
                 cache[key] = k.removal(k.nodes.length)
         return cache[key]
 
