@@ -12,6 +12,10 @@ depth map; a :class:`~swath.trajectory.FeedProfile` comes out for :func:`swath.t
 
 from .kernel import DwellNodes, RemovalKernel, build_kernel, dwell_nodes, interior_mask, trajectory_node_dwell
 from .optimise import FeedResult, node_speed_caps, optimise_feed, removal_stats
+from .spacing import SpacingResult, greedy_offsets, joint_spacing, raster_at_offsets
+from .targets import TargetMap, excess_target, read_target_map, uniform_target, write_target_map
 
-__all__ = ["DwellNodes", "FeedResult", "RemovalKernel", "build_kernel", "dwell_nodes", "interior_mask",
-           "node_speed_caps", "optimise_feed", "removal_stats", "trajectory_node_dwell"]
+__all__ = ["DwellNodes", "FeedResult", "RemovalKernel", "SpacingResult", "TargetMap", "build_kernel", "dwell_nodes",
+           "excess_target", "greedy_offsets", "interior_mask", "joint_spacing", "node_speed_caps", "optimise_feed",
+           "raster_at_offsets", "read_target_map", "removal_stats", "trajectory_node_dwell", "uniform_target",
+           "write_target_map"]

@@ -190,7 +190,41 @@ def _accel_rows(nodes, a_t: float, p_ref: float):
 def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min: np.ndarray,
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
                 a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
-                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 20000):
+                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 20000, max_rounds: int = 6):
+    """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
+
+    When the region has more than ``max_rows`` samples the programme sees a thinned set
+    (:func:`thin_rows`); samples left out that the solution over-grinds are added as cap rows and the
+    programme is solved again (at most ``max_rounds`` times), so the cap holds at every region sample.
+
+    Raises
+    ------
+    InfeasibleError
+        When the fastest feed already removes more than ``target + tolerance`` somewhere in the
+        region, or HiGHS reports the programme infeasible.
+    """
+    full = np.flatnonzero(region)
+    K_full = kernel.matrix[full].tocsr()
+    cap = target[full] + tolerance
+    extra = np.zeros(0, dtype=int)
+    status = ""
+    for _ in range(max(1, max_rounds)):
+        dwell, status = _solve(kernel, target, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
+                               mode=mode, objective=objective, a_t=a_t, v_max=v_max, time_limit=time_limit,
+                               smoothing=smoothing, method=method, max_rows=max_rows, cap_rows=full[extra])
+        over = K_full @ dwell - cap
+        bad = np.flatnonzero(over > 1e-3 * max(tolerance, 1e-9))
+        if len(bad) == 0:
+            break
+        log.info("feed optimisation: %d thinned-out samples over the cap by up to %.3g um; adding them",
+                 len(bad), over.max() / _DEPTH_UNIT)
+        extra = np.union1d(extra, bad)
+    return dwell, status
+
+
+def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min: np.ndarray,
+           t_max: np.ndarray, region: np.ndarray, mode: str, objective: str, a_t, v_max, time_limit: float,
+           smoothing: float, method, max_rows: int, cap_rows: np.ndarray):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     Raises
@@ -213,15 +247,17 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
         method = "highs-ipm" if (mode == "match" and objective == "l1") else "highs"
 
     n = K.shape[1]
-    r0 = A @ t_min
-    excess = r0 - u
-    if len(rows) and excess.max() > 1e-9:
+    all_rows = np.flatnonzero(region)
+    r0 = (K[all_rows] @ t_min) / _DEPTH_UNIT
+    d_all = target[all_rows] / _DEPTH_UNIT
+    excess = r0 - (d_all + tolerance / _DEPTH_UNIT)
+    if len(all_rows) and excess.max() > 1e-9:
         j = int(np.argmax(excess))
-        where = kernel.samples.vertices[rows[j]]
+        where = kernel.samples.vertices[all_rows[j]]
         share = float(np.mean(excess > 1e-9))
         raise InfeasibleError(
             f"the fastest allowed feed already removes {r0[j]:.3g} um at ({where[0]:.4f}, {where[1]:.4f}, "
-            f"{where[2]:.4f}) m, more than the target {d[j]:.3g} um plus the tolerance "
+            f"{where[2]:.4f}) m, more than the target {d_all[j]:.3g} um plus the tolerance "
             f"{tolerance / _DEPTH_UNIT:.3g} um ({100 * share:.1f} % of the optimised samples are over); raise the "
             f"target to at least {float(r0.max() - tolerance / _DEPTH_UNIT):.3g} um or the tolerance, raise the "
             "feed limit, or plan the passes farther apart")
@@ -229,6 +265,9 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
     h = np.zeros(0)
     if a_t is not None and v_max is not None:
         G, h = _accel_rows(kernel.nodes, a_t, 1.0 / v_max)
+    if len(cap_rows):
+        G = sp.vstack([G, K[cap_rows] / _DEPTH_UNIT]).tocsr()
+        h = np.concatenate([h, (target[cap_rows] + tolerance) / _DEPTH_UNIT])
     m = len(rows)
     # Smoothing: g_e >= |p_j - p_i| / p_ref between neighbouring nodes, at a small cost.  Dwell along
     # a pass is otherwise free to alternate (the pad spans many nodes, so only window sums matter).

@@ -293,4 +293,4 @@ def joint_spacing(surface, tool, constraints, *, target, tolerance: float, angle
     return SpacingResult(np.asarray(offsets), tp, fr, metrics, trials)
 
 
-__all__ = ["SpacingResult", "greedy_offsets", "joint_spacing", "raster_at_offsets", "removal_stats"]
+__all__ = ["SpacingResult", "greedy_offsets", "joint_spacing", "raster_at_offsets"]
