@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from ..contact import Tool, mesh_contact
 from ..errors import InputError
-from ..simulate.removal import contact_dwell, sample_spacing_for
+from ..simulate.removal import sample_spacing_for
 from ..trajectory.geometry import arc_length
 
 log = logging.getLogger(__name__)
@@ -210,22 +210,24 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
 def trajectory_node_dwell(trajectory, nodes: DwellNodes, toolpath) -> np.ndarray:
     """Dwell ``(n,)`` (s) a timed trajectory spends in each node.
 
-    Every in-contact trajectory sample's dwell (:func:`swath.simulate.removal.contact_dwell`) goes to
-    the node at its arc-length position along its pass (the sample's travelled distance within the
-    pass, scaled to the pass's polyline length).
+    Along each pass the trajectory's in-contact samples give time against travelled distance
+    (scaled to the pass's polyline length); a node's dwell is the time between reaching its start
+    and its end, read by linear interpolation (exact for the piecewise-constant-speed steps; no
+    rounding to whole samples).
     """
-    dwell = contact_dwell(trajectory)
     out = np.zeros(len(nodes))
     for k, p in enumerate(toolpath.passes):
-        sel = np.flatnonzero(trajectory.pass_index == k)
-        if len(sel) == 0:
+        sel = np.flatnonzero((trajectory.pass_index == k) & trajectory.contact)
+        if len(sel) < 2:
             continue
         s = arc_length(trajectory.position[sel])
         total = s[-1]
         s = s * (p.length / total) if total > 0 else s
+        t = trajectory.t[sel]
+        keep = np.concatenate([[True], np.diff(s) > 0])
         a, b = nodes.pass_start[k], nodes.pass_start[k + 1]
-        j = np.clip(np.searchsorted(nodes.s_end[a:b], s, side="left"), 0, b - a - 1)
-        out[a:b] += np.bincount(j, weights=dwell[sel], minlength=b - a)
+        t_at = lambda x: np.interp(x, s[keep], t[keep])
+        out[a:b] = t_at(nodes.s_end[a:b]) - t_at(nodes.s_start[a:b])
     return out
 
 
