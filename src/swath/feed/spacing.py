@@ -3,7 +3,7 @@
 * :func:`raster_at_offsets` — raster passes on cutting planes at given offsets along the cross
   direction (the raster planner's slicing and snake order, with free offsets).
 * :func:`greedy_offsets` — Wang's greedy strategy: each next plane's step from the previous one is
-  chosen by a pattern search (his Algorithm 2: try ``x ± step``, keep improvements, shrink the step
+  chosen by a coarse scan and then a pattern search from the best (his Algorithm 2: try ``x ± step``, keep improvements, shrink the step
   by ``alpha`` until it is below ``eps``) minimising the residual ``target − removal`` over the strip
   between the two planes.  The removal counts the passes placed so far, the candidate pass and a
   look-ahead copy one step further (the strip also gets removal from the next pass); each pass's
@@ -111,7 +111,7 @@ def _pattern_search(f, x0: float, step: float, lo: float, hi: float, *, alpha: f
 
 def greedy_offsets(surface, tool, constraints, *, target, angle: float = 0.0, direction=None,
                    step_range: tuple[float, float] | None = None, length_weight: float = 0.01,
-                   boundary_margin: float | None = None, progress=None) -> SpacingResult:
+                   n_coarse: int = 0, boundary_margin: float | None = None, progress=None) -> SpacingResult:
     """Wang's greedy pass spacing: place planes one by one, each step chosen by pattern search.
 
     Parameters
@@ -128,6 +128,10 @@ def greedy_offsets(surface, tool, constraints, *, target, angle: float = 0.0, di
         Smallest and largest step between planes, m (default ``(0.3 R, 2 R)``).
     length_weight : float
         Cost per unit of ``2R / step`` (relative path length) added to the relative residual.
+    n_coarse : int
+        Steps scanned evenly over ``step_range`` to start each pattern search from the best (0: start
+        from the previous step, as Wang does; on the plate an 8-step scan found the same steps at 7x
+        the cost).
     boundary_margin : float, optional
         Samples nearer the open boundary than this (m) are not scored (default the pad radius).
     progress : callable, optional
@@ -197,8 +201,16 @@ def greedy_offsets(surface, tool, constraints, *, target, angle: float = 0.0, di
 
         if len(offsets) == 1:
             p_prev = _best_pace(first, D, w, p_lo, p_hi)
-        d, _, n = _pattern_search(score, step, 0.25 * R, lo_step, hi_step, eps=0.02 * R)
-        evals += n
+        # coarse scan for the start (the residual has several local minima in the step: the ripple of
+        # overlapping pad profiles), then Wang's pattern search from the best
+        if n_coarse >= 2:
+            coarse = np.linspace(lo_step, hi_step, n_coarse)
+            start = float(coarse[int(np.argmin([score(c) for c in coarse]))])
+            first_step = (hi_step - lo_step) / (2 * (n_coarse - 1))
+        else:
+            start, first_step = float(np.clip(step, lo_step, hi_step)), 0.25 * R
+        d, _, n = _pattern_search(score, start, first_step, lo_step, hi_step, eps=0.02 * R)
+        evals += n + max(n_coarse, 0)
         # fix the previous pass at its pace; the new one becomes "first" for the next step
         acc = acc + p_prev * first
         offsets.append(prev + d)
