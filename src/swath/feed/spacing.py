@@ -30,7 +30,8 @@ from ..plan.slicing import slice_mesh
 from ..plan.toolpath import ToolPath
 from ..trajectory.constraints import FeedLimit
 from .kernel import build_kernel, interior_mask
-from .optimise import optimise_feed, removal_stats, resolve_target, split_constraints
+from .caps import split_constraints
+from .optimise import optimise_feed, resolve_target
 
 log = logging.getLogger(__name__)
 
