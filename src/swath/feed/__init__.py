@@ -8,6 +8,13 @@ depth map; a :class:`~swath.trajectory.FeedProfile` comes out for :func:`swath.t
   without over-grinding, under feed, acceleration, centripetal and angular-speed limits (HiGHS);
 * :mod:`.spacing` — raster passes at chosen offsets; greedy (pattern search) and joint spacing + feed;
 * :mod:`.targets` — target depth maps: uniform, per-vertex from a file, scan excess over a CAD.
+
+Proposed CLI flags / job keys (wired by the CLI, not here): ``--optimise-feed [match|max_removal]``,
+``--target-depth 20um`` (uniform, :func:`swath.units.parse_quantity` kind ``length``), ``--target-map FILE``
+(CSV ``x,y,z,depth`` in m or PLY with a vertex ``depth``), ``--target-excess-over CAD_FILE`` (scan excess),
+``--depth-tolerance 2um``, ``--min-feed 5mm/s``, ``--optimise-spacing greedy|joint`` (raster only).
+The job then calls ``optimise_feed(toolpath, tool, constraints, target=..., tolerance=...)`` and passes
+``constraints + [result.profile]`` to :func:`swath.trajectory.time_path`.
 """
 
 from .kernel import DwellNodes, RemovalKernel, build_kernel, dwell_nodes, interior_mask, trajectory_node_dwell

@@ -271,7 +271,7 @@ def joint_spacing(surface, tool, constraints, *, target, tolerance: float, angle
         try:
             tp = raster_at_offsets(surface, tool, offsets, angle=angle, direction=direction, planner="joint-spacing")
             fr = optimise_feed(tp, tool, constraints, target=target, tolerance=tolerance, mode="match",
-                               objective=objective, **feed_options)
+                               objective=objective, timing_rounds=0, **feed_options)
             score = fr.metrics["residual_rms_m"] / max(fr.metrics["target_mean_m"], 1e-15) + length_weight * 2 * R / d
         except InfeasibleError as exc:
             log.info("joint spacing: %.1f mm infeasible (%s)", d * 1e3, exc)
@@ -299,6 +299,9 @@ def joint_spacing(surface, tool, constraints, *, target, tolerance: float, angle
         raise InfeasibleError(f"every spacing tried ({lo * 1e3:.1f}..{hi * 1e3:.1f} mm) over-grinds at the fastest "
                               "feed; raise the target or the tolerance, or the feed limit")
     score, offsets, tp, fr = best
+    # the winner's feed again, with the timing correction (skipped while searching)
+    fr = optimise_feed(tp, tool, constraints, target=target, tolerance=tolerance, mode="match", objective=objective,
+                       kernel=fr.kernel, **feed_options)
     steps = np.diff(offsets)
     metrics = {"method": "joint equal spacing + feed", "solve_time_s": time.perf_counter() - t_start,
                "evaluations": len(trials), "n_planes": len(offsets),
