@@ -159,7 +159,7 @@ def greedy_offsets(surface, tool, constraints, *, target, angle: float = 0.0, di
     D = resolve_target(target, samples)
     w = samples.vertex_areas * interior_mask(samples, margin)
     p_lo, p_hi = 1.0 / v_max, 10.0 / v_max                     # pace range (s/m)
-    cache: dict[float, np.ndarray] = {}
+    cache: dict[float, tuple] = {}                          # offset -> (sample indices, removal) (sparse)
 
     def unit_removal(offset: float) -> np.ndarray:
         """Removal (m) of the passes on one plane crossed at 1 m/s (dwell = length)."""
@@ -168,11 +168,16 @@ def greedy_offsets(surface, tool, constraints, *, target, angle: float = 0.0, di
             try:
                 tp = raster_at_offsets(surface, tool, [offset], angle=angle, direction=direction)
             except InfeasibleError:
-                cache[key] = np.zeros(len(h))
+                cache[key] = (np.zeros(0, dtype=int), np.zeros(0))
             else:
                 k = build_kernel(tp, tool, samples=samples)
-                cache[key] = k.removal(k.nodes.length)
-        return cache[key]
+                r = k.removal(k.nodes.length)
+                nz = np.flatnonzero(r)
+                cache[key] = (nz, r[nz])
+        out = np.zeros(len(h))
+        idx, val = cache[key]
+        out[idx] = val
+        return out
 
     acc = np.zeros(len(h))
     hmin, hmax = float(h.min()), float(h.max())
