@@ -126,3 +126,24 @@ def test_infeasible_target_names_the_numbers(plate):
     with pytest.raises(InfeasibleError, match=r"already removes .* um .* target 0\.1 um"):
         optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=0.1e-6, tolerance=0.0, boundary_margin=0.0)
     assert single > 0.1e-6
+
+
+def test_accel_sweep_makes_a_sharp_cap_feasible():
+    """One node capped at a tenth of the feed between free nodes: the sweep slows its neighbours so
+    the linearised acceleration rows hold everywhere, and nodes far away stay at full speed."""
+    from swath.feed.caps import accel_feasible_pace
+    from swath.feed.kernel import dwell_nodes
+
+    plate = flat_plate(size_x=0.3, size_y=0.05, spacing=1e-2)
+    nodes = dwell_nodes(ToolPath(plate, [_line(0.0, 0.3, 0.025)], "t"), node_spacing=3e-3)
+    p_ref = 1 / V_MAX
+    p_min = np.full(len(nodes), p_ref)
+    p_min[50] = 10 * p_ref
+    a_t = 0.05
+    p = accel_feasible_pace(p_min, nodes, a_t, p_ref)
+    c = a_t * np.diff(nodes.s_mid) * p_ref**2
+    dp = np.abs(np.diff(p))
+    assert (dp <= c * (3 * p[:-1] - 2 * p_ref) * (1 + 1e-9)).all()
+    assert (dp <= c * (3 * p[1:] - 2 * p_ref) * (1 + 1e-9)).all()
+    assert (p >= p_min).all() and p[0] == p_ref and p[-1] == p_ref
+    assert p[49] > p_ref and p[51] > p_ref

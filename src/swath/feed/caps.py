@@ -76,3 +76,29 @@ def node_speed_caps(toolpath: ToolPath, nodes, constraints, *, heading_scale: fl
         cm = np.array([grid_cap[i:j].min() for i, j in zip(lo, np.minimum(hi, len(s)))])
         caps[a:b] = np.minimum(caps[a:b], cm)
     return caps
+
+
+def accel_feasible_pace(p_min: np.ndarray, nodes, a_t: float, p_ref: float) -> np.ndarray:
+    """The smallest pace ``(n,)`` (s/m) at or above ``p_min`` that meets the linearised acceleration
+    rows of the feed programme between neighbouring nodes of a pass,
+    ``|p_j − p_i| <= c (3 p_k − 2 p_ref)`` for ``k`` in ``{i, j}``, ``c = a_t Δc p_ref²``.
+
+    A forward and a backward sweep raise the pace ahead of (and behind) every node where a cap
+    forces a slow-down, as :func:`swath.trajectory.timing.speed_profile` does for ``v²``; without it
+    a sharp cap next to a free node makes the programme infeasible.
+    """
+    p = np.asarray(p_min, float).copy()
+    same = nodes.pass_index[1:] == nodes.pass_index[:-1]
+    c = a_t * np.diff(nodes.s_mid) * p_ref**2
+
+    def need(prev, ci):
+        # lower bound on the neighbour's pace from both forms of the row
+        return max((prev + 2 * ci * p_ref) / (1 + 3 * ci), prev * (1 - 3 * ci) + 2 * ci * p_ref)
+
+    for i in range(len(p) - 1):                       # forward: slow down after a slow node
+        if same[i]:
+            p[i + 1] = max(p[i + 1], need(p[i], c[i]))
+    for i in range(len(p) - 2, -1, -1):               # backward: slow down before a slow node
+        if same[i]:
+            p[i] = max(p[i], need(p[i + 1], c[i]))
+    return p

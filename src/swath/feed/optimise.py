@@ -41,7 +41,7 @@ from ..errors import InfeasibleError, InputError
 from ..plan.toolpath import ToolPath
 from ..trajectory.constraints import FeedLimit, FeedProfile, TangentialAccelLimit
 from ..trajectory.geometry import arc_length
-from .caps import node_speed_caps, split_constraints
+from .caps import accel_feasible_pace, node_speed_caps, split_constraints
 from .kernel import RemovalKernel, build_kernel, interior_mask
 
 log = logging.getLogger(__name__)
@@ -413,6 +413,13 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     target_s = resolve_target(target, kernel.samples)
     caps = np.clip(node_speed_caps(toolpath, nodes, list(cons.values()), heading_scale=heading_scale), v_min, v_max)
     t_min, t_max = nodes.length / caps, nodes.length / v_min
+    tl = cons.get(TangentialAccelLimit)
+    if tl is not None:
+        # the fastest profile that meets the linearised acceleration rows (else a sharp cap next to
+        # a free node leaves the programme infeasible)
+        pace = np.minimum(accel_feasible_pace(1.0 / caps, nodes, tl.a_t, 1.0 / v_max), 1.0 / v_min)
+        t_min = nodes.length * pace
+        caps = 1.0 / pace
     touched = np.diff(kernel.matrix.tocsr().indptr) > 0
     if region is None:
         region = touched & interior_mask(kernel.samples, margin)
@@ -423,7 +430,6 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         region = region & touched
     if progress is not None:
         progress("solve", 0, 1)
-    tl = cons.get(TangentialAccelLimit)
     t1 = time.perf_counter()
     if not (0 <= cap_margin < 1):
         raise InputError(f"cap_margin must lie in [0, 1), got {cap_margin!r}")
