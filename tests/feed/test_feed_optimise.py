@@ -34,10 +34,11 @@ def plate():
     return flat_plate(size_x=0.24, size_y=0.2, spacing=2.5e-3)
 
 
-def test_kernel_reproduces_simulator(plate):
+@pytest.mark.parametrize("from_trajectory", [False, True])
+def test_kernel_reproduces_simulator(plate, from_trajectory):
     tp = ToolPath(plate, [_line(0.04, 0.2, 0.08), _line(0.2, 0.04, 0.11)], "test")
-    k = build_kernel(tp, TOOL)
     traj = time_path(tp, [FeedLimit(0.03), TangentialAccelLimit(0.5)])
+    k = build_kernel(tp, TOOL, trajectory=traj if from_trajectory else None)
     sim = simulate_removal(traj, plate, TOOL)
     pred = k.removal(trajectory_node_dwell(traj, k.nodes, tp))
     on = sim.depth > 0.2 * sim.depth.max()

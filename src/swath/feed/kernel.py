@@ -128,28 +128,47 @@ def _interp_polyline(s: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.nd
     return np.stack([np.interp(at, s, values[:, c]) for c in range(values.shape[1])], axis=1)
 
 
-def _sub_poses(toolpath, nodes: DwellNodes, step: float):
+def _pass_geometry(toolpath, trajectory):
+    """Per pass: arc length ``(k,)`` (m, on the pass polyline's scale), positions ``(k, 3)`` and tool
+    z-axes ``(k, 3)`` to interpolate poses from: the pass polyline and minus its normals, or the
+    timed trajectory's in-contact samples of that pass (travelled distance scaled to the pass length,
+    as :func:`trajectory_node_dwell` reads it)."""
+    out = []
+    tz = None if trajectory is None else trajectory.tool_z()
+    for k, p in enumerate(toolpath.passes):
+        if trajectory is not None:
+            sel = np.flatnonzero((trajectory.pass_index == k) & trajectory.contact)
+            if len(sel) >= 2:
+                s = arc_length(trajectory.position[sel])
+                s = s * (p.length / s[-1]) if s[-1] > 0 else s
+                out.append((s, trajectory.position[sel], tz[sel]))
+                continue
+        out.append((arc_length(p.points), p.points, -p.normals))
+    return out
+
+
+def _sub_poses(toolpath, nodes: DwellNodes, step: float, trajectory=None):
     """Poses spread evenly through every node (about ``step`` apart): positions, tool z-axes, the
     node of each pose and its weight (1 / poses in the node)."""
     pos, axes, node, weight = [], [], [], []
-    for k, p in enumerate(toolpath.passes):
+    for k, (s, points, zaxes) in enumerate(_pass_geometry(toolpath, trajectory)):
         a, b = nodes.pass_start[k], nodes.pass_start[k + 1]
-        s = arc_length(p.points)
         length = nodes.length[a:b]
         m = np.maximum(np.ceil(length / step - 1e-9).astype(int), 1)
         nid = np.repeat(np.arange(a, b), m)
         local = np.arange(len(nid)) - np.repeat(np.cumsum(m) - m, m)
         at = nodes.s_start[nid] + (local + 0.5) / m[nid - a] * nodes.length[nid]
-        pos.append(_interp_polyline(s, p.points, at))
-        n = _interp_polyline(s, p.normals, at)
-        axes.append(-n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300))
+        pos.append(_interp_polyline(s, points, at))
+        z = _interp_polyline(s, zaxes, at)
+        axes.append(z / np.maximum(np.linalg.norm(z, axis=1, keepdims=True), 1e-300))
         node.append(nid)
         weight.append(1.0 / m[nid - a])
     return np.vstack(pos), np.vstack(axes), np.concatenate(node), np.concatenate(weight)
 
 
 def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sample_spacing: float | None = None,
-                 pose_step: float | None = None, samples=None, chunk: int = 2000, progress=None) -> RemovalKernel:
+                 pose_step: float | None = None, samples=None, trajectory=None, chunk: int = 2000,
+                 progress=None) -> RemovalKernel:
     """Build the removal kernel of ``toolpath`` on its surface.
 
     Parameters
@@ -169,6 +188,11 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     samples : Surface, optional
         The sampled surface to use (``toolpath.surface.subdivided(sample_spacing)``), when the
         caller already has it (saves the subdivision and its KD-tree when many kernels are built).
+    trajectory : Trajectory, optional
+        ``toolpath`` already timed (any feed): the contact poses are then read from its in-contact
+        samples (the positions and tool axes the robot will use, after the timing stage's projection
+        and normal smoothing) instead of the pass polylines.  On noisy scans this keeps the kernel
+        and :func:`swath.simulate.simulate_removal` of the final trajectory on the same poses.
     chunk : int
         Poses per vectorised batch (memory about ``chunk ×`` samples under the pad pairs).
     progress : callable, optional
@@ -189,7 +213,7 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
         samples = toolpath.surface.subdivided(spacing)
     pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
     tree = samples.kdtree
-    position, axes, node, weight = _sub_poses(toolpath, nodes, step)
+    position, axes, node, weight = _sub_poses(toolpath, nodes, step, trajectory)
     S, n = len(pts), len(nodes)
     blocks = []
     for lo in range(0, len(position), chunk):

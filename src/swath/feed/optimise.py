@@ -334,7 +334,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   kernel: RemovalKernel | None = None, node_spacing: float | None = None,
                   sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
                   region: np.ndarray | None = None, smoothing: float = 2e-2, cap_margin: float = 0.5,
-                  max_rows: int = 20000, timing_rounds: int = 1, progress=None) -> FeedResult:
+                  max_rows: int = 20000, timing_rounds: int = 1, trajectory=None, progress=None) -> FeedResult:
     """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
 
     Parameters
@@ -369,6 +369,9 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         Fraction of ``tolerance`` held back for the difference between the kernel and the timed
         trajectory (the simulator's pose discretisation moves single samples by a few %): the
         programme caps the kernel removal at ``target + (1 − cap_margin)·tolerance``.
+    trajectory : Trajectory, optional
+        ``toolpath`` timed at any feed: the kernel then uses its contact poses (see
+        :func:`build_kernel`); recommended on scans.
     timing_rounds : int
         Rounds of timing correction (default 1): the profile is timed with
         :func:`swath.trajectory.time_path` under ``constraints``, each node's commanded feed is scaled
@@ -407,7 +410,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     t0 = time.perf_counter()
     if kernel is None:
         cb = None if progress is None else (lambda done, total: progress("kernel", done, total))
-        kernel = build_kernel(toolpath, tool, node_spacing=node_spacing, sample_spacing=sample_spacing, progress=cb)
+        kernel = build_kernel(toolpath, tool, node_spacing=node_spacing, sample_spacing=sample_spacing,
+                              trajectory=trajectory, progress=cb)
     t_kernel = time.perf_counter() - t0
     nodes = kernel.nodes
     target_s = resolve_target(target, kernel.samples)
