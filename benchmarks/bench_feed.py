@@ -7,7 +7,8 @@ For every part (built-in blade, panel, plate and every shared mesh found):
 3. ``space``  — raster planes placed by Wang's greedy pattern search (:func:`swath.feed.spacing.greedy_offsets`)
    in the same direction, then the feed optimised.
 
-The target is one uniform depth ``D`` for all three: the smallest depth both optimised plans can reach
+Kernels are built on the contact poses of each plan timed at the constant feed
+(``build_kernel(..., trajectory=...)``).  The target is one uniform depth ``D`` for all three: the smallest depth both optimised plans can reach
 without over-grinding at the feed limit (``max(K t_fastest) / (1 + tol)`` over the interior), with
 a tolerance of 10 % of ``D``.  Every figure is measured on the *timed* trajectory by the removal
 simulator (not the kernel): removal CoV over the samples at least one pad radius from the open
@@ -45,7 +46,7 @@ def _load(name: str):
 
 def run_one(name: str) -> list[dict]:
     from swath.contact import Tool
-    from swath.feed import build_kernel, interior_mask, optimise_feed, removal_stats
+    from swath.feed import build_kernel, interior_mask, node_speed_caps, optimise_feed, removal_stats
     from swath.feed.spacing import greedy_offsets
     from swath.plan import raster
     from swath.simulate.removal import simulate_removal
@@ -58,22 +59,25 @@ def run_one(name: str) -> list[dict]:
     t0 = time.perf_counter()
     base = raster(surface, tool)
     angle = base.metadata["angle_rad"]
-    k_base = build_kernel(base, tool)
+    # the kernel on the poses the robot will use: the plan timed at the constant feed
+    k_base = build_kernel(base, tool, trajectory=time_path(base, cons))
     t_kernel = time.perf_counter() - t0
     inside = interior_mask(k_base.samples, tool.pad_radius)
-    touched = np.diff(k_base.matrix.tocsr().indptr) > 0
-    D_base = float(k_base.removal(k_base.dwell_at_speed(FEED))[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
+
+    def least_depth(k):
+        """Smallest uniform depth the plan reaches without over-grinding at the fastest allowed feeds."""
+        caps = np.clip(node_speed_caps(k.toolpath, k.nodes, cons), 0.1 * FEED, FEED)
+        r0 = k.removal(k.dwell_at_speed(caps))
+        touched = np.diff(k.matrix.tocsr().indptr) > 0
+        return float(r0[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
+
+    D_base = least_depth(k_base)
     t1 = time.perf_counter()
     greedy = greedy_offsets(surface, tool, cons, target=D_base, angle=angle)
     t_greedy = time.perf_counter() - t1
-    k_space = build_kernel(greedy.toolpath, tool)
+    k_space = build_kernel(greedy.toolpath, tool, trajectory=time_path(greedy.toolpath, cons))
     # smallest uniform depth reachable without over-grinding by both optimised plans
-    need = []
-    for k in (k_base, k_space):
-        r0 = k.removal(k.dwell_at_speed(FEED))
-        touched = np.diff(k.matrix.tocsr().indptr) > 0
-        need.append(r0[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
-    D = float(max(need))
+    D = max(D_base, least_depth(k_space))
     tol = TOL_FRACTION * D
     rows = []
 
@@ -98,15 +102,6 @@ def run_one(name: str) -> list[dict]:
     t3 = time.perf_counter()
     fs = optimise_feed(greedy.toolpath, tool, cons, target=D, tolerance=tol, kernel=k_space)
     measure("space+feed", greedy.toolpath, [fs.profile], t_greedy + time.perf_counter() - t3, fs)
-    # the same without the length cost in the greedy search: evenness first
-    t4 = time.perf_counter()
-    even = greedy_offsets(surface, tool, cons, target=D_base, angle=angle, length_weight=0.0)
-    k_even = build_kernel(even.toolpath, tool)
-    r0 = k_even.removal(k_even.dwell_at_speed(FEED))
-    t_even = np.diff(k_even.matrix.tocsr().indptr) > 0
-    D_even = max(D, float(r0[inside & t_even].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION)))
-    fe = optimise_feed(even.toolpath, tool, cons, target=D_even, tolerance=TOL_FRACTION * D_even, kernel=k_even)
-    measure("even+feed", even.toolpath, [fe.profile], time.perf_counter() - t4, fe, depth=D_even)
     for r in rows:
         r["rss_mb"] = max_rss_mb()
     return rows
@@ -131,7 +126,7 @@ def main(argv):
             rows.append({"part": name, "run": "FAILED: " + (proc.stderr.strip().splitlines() or ["?"])[-1][:100]})
         else:
             rows.extend(json.loads(line[5:]))
-        print_table(rows[-4:], COLUMNS)
+        print_table(rows[-3:], COLUMNS)
         sys.stdout.flush()
     print()
     print_table(rows, COLUMNS)
