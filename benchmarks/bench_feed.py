@@ -66,8 +66,11 @@ def run_one(name: str) -> list[dict]:
 
     def least_depth(k):
         """Smallest uniform depth the plan reaches without over-grinding at the fastest allowed feeds."""
+        from swath.feed.caps import accel_feasible_pace
+
         caps = np.clip(node_speed_caps(k.toolpath, k.nodes, cons), 0.1 * FEED, FEED)
-        r0 = k.removal(k.dwell_at_speed(caps))
+        pace = np.minimum(accel_feasible_pace(1.0 / caps, k.nodes, 1.0, 1.0 / FEED), 10.0 / FEED)   # a_t = 1 m/s2
+        r0 = k.removal(k.nodes.length * pace)
         touched = np.diff(k.matrix.tocsr().indptr) > 0
         return float(r0[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
 
