@@ -1,0 +1,139 @@
+"""Benchmark: constant feed vs optimised feed vs optimised spacing + feed, same part, same target.
+
+For every part (built-in blade, panel, plate and every shared mesh found):
+
+1. ``const``  — raster at its default spacing and direction, constant feed;
+2. ``feed``   — the same passes with the feed optimised (:func:`swath.feed.optimise_feed`, match, L1);
+3. ``space``  — raster planes placed by Wang's greedy pattern search (:func:`swath.feed.spacing.greedy_offsets`)
+   in the same direction, then the feed optimised.
+
+Kernels are built on the contact poses of each plan timed at the constant feed
+(``build_kernel(..., trajectory=...)``).  The target is one uniform depth ``D`` for all three: the smallest depth both optimised plans can reach
+without over-grinding at the feed limit (``max(K t_fastest) / (1 + tol)`` over the interior), with
+a tolerance of 10 % of ``D``.  Every figure is measured on the *timed* trajectory by the removal
+simulator (not the kernel): removal CoV over the samples at least one pad radius from the open
+boundary (untouched ones included), contact length against the coverage lower bound L*, the largest
+over-removal against D, cycle time, optimisation time and the process's peak memory (each part
+runs in its own process).
+
+Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [plate panel blade crs_part_5.stl ...]``
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from common import REPO, SHARED_MESH_UNITS, SHARED_MESHES, max_rss_mb, print_table
+
+FEED = 0.05          # m/s
+TOL_FRACTION = 0.10
+CAP_MARGIN = 0.5     # optimise_feed default: half the tolerance kept for kernel-vs-simulator error
+
+
+def _load(name: str):
+    from swath.examples import example_part
+    from swath.io.mesh import load_mesh
+
+    if name in ("blade", "panel", "plate"):
+        return example_part(name)
+    return load_mesh(SHARED_MESHES / name, units=SHARED_MESH_UNITS[name])
+
+
+def run_one(name: str) -> list[dict]:
+    from swath.contact import Tool
+    from swath.feed import build_kernel, interior_mask, node_speed_caps, optimise_feed, removal_stats
+    from swath.feed.spacing import greedy_offsets
+    from swath.plan import raster
+    from swath.simulate.removal import simulate_removal
+    from swath.trajectory import (AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit,
+                                  time_path)
+
+    surface = _load(name)
+    tool = Tool()
+    cons = [FeedLimit(FEED), CentripetalLimit(2.0), AngularSpeedLimit(1.0), TangentialAccelLimit(1.0)]
+    t0 = time.perf_counter()
+    base = raster(surface, tool)
+    angle = base.metadata["angle_rad"]
+    # the kernel on the poses the robot will use: the plan timed at the constant feed
+    k_base = build_kernel(base, tool, trajectory=time_path(base, cons))
+    t_kernel = time.perf_counter() - t0
+    inside = interior_mask(k_base.samples, tool.pad_radius)
+
+    def least_depth(k):
+        """Smallest uniform depth the plan reaches without over-grinding at the fastest allowed feeds."""
+        from swath.feed.caps import accel_feasible_pace
+
+        caps = np.clip(node_speed_caps(k.toolpath, k.nodes, cons), 0.1 * FEED, FEED)
+        pace = np.minimum(accel_feasible_pace(1.0 / caps, k.nodes, 1.0, 1.0 / FEED), 10.0 / FEED)   # a_t = 1 m/s2
+        r0 = k.removal(k.nodes.length * pace)
+        touched = np.diff(k.matrix.tocsr().indptr) > 0
+        return float(r0[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
+
+    D_base = least_depth(k_base)
+    t1 = time.perf_counter()
+    greedy = greedy_offsets(surface, tool, cons, target=D_base, angle=angle)
+    t_greedy = time.perf_counter() - t1
+    k_space = build_kernel(greedy.toolpath, tool, trajectory=time_path(greedy.toolpath, cons))
+    # smallest uniform depth reachable without over-grinding by both optimised plans
+    D = max(D_base, least_depth(k_space))
+    tol = TOL_FRACTION * D
+    rows = []
+
+    def measure(label, toolpath, extra, opt_time, result=None, depth=None):
+        depth = D if depth is None else depth
+        traj = time_path(toolpath, cons + extra)
+        rm = simulate_removal(traj, surface, tool)
+        st = removal_stats(rm.depth, np.full(len(rm.depth), depth), rm.surface.vertex_areas, inside)
+        m = rm.metrics
+        rows.append({"part": name, "run": label, "passes": len(toolpath.passes),
+                     "cov_interior": st["removal_cov"], "mean_um": 1e6 * st["removal_mean_m"], "D_um": 1e6 * depth,
+                     "over_um": 1e6 * st["max_over_removal_m"], "tol_um": 1e6 * TOL_FRACTION * depth,
+                     "L_over_Lstar": m["contact_length_m"] / m["coverage_lower_bound_m"],
+                     "cycle_s": traj.duration, "opt_s": opt_time,
+                     "over_kernel_um": 1e6 * result.metrics["max_over_removal_m"] if result else float("nan"),
+                     "cov_kernel": result.metrics["removal_cov"] if result else float("nan")})
+
+    measure("const", base, [], 0.0)
+    t2 = time.perf_counter()
+    fr = optimise_feed(base, tool, cons, target=D, tolerance=tol, kernel=k_base)
+    measure("feed", base, [fr.profile], t_kernel + time.perf_counter() - t2, fr)
+    t3 = time.perf_counter()
+    fs = optimise_feed(greedy.toolpath, tool, cons, target=D, tolerance=tol, kernel=k_space)
+    measure("space+feed", greedy.toolpath, [fs.profile], t_greedy + time.perf_counter() - t3, fs)
+    for r in rows:
+        r["rss_mb"] = max_rss_mb()
+    return rows
+
+
+COLUMNS = [("part", ""), ("run", ""), ("passes", "d"), ("cov_interior", ".3f"), ("mean_um", ".2f"), ("D_um", ".2f"),
+           ("over_um", ".2f"), ("over_kernel_um", ".2f"), ("tol_um", ".2f"), ("cov_kernel", ".3f"), ("L_over_Lstar", ".2f"), ("cycle_s", ".1f"), ("opt_s", ".1f"),
+           ("rss_mb", ".0f")]
+
+
+def main(argv):
+    if len(argv) >= 2 and argv[0] == "--one":
+        print("ROWS " + json.dumps(run_one(argv[1])))
+        return
+    names = argv or ["plate", "panel", "blade", *[f for f in SHARED_MESH_UNITS if (SHARED_MESHES / f).exists()]]
+    rows = []
+    for name in names:
+        proc = subprocess.run([sys.executable, __file__, "--one", name], capture_output=True, text=True,
+                              cwd=REPO, timeout=3600)
+        line = next((l for l in proc.stdout.splitlines() if l.startswith("ROWS ")), None)
+        if line is None:
+            rows.append({"part": name, "run": "FAILED: " + (proc.stderr.strip().splitlines() or ["?"])[-1][:100]})
+        else:
+            rows.extend(json.loads(line[5:]))
+        print_table(rows[-3:], COLUMNS)
+        sys.stdout.flush()
+    print()
+    print_table(rows, COLUMNS)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

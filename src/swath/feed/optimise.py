@@ -1,0 +1,471 @@
+"""Feed (dwell) optimisation to a target depth map, as a linear programme solved by HiGHS.
+
+Variables are the dwell times ``t_i`` (s) of the dwell nodes (:mod:`.kernel`); removal is ``K t``.
+With ``Δs_i`` the node length the feed through node ``i`` is ``v_i = Δs_i / t_i``.
+
+Constraints (all linear in ``t``)
+---------------------------------
+* feed ``v_min <= v_i <= cap_i``: the bounds ``Δs_i / cap_i <= t_i <= Δs_i / v_min``, with ``cap_i``
+  the smallest of the feed limit and the centripetal ``sqrt(a_c / κ)`` and angular ``ω_max / ρ``
+  caps along the node, computed on the timing grid exactly as :func:`swath.trajectory.time_path`
+  does (:func:`node_speed_caps`);
+* never over-grind: ``(K t)_j <= target_j + tolerance`` at every sample of the optimised region
+  (touched samples at least ``boundary_margin`` from the open boundary);
+* tangential acceleration ``|dv/dt| <= a_t``: with the pace ``p = 1/v = t/Δs``, ``dv/dt = −p'/p³``, so
+  ``|p_{i+1} − p_i| <= a_t Δc p³`` between neighbouring nodes ``Δc`` apart.  ``p³`` is replaced by its
+  tangent at ``p_ref = 1 / v_max`` (below ``p³`` for every ``p >= p_ref``), written at both nodes:
+  a conservative linearisation.
+
+Objectives
+----------
+* ``mode="match"``, ``objective="l1"``: minimise the area-weighted ``Σ a_j |(K t)_j − target_j|``;
+  ``objective="minimax"``: minimise the largest under-removal ``max_j (target_j − (K t)_j)``.
+* ``mode="max_removal"`` (Wang, hub grinding §2): maximise the removed volume ``Σ a_j (K t)_j``
+  subject to the constraints above.
+
+Depths are scaled to micrometres inside the solver so that HiGHS's absolute tolerances (1e-7) are
+far below anything that matters.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import linprog
+
+from ..errors import InfeasibleError, InputError
+from ..plan.toolpath import ToolPath
+from ..trajectory.constraints import FeedLimit, FeedProfile, TangentialAccelLimit
+from ..trajectory.geometry import arc_length
+from .caps import accel_feasible_pace, node_speed_caps, split_constraints
+from .kernel import RemovalKernel, build_kernel, interior_mask
+
+log = logging.getLogger(__name__)
+
+#: Depth unit inside the solver, m (micrometres).
+_DEPTH_UNIT = 1e-6
+
+MODES = ("match", "max_removal")
+OBJECTIVES = ("l1", "minimax")
+
+
+@dataclass(frozen=True, eq=False)
+class FeedResult:
+    """An optimised feed and what it is predicted to do.
+
+    Attributes
+    ----------
+    profile : FeedProfile
+        One speed (m/s) per point of every pass; give it to :func:`swath.trajectory.time_path`.
+    dwell : (n,) float
+        Dwell per node, s.
+    speed : (n,) float
+        Feed through each node, m/s.
+    kernel : RemovalKernel
+    target : (S,) float
+        Target depth on the kernel's samples, m.
+    predicted : (S,) float
+        Predicted removal ``K @ dwell``, m.
+    region : (S,) bool
+        Samples the optimisation was asked to match (touched, at least ``boundary_margin`` in).
+    metrics : dict
+        Figures with units in their keys: ``status``, ``solve_time_s``, ``kernel_time_s``,
+        ``removal_cov``, ``removal_mean_m``, ``target_mean_m``, ``max_over_removal_m``,
+        ``max_under_removal_m``, ``residual_rms_m``, ``contact_time_s``, ``fastest_contact_time_s``, ...
+    """
+
+    profile: FeedProfile
+    dwell: np.ndarray
+    speed: np.ndarray
+    kernel: RemovalKernel
+    target: np.ndarray
+    predicted: np.ndarray
+    region: np.ndarray
+    metrics: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------------------------
+# The linear programme
+# ----------------------------------------------------------------------------------------------
+def _accel_rows(nodes, a_t: float, p_ref: float):
+    """Rows ``G t <= h`` of the linearised tangential-acceleration limit between neighbouring nodes."""
+    same = nodes.pass_index[1:] == nodes.pass_index[:-1]
+    i = np.flatnonzero(same)
+    if len(i) == 0:
+        return sp.csr_matrix((0, len(nodes))), np.zeros(0)
+    j = i + 1
+    L = nodes.length
+    dc = nodes.s_mid[j] - nodes.s_mid[i]
+    c = a_t * dc * p_ref**2                       # |p_j - p_i| <= c (3 p_k - 2 p_ref), k in {i, j}
+    rows, cols, vals, rhs = [], [], [], []
+    r = 0
+    for sign in (1.0, -1.0):
+        for k_is_i in (True, False):
+            # sign (p_j - p_i) - 3 c p_k <= -2 c p_ref
+            pi_coef = -sign / L[i]
+            pj_coef = sign / L[j]
+            if k_is_i:
+                pi_coef = pi_coef - 3 * c / L[i]
+            else:
+                pj_coef = pj_coef - 3 * c / L[j]
+            n = len(i)
+            rows += [np.arange(r, r + n), np.arange(r, r + n)]
+            cols += [i, j]
+            vals += [pi_coef, pj_coef]
+            rhs.append(-2 * c * p_ref)
+            r += n
+    G = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, len(nodes)))
+    # scale each row to pace units of the reference pace
+    return G / p_ref, np.concatenate(rhs) / p_ref
+
+
+def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min: np.ndarray,
+                t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
+                a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
+                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 20000, max_rounds: int = 6):
+    """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
+
+    When the region has more than ``max_rows`` samples the programme sees a thinned set
+    (:func:`thin_rows`); samples left out that the solution over-grinds are added as cap rows and the
+    programme is solved again (at most ``max_rounds`` times), so the cap holds at every region sample.
+
+    Raises
+    ------
+    InfeasibleError
+        When the fastest feed already removes more than ``target + tolerance`` somewhere in the
+        region, or HiGHS reports the programme infeasible.
+    """
+    full = np.flatnonzero(region)
+    K_full = kernel.matrix[full].tocsr()
+    cap = target[full] + tolerance
+    extra = np.zeros(0, dtype=int)
+    status = ""
+    for _ in range(max(1, max_rounds)):
+        dwell, status = _solve(kernel, target, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
+                               mode=mode, objective=objective, a_t=a_t, v_max=v_max, time_limit=time_limit,
+                               smoothing=smoothing, method=method, max_rows=max_rows, cap_rows=full[extra])
+        over = K_full @ dwell - cap
+        bad = np.flatnonzero(over > 1e-3 * max(tolerance, 1e-9))
+        if len(bad) == 0:
+            break
+        log.info("feed optimisation: %d thinned-out samples over the cap by up to %.3g um; adding them",
+                 len(bad), over.max() / _DEPTH_UNIT)
+        extra = np.union1d(extra, bad)
+    return dwell, status
+
+
+def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min: np.ndarray,
+           t_max: np.ndarray, region: np.ndarray, mode: str, objective: str, a_t, v_max, time_limit: float,
+           smoothing: float, method, max_rows: int, cap_rows: np.ndarray):
+    """One solve of the programme on the thinned region rows plus the extra ``cap_rows``: ``(dwell, status)``.
+
+    Raises
+    ------
+    InfeasibleError
+        When the fastest feed already removes more than ``target + tolerance`` somewhere in the
+        region, or HiGHS reports the programme infeasible.
+    """
+    if mode not in MODES:
+        raise InputError(f"mode must be one of {MODES}, got {mode!r}")
+    if objective not in OBJECTIVES:
+        raise InputError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
+    K = kernel.matrix
+    rows, w = thin_rows(kernel.samples, region, max_rows)
+    A = (K[rows] / _DEPTH_UNIT).tocsr()                    # µm per s
+    d = target[rows] / _DEPTH_UNIT
+    u = d + tolerance / _DEPTH_UNIT
+    w = w / w.mean()
+    if method is None:
+        method = "highs-ipm" if (mode == "match" and objective == "l1") else "highs"
+
+    n = K.shape[1]
+    all_rows = np.flatnonzero(region)
+    r0 = (K[all_rows] @ t_min) / _DEPTH_UNIT
+    d_all = target[all_rows] / _DEPTH_UNIT
+    excess = r0 - (d_all + tolerance / _DEPTH_UNIT)
+    if len(all_rows) and excess.max() > 1e-9:
+        j = int(np.argmax(excess))
+        where = kernel.samples.vertices[all_rows[j]]
+        share = float(np.mean(excess > 1e-9))
+        raise InfeasibleError(
+            f"the fastest allowed feed already removes {r0[j]:.3g} um at ({where[0]:.4f}, {where[1]:.4f}, "
+            f"{where[2]:.4f}) m, more than the target {d_all[j]:.3g} um plus the tolerance "
+            f"{tolerance / _DEPTH_UNIT:.3g} um ({100 * share:.1f} % of the optimised samples are over); raise the "
+            f"target to at least {float(r0.max() - tolerance / _DEPTH_UNIT):.3g} um or the tolerance, raise the "
+            "feed limit, or plan the passes farther apart")
+    G = sp.csr_matrix((0, n))
+    h = np.zeros(0)
+    if a_t is not None and v_max is not None:
+        G, h = _accel_rows(kernel.nodes, a_t, 1.0 / v_max)
+    if len(cap_rows):
+        G = sp.vstack([G, K[cap_rows] / _DEPTH_UNIT]).tocsr()
+        h = np.concatenate([h, (target[cap_rows] + tolerance) / _DEPTH_UNIT])
+    m = len(rows)
+    # Smoothing: g_e >= |p_j - p_i| / p_ref between neighbouring nodes, at a small cost.  Dwell along
+    # a pass is otherwise free to alternate (the pad spans many nodes, so only window sums matter).
+    nodes = kernel.nodes
+    p_ref = 1.0 / (v_max if v_max is not None else float(np.max(nodes.length / t_min)))
+    e = np.flatnonzero(nodes.pass_index[1:] == nodes.pass_index[:-1])
+    E = len(e)
+    Dm = sp.csr_matrix((np.concatenate([-1.0 / nodes.length[e], 1.0 / nodes.length[e + 1]]) / p_ref,
+                        (np.tile(np.arange(E), 2), np.concatenate([e, e + 1]))), shape=(E, n))
+    col_weight = np.asarray(w @ A).ravel() * nodes.length          # objective change per unit pace
+    lam = smoothing * float(np.mean(col_weight)) * p_ref if n else 0.0
+    log.debug("smoothing weight %g (column weight %g, p_ref %g)", lam, float(np.mean(col_weight)), p_ref)
+    IE = sp.identity(E, format="csr")
+    S_rows = sp.vstack([sp.hstack([Dm, -IE]), sp.hstack([-Dm, -IE])])   # on [t, g]
+    opts = {"time_limit": time_limit, "presolve": True}
+
+    def pad(M, k):                                   # M on t -> on [t, g, k extra]
+        return sp.hstack([M, sp.csr_matrix((M.shape[0], E + k))])
+
+    t_bounds = np.stack([t_min, t_max], axis=1)
+    g_bounds = np.tile([0.0, np.inf], (E, 1))
+    if mode == "max_removal":
+        c = np.concatenate([-(w @ A), np.full(E, lam)])
+        A_ub = sp.vstack([pad(A, 0), pad(G, 0), S_rows]).tocsc()
+        b_ub = np.concatenate([u, h, np.zeros(2 * E)])
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=np.concatenate([t_bounds, g_bounds]), method=method,
+                      options=opts)
+    elif objective == "l1":
+        # A t - e+ + e- = d, 0 <= e+ <= tol, e- >= 0; minimise w (e+ + e-)
+        I = sp.identity(m, format="csr")
+        A_eq = sp.hstack([A, sp.csr_matrix((m, E)), -I, I]).tocsc()
+        c = np.concatenate([np.zeros(n), np.full(E, lam), w, w])
+        A_ub = sp.vstack([pad(G, 2 * m), sp.hstack([S_rows, sp.csr_matrix((2 * E, 2 * m))])]).tocsc()
+        b_ub = np.concatenate([h, np.zeros(2 * E)])
+        tol_um = tolerance / _DEPTH_UNIT
+        bounds = np.concatenate([t_bounds, g_bounds, np.tile([0.0, tol_um], (m, 1)), np.tile([0.0, np.inf], (m, 1))])
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=d, bounds=bounds, method=method, options=opts)
+    else:
+        # minimise z: d - A t <= z, A t <= u
+        col = sp.csr_matrix(np.ones((m, 1)))
+        zero = sp.csr_matrix((m, E))
+        A_ub = sp.vstack([sp.hstack([-A, zero, -col]), sp.hstack([A, zero, sp.csr_matrix((m, 1))]),
+                          pad(G, 1), sp.hstack([S_rows, sp.csr_matrix((2 * E, 1))])]).tocsc()
+        b_ub = np.concatenate([-d, u, h, np.zeros(2 * E)])
+        zscale = float(np.mean(col_weight)) * p_ref if n else 1.0
+        c = np.concatenate([np.zeros(n), np.full(E, lam), [zscale]])
+        bounds = np.concatenate([t_bounds, g_bounds, [[0.0, np.inf]]])
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method=method, options=opts)
+    x = None if res.x is None else res.x[:n]
+    if res.status == 2:
+        raise InfeasibleError(f"the feed optimisation is infeasible ({res.message}); the acceleration limit, the "
+                              "speed caps and the over-removal tolerance cannot all hold: raise the tolerance or "
+                              "the acceleration limit")
+    if x is None:
+        raise InfeasibleError(f"the feed optimisation stopped without a solution: {res.message}")
+    return np.clip(x, t_min, t_max), f"{res.status}: {res.message}"
+
+
+def thin_rows(samples, region: np.ndarray, max_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """At most about ``max_rows`` region samples for the programme: one per cell of a cubic grid
+    sized so the region's area gives about ``max_rows`` cells, weighted by the area of its cell's
+    region samples.  Returns ``(rows (k,) int, weights (k,) float m²)``; all region samples when they
+    are few enough."""
+    rows = np.flatnonzero(region)
+    areas = samples.vertex_areas
+    if len(rows) <= max_rows:
+        return rows, areas[rows]
+    cell = float(np.sqrt(areas[rows].sum() / max_rows))
+    key = np.floor(samples.vertices[rows] / cell).astype(np.int64)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    weight = np.bincount(inverse.ravel(), weights=areas[rows])
+    return rows[first], weight
+
+
+# ----------------------------------------------------------------------------------------------
+# From dwell to a feed profile
+# ----------------------------------------------------------------------------------------------
+def dwell_to_profile(toolpath: ToolPath, nodes, dwell: np.ndarray) -> FeedProfile:
+    """A :class:`FeedProfile` (one speed per pass point, m/s): every point takes the feed of the
+    node it lies in, so each node is crossed in its dwell (the speed changes within one point step,
+    about 1 mm, at node boundaries; the timing's acceleration limit rounds those steps).  Linear
+    interpolation of the pace between node middles instead moved up to 40 % of the tolerance of
+    over-removal between nodes on the plate benchmark."""
+    speed = nodes.length / dwell
+    speeds = []
+    for k, p in enumerate(toolpath.passes):
+        a, b = nodes.pass_start[k], nodes.pass_start[k + 1]
+        s = arc_length(p.points)
+        j = np.clip(np.searchsorted(nodes.s_end[a:b], s, side="left"), 0, b - a - 1)
+        speeds.append(speed[a:b][j])
+    return FeedProfile(tuple(speeds))
+
+
+def resolve_target(target, samples) -> np.ndarray:
+    """Target depth ``(S,)`` (m) on the kernel's samples from a number (uniform depth, m), an
+    ``(S,)`` array, or an object with ``depth_on(surface)`` (:class:`swath.feed.targets.TargetMap`)."""
+    S = len(samples.vertices)
+    if hasattr(target, "depth_on"):
+        out = np.asarray(target.depth_on(samples), float)
+    elif np.ndim(target) == 0:
+        out = np.full(S, float(target))
+    else:
+        out = np.asarray(target, float)
+    if out.shape != (S,) or not np.isfinite(out).all() or (out < 0).any():
+        raise InputError(f"the target depth must be one finite depth >= 0 m per sample ({S}), got shape "
+                         f"{out.shape}; give a depth in m, a per-sample array or a TargetMap")
+    return out
+
+
+def removal_stats(depth: np.ndarray, target: np.ndarray, areas: np.ndarray, mask: np.ndarray) -> dict:
+    """Removal figures over ``mask``: CoV, mean, residual and the worst over/under-removal (m)."""
+    if not mask.any():
+        nan = float("nan")
+        return {"removal_cov": nan, "removal_mean_m": nan, "target_mean_m": nan, "max_over_removal_m": nan,
+                "max_under_removal_m": nan, "residual_rms_m": nan, "region_area_m2": 0.0}
+    a, d, t = areas[mask], depth[mask], target[mask]
+    mean = float(np.average(d, weights=a))
+    std = float(np.sqrt(np.average((d - mean) ** 2, weights=a)))
+    r = d - t
+    return {"removal_cov": std / mean if mean > 0 else float("nan"), "removal_mean_m": mean,
+            "target_mean_m": float(np.average(t, weights=a)), "max_over_removal_m": float(r.max()),
+            "max_under_removal_m": float(-r.min()), "residual_rms_m": float(np.sqrt(np.average(r**2, weights=a))),
+            "region_area_m2": float(a.sum())}
+
+
+def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: float, mode: str = "match",
+                  objective: str = "l1", v_min: float | None = None, boundary_margin: float | None = None,
+                  kernel: RemovalKernel | None = None, node_spacing: float | None = None,
+                  sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
+                  region: np.ndarray | None = None, smoothing: float = 2e-2, cap_margin: float = 0.5,
+                  max_rows: int = 20000, timing_rounds: int = 1, trajectory=None, progress=None) -> FeedResult:
+    """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
+
+    Parameters
+    ----------
+    toolpath : ToolPath
+        Passes from any planner.
+    tool : Tool
+    constraints : sequence
+        The trajectory constraints: a :class:`FeedLimit` (the largest feed, m/s) and optionally
+        :class:`CentripetalLimit`, :class:`AngularSpeedLimit`, :class:`TangentialAccelLimit`.
+    target : float, (S,) float or TargetMap
+        Target depth, m: a uniform depth, one per kernel sample, or a
+        :class:`swath.feed.targets.TargetMap`.
+    tolerance : float
+        Largest allowed removal above the target, m (a hard constraint at every optimised sample).
+    mode : {"match", "max_removal"}
+        Match the target (``objective`` ``"l1"`` or ``"minimax"``) or Wang's maximal removal without
+        over-grinding.
+    v_min : float, optional
+        Slowest feed, m/s (default a tenth of the feed limit).
+    boundary_margin : float, optional
+        Samples closer than this (m) to the open boundary are not optimised (default the pad radius;
+        the pad hangs over the edge there).
+    kernel : RemovalKernel, optional
+        A kernel already built for ``toolpath`` (else built here with ``node_spacing`` and
+        ``sample_spacing``, m).
+    heading_scale : float
+        As in :func:`swath.trajectory.time_path`, m (for the angular-speed caps).
+    region : (S,) bool, optional
+        Kernel samples to match (instead of every touched sample ``boundary_margin`` in).
+    cap_margin : float
+        Fraction of ``tolerance`` held back for the difference between the kernel and the timed
+        trajectory (the simulator's pose discretisation moves single samples by a few %): the
+        programme caps the kernel removal at ``target + (1 − cap_margin)·tolerance``.
+    trajectory : Trajectory, optional
+        ``toolpath`` timed at any feed: the kernel then uses its contact poses (see
+        :func:`build_kernel`); recommended on scans.
+    timing_rounds : int
+        Rounds of timing correction (default 1): the profile is timed with
+        :func:`swath.trajectory.time_path` under ``constraints``, each node's commanded feed is scaled
+        by its timed-to-planned dwell ratio (within the feed range) and the profile rebuilt.  The
+        timing's linear speed interpolation between pass points and its acceleration sweep otherwise
+        add a few % of dwell where the feed changes.  0 skips it (no timing inside).
+    max_rows : int
+        Largest number of sample rows in the programme (more region samples are thinned to one per
+        grid cell, area-weighted; see :func:`thin_rows`).
+    smoothing : float
+        Weight of the cost on pace changes between neighbouring nodes, relative to the objective
+        (ties between dwell distributions with the same removal go to the smoother one).
+    time_limit : float
+        HiGHS time limit, s.
+    progress : callable, optional
+        ``progress(stage, done, total)`` with ``stage`` in ``"kernel"``, ``"solve"``.
+
+    Returns
+    -------
+    FeedResult
+
+    Raises
+    ------
+    InfeasibleError
+        When even the largest allowed feed removes more than ``target + tolerance`` somewhere (the
+        message names the sample, both depths and the least feasible target).
+    """
+    cons = split_constraints(constraints)
+    v_max = cons[FeedLimit].speed
+    v_min = 0.1 * v_max if v_min is None else float(v_min)
+    if not (np.isfinite(v_min) and 0 < v_min <= v_max):
+        raise InputError(f"v_min must lie in (0, feed limit {v_max:g}] m/s, got {v_min!r}")
+    if not (np.isfinite(tolerance) and tolerance >= 0):
+        raise InputError(f"tolerance must be a depth >= 0 m, got {tolerance!r}")
+    margin = tool.pad_radius if boundary_margin is None else float(boundary_margin)
+    t0 = time.perf_counter()
+    if kernel is None:
+        cb = None if progress is None else (lambda done, total: progress("kernel", done, total))
+        kernel = build_kernel(toolpath, tool, node_spacing=node_spacing, sample_spacing=sample_spacing,
+                              trajectory=trajectory, progress=cb)
+    t_kernel = time.perf_counter() - t0
+    nodes = kernel.nodes
+    target_s = resolve_target(target, kernel.samples)
+    caps = np.clip(node_speed_caps(toolpath, nodes, list(cons.values()), heading_scale=heading_scale), v_min, v_max)
+    t_min, t_max = nodes.length / caps, nodes.length / v_min
+    tl = cons.get(TangentialAccelLimit)
+    if tl is not None:
+        # the fastest profile that meets the linearised acceleration rows (else a sharp cap next to
+        # a free node leaves the programme infeasible)
+        pace = np.minimum(accel_feasible_pace(1.0 / caps, nodes, tl.a_t, 1.0 / v_max), 1.0 / v_min)
+        t_min = nodes.length * pace
+        caps = 1.0 / pace
+    touched = np.diff(kernel.matrix.tocsr().indptr) > 0
+    if region is None:
+        region = touched & interior_mask(kernel.samples, margin)
+    else:
+        region = np.asarray(region, bool)
+        if region.shape != touched.shape:
+            raise InputError(f"region must be one bool per kernel sample ({len(touched)}), got shape {region.shape}")
+        region = region & touched
+    if progress is not None:
+        progress("solve", 0, 1)
+    t1 = time.perf_counter()
+    if not (0 <= cap_margin < 1):
+        raise InputError(f"cap_margin must lie in [0, 1), got {cap_margin!r}")
+    dwell, status = solve_dwell(kernel, target_s, tolerance=(1 - cap_margin) * tolerance, t_min=t_min, t_max=t_max, region=region,
+                                mode=mode, objective=objective, a_t=None if tl is None else tl.a_t, v_max=v_max,
+                                time_limit=time_limit, smoothing=smoothing, max_rows=max_rows)
+    t_solve = time.perf_counter() - t1
+    if progress is not None:
+        progress("solve", 1, 1)
+    speed = nodes.length / dwell
+    command = speed.copy()
+    profile = dwell_to_profile(toolpath, nodes, dwell)
+    timed_ratio = None
+    for _ in range(max(0, int(timing_rounds))):
+        from ..trajectory import time_path
+        from .kernel import trajectory_node_dwell
+
+        traj = time_path(toolpath, list(cons.values()) + [profile], heading_scale=heading_scale)
+        timed = trajectory_node_dwell(traj, nodes, toolpath)
+        timed_ratio = np.where(dwell > 0, timed / dwell, 1.0)
+        command = np.clip(command * timed_ratio, v_min, caps)
+        profile = dwell_to_profile(toolpath, nodes, nodes.length / command)
+    predicted = kernel.removal(dwell)
+    metrics = {"status": status, "mode": mode, "objective": objective, "kernel_time_s": t_kernel,
+               "solve_time_s": t_solve, "n_nodes": len(nodes), "n_region_samples": int(region.sum()),
+               "kernel_nonzeros": int(kernel.matrix.nnz), "tolerance_m": float(tolerance),
+               "v_min_m_per_s": v_min, "v_max_m_per_s": v_max, "contact_time_s": float(dwell.sum()),
+               "fastest_contact_time_s": float(t_min.sum()), "speed_mean_m_per_s": float(np.mean(speed)),
+               "speed_min_m_per_s": float(speed.min()), "speed_max_m_per_s": float(speed.max())}
+    metrics.update(removal_stats(predicted, target_s, kernel.samples.vertex_areas, region))
+    log.info("feed optimisation (%s/%s): %d nodes, %d samples, CoV %.3f, solve %.1f s", mode, objective, len(nodes),
+             region.sum(), metrics["removal_cov"], t_solve)
+    if timed_ratio is not None:
+        metrics["timed_dwell_ratio_p5_p50_p95"] = [float(x) for x in np.percentile(timed_ratio, [5, 50, 95])]
+    return FeedResult(profile, dwell, speed, kernel, target_s, predicted, region, metrics)

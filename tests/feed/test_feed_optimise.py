@@ -1,0 +1,150 @@
+"""Feed optimisation against analytic answers on a flat plate (uniform pad pressure F / (π R²))."""
+
+import math
+
+import numpy as np
+import pytest
+
+from swath.contact import Tool
+from swath.errors import InfeasibleError
+from swath.examples import flat_plate
+from swath.feed import build_kernel, optimise_feed, trajectory_node_dwell
+from swath.plan.toolpath import Pass, ToolPath
+from swath.simulate.removal import simulate_removal
+from swath.trajectory import FeedLimit, TangentialAccelLimit, time_path
+
+TOOL = Tool(pad_radius=0.02, force=20.0)
+R = TOOL.pad_radius
+V_MAX = 0.05
+
+
+def _line(x0, x1, y, step=1e-3):
+    n = int(round(abs(x1 - x0) / step)) + 1
+    pts = np.stack([np.linspace(x0, x1, n), np.full(n, y), np.zeros(n)], axis=1)
+    return Pass(pts, np.tile([0.0, 0.0, 1.0], (n, 1)))
+
+
+def _centre_rate():
+    """Removal rate (m/s) under a pressed flat pad: k_p · F/(πR²) · v_rel."""
+    return TOOL.preston * TOOL.force / (math.pi * R**2) * TOOL.relative_speed(0.0)
+
+
+@pytest.fixture(scope="module")
+def plate():
+    return flat_plate(size_x=0.24, size_y=0.2, spacing=2.5e-3)
+
+
+@pytest.mark.parametrize("from_trajectory", [False, True])
+def test_kernel_reproduces_simulator(plate, from_trajectory):
+    tp = ToolPath(plate, [_line(0.04, 0.2, 0.08), _line(0.2, 0.04, 0.11)], "test")
+    traj = time_path(tp, [FeedLimit(0.03), TangentialAccelLimit(0.5)])
+    k = build_kernel(tp, TOOL, trajectory=traj if from_trajectory else None)
+    sim = simulate_removal(traj, plate, TOOL)
+    pred = k.removal(trajectory_node_dwell(traj, k.nodes, tp))
+    on = sim.depth > 0.2 * sim.depth.max()
+    rel = np.abs(pred[on] - sim.depth[on]) / sim.depth[on]
+    assert rel.mean() < 0.04
+    # total removed volume agrees closely
+    a = k.samples.vertex_areas
+    assert abs(a @ pred / (a @ sim.depth) - 1) < 0.01
+
+
+def test_straight_pass_uniform_target_needs_constant_feed(plate):
+    """The target is what one constant feed v* removes (uniform along the pass, the pad's own
+    profile across it): the optimum is that constant feed, and its centre line depth is rate·2R/v*."""
+    tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
+    k = build_kernel(tp, TOOL)
+    v_star = 0.02
+    target = k.removal(k.dwell_at_speed(v_star))
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=0.05 * target.max(),
+                        kernel=k, boundary_margin=0.0)
+    mid = np.abs(k.nodes.s_mid - 0.1) < 0.06                         # away from the pass ends
+    np.testing.assert_allclose(res.speed[mid], v_star, rtol=0.02)
+    np.testing.assert_allclose(res.profile.speeds[0][40:160], v_star, rtol=0.02)
+    centre = (np.abs(k.samples.vertices[:, 1] - 0.1) < 1e-6) & (np.abs(k.samples.vertices[:, 0] - 0.12) < 0.05)
+    # pose discretisation (poses one sample spacing apart) leaves a +-5 % ripple on single samples
+    np.testing.assert_allclose(target[centre], _centre_rate() * 2 * R / v_star, rtol=0.06)
+    assert np.mean(target[centre]) == pytest.approx(_centre_rate() * 2 * R / v_star, rel=0.04)
+
+
+def test_two_overlapping_passes_change_feed_where_they_overlap(plate):
+    """Pass A (x 0.02..0.22) and pass B (x 0.12..0.22) d = R/2 apart; the target is a uniform depth D
+    on both centre lines (one pad radius in from the pass ends).  A centre line gets rate·2R per unit pace from its own pass and
+    rate·2·sqrt(R² − d²) from the neighbour (the pad chord at lateral offset d).  So where A runs alone
+    its feed is v = rate·2R / D; where the two overlap both run at v = rate·(2R + 2 sqrt(R² − d²)) / D:
+    the optimum changes speed exactly over the overlap (it speeds up there: each line is also ground
+    by the other pass)."""
+    d = R / 2
+    y0 = 0.1 - d / 2
+    tp = ToolPath(plate, [_line(0.02, 0.22, y0), _line(0.12, 0.22, y0 + d)], "test")
+    k = build_kernel(tp, TOOL)
+    x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
+    # the centre lines, one pad radius in from each pass's ends
+    on_lines = (((np.abs(y - y0) < 1e-6) & (x >= 0.02 + R) & (x <= 0.22 - R))
+                | ((np.abs(y - y0 - d) < 1e-6) & (x >= 0.12 + R) & (x <= 0.22 - R)))
+    D = 8e-6
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=D, tolerance=0.05 * D, kernel=k, region=on_lines)
+    rate = _centre_rate()
+    v_alone = rate * 2 * R / D
+    v_overlap = rate * (2 * R + 2 * math.sqrt(R**2 - d**2)) / D
+    assert v_overlap < V_MAX
+    nodes, s = k.nodes, k.nodes.s_mid
+    a, b = nodes.pass_index == 0, nodes.pass_index == 1
+    alone = a & (s > 0.03) & (s < 0.07)                        # x 0.05..0.09: B's pad is > R away
+    overlap_a = a & (s > 0.135) & (s < 0.165)                   # x 0.155..0.185
+    overlap_b = b & (s > 0.035) & (s < 0.065)                   # x 0.155..0.185 (B starts at x = 0.12)
+    assert np.mean(res.speed[alone]) == pytest.approx(v_alone, rel=0.04)
+    assert np.mean(res.speed[overlap_a]) == pytest.approx(v_overlap, rel=0.05)
+    assert np.mean(res.speed[overlap_b]) == pytest.approx(v_overlap, rel=0.05)
+    assert res.metrics["max_over_removal_m"] <= 0.05 * D * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("mode, objective, max_rows", [("match", "l1", 20000), ("match", "minimax", 20000),
+                                                       ("max_removal", "l1", 20000), ("match", "l1", 300)])
+def test_over_removal_never_exceeds_tolerance(plate, mode, objective, max_rows):
+    """Also with the programme's samples thinned to 300: the left-out samples that the solution
+    over-grinds are added back as caps until none is over."""
+    tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
+    k = build_kernel(tp, TOOL)
+    fastest = k.removal(k.dwell_at_speed(V_MAX))
+    D = 1.1 * fastest.max()
+    tol = 0.05 * D
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX), TangentialAccelLimit(0.2)], target=D, tolerance=tol,
+                        mode=mode, objective=objective, kernel=k, boundary_margin=0.0, max_rows=max_rows)
+    over = res.predicted[res.region] - D
+    assert over.max() <= tol * (1 + 1e-6)
+    assert (res.speed <= V_MAX * (1 + 1e-9)).all() and (res.speed >= 0.1 * V_MAX * (1 - 1e-9)).all()
+    # linearised acceleration limit: |dv/dt| = |dp/ds| / p^3 <= a_t between neighbouring nodes
+    pace = 1 / res.speed
+    same = k.nodes.pass_index[1:] == k.nodes.pass_index[:-1]
+    dpds = np.abs(np.diff(pace)) / np.diff(k.nodes.s_mid)
+    assert (dpds[same] / np.minimum(pace[1:], pace[:-1])[same] ** 3 <= 0.2 * (1 + 1e-6)).all()
+
+
+def test_infeasible_target_names_the_numbers(plate):
+    tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
+    single = _centre_rate() * 2 * R / V_MAX                          # removed at the fastest feed
+    with pytest.raises(InfeasibleError, match=r"already removes .* um .* target 0\.1 um"):
+        optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=0.1e-6, tolerance=0.0, boundary_margin=0.0)
+    assert single > 0.1e-6
+
+
+def test_accel_sweep_makes_a_sharp_cap_feasible():
+    """One node capped at a tenth of the feed between free nodes: the sweep slows its neighbours so
+    the linearised acceleration rows hold everywhere, and nodes far away stay at full speed."""
+    from swath.feed.caps import accel_feasible_pace
+    from swath.feed.kernel import dwell_nodes
+
+    plate = flat_plate(size_x=0.3, size_y=0.05, spacing=1e-2)
+    nodes = dwell_nodes(ToolPath(plate, [_line(0.0, 0.3, 0.025)], "t"), node_spacing=3e-3)
+    p_ref = 1 / V_MAX
+    p_min = np.full(len(nodes), p_ref)
+    p_min[50] = 10 * p_ref
+    a_t = 0.05
+    p = accel_feasible_pace(p_min, nodes, a_t, p_ref)
+    c = a_t * np.diff(nodes.s_mid) * p_ref**2
+    dp = np.abs(np.diff(p))
+    assert (dp <= c * (3 * p[:-1] - 2 * p_ref) * (1 + 1e-9)).all()
+    assert (dp <= c * (3 * p[1:] - 2 * p_ref) * (1 + 1e-9)).all()
+    assert (p >= p_min).all() and p[0] == p_ref and p[-1] == p_ref
+    assert p[49] > p_ref and p[51] > p_ref
