@@ -50,8 +50,7 @@ def run_one(name: str) -> list[dict]:
     from swath.feed.spacing import greedy_offsets
     from swath.plan import raster
     from swath.simulate.removal import simulate_removal
-    from swath.trajectory import (AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit,
-                                  time_path)
+    from swath.trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit, time_path
 
     surface = _load(name)
     tool = Tool()

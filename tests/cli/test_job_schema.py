@@ -101,3 +101,20 @@ def test_a_calibration_file_round_trips_into_a_plan(tmp_path):
                  str(tmp_path / "cal" / "calibration.json"), "--out", str(tmp_path / "o")]) == 0
     used = json.loads((tmp_path / "o" / "metrics.json").read_text())["metrics"]["preston_coefficient_per_Pa"]
     assert used == pytest.approx(k_true, rel=0.05)
+
+
+def test_feed_optimisation_runs_through_the_job_and_needs_a_target(tmp_path, capsys):
+    import json
+
+    from swath.trajectory import read_csv
+
+    assert main(["-q", "plan", "example:plate", "--optimise-feed", "--out", str(tmp_path / "x")]) == 2
+    assert "needs a target" in capsys.readouterr().err
+    out = tmp_path / "o"
+    assert main(["-q", "plan", "example:plate", "--optimise-feed", "--target-depth", "3um", "--out", str(out)]) == 0
+    assert {"feed_along_passes.png", "depth_vs_target.png", "residual_histogram.png"} <= {p.name for p in out.iterdir()}
+    m = json.loads((out / "metrics.json").read_text())["metrics"]
+    assert any(k.startswith("feed_") for k in m)
+    tr = read_csv(out / "trajectory.csv")
+    v = tr.feed[tr.contact]
+    assert v.max() <= 0.05 * 1.001 and v.min() < 0.9 * v.max()        # the feed now varies along the passes

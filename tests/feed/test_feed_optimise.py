@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from swath.contact import Tool
+from swath.core import Pass, ToolPath
 from swath.errors import InfeasibleError
 from swath.examples import flat_plate
 from swath.feed import build_kernel, optimise_feed, trajectory_node_dwell
-from swath.plan.toolpath import Pass, ToolPath
 from swath.simulate.removal import simulate_removal
 from swath.trajectory import FeedLimit, TangentialAccelLimit, time_path
 

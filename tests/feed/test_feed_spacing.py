@@ -7,7 +7,7 @@ from swath.contact import Tool
 from swath.errors import InfeasibleError
 from swath.examples import flat_plate
 from swath.feed.spacing import greedy_offsets, raster_at_offsets
-from swath.plan.raster import feed_and_cross
+from swath.plan.common import feed_and_cross
 from swath.trajectory import FeedLimit
 
 TOOL = Tool(pad_radius=0.02)

@@ -34,7 +34,8 @@ def estimate_bytes(surface, settings) -> dict:
 
     Returns a dict with ``removal_samples`` (count, after the simulation's own cap), ``bytes``.
     """
-    from ..simulate.removal import MAX_REMOVAL_SAMPLES, sample_spacing_for, samples_for_area
+    from ..contact.tool import sample_spacing_for
+    from ..simulate.removal import MAX_REMOVAL_SAMPLES, samples_for_area
 
     tool = settings.tool()
     spacing = settings.sample_spacing or sample_spacing_for(tool)

@@ -204,7 +204,13 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
     timings["trajectory_s"] = time.perf_counter() - t0
 
-    extra_metrics, figures, force, robot = {}, {}, None, None
+    extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
+    if settings.optimise_feed:
+        t0 = time.perf_counter()
+        say("optimising the feed (dwell) to the target depth", 0, 1)
+        trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory)
+        extra_metrics.update(feed_metrics)
+        timings["feed_s"] = time.perf_counter() - t0
     if settings.robot:
         t0 = time.perf_counter()
         say(f"robot: inverse kinematics for {settings.robot}", 0, 1)
@@ -247,6 +253,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             from ..io.patch_files import save_patch
 
             save_patch(part_info["patch"], tmp / "patch.json", part_info.get("footprint"))
+        if feed is not None:
+            from ..report.feed_plots import write_feed_plots
+
+            figures.update(write_feed_plots(tmp, feed))
         if force is not None:
             from ..report.force_plots import write_force_plots
 

@@ -76,6 +76,15 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                                            "(default: 3/4 of this machine's memory)")
     p.add_argument("--segment", help="auto: split the part into regions that parallel passes cross without breaks "
                                       "(Wang), plan each, visit them in the order with least air (gtsp); none")
+    e = p.add_argument_group("even removal (Wang §2): feed (dwell) optimisation to a target depth")
+    e.add_argument("--optimise-feed", action="store_true", default=None,
+                   help="choose the feed along every pass so removal matches the target, never more than the "
+                        "target plus the tolerance (HiGHS)")
+    e.add_argument("--target-depth", help="with --optimise-feed: uniform depth to remove, e.g. 20um")
+    e.add_argument("--target-map", help="with --optimise-feed: per-point depths (CSV x,y,z,depth in m, or PLY with a "
+                                        "vertex 'depth')")
+    e.add_argument("--depth-tolerance", help="with --optimise-feed: allowed removal above the target, e.g. 2um "
+                                             "(default 10 % of the target depth)")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
     r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120")
     r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")

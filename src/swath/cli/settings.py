@@ -342,6 +342,13 @@ def check_settings(settings: JobSettings) -> None:
         from .stages import robot_options
 
         robot_options(settings)                     # robot name, base and tcp poses, program formats
+    if settings.optimise_feed and not (settings.target_depth or settings.target_map):
+        raise InputError("--optimise-feed needs a target: --target-depth (e.g. 20um) or --target-map FILE")
+    if (settings.target_depth or settings.target_map or settings.depth_tolerance) and not settings.optimise_feed:
+        raise InputError("--target-depth, --target-map and --depth-tolerance apply with --optimise-feed; add it")
+    if settings.optimise_spacing:
+        raise InputError("optimise_spacing is available from Python (swath.feed.greedy_offsets, joint_spacing), "
+                         "not yet in jobs")
     if settings.target_map and settings.target_depth:
         raise InputError("give either target_depth (a uniform depth) or target_map (a depth per vertex), not both")
 

@@ -97,3 +97,24 @@ def segmented_plan(surface, tool, planner, settings, arguments: dict):
             options["spacing"] = planner(surface, tool, **arguments).metadata["spacing_m"]
         options["fill_gaps"] = False      # a region's edge is its neighbour's: judged on the whole part only
     return plan_regions(surface, tool, planner, regions, **options)
+
+
+def feed_stage(toolpath, tool, settings, trajectory):
+    """Optimise the feed along the passes to the job's target depth (Wang §2) and re-time the
+    path with it; returns the new trajectory, the :class:`FeedResult` and its metrics."""
+    from ..feed import optimise_feed, read_target_map, uniform_target
+    from ..trajectory import time_path
+
+    if settings.target_map:
+        target = read_target_map(settings.target_map, units=settings.units)
+        depth = None
+    else:
+        depth = settings.target_depth
+        target = uniform_target(depth)
+    tolerance = settings.depth_tolerance if settings.depth_tolerance is not None else 0.1 * (depth or 0.0)
+    constraints = settings.constraints()
+    result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory)
+    timed = time_path(toolpath, constraints + [result.profile], links=settings.links())
+    metrics = {k if k.startswith("feed") else f"feed_{k}": v for k, v in result.metrics.items()
+               if isinstance(v, (int, float, str, bool))}
+    return timed, result, metrics

@@ -86,3 +86,8 @@ class Tool:
         if self.motion == "orbital":
             return self.spindle_speed * self.orbit_radius + 0.0 * r
         return self.spindle_speed * r
+
+
+def sample_spacing_for(tool: Tool) -> float:
+    """Default removal-sample spacing, m: an eighth of the pad radius, at most 3 mm."""
+    return min(3e-3, tool.pad_radius / 8)

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core import ToolPath
 from ..errors import InputError
-from ..plan.toolpath import ToolPath
-from ..trajectory.constraints import (AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile,
-                                      TangentialAccelLimit)
+from ..trajectory.constraints import AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile, TangentialAccelLimit
 from ..trajectory.geometry import path_curvature, resample_uniform, rotation_steps, smoothed_directions
 from ..trajectory.orientation import tool_frames
 

@@ -24,8 +24,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact import Tool, mesh_contact
+from ..contact.tool import sample_spacing_for
 from ..errors import InputError
-from ..simulate.removal import sample_spacing_for
 from ..trajectory.geometry import arc_length
 
 log = logging.getLogger(__name__)

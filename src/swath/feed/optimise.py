@@ -37,8 +37,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
+from ..core import ToolPath
 from ..errors import InfeasibleError, InputError
-from ..plan.toolpath import ToolPath
 from ..trajectory.constraints import FeedLimit, FeedProfile, TangentialAccelLimit
 from ..trajectory.geometry import arc_length
 from .caps import accel_feasible_pace, node_speed_caps, split_constraints

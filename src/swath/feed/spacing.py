@@ -24,13 +24,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core import ToolPath
 from ..errors import InfeasibleError, InputError
-from ..plan.raster import MIN_PASS_FRACTION, feed_and_cross, snake_order
+from ..order.sequence import snake
+from ..plan.common import MIN_PASS_FRACTION, feed_and_cross, plane_passes
 from ..plan.slicing import slice_mesh
-from ..plan.toolpath import ToolPath
 from ..trajectory.constraints import FeedLimit
-from .kernel import build_kernel, interior_mask
 from .caps import split_constraints
+from .kernel import build_kernel, interior_mask
 from .optimise import optimise_feed, resolve_target
 
 log = logging.getLogger(__name__)
@@ -61,10 +62,10 @@ def raster_at_offsets(surface, tool, offsets, *, angle: float = 0.0, direction=N
         raise InfeasibleError(f"no cutting plane among {len(offsets)} offsets "
                               f"({offsets.min() * 1e3:.1f}..{offsets.max() * 1e3:.1f} mm) yields a pass of at least "
                               f"{min_pass_length * 1e3:.1f} mm; give offsets within the part")
-    passes = snake_order(kept, feed, cross, surface, point_spacing)
+    passes = plane_passes(kept, feed, surface.face_normals, point_spacing)
     meta = {"offsets_m": offsets.tolist(), "cross_direction": cross.tolist(), "feed_direction": feed.tolist(),
             "angle_rad": float(angle), "n_passes": len(passes), "point_spacing_m": float(point_spacing)}
-    return ToolPath(surface, passes, planner, meta)
+    return snake(ToolPath(surface, passes, planner, meta))
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..contact import Tool, mesh_contact
+from ..contact.tool import sample_spacing_for
 from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
 from ..errors import InputError
 
@@ -62,11 +63,6 @@ MAX_REMOVAL_SAMPLES = 2_500_000
 def samples_for_area(area: float, spacing: float) -> int:
     """About how many vertices a surface of ``area`` (m²) subdivided to edges of ``spacing`` (m) has."""
     return int(area / (0.433 * spacing**2)) + 1
-
-
-def sample_spacing_for(tool: Tool) -> float:
-    """Default removal-sample spacing, m: an eighth of the pad radius, at most 3 mm."""
-    return min(3e-3, tool.pad_radius / 8)
 
 
 def contact_dwell(trajectory) -> np.ndarray:
