@@ -35,6 +35,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..surface import Surface
+from ..surface.frames import feed_and_cross
 
 log = logging.getLogger("swath.segment")
 
@@ -79,30 +80,9 @@ class Region:
 
 
 def sweep_frame(surface, *, angle: float = 0.0, direction=None) -> tuple[np.ndarray, np.ndarray]:
-    """Unit feed direction ``(3,)`` and cross direction ``(3,)`` (the sweep lines' plane normal).
-
-    The feed lies in the surface's best-fit plane (normal oriented toward the tool): the first
-    principal axis turned by ``angle`` (rad) about the normal, or ``direction`` projected into the
-    plane; cross = normal x feed.
-    """
-    axes = surface.principal_axes[1]
-    a0, a2 = np.asarray(axes[0], float), np.asarray(axes[2], float)
-    if a2 @ (surface.face_normals * surface.face_areas[:, None]).sum(axis=0) < 0:
-        a2 = -a2
-    a1 = np.cross(a2, a0)
-    if direction is None:
-        feed = math.cos(angle) * a0 + math.sin(angle) * a1
-    else:
-        d = np.asarray(direction, float).reshape(-1)
-        if d.shape != (3,) or not np.isfinite(d).all() or np.linalg.norm(d) == 0:
-            raise InputError(f"direction must be a finite, non-zero 3-vector, got {direction!r}")
-        feed = d / np.linalg.norm(d) - (d @ a2) / np.linalg.norm(d) * a2
-        if np.linalg.norm(feed) < 1e-6:
-            raise InputError(f"direction {np.round(d, 4).tolist()} is along the part's mean normal; "
-                             "give a direction along the surface")
-    feed = feed / np.linalg.norm(feed)
-    cross = np.cross(a2, feed)
-    return feed, cross / np.linalg.norm(cross)
+    """Unit feed direction ``(3,)`` and cross direction ``(3,)`` (the sweep lines' plane normal):
+    :func:`swath.surface.frames.feed_and_cross`, the planners' rule."""
+    return feed_and_cross(surface, angle=angle, direction=direction)
 
 
 def critical_vertices(faces: np.ndarray, height: np.ndarray, *, loops=None, tolerance: float = 0.0) -> np.ndarray:
