@@ -35,3 +35,14 @@ def shared_mesh(name: str) -> Path:
 def rng():
     """A seeded random generator."""
     return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="module")
+def plate_trajectory():
+    """The built-in plate planned and timed as a job does (raster, 100 mm spacing)."""
+    from swath.cli.job import JobSettings, load_part_info, make_plan
+    from swath.trajectory import time_path
+
+    settings = JobSettings(part="example:plate", out="unused", spacing=0.1, point_spacing=4e-3)
+    surface, _ = load_part_info(settings)
+    return time_path(make_plan(surface, settings), settings.constraints(), links=settings.links())

@@ -7,6 +7,7 @@ import struct
 
 import numpy as np
 import pytest
+from meshfiles import ply_ascii_lines
 
 from conftest import SHARED_MESH_UNITS, shared_mesh
 from swath.errors import InputError
@@ -19,19 +20,7 @@ from swath.io.mesh import edge_table, merge_vertices, orient_faces
 # --------------------------------------------------------------------------------------------
 def write_ply(path, vertices, faces=None, normals=None):
     """ASCII PLY with optional faces and per-vertex normals."""
-    v = np.asarray(vertices, float)
-    lines = ["ply", "format ascii 1.0", f"element vertex {len(v)}",
-             "property double x", "property double y", "property double z"]
-    if normals is not None:
-        lines += ["property double nx", "property double ny", "property double nz"]
-    if faces is not None:
-        lines += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
-    lines.append("end_header")
-    data = v if normals is None else np.hstack([v, normals])
-    lines += [" ".join(repr(float(x)) for x in row) for row in data]
-    if faces is not None:
-        lines += [f"{len(f)} " + " ".join(str(int(i)) for i in f) for f in faces]
-    path.write_text("\n".join(lines) + "\n")
+    path.write_text("\n".join(ply_ascii_lines(vertices, faces, normals)) + "\n")
     return path
 
 

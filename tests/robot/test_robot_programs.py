@@ -23,17 +23,6 @@ from swath.robot.readers import (
     read_urscript,
 )
 
-
-@pytest.fixture(scope="module")
-def plate_trajectory():
-    from swath.cli.job import JobSettings, load_part_info, make_plan
-    from swath.trajectory import time_path
-
-    settings = JobSettings(part="example:plate", out="unused", spacing=0.1, point_spacing=4e-3)
-    surface, _ = load_part_info(settings)
-    return time_path(make_plan(surface, settings), settings.constraints(), links=settings.links())
-
-
 CELLS = {"ur10e": Cell.from_text("0.55,-0.15,0,0,0,20", "0,0,120mm,0,0,0"),
          "irb4600": Cell.from_text("1.1,-0.15,0.3,0,0,0", "10mm,0,150mm,0,0,0"),
          "kr120": Cell.from_text("1.5,-0.15,0.4,0,0,-10", "0,0,150mm,0,0,0")}

@@ -19,17 +19,6 @@ from swath.robot.retime import joint_accel_ratio, joint_speed_ratio, retime_join
 from swath.robot.solve import choose_branches
 
 
-@pytest.fixture(scope="module")
-def plate_trajectory():
-    from swath.cli.job import JobSettings, load_part_info, make_plan
-    from swath.trajectory import time_path
-
-    settings = JobSettings(part="example:plate", out="unused", spacing=0.1, point_spacing=4e-3)
-    surface, _ = load_part_info(settings)
-    toolpath = make_plan(surface, settings)
-    return time_path(toolpath, settings.constraints(), links=settings.links())
-
-
 def test_parse_pose_units_and_defaults():
     t = parse_pose("800mm, 0.1, 20mm, 0, 0, 90deg")
     np.testing.assert_allclose(t[:3, 3], [0.8, 0.1, 0.02])

@@ -107,15 +107,10 @@ class Sweep:
 
 def load_sweep(path) -> Sweep:
     """Read and validate a sweep file (see the module docstring); refuses bad input with InputError."""
-    import tomllib
+    from .settings import read_toml
 
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"sweep file {path} not found") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"sweep file {path} is not valid TOML: {exc}") from None
+    data = read_toml(path, "sweep file")
     try:
         return sweep_from_mapping(data, base_dir=path.resolve().parent)
     except InputError as exc:

@@ -367,19 +367,26 @@ def parse_bytes(text, key: str = "memory") -> float:
     return value
 
 
-def load_job_toml(path) -> JobSettings:
-    """Read a TOML job file: top-level keys as in :data:`SCHEMA` (or a ``[job]`` table)."""
+def read_toml(path, what: str = "job file") -> dict:
+    """The table of a TOML file; :class:`InputError` naming ``what`` for a directory, a missing file
+    or invalid TOML."""
     import tomllib
 
     path = Path(path)
     if path.is_dir():
-        raise InputError(f"{path} is a directory; give the job file (a .toml) inside it")
+        raise InputError(f"{path} is a directory; give the {what} (a .toml) inside it")
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise InputError(f"job file {path} not found") from None
+        raise InputError(f"{what} {path} not found") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"job file {path} is not valid TOML: {exc}") from None
+        raise InputError(f"{what} {path} is not valid TOML: {exc}") from None
+
+
+def load_job_toml(path) -> JobSettings:
+    """Read a TOML job file: top-level keys as in :data:`SCHEMA` (or a ``[job]`` table)."""
+    path = Path(path)
+    data = read_toml(path)
     table = data.get("job", data)
     if not isinstance(table, dict):
         raise InputError(f"job file {path}: 'job' must be a table ([job]), got {type(table).__name__}")
