@@ -67,6 +67,7 @@ import time
 import traceback
 from dataclasses import dataclass
 from pathlib import Path, PurePath
+from typing import Any
 
 from ..errors import InputError, SwathError
 
@@ -92,7 +93,7 @@ class BatchJob:
 
     job_id: str
     values: dict
-    settings: object          # swath.cli.job.JobSettings
+    settings: Any             # swath.cli.settings.JobSettings
 
 
 @dataclass(frozen=True)

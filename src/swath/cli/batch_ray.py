@@ -56,7 +56,7 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
     remote = ray.remote(num_cpus=1, max_retries=0)(_task)
     try:
         queue = list(jobs)
-        running = {}
+        running: dict = {}
         while queue or running:
             while queue and len(running) < limit:
                 job = queue.pop(0)

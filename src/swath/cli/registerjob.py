@@ -132,7 +132,7 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
     say("loading CAD and scan", 0, 1)
     t0 = time.perf_counter()
     cad, target = load_registration_inputs(settings)
-    opts = dict(trim=settings.trim, max_iterations=settings.max_iterations, rng=0)
+    opts: dict = dict(trim=settings.trim, max_iterations=settings.max_iterations, rng=0)
     if settings.table:
         k = parse_side(settings.table_normal)
         dof = "3 DOF: turn about the table normal, shift along the table" if settings.keep_height else \

@@ -9,7 +9,10 @@
 ``example_part(name)`` builds the parts the CLI knows as ``example:NAME``.
 """
 
+from collections.abc import Callable
+
 from ..errors import InputError
+from ..surface import Surface
 from ..surface.exact_shapes import naca00_thickness
 from ..surface.grid import grid_faces
 from .hub import wheel_hub
@@ -17,7 +20,7 @@ from .large import large_panel
 from .parts import blade, doubly_curved_panel, flat_plate
 
 #: Built-in parts by name, as the CLI knows them (``example:NAME``).
-PARTS = {"blade": blade, "plate": flat_plate, "panel": doubly_curved_panel, "hub": wheel_hub}
+PARTS: dict[str, Callable[[], Surface]] = {"blade": blade, "plate": flat_plate, "panel": doubly_curved_panel, "hub": wheel_hub}
 
 
 def example_part(name: str):

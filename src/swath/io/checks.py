@@ -79,4 +79,4 @@ def likely_unit(extent_file_units: float, *, exclude: str | None = None) -> str 
     sizes = {u: extent_file_units * length_unit_factor(u) for u in SUGGESTED_UNITS if u != exclude}
     ok = [u for u, s in sizes.items() if SIZE_LIMITS[0] <= s <= SIZE_LIMITS[1]]
     good = [u for u in ok if PREFERRED_SIZE[0] <= sizes[u] <= PREFERRED_SIZE[1]]
-    return (good or ok or [None])[0]
+    return (good or ok)[0] if (good or ok) else None

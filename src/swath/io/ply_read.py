@@ -41,9 +41,8 @@ def _ply_header(data: bytes, label: str):
     """``(format, [(name, count, [(prop, list_count_type or None)])], body offset, header lines)``."""
     match = re.search(rb"end_header[ \t]*\r?\n", data)
     if match is None:
-        if data.rstrip().endswith(b"end_header"):
-            match = re.search(rb"end_header\s*$", data)
-        else:
+        match = re.search(rb"end_header\s*$", data) if data.rstrip().endswith(b"end_header") else None
+        if match is None:
             raise InputError(f"{label}: the PLY header has no 'end_header' line; the file is truncated or not a PLY")
     header = data[:match.start()].decode("ascii", errors="replace").splitlines()
     fmt = None

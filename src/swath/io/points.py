@@ -137,7 +137,7 @@ def _read_text(path: Path):
         raise InputError(f"{path.name} has {table.shape[1]} columns; expected x y z [nx ny nz]")
     if names is not None and len(names) == table.shape[1]:
         col = {n: i for i, n in enumerate(names)}
-        xyz = [col.get(c) for c in ("x", "y", "z")]
+        xyz: list = [col.get(c) for c in ("x", "y", "z")]
         if None in xyz:
             xyz = [0, 1, 2]
         pts = table[:, xyz]

@@ -151,7 +151,7 @@ def equidistant_patch(patch, tool, *, spacing: float | None = None, boundary=Non
 
     # --- clip lines, map to 3D ----------------------------------------------------------------
     s_lo, _, s_hi, _ = region.bounds
-    pieces = []                          # (line index, σ start, σ end) in travel order
+    pieces: list[tuple] = []             # (line index, σ start, σ end) in travel order
     for k, tau in enumerate(taus):
         cut = region.intersection(LineString([(s_lo - 1.0, tau), (s_hi + 1.0, tau)]))
         segs = [g for g in getattr(cut, "geoms", [cut]) if g.geom_type == "LineString" and g.length > 0]
@@ -215,7 +215,7 @@ def equidistant_patch(patch, tool, *, spacing: float | None = None, boundary=Non
         metadata["predicted_gap_fraction"] = float(gap)
     log.info("equidistant_patch %s: along %s, spacing %.1f mm, %d lines, %d passes, %d links, %.2f s", patch.name,
              along, spacing * 1e3, n_lines, len(passes), n_links, time.perf_counter() - t_start)
-    return ToolPath(surface, passes, "equidistant", metadata)
+    return ToolPath(surface, tuple(passes), "equidistant", metadata)
 
 
 def _longer_direction(patch) -> str:
@@ -341,8 +341,7 @@ def _patch_spacing(amap: ArcLengthMap, region, tool, *, n: int = 60):
 
     a = np.linspace(*amap.a_range, n)
     b = np.linspace(*amap.b_range, n)
-    A, B = np.meshgrid(a, b, indexing="ij")
-    A, B = A.ravel(), B.ravel()
+    A, B = (g.ravel() for g in np.meshgrid(a, b, indexing="ij"))
     u, v = amap.uv(A, B)
     s, t = amap.from_parameters(u, v)
     inside = shapely.contains_xy(region, s, t) | shapely.intersects_xy(region.boundary, s, t)

@@ -447,7 +447,7 @@ def equidistant(surface, tool, *, spacing: float | None = None, seed=None, direc
     log.info("equidistant %s: spacing %.1f mm, %d levels, %d passes, %d fragments dropped, field %d vertices "
              "(edge <= %.1f mm, %s), %.2f s", surface.name, used * 1e3, n_levels, len(passes), dropped,
              len(mesh.vertices), mesh.edge * 1e3, fields.methods, time.perf_counter() - t_start)
-    return ToolPath(surface, passes, "equidistant", metadata)
+    return ToolPath(surface, tuple(passes), "equidistant", metadata)
 
 
 def _choose_angle(surface, tool, mesh, samples, spacing, R, distance) -> tuple[float, str]:

@@ -149,7 +149,9 @@ def boundary_seed(vertices: np.ndarray, loop: np.ndarray, feed: np.ndarray, cros
     # The averaged tangent blurs a corner over the window: extend the run edge by edge while the
     # edges themselves still run along the feed (so it ends at the corner, not a window short).
     edge_along = runs_along(normalize(np.roll(P, -1, axis=0) - P))
-    head, tail, grown = [], [], 0.0
+    head: list[int] = []
+    tail: list[int] = []
+    grown = 0.0
     i = int(span[-1])
     while grown < w and edge_along[i] and len(span) + len(head) + len(tail) < b:
         grown += seg[i]

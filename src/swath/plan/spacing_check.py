@@ -98,7 +98,7 @@ def pass_spacing(toolpath, *, max_edge: float = 3e-3, trim: float = 0.0, method:
         except RuntimeError:
             solver = None
     comps, levels = pass_levels(toolpath)
-    keys = {}
+    keys: dict[tuple[int, int], list[int]] = {}
     for i, (c, lv) in enumerate(zip(comps, levels)):
         keys.setdefault((int(c), int(lv)), []).append(i)
     pairs, used = [], set()
@@ -110,14 +110,14 @@ def pass_spacing(toolpath, *, max_edge: float = 3e-3, trim: float = 0.0, method:
         band, band_d = polyline_band(V, [toolpath.passes[i].points for i in nxt], 1.5 * max_edge, tree=vtree)
         d, m = distance_field(V, F, source_vertices=band, source_distances=band_d, method=method, solver=solver)
         used.add(m)
-        pts = []
+        parts = []
         for i in idx:
             p = toolpath.passes[i].points
             if trim > 0:
                 s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
                 p = p[(s >= trim) & (s <= s[-1] - trim)]
-            pts.append(p)
-        pts = np.concatenate(pts)
+            parts.append(p)
+        pts = np.concatenate(parts)
         if len(pts) == 0:
             continue
         f, b, _ = locate_points(V, F, pts, tree=tree)

@@ -17,6 +17,7 @@ import io
 import logging
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -217,7 +218,8 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
             segs.append(np.stack([q[:-1], q[1:]], axis=1))
             order.append(np.full(len(q) - 1, i + 1))
         norm = mpl.colors.Normalize(1, max(n_pass, 2))
-        lc = LineCollection(np.concatenate(segs), cmap=_PASS_CMAP, norm=norm, linewidths=1.1, alpha=0.9)
+        segments: Any = np.concatenate(segs)
+        lc = LineCollection(segments, cmap=_PASS_CMAP, norm=norm, linewidths=1.1, alpha=0.9)
         lc.set_array(np.concatenate(order))
         ax.add_collection(lc)
         start = frame.project(toolpath.passes[0].points[:1])[0]

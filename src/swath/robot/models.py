@@ -22,7 +22,10 @@ assumptions (stated per model in :attr:`RobotModel.source`), to be overridden pe
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from functools import partial
+from typing import Any
 
 import numpy as np
 
@@ -70,8 +73,8 @@ class RobotModel:
     kind: str
     source: str = ""
     opw: OPWParameters | None = None
-    ur_solver: object = None
-    dh: tuple | None = None
+    ur_solver: Any = None
+    dh: Any = None
     extra: dict = field(default_factory=dict)
 
     @property
@@ -108,7 +111,7 @@ class RobotModel:
             branch has no solution.  Joint limits are not applied here.
         """
         t = np.asarray(base2flange, dtype=float).reshape(-1, 4, 4)
-        if self.kind == "opw":
+        if self.kind == "opw" and self.opw is not None:
             return opw_ik(self.opw, t)
         if self.kind == "ur":
             return _ur_ik(self, t)
@@ -138,7 +141,7 @@ class RobotModel:
         jac = self.jacobian(q)
         jac[:, :3] /= self.reach
         manip = np.sqrt(np.maximum(np.linalg.det(jac @ np.swapaxes(jac, 1, 2)), 0.0))
-        if self.kind == "opw":
+        if self.kind == "opw" and self.opw is not None:
             p = self.opw
             wc = frames[:, 4, :3, 3]
             wrist = np.abs(np.sin(theta[:, 4]))
@@ -340,7 +343,7 @@ def _numeric_ik(model: RobotModel, t: np.ndarray, seed) -> np.ndarray:
 
 
 #: Model name -> factory.
-ROBOTS = {name: (lambda n=name: _ur_model(n)) for name in _UR_DH}
+ROBOTS: dict[str, Callable[[], RobotModel]] = {name: partial(_ur_model, name) for name in _UR_DH}
 ROBOTS.update({"irb4600-60/2.05": _irb4600, "irb4600": _irb4600, "kr120r2700-2": _kr120r2700,
                "kr120": _kr120r2700})
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import InputError
 from .cell import Cell
 from .models import RobotModel
 from .pose import make_transform, poses_from_trajectory, rot_z
@@ -128,7 +129,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     scored += [score(x0 + i * dx, y0 + j * dy, yaw0 + k * math.pi / 8)
                for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)]
     scored.sort(key=lambda s: (s[0], s[1], s[2]), reverse=True)
-    best = None
+    best: tuple | None = None
     for frac_branch, frac, manip, base2part, _ in scored[:n_refine]:
         trial = cell.with_base(base2part)
         sol = solve_trajectory(trajectory, model, trial, margins=margins)
@@ -136,6 +137,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         key = (sol.reachable_fraction, m)
         if best is None or key > best[0]:
             best = (key, trial, base2part)
+    if best is None:
+        raise InputError("placement search scored no base pose; give n_refine >= 1")
     (frac, m), trial, base2part = best
     yaw = math.atan2(base2part[1, 0], base2part[0, 0])
     log.info("placement for %s: (%.3f, %.3f, %.3f) m, yaw %.0f deg, %.1f %% reachable", model.name,

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -54,7 +55,7 @@ FLANGE2KUKA_FLANGE = make_transform(rot_y(-math.pi / 2))
 class ProgramInput:
     """What every writer needs."""
 
-    trajectory: object
+    trajectory: Any
     solution: JointSolution
     model: RobotModel
     cell: Cell
@@ -209,7 +210,7 @@ def rapid_text(data: ProgramInput) -> str:
     def frame(t):
         return f"[[{_fmt(t[:3, 3] * 1e3, 4)}],[{_fmt(matrix_to_quat(t[:3, :3]), 9)}]]"
 
-    speeds = {}
+    speeds: dict[float, str] = {}
     ends = {s for s, e, p in segments(tr) if p} | {e - 1 for s, e, p in segments(tr) if p}
     lines = ["MODULE SwathJob", f"  ! swath robot program for {data.model.name}: TCP poses in the part frame (mm, quaternion)",
              f"  PERS tooldata tSwath := [TRUE,{frame(cell.flange2tcp)},[1,[0,0,0.001],[1,0,0,0],0,0,0]];",
@@ -321,6 +322,7 @@ def write_programs(data: ProgramInput, out_dir, formats) -> list:
         if fmt not in PROGRAM_FILES:
             raise InputError(f"unknown program format {fmt!r}; choose from {', '.join(PROGRAM_FILES)}")
         files = [out_dir / f for f in PROGRAM_FILES[fmt]]
+        texts: tuple[str, ...]
         if fmt == "krl":
             texts = krl_texts(data)
         else:

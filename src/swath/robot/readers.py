@@ -89,13 +89,16 @@ def read_rapid(path) -> dict:
     wobj = re.search(r"wobjdata\s+\w+\s*:=\s*\[FALSE,TRUE,\"[^\"]*\",(\[\[.*?\]\])", text)
     if tool is None or wobj is None:
         raise InputError(f"{path}: no tooldata/wobjdata; not a swath RAPID module")
-    robt = {}
+    robt: dict = {}
     for name, body in re.findall(r"CONST robtarget (\w+) := \[(.*?)\];", text):
         groups = re.findall(r"\[([^\[\]]*)\]", body)
-        pos, quat, conf = _nums(groups[0]), _nums(groups[1]), _nums(groups[2])
-        robt[name] = (make_transform(quat_to_matrix(quat), np.array(pos) * 1e-3), np.array(conf, dtype=int))
+        pos, quat, cf = _nums(groups[0]), _nums(groups[1]), _nums(groups[2])
+        robt[name] = (make_transform(quat_to_matrix(quat), np.array(pos) * 1e-3), np.array(cf, dtype=int))
     speeds = {n: _nums(b)[0] * 1e-3 for n, b in re.findall(r"CONST speeddata (\w+) := \[(.*?)\];", text)}
-    targets, conf, speed, zone = [], [], [], []
+    targets: list = []
+    conf: list = []
+    speed: list = []
+    zone: list = []
     for kind, name, sp, zn in re.findall(r"Move([LJ]) (\w+), (\w+), (\w+),", text):
         t, c = robt[name]
         targets.append(t)

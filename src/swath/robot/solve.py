@@ -195,7 +195,7 @@ def branch_table(base2flange, model: RobotModel, margins: Margins | None = None,
         prev = np.where(good[:, None], cand, np.nan)
     flat = q.reshape(-1, 6)
     valid = np.isfinite(flat[:, 0])
-    sing_ok = np.zeros(len(flat), bool)
+    sing_ok: np.ndarray = np.zeros(len(flat), bool)
     if valid.any():
         m = model.singularity_measures(flat[valid])
         sing_ok[valid] = (m["wrist"] >= margins.wrist) & (m["elbow"] >= margins.elbow) & (m["shoulder_m"] >= margins.shoulder)
@@ -296,9 +296,9 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
     q = np.where(ok[:, None], q_all[rows, branch], np.nan)
     names = model.branch_names
     switches = []
-    for i in np.flatnonzero(np.diff(branch)) + 1:
-        after = trajectory.pass_index[i:][trajectory.contact[i:]]
-        switches.append({"sample": int(i), "from": names[branch[i - 1]], "to": names[branch[i]],
+    for s in np.flatnonzero(np.diff(branch)) + 1:
+        after = trajectory.pass_index[s:][trajectory.contact[s:]]
+        switches.append({"sample": int(s), "from": names[branch[s - 1]], "to": names[branch[s]],
                          "pass_after": int(after[0]) if len(after) else -1})
     stretches = []
     bad = ~ok

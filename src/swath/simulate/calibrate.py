@@ -137,9 +137,9 @@ def make_trials(*, force, spindle_speed, feed, passes, depth, pad_radius=0.0381,
     grit : (n,) str               group label
     hardness : (n,) float         Pa
     """
-    arrs = np.broadcast_arrays(np.asarray(force, float), np.asarray(spindle_speed, float), np.asarray(feed, float),
+    arrs: list[np.ndarray] = list(np.broadcast_arrays(np.asarray(force, float), np.asarray(spindle_speed, float), np.asarray(feed, float),
                                np.asarray(passes, float), np.asarray(depth, float), np.asarray(pad_radius, float),
-                               np.asarray(orbit_radius, float), np.asarray(hardness, float))
+                               np.asarray(orbit_radius, float), np.asarray(hardness, float)))
     n = arrs[0].shape[0] if arrs[0].ndim else 1
     arrs = [np.atleast_1d(a).astype(float).copy() for a in arrs]
     g = np.broadcast_to(np.asarray(grit, dtype=object), (n,)).astype(str)
@@ -614,7 +614,7 @@ def predict_job_depth(depth, *, calibration: Calibration, preston_used: float, g
         relp = tq * math.sqrt((se / f.preston) ** 2 + f.residual_std**2)
     else:
         relp = rel
-    out = (d, d * (1 - rel), d * (1 + rel), d * (1 - relp), d * (1 + relp))
+    out = [d, d * (1 - rel), d * (1 + rel), d * (1 - relp), d * (1 + relp)]
     if np.ndim(d) == 0:
-        out = tuple(float(v) for v in out)
-    return DepthPrediction(*out, level)
+        out = [float(v) for v in out]
+    return DepthPrediction(out[0], out[1], out[2], out[3], out[4], level)

@@ -208,7 +208,7 @@ def parse_mass(text) -> float:
     m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-z]*)\s*", str(text))
     if not m or m.group(2) not in ("", *_MASS_UNITS):
         raise InputError(f"expected a mass such as '2kg' or '500g', got {text!r}")
-    value = float(m.group(1)) * _MASS_UNITS.get(m.group(2) or "kg")
+    value = float(m.group(1)) * _MASS_UNITS[m.group(2) or "kg"]
     if not (math.isfinite(value) and value >= 0):
         raise InputError(f"a tool mass must be a non-negative finite number, got {text!r}")
     return value
@@ -477,7 +477,7 @@ class _Run:
         nrm = Servo(nom[0] - c.clearance, dt=dt, servo_lag=c.servo_lag, delay=self.delay)
         ref, moving, seen, t_seen, integ, held = T0, False, False, 0.0, 0.0, 0.0
         x_pad = nrm.actual
-        out = {k: [] for k in ("progress", "set", "contact", "measured", "command", "actual", "moving", "ref")}
+        out: dict[str, list] = {k: [] for k in ("progress", "set", "contact", "measured", "command", "actual", "moving", "ref")}
         max_ticks = int(((T1 - T0) + c.max_hold + 2.0 + 10 * c.clearance / c.approach_speed) * c.rate) + 10
         noise = self.rng.standard_normal(max_ticks) * self.noise if self.noise > 0 else None
         settled = 0

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,6 +46,11 @@ class ContactCurves:
     cum_w: np.ndarray
     cum_wz: np.ndarray
     k: float
+    # Python-list copies for bisect, filled in __post_init__.
+    _z: list = field(init=False, repr=False, compare=False)
+    _w: list = field(init=False, repr=False, compare=False)
+    _m: list = field(init=False, repr=False, compare=False)
+    _s: list = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         # Python lists: bisect on them is far cheaper per call than numpy scalar indexing.

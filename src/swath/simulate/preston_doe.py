@@ -62,6 +62,7 @@ def parse_factor(text: str) -> tuple[str, list]:
         kind = {"force_N": "force", "spindle_speed_rpm": "frequency", "feed_m_per_s": "speed",
                 "orbit_radius_m": "length", "pad_radius_m": "length", "depth_m": "length",
                 "hardness_Pa": None}.get(column)
+    values: list
     if kind is None:
         values = raw if column != "passes" else [_int(v, name) for v in raw]
     elif kind == "frequency":

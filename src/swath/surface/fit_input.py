@@ -92,8 +92,8 @@ def _main_piece(X: np.ndarray) -> np.ndarray:
                 hit = vox[pos] == nb
                 src.append(np.nonzero(hit)[0])
                 dst.append(pos[hit])
-    src, dst = np.concatenate(src), np.concatenate(dst)
-    graph = coo_matrix((np.ones(len(src)), (src, dst)), shape=(len(vox), len(vox)))
+    rows, cols = np.concatenate(src), np.concatenate(dst)
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(vox), len(vox)))
     n_comp, label = connected_components(graph, directed=False)
     if n_comp == 1:
         return np.ones(len(X), dtype=bool)

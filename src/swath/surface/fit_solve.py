@@ -81,8 +81,8 @@ def _smooth_columns(G: np.ndarray, rhs: np.ndarray, yty: np.ndarray, P: np.ndarr
     n, m = rhs.shape
     ridge = 1e-11 * max(np.trace(G), np.trace(P), 1e-300) / n * np.eye(n)
     if not isinstance(smoothing, str):
-        ell = float(smoothing)
-        return _spd_solve(G + ell**6 * P + ridge, rhs), np.full(m, ell)
+        fixed = float(smoothing)
+        return _spd_solve(G + fixed**6 * P + ridge, rhs), np.full(m, fixed)
     # X^T (G + P) X = I, X^T G X = diag(mu), X^T P X = diag(1 - mu).
     Lc = np.linalg.cholesky(G + P + ridge)
     M = solve_triangular(Lc, solve_triangular(Lc, G, lower=True).T, lower=True)
@@ -211,7 +211,7 @@ def _aniso_step(X, u, v, ku, kv, p, q, smoothing, grid_u, grid_v, ell_u=None, el
         edfs[(lu, lv)] = edf
         return N * rss / max(N - edf, 1e-9) ** 2
 
-    edfs = {}
+    edfs: dict = {}
 
     def golden(f, lo, hi, iters=14):
         a, b = math.log(lo), math.log(hi)

@@ -378,7 +378,7 @@ def time_link(route: np.ndarray, q_from: np.ndarray, q_to: np.ndarray, links: Li
         path = route_path(route, blend=None)
         s_a, s_b, turn_cap = turning_span(path)
     s = _grid(path, links.step, 15.0)
-    if method == "toppra":
+    if method == "toppra" and x is not None:
         t, speed = _times_from_squared_speeds(grid, x, s)
         duration = float(t[-1])
     else:
