@@ -329,8 +329,8 @@ def _pose_arrays(grid: SampleGrid, positions, axes, tool: Tool, force):
 
 
 def accumulate_removal(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray, weight: np.ndarray,
-                       tool: Tool, *, force=None, out: np.ndarray | None = None,
-                       threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+                       tool: Tool, *, force=None, out: np.ndarray | None = None, threads: int | None = None,
+                       executor: ThreadPoolExecutor | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Preston removal of a batch of poses, summed into per-thread depth arrays.
 
     Parameters
@@ -352,6 +352,9 @@ def accumulate_removal(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray
     threads : int, optional
         Threads (rows of ``out``) when ``out`` is created (default :func:`default_threads`).  The
         kernel releases the GIL; each thread takes a contiguous block of poses and its own row.
+    executor : ThreadPoolExecutor, optional
+        Worker threads to reuse over many calls (at least ``len(out)`` workers); a pool is made
+        for this call when None.
 
     Returns
     -------
@@ -388,6 +391,8 @@ def accumulate_removal(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray
     if len(out) == 1 or P < 2 * len(out):
         for t in range(len(out)):
             run(t)
+    elif executor is not None:
+        list(executor.map(run, range(len(out))))
     else:
         with ThreadPoolExecutor(max_workers=len(out)) as pool:
             list(pool.map(run, range(len(out))))

@@ -154,16 +154,15 @@ def _depth_compiled(points, normals, areas, positions, axes, dwell, tool: Tool, 
     ``points, normals (S, 3)``, ``areas (S,)`` (m, m²) are the samples, ``positions, axes (P, 3)``
     the integration poses (m), ``dwell (P,)`` their times (s), ``pose_force (P,)`` their forces (N)."""
     grid = kernels.sample_grid(points, normals, areas, cell=kernels.default_cell(tool))
-    out = None
+    out = np.zeros((kernels.default_threads(), len(grid)))
     step = max(int(chunk), 1)
-    for lo in range(0, len(positions), step):
-        hi = min(lo + step, len(positions))
-        out, _ = kernels.accumulate_removal(grid, positions[lo:hi], axes[lo:hi], dwell[lo:hi], tool, out=out,
-                                            force=None if pose_force is None else pose_force[lo:hi])
-        if progress is not None:
-            progress(hi, len(positions))
-    if out is None:
-        return np.zeros(len(points))
+    with ThreadPoolExecutor(max_workers=len(out)) as pool:
+        for lo in range(0, len(positions), step):
+            hi = min(lo + step, len(positions))
+            kernels.accumulate_removal(grid, positions[lo:hi], axes[lo:hi], dwell[lo:hi], tool, out=out,
+                                       force=None if pose_force is None else pose_force[lo:hi], executor=pool)
+            if progress is not None:
+                progress(hi, len(positions))
     return kernels.depth_in_input_order(grid, out)
 
 
