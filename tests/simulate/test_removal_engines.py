@@ -74,3 +74,12 @@ def test_unknown_engine_is_refused():
     s, tr = plate_raster()
     with pytest.raises(InputError, match="engine must be one of"):
         simulate_removal(tr, s, Tool(), engine="gpu")
+
+
+def test_without_numba_auto_falls_back_to_numpy_and_compiled_is_refused(monkeypatch):
+    s, tr = plate_raster()
+    numpy_ = simulate_removal(tr, s, Tool(), engine="numpy")
+    monkeypatch.setattr(kernels, "AVAILABLE", False)
+    assert np.array_equal(simulate_removal(tr, s, Tool()).depth, numpy_.depth)
+    with pytest.raises(InputError, match="needs numba"):
+        simulate_removal(tr, s, Tool(), engine="compiled")

@@ -4,6 +4,11 @@ Removal rate at a surface point under the pad is Preston's ``k_p · p · v_rel``
 from the pad contact model at each in-contact pose, ``v_rel`` the abrasive's sliding speed
 (uniform for an orbital pad, ``ω·r`` for a rotary one).  Depth is integrated over the
 trajectory's in-contact samples on a finely sampled copy of the part.
+
+The integration runs in the compiled kernels of :mod:`swath.contact.kernels` (numba: each pose's
+force balance solved and its removal added straight into the depth array, memory just the
+samples), or, with ``engine="numpy"`` or without numba, on the vectorised pose-sample pair lists of
+:func:`swath.contact.mesh_contact` (the earlier path, kept as the reference).
 """
 
 from __future__ import annotations
