@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..contact import Tool, kernels, mesh_contact
+from ..contact import Tool, mesh_contact
 from ..contact.tool import sample_spacing_for
 from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
 from ..errors import InputError
@@ -128,6 +128,9 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         log.warning("removal sampled at %.2f mm instead of %.2f mm to stay within %d samples (%.2f m² part)",
                     wider * 1e3, spacing * 1e3, MAX_REMOVAL_SAMPLES, surface.area)
         spacing = wider
+    # imported here: numba takes about half a second to import, needed only when simulating
+    from ..contact import kernels
+
     if engine not in ENGINES:
         raise InputError(f"removal engine must be one of {', '.join(ENGINES)}, got {engine!r}")
     if engine == "compiled" and not kernels.AVAILABLE:
@@ -158,6 +161,8 @@ def _depth_compiled(points, normals, areas, positions, axes, dwell, tool: Tool, 
 
     ``points, normals (S, 3)``, ``areas (S,)`` (m, m²) are the samples, ``positions, axes (P, 3)``
     the integration poses (m), ``dwell (P,)`` their times (s), ``pose_force (P,)`` their forces (N)."""
+    from ..contact import kernels
+
     grid = kernels.sample_grid(points, normals, areas, cell=kernels.default_cell(tool))
     out = np.zeros((kernels.default_threads(), len(grid)))
     step = max(int(chunk), 1)
