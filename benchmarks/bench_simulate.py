@@ -11,7 +11,9 @@ Table 2, one child process per part (so ``peak_rss_MB`` is that part's; the comp
 first, so its RSS is the compiled run's and the numpy row's is the larger of the two): for each
 removal-sample spacing (``0`` = the default, :func:`swath.contact.tool.sample_spacing_for`, 3 mm
 for the 3-inch pad) and engine, ``simulate_removal`` wall time (s), seconds per 100 m of contact
-path and CPU time of all threads (s; less sensitive to a loaded machine than the wall time), the spacing actually used (mm; larger when the part would need more than
+path and CPU time of all threads (s; less sensitive to a loaded machine than the wall time),
+the wall and CPU time of the integration alone (``integrate_s``, per 100 m, ``integrate_cpu_s``:
+without subdividing the part, its vertex normals and the metrics), the spacing actually used (mm; larger when the part would need more than
 ``MAX_REMOVAL_SAMPLES``), removal samples, integration poses, the peak traced Python memory (MB;
 numpy allocations, not numba's small per-thread buffers) and the largest relative difference of
 any metric between the engines.  ``metrics_s`` and ``pad_scale_s`` time :func:`plan_metrics` and
@@ -83,14 +85,43 @@ def load(name: str):
     return part, time_path(tp, [FeedLimit(0.05)])
 
 
+def warm_up() -> None:
+    """Load the compiled kernels (from numba's cache) before anything is timed."""
+    import numpy as np
+
+    from swath.contact import Tool, kernels
+    from swath.examples import flat_plate
+
+    s = flat_plate(spacing=0.01)
+    grid = kernels.sample_grid(s.vertices, s.normals, s.vertex_areas, cell=kernels.default_cell(Tool()))
+    kernels.accumulate_removal(grid, np.array([[0.2, 0.15, 0.0]]), np.array([[0.0, 0.0, -1.0]]), np.ones(1), Tool())
+
+
 def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]:
+    import swath.simulate.removal as removal
     from swath.contact import Tool
     from swath.contact.widths import pad_scale_samples
     from swath.simulate import plan_metrics, simulate_removal
     from swath.simulate.removal import _integration_poses
     from swath.surface import Surface
 
+    timed = {}
+
+    def timing(fn):
+        def wrapped(*args, **kwargs):
+            t0, c0 = time.perf_counter(), time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                timed["integrate_s"] = time.perf_counter() - t0
+                timed["integrate_cpu_s"] = time.process_time() - c0
+        return wrapped
+
+    # time the integration itself (the rest of sim_s: subdividing the part, its normals, the metrics)
+    removal._depth_compiled = timing(removal._depth_compiled)
+    removal._depth_numpy = timing(removal._depth_numpy)
     tool = Tool()
+    warm_up()
     part, tr = load(name)
     path = tr.contact_length
     rows = []
@@ -105,7 +136,9 @@ def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]
             row = dict(part=name, faces=len(part.faces), path_m=path, spacing_mm=1e3 * used, engine=engine,
                        samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
                        s_per_100m=100.0 * m.seconds / path, cpu_s=cpu, peak_MB=m.peak_mb, peak_rss_MB=max_rss_mb(),
-                       cov=rm.metrics["removal_cov"])
+                       cov=rm.metrics["removal_cov"], integrate_s=timed["integrate_s"],
+                       integrate_s_per_100m=100.0 * timed["integrate_s"] / path,
+                       integrate_cpu_s=timed["integrate_cpu_s"])
             results[engine] = rm
             if engine == engines[0]:
                 fresh = Surface(part.vertices, part.faces)
@@ -160,7 +193,8 @@ def main():
             rows.append({"part": name, "engine": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]})
         print(f"  {name} done", file=sys.stderr, flush=True)
     print_table(rows, [("part", "s"), ("faces", "d"), ("path_m", ".1f"), ("spacing_mm", ".2f"), ("samples", "d"),
-                       ("poses", "d"), ("engine", "s"), ("sim_s", ".2f"), ("s_per_100m", ".2f"), ("cpu_s", ".2f"), ("peak_MB", ".0f"),
+                       ("poses", "d"), ("engine", "s"), ("sim_s", ".2f"), ("s_per_100m", ".2f"), ("cpu_s", ".2f"), ("integrate_s", ".2f"),
+                       ("integrate_s_per_100m", ".2f"), ("integrate_cpu_s", ".2f"), ("peak_MB", ".0f"),
                        ("peak_rss_MB", ".0f"), ("metrics_s", ".2f"), ("pad_scale_s", ".2f"),
                        ("metric_rel_diff", ".1e")])
 
