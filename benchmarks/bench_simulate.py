@@ -1,40 +1,209 @@
-"""Removal simulation speed: a ~100k-face part under a ~100 m contact path.
+"""Removal simulation speed and memory: the compiled engine against the numpy (pair-list) engine.
 
-    python benchmarks/bench_simulate.py
+    python benchmarks/bench_simulate.py [--parts panel100k crs_part_5.stl panel500k] [--spacings 0 0.002]
+                                        [--engines compiled numpy] [--timeout 1200]
 
-Prints faces, path length, removal samples, the time of ``simulate_removal`` (s) and its peak traced
-memory (MB).  The issue's target: well inside a minute on this 2-core machine.
+Table 1, JIT: the first call of the compiled kernels in a fresh process with an empty numba cache
+(``NUMBA_CACHE_DIR`` set to a new folder: compile and write the cache), then again in a fresh
+process (load from the cache); both include importing swath and numba.
+
+Table 2, one child process per part (so ``peak_rss_MB`` is that part's; the compiled engine runs
+first, so its RSS is the compiled run's and the numpy row's is the larger of the two): for each
+removal-sample spacing (``0`` = the default, :func:`swath.contact.tool.sample_spacing_for`, 3 mm
+for the 3-inch pad) and engine, ``simulate_removal`` wall time (s), seconds per 100 m of contact
+path and CPU time of all threads (s; less sensitive to a loaded machine than the wall time),
+the wall and CPU time of the integration alone (``integrate_s``, per 100 m, ``integrate_cpu_s``:
+without subdividing the part, its vertex normals and the metrics), the spacing actually used (mm; larger when the part would need more than
+``MAX_REMOVAL_SAMPLES``), removal samples, integration poses, the peak traced Python memory (MB;
+numpy allocations, not numba's small per-thread buffers) and the largest relative difference of
+any metric between the engines.  ``metrics_s`` and ``pad_scale_s`` time :func:`plan_metrics` and
+:func:`swath.contact.widths.pad_scale_samples` (which ``plan_metrics`` calls) on a fresh copy of
+the surface: the part of ``sim_s`` that is not the removal integration.
+
+Parts: ``panel100k`` is :func:`swath.examples.doubly_curved_panel` at ~91k faces under a raster
+of 2.2 mm spacing (~100 m of contact path); the shared meshes and ``panel500k``
+(:func:`swath.examples.large_panel`, 500k faces) under the default raster (spacing from the tool).
+
+Last run (2 cores shared with other jobs, load 5-7: wall times about twice the CPU times):
+panel100k at 2 mm, 101 m: compiled 4.9 s per 100 m in all (integration 3.7 s wall, 1.75 s CPU),
+numpy 72.6 s; at 3 mm 1.9 s against 17.5 s.  Metrics agree to 1.2e-6 relative, peak traced memory
+163 MB against 1357 MB.  crs_part_5 at 2 mm (4.2M samples): integration 7.6 s per 100 m against
+186 s, but the whole call 89 s per 100 m and 7 GB, nearly all subdividing the part and its vertex
+normals.  JIT: 5 s on an empty cache, 0.9 s from the cache.
 """
 
 from __future__ import annotations
 
-from common import Measure, max_rss_mb, print_table
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+from common import REPO, SHARED_MESH_UNITS, SHARED_MESHES, Measure, max_rss_mb, print_table
+
+JIT_SNIPPET = """
+import time
+t0 = time.perf_counter()
+import numpy as np
+from swath.contact import Tool, kernels
+from swath.examples import flat_plate
+s = flat_plate(spacing=4e-3)
+g = kernels.sample_grid(s.vertices, s.normals, s.vertex_areas, cell=kernels.default_cell(Tool()))
+kernels.accumulate_removal(g, np.array([[0.2, 0.15, 0.0]]), np.array([[0.0, 0.0, -1.0]]), np.ones(1), Tool())
+print(time.perf_counter() - t0)
+"""
 
 
-def main():
+def jit_table() -> list[dict]:
+    rows = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=str(REPO / "src"))
+        for label in ("empty cache (compile)", "warm cache (load)"):
+            done = subprocess.run([sys.executable, "-c", JIT_SNIPPET], capture_output=True, text=True, env=env,
+                                  check=True)
+            rows.append({"first_call": label, "seconds": float(done.stdout.split()[-1])})
+    return rows
+
+
+def load(name: str):
+    """(surface, trajectory) of a benchmark part."""
     from swath.contact import Tool
-    from swath.examples import doubly_curved_panel
     from swath.order import order_toolpath
     from swath.plan.raster import raster
-    from swath.simulate import simulate_removal
     from swath.trajectory import FeedLimit, time_path
 
     tool = Tool()
-    part = doubly_curved_panel(spacing=2.1e-3)                  # ~100k faces
+    if name == "panel100k":
+        from swath.examples import doubly_curved_panel
+
+        part, spacing = doubly_curved_panel(spacing=2.1e-3), 0.0022
+    elif name == "panel500k":
+        from swath.examples import large_panel
+
+        part, spacing = large_panel(n_faces=500_000), None
+    else:
+        from swath.io.mesh import load_mesh
+
+        part, spacing = load_mesh(SHARED_MESHES / name, units=SHARED_MESH_UNITS[name]), None
+    tp = order_toolpath(raster(part, tool, spacing=spacing, direction=0.0, point_spacing=1e-3))
+    return part, time_path(tp, [FeedLimit(0.05)])
+
+
+def warm_up() -> None:
+    """Load the compiled kernels (from numba's cache) before anything is timed."""
+    import numpy as np
+
+    from swath.contact import Tool, kernels
+    from swath.examples import flat_plate
+
+    s = flat_plate(spacing=0.01)
+    grid = kernels.sample_grid(s.vertices, s.normals, s.vertex_areas, cell=kernels.default_cell(Tool()))
+    kernels.accumulate_removal(grid, np.array([[0.2, 0.15, 0.0]]), np.array([[0.0, 0.0, -1.0]]), np.ones(1), Tool())
+
+
+def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]:
+    import swath.simulate.removal as removal
+    from swath.contact import Tool
+    from swath.contact.widths import pad_scale_samples
+    from swath.simulate import plan_metrics, simulate_removal
+    from swath.simulate.removal import _integration_poses
+    from swath.surface import Surface
+
+    timed = {}
+
+    def timing(fn):
+        def wrapped(*args, **kwargs):
+            t0, c0 = time.perf_counter(), time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                timed["integrate_s"] = time.perf_counter() - t0
+                timed["integrate_cpu_s"] = time.process_time() - c0
+        return wrapped
+
+    # time the integration itself (the rest of sim_s: subdividing the part, its normals, the metrics)
+    removal._depth_compiled = timing(removal._depth_compiled)
+    removal._depth_numpy = timing(removal._depth_numpy)
+    tool = Tool()
+    warm_up()
+    part, tr = load(name)
+    path = tr.contact_length
     rows = []
-    for spacing in (0.02, 0.0022):
-        tp = order_toolpath(raster(part, tool, spacing=spacing, direction=0.0, point_spacing=1e-3))
-        tr = time_path(tp, [FeedLimit(0.05)])
-        with Measure() as m:
-            rm = simulate_removal(tr, part, tool)
-        rows.append(dict(faces=len(part.faces), path_m=tr.contact_length, poses=int(tr.contact.sum()),
-                         samples=len(rm.depth), sim_s=m.seconds, peak_MB=m.peak_mb,
-                         s_per_100m=100 * m.seconds / tr.contact_length,
-                         coverage_pct=100 * rm.metrics["coverage_fraction"]))
-        print(f"  done {tr.contact_length:.1f} m", flush=True)
-    print_table(rows, [("faces", "d"), ("path_m", ".1f"), ("poses", "d"), ("samples", "d"), ("sim_s", ".1f"),
-                       ("s_per_100m", ".1f"), ("peak_MB", ".0f"), ("coverage_pct", ".2f")])
-    print(f"peak RSS {max_rss_mb():.0f} MB")
+    for spacing in spacings:
+        results = {}
+        for engine in engines:
+            c0 = time.process_time()
+            with Measure() as m:
+                rm = simulate_removal(tr, part, tool, sample_spacing=spacing or None, engine=engine)
+            cpu = time.process_time() - c0
+            used = rm.metrics["removal_sample_spacing_m"]
+            row = dict(part=name, faces=len(part.faces), path_m=path, spacing_mm=1e3 * used, engine=engine,
+                       samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
+                       s_per_100m=100.0 * m.seconds / path, cpu_s=cpu, peak_MB=m.peak_mb, peak_rss_MB=max_rss_mb(),
+                       cov=rm.metrics["removal_cov"], integrate_s=timed["integrate_s"],
+                       integrate_s_per_100m=100.0 * timed["integrate_s"] / path,
+                       integrate_cpu_s=timed["integrate_cpu_s"])
+            results[engine] = rm
+            if engine == engines[0]:
+                fresh = Surface(part.vertices, part.faces)
+                t0 = time.perf_counter()
+                pad_scale_samples(fresh, tool)
+                row["pad_scale_s"] = time.perf_counter() - t0
+                fresh = Surface(part.vertices, part.faces)
+                t0 = time.perf_counter()
+                plan_metrics(tr, fresh, tool, rm)
+                row["metrics_s"] = time.perf_counter() - t0
+            rows.append(row)
+        if len(results) > 1:
+            ref = results[engines[-1]].metrics
+            worst = 0.0
+            for engine in engines[:-1]:
+                for key, value in ref.items():
+                    other = results[engine].metrics[key]
+                    if isinstance(value, float) and value != 0 and value == value:
+                        worst = max(worst, abs(other - value) / abs(value))
+            rows[-1]["metric_rel_diff"] = worst
+    return rows
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--parts", nargs="*", default=["panel100k", "crs_part_5.stl", "panel500k"])
+    parser.add_argument("--spacings", nargs="*", type=float, default=[0.0, 0.002])
+    parser.add_argument("--engines", nargs="*", default=["compiled", "numpy"])
+    parser.add_argument("--timeout", type=float, default=1800.0)
+    parser.add_argument("--one", help=argparse.SUPPRESS)
+    parser.add_argument("--skip-jit", action="store_true")
+    args = parser.parse_args()
+    if args.one:
+        print(json.dumps(one_part(args.one, args.spacings, args.engines)))
+        return
+    if not args.skip_jit:
+        print_table(jit_table(), [("first_call", "s"), ("seconds", ".1f")])
+        print()
+    rows = []
+    for name in args.parts:
+        if name not in ("panel100k", "panel500k") and not (SHARED_MESHES / name).exists():
+            print(f"  {name}: not found in {SHARED_MESHES}", file=sys.stderr)
+            continue
+        cmd = [sys.executable, __file__, "--one", name, "--spacings", *map(str, args.spacings),
+               "--engines", *args.engines]
+        try:
+            done = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=True)
+            rows += json.loads(done.stdout.strip().splitlines()[-1])
+        except subprocess.TimeoutExpired:
+            rows.append({"part": name, "engine": f"timed out after {args.timeout:.0f} s"})
+        except subprocess.CalledProcessError as exc:
+            rows.append({"part": name, "engine": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]})
+        print(f"  {name} done", file=sys.stderr, flush=True)
+    print_table(rows, [("part", "s"), ("faces", "d"), ("path_m", ".1f"), ("spacing_mm", ".2f"), ("samples", "d"),
+                       ("poses", "d"), ("engine", "s"), ("sim_s", ".2f"), ("s_per_100m", ".2f"), ("cpu_s", ".2f"), ("integrate_s", ".2f"),
+                       ("integrate_s_per_100m", ".2f"), ("integrate_cpu_s", ".2f"), ("peak_MB", ".0f"),
+                       ("peak_rss_MB", ".0f"), ("metrics_s", ".2f"), ("pad_scale_s", ".2f"),
+                       ("metric_rel_diff", ".1e")])
 
 
 if __name__ == "__main__":

@@ -4,6 +4,11 @@ Removal rate at a surface point under the pad is Preston's ``k_p · p · v_rel``
 from the pad contact model at each in-contact pose, ``v_rel`` the abrasive's sliding speed
 (uniform for an orbital pad, ``ω·r`` for a rotary one).  Depth is integrated over the
 trajectory's in-contact samples on a finely sampled copy of the part.
+
+The integration runs in the compiled kernels of :mod:`swath.contact.kernels` (numba: each pose's
+force balance solved and its removal added straight into the depth array, memory just the
+samples), or, with ``engine="numpy"`` or without numba, on the vectorised pose-sample pair lists of
+:func:`swath.contact.mesh_contact` (the earlier path, kept as the reference).
 """
 
 from __future__ import annotations
@@ -55,6 +60,9 @@ class RemovalMap:
         return self.depth > 0
 
 
+#: The removal engines of :func:`simulate_removal`.
+ENGINES = ("auto", "compiled", "numpy")
+
 #: The removal samples are kept below this count: on a larger part the sample spacing grows (and
 #: the metrics say so), so the simulation's memory stays bounded whatever the part's size.
 MAX_REMOVAL_SAMPLES = 2_500_000
@@ -79,7 +87,7 @@ def contact_dwell(trajectory) -> np.ndarray:
 
 
 def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float | None = None,
-                     chunk: int = 1500, progress=None, force=None) -> RemovalMap:
+                     chunk: int = 1500, progress=None, force=None, engine: str = "auto") -> RemovalMap:
     """Integrate Preston removal of ``trajectory`` over ``surface``.
 
     Parameters
@@ -92,13 +100,20 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     sample_spacing : float, optional
         Largest edge of the sampled surface, m (default :func:`sample_spacing_for`).
     chunk : int
-        Poses processed per vectorised batch (memory ~ chunk × samples under the pad).
+        Poses per batch (numpy engine: memory ~ chunk × samples under the pad); ``progress`` is
+        called after each.
     progress : callable, optional
         Called as ``progress(done, total)`` after each batch.
     force : (n,) float, optional
         Normal force per trajectory sample, N (e.g. ``ForceTrace.force`` from
         :func:`swath.simulate.simulate_force`): each integration pose solves the force balance for
         the dwell-weighted mean force of the samples it stands for, instead of ``tool.force``.
+    engine : {"auto", "compiled", "numpy"}
+        ``"compiled"``: the numba kernel of :mod:`swath.contact.kernels` (float64, no pair lists:
+        memory is the samples); ``"numpy"``: the vectorised pair lists of
+        :func:`swath.contact.mesh_contact` in float32 (the earlier path, 10-20 times slower);
+        ``"auto"``: compiled when numba is installed.  Both evaluate the same model; their depths
+        differ by the numpy path's float32 rounding (about 1e-5 relative).
 
     Returns
     -------
@@ -113,39 +128,78 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         log.warning("removal sampled at %.2f mm instead of %.2f mm to stay within %d samples (%.2f m² part)",
                     wider * 1e3, spacing * 1e3, MAX_REMOVAL_SAMPLES, surface.area)
         spacing = wider
+    # imported here: numba takes about half a second to import, needed only when simulating
+    from ..contact import kernels
+
+    if engine not in ENGINES:
+        raise InputError(f"removal engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if engine == "compiled" and not kernels.AVAILABLE:
+        raise InputError("the compiled removal engine needs numba; install it (pip install numba) or use "
+                         "engine='numpy'")
     samples = surface.subdivided(spacing)
-    # Coordinates relative to the part's centre, then float32 for the pad queries (see mesh_contact):
-    # a part far from the origin keeps its micrometre heights.  Areas and depths stay float64.
+    # Coordinates relative to the part's centre: a part far from the origin keeps its micrometre heights.
     origin = 0.5 * (samples.vertices.min(axis=0) + samples.vertices.max(axis=0))
     local = samples.vertices - origin
-    pts, nrm, area = local.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
-    tree = cKDTree(local)
     positions = trajectory.position - origin
     idx, dwell = _integration_poses(trajectory, INTEGRATION_STEP * spacing)
     pose_force = None
     if force is not None:
         pose_force = _pose_force(trajectory, force, idx)
     axes = trajectory.tool_z()
-    depth = np.zeros(len(pts))
-
-    def batch(lo: int) -> np.ndarray:
-        sel = idx[lo:lo + chunk]
-        mc = mesh_contact(pts, nrm, area, tree, positions[sel], axes[sel], tool,
-                          force=None if pose_force is None else pose_force[lo:lo + chunk])
-        rate = tool.preston * mc.pressure * tool.relative_speed(mc.radius)
-        return np.bincount(mc.sample, weights=rate * dwell[lo:lo + chunk][mc.pose], minlength=len(pts))
-
-    # numpy and the KD-tree release the GIL in their inner loops, so batches overlap on two threads.
-    starts = list(range(0, len(idx), chunk))
-    with ThreadPoolExecutor(max_workers=max(1, min(2, os.cpu_count() or 1))) as pool:
-        for k, part in enumerate(pool.map(batch, starts), start=1):
-            depth += part
-            if progress is not None:
-                progress(min(k * chunk, len(idx)), len(idx))
+    run = _depth_numpy if engine == "numpy" or not kernels.AVAILABLE else _depth_compiled
+    depth = run(local, samples.normals, samples.vertex_areas, positions[idx], axes[idx], dwell, tool,
+                pose_force=pose_force, chunk=chunk, progress=progress)
     removal = RemovalMap(samples, depth)
     metrics = plan_metrics(trajectory, surface, tool, removal)
     metrics["removal_sample_spacing_m"] = spacing
     return RemovalMap(samples, depth, metrics)
+
+
+def _depth_compiled(points, normals, areas, positions, axes, dwell, tool: Tool, *, pose_force=None,
+                    chunk: int = 1500, progress=None) -> np.ndarray:
+    """Removal depth (m) per sample ``(S,)`` from the compiled kernel (float64; no pair lists).
+
+    ``points, normals (S, 3)``, ``areas (S,)`` (m, m²) are the samples, ``positions, axes (P, 3)``
+    the integration poses (m), ``dwell (P,)`` their times (s), ``pose_force (P,)`` their forces (N)."""
+    from ..contact import kernels
+
+    grid = kernels.sample_grid(points, normals, areas, cell=kernels.default_cell(tool))
+    out = np.zeros((kernels.default_threads(), len(grid)))
+    step = max(int(chunk), 1)
+    with ThreadPoolExecutor(max_workers=len(out)) as pool:
+        for lo in range(0, len(positions), step):
+            hi = min(lo + step, len(positions))
+            kernels.accumulate_removal(grid, positions[lo:hi], axes[lo:hi], dwell[lo:hi], tool, out=out,
+                                       force=None if pose_force is None else pose_force[lo:hi], executor=pool)
+            if progress is not None:
+                progress(hi, len(positions))
+    return kernels.depth_in_input_order(grid, out)
+
+
+def _depth_numpy(points, normals, areas, positions, axes, dwell, tool: Tool, *, pose_force=None,
+                 chunk: int = 1500, progress=None) -> np.ndarray:
+    """Removal depth (m) per sample ``(S,)`` from :func:`swath.contact.mesh_contact` pair lists in
+    float32 (the path before the compiled kernel; arguments as :func:`_depth_compiled`)."""
+    # float32 for the pad queries (see mesh_contact): half the memory traffic; areas and depths float64.
+    pts, nrm = points.astype(np.float32), normals.astype(np.float32)
+    tree = cKDTree(points)
+    depth = np.zeros(len(pts))
+
+    def batch(lo: int) -> np.ndarray:
+        sl = slice(lo, lo + chunk)
+        mc = mesh_contact(pts, nrm, areas, tree, positions[sl], axes[sl], tool,
+                          force=None if pose_force is None else pose_force[sl])
+        rate = tool.preston * mc.pressure * tool.relative_speed(mc.radius)
+        return np.bincount(mc.sample, weights=rate * dwell[sl][mc.pose], minlength=len(pts))
+
+    # numpy and the KD-tree release the GIL in their inner loops, so batches overlap on two threads.
+    starts = list(range(0, len(positions), chunk))
+    with ThreadPoolExecutor(max_workers=max(1, min(2, os.cpu_count() or 1))) as pool:
+        for k, part in enumerate(pool.map(batch, starts), start=1):
+            depth += part
+            if progress is not None:
+                progress(min(k * chunk, len(positions)), len(positions))
+    return depth
 
 
 def _integration_poses(trajectory, max_travel: float) -> tuple[np.ndarray, np.ndarray]:
