@@ -26,40 +26,18 @@ from __future__ import annotations
 import logging
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
+from ..surface.cells import AVAILABLE, SampleGrid, jit, sample_grid  # noqa: F401  (re-exported)
 from .tool import Tool
 
 log = logging.getLogger(__name__)
 
-try:
-    import numba
-except ImportError:                                            # pragma: no cover - numba is a dependency
-    numba = None
-
-#: True when numba is importable and the compiled kernels can be used.
-AVAILABLE = numba is not None
-
 #: Radius of the ball (in pad radii) that holds every point of the pad cylinder with |z| <= R/2 —
 #: the candidate region of :func:`swath.contact.mesh_contact`.
 BALL = float(np.hypot(1.0, 0.5))
-
-
-def _jit():
-    """``numba.njit(cache=True, nogil=True)``, without the disk cache where no cache directory is
-    writable (numba refuses ``cache=True`` at decoration time then)."""
-    def wrap(fn):
-        if numba is None:                                      # pragma: no cover
-            return fn
-        try:
-            return numba.njit(cache=True, nogil=True)(fn)
-        except RuntimeError as exc:                            # no writable cache locator
-            log.info("numba cache unavailable (%s); compiling %s in memory", exc, fn.__name__)
-            return numba.njit(cache=False, nogil=True)(fn)
-    return wrap
 
 
 def default_threads() -> int:
@@ -67,87 +45,10 @@ def default_threads() -> int:
     return max(1, min(8, os.cpu_count() or 1))
 
 
-@dataclass(frozen=True, eq=False)
-class SampleGrid:
-    """Surface samples sorted into a uniform grid of cubic cells.
-
-    Attributes
-    ----------
-    points, normals : (S, 3) float
-        Samples (m) and unit normals toward the tool, float64, in cell order.
-    areas : (S,) float
-        Area each sample stands for, m², in cell order.
-    order : (S,) int
-        Original index of each sorted sample (``points == original_points[order]``).
-    origin : (3,) float
-        Lower corner of the grid, m.
-    cell : float
-        Cell edge, m.
-    dims : (3,) int
-        Cells along x, y, z.
-    start : (C + 1,) int
-        Samples of cell ``c`` (``c = (ix·ny + iy)·nz + iz``) are ``start[c]:start[c+1]``.
-    """
-
-    points: np.ndarray
-    normals: np.ndarray
-    areas: np.ndarray
-    order: np.ndarray
-    origin: np.ndarray
-    cell: float
-    dims: np.ndarray
-    start: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.points)
-
-
-def sample_grid(points: np.ndarray, normals: np.ndarray, areas: np.ndarray, *, cell: float,
-                max_cells_per_sample: float = 8.0) -> SampleGrid:
-    """Sort surface samples into a :class:`SampleGrid` of cells of edge ``cell``.
-
-    Parameters
-    ----------
-    points, normals : (S, 3) float
-        Samples (m) and unit normals toward the tool.
-    areas : (S,) float
-        Sample areas, m².
-    cell : float
-        Wanted cell edge, m (half the query-ball radius is a good choice).  Grown where the grid
-        would have more than ``max_cells_per_sample`` cells per sample (a large, sparse part), so
-        the grid's memory stays a small multiple of the samples'.
-    """
-    points = np.ascontiguousarray(points, dtype=np.float64)
-    S = len(points)
-    if points.ndim != 2 or points.shape[1] != 3 or np.shape(normals) != points.shape or np.shape(areas) != (S,):
-        raise InputError(f"samples must be (S, 3) points and normals and (S,) areas, got {points.shape}, "
-                         f"{np.shape(normals)} and {np.shape(areas)}")
-    if not (np.isfinite(cell) and cell > 0):
-        raise InputError(f"grid cell must be a positive length in m, got {cell!r}")
-    if S and not np.all(np.isfinite(points)):
-        raise InputError("sample points must be finite")
-    lo = points.min(axis=0) if S else np.zeros(3)
-    extent = (points.max(axis=0) - lo) if S else np.zeros(3)
-    cell = float(cell)
-    while True:
-        dims = (extent // cell).astype(np.int64) + 1
-        if np.prod(dims.astype(float)) <= max(max_cells_per_sample * S, 1000.0):
-            break
-        cell *= 1.25
-    ijk = np.minimum(((points - lo) // cell).astype(np.int64), dims - 1)
-    cid = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    order = np.argsort(cid, kind="stable")
-    counts = np.bincount(cid, minlength=int(np.prod(dims)))
-    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    return SampleGrid(points[order], np.ascontiguousarray(np.asarray(normals, np.float64)[order]),
-                      np.ascontiguousarray(np.asarray(areas, np.float64)[order]), order, lo.astype(np.float64),
-                      cell, dims, start)
-
-
 # ----------------------------------------------------------------------------------------------
 # Kernels
 # ----------------------------------------------------------------------------------------------
-@_jit()
+@jit()
 def _gather(pts, nrm, areas, lo, cell, dims, start, c, a, R, ball, idx, zb, wb, r2b):
     """Samples under the pad at TCP ``c`` with axis ``a``: fills ``idx, z, w, r2`` (grown when
     full) and returns them with the count."""
@@ -211,7 +112,7 @@ def _gather(pts, nrm, areas, lo, cell, dims, start, c, a, R, ball, idx, zb, wb, 
     return n, idx, zb, wb, r2b
 
 
-@_jit()
+@jit()
 def _sink(zb, wb, n, target):
     """Exact ``s`` with ``Σ w·max(s − z, 0) = target`` over the first ``n`` samples (NaN if none);
     the iteration of :func:`swath.contact.solve_sink` for one group."""
@@ -238,7 +139,7 @@ def _sink(zb, wb, n, target):
     return s
 
 
-@_jit()
+@jit()
 def _removal(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, weight, k, preston,
              rotary, speed, R, ball, out, sinks):
     """Add ``weight · k_p · k·h · v_rel(r)`` of every pose to ``out`` ``(S,)``; the sinks to ``sinks``."""
@@ -260,7 +161,7 @@ def _removal(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, we
                 out[idx[q]] += preston * (k * h) * v * weight[p]
 
 
-@_jit()
+@jit()
 def _count_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, R, ball, sinks, counts):
     """Sink per pose and the number of touching samples per pose."""
     idx = np.empty(4096, np.int64)
@@ -279,7 +180,7 @@ def _count_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, target
         counts[p] = m
 
 
-@_jit()
+@jit()
 def _fill_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, R, ball, sinks, offsets, k,
                 pose, sample, pressure, radius):
     """Write the touching pairs of every pose at ``offsets[p]`` (after :func:`_count_pairs`)."""

@@ -46,6 +46,10 @@ def smooth_vertex_normals(vertices: np.ndarray, normals: np.ndarray, areas: np.n
     """
     if radius <= 0:
         return normals
+    from . import cells
+
+    if cells.AVAILABLE:                  # compiled ball sum on a cell grid; same pairs as below
+        return normalize(cells.smooth_normals(vertices, normals, areas, radius))
     from scipy.spatial import cKDTree
 
     tree = tree if tree is not None else cKDTree(vertices)
