@@ -31,7 +31,11 @@ from __future__ import annotations
 
 import logging
 import math
+import multiprocessing
+import os
+import pickle
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
 
@@ -60,7 +64,7 @@ AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="boundary",
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
             feed: float = 0.05, max_angular: float = 1.0, cost=None,
-            work_spacing: float | None = None, progress=None) -> ToolPath:
+            work_spacing: float | None = None, progress=None, workers: int | None = None) -> ToolPath:
     """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
 
     Parameters
@@ -100,6 +104,12 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         :data:`MAX_WORK_VERTICES` vertices).
     progress : callable, optional
         ``progress(stage: str, done: int, total: int)``, called as candidate directions finish.
+    workers : int, optional
+        Processes that plan the candidate directions of automatic direction at once (default
+        ``min(candidates, CPU count)``; 1 = one after another in this process).  Each worker builds
+        its own working mesh and ranks its candidates with ``cost``, which must then pickle (a
+        module-level function or a record with ``__call__``; otherwise the candidates are planned
+        here, one after another).  The plan is the same whatever the number of workers.
 
     Returns
     -------
@@ -114,7 +124,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         # Each piece is covered on its own: a distance field from one piece's seed never reaches another.
         options = dict(overlap=overlap, direction=direction, seed=seed, point_spacing=point_spacing,
                        min_pass_length=min_pass_length, max_passes=max_passes, feed=feed, max_angular=max_angular,
-                       cost=cost, work_spacing=work_spacing, progress=progress)
+                       cost=cost, work_spacing=work_spacing, progress=progress, workers=workers)
         return _per_piece(surface, tool, pieces, options)
     if not (isinstance(overlap, (int, float)) and 0.0 <= overlap < 0.9):
         raise InputError(f"overlap must be a fraction in [0, 0.9), e.g. 0.1 for 10 %, got {overlap!r}")
@@ -124,12 +134,15 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
     min_pass_length = 0.25 * R if min_pass_length is None else float(min_pass_length)
     if not (feed > 0 and max_angular > 0):
         raise InputError(f"feed and max_angular must be positive (m/s, rad/s), got {feed!r}, {max_angular!r}")
-    ctx = _Context(surface, tool, work_spacing, max_turn_curvature=max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
+    if workers is not None and not (isinstance(workers, int) and workers >= 1):
+        raise InputError(f"workers must be a whole number >= 1 (1 = no worker processes), got {workers!r}")
+    context_args = (surface, tool, work_spacing, max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
+    ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3])
 
     if direction is None or (isinstance(direction, str) and direction == "auto"):
         return _auto(ctx, overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
-                     cost=cost or length_cost, progress=progress)
+                     cost=cost or length_cost, progress=progress, workers=workers, context_args=context_args)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
     if isinstance(direction, (int, float)) and math.isfinite(direction):
@@ -268,22 +281,33 @@ def length_cost(toolpath) -> tuple[float, str]:
     return float(total), "contact + straight air length (m)"
 
 
-def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None):
-    results = []
+def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None, workers=None,
+          context_args=None):
     say = progress or (lambda stage, done, total: None)
-    what = ""
-    for k, a in enumerate(AUTO_DIRECTIONS):
-        say("planning (uniform): trying pass directions", k, len(AUTO_DIRECTIONS) + 1)
-        try:
-            tp = _plan(ctx, float(a), overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
-                       min_pass_length=min_pass_length, max_passes=max_passes, rule="candidate")
-        except InfeasibleError as exc:
-            log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), exc)
+    options = dict(overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
+                   min_pass_length=min_pass_length, max_passes=max_passes)
+    angles = [float(a) for a in AUTO_DIRECTIONS]
+    n_workers = min(len(angles), os.cpu_count() or 1) if workers is None else min(int(workers), len(angles))
+    if n_workers > 1 and context_args is not None and not _pickles(cost):
+        log.info("uniform: the cost function does not pickle, so the candidate directions are planned here, one "
+                 "after another (give a module-level function or a record with __call__)")
+        n_workers = 1
+    say("planning (uniform): trying pass directions", 0, len(angles) + 1)
+    if n_workers > 1 and context_args is not None:
+        rows = _candidates_in_workers(context_args, angles, options, cost, n_workers, say)
+    else:
+        rows = []
+        for k, a in enumerate(angles):
+            rows.append(_candidate(ctx, a, options, cost))
+            say("planning (uniform): trying pass directions", k + 1, len(angles) + 1)
+    results, what = [], ""
+    for a, row in zip(angles, rows):
+        if isinstance(row, str):
+            log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), row)
             continue
-        value, what = cost(tp)
-        results.append((float(a), tp.contact_length, float(value), tp.metadata["predicted_coverage_fraction"]))
-        log.info("uniform candidate %.0f deg: %.2f m in contact, cost %.4g (%s)", math.degrees(a),
-                 tp.contact_length, value, what)
+        length, value, what, covered = row
+        results.append((a, length, value, covered))
+        log.info("uniform candidate %.0f deg: %.2f m in contact, cost %.4g (%s)", math.degrees(a), length, value, what)
     if not results:
         raise InfeasibleError("uniform found no feasible direction; check min_pass_length and the part size")
     # A direction must cover (a pad riding on the crests of waves narrower than itself leaves the
@@ -292,7 +316,6 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cos
     top = max(r[3] for r in results)
     good = [r for r in results if r[3] >= min(0.995, top - 0.002)]
     best = min(good, key=lambda r: r[2])
-    say("planning (uniform): trying pass directions", len(AUTO_DIRECTIONS), len(AUTO_DIRECTIONS) + 1)
     candidates = [dict(direction_deg=math.degrees(a), length_m=L, cost=c, predicted_coverage_fraction=cv)
                   for a, L, c, cv in results]
     rule = (f"auto: lowest {what} among the directions whose predicted coverage is at least "
@@ -300,6 +323,65 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cos
     return _plan(ctx, best[0], overlap=overlap, seed=seed, point_spacing=point_spacing,
                  min_pass_length=min_pass_length, max_passes=max_passes, rule=rule,
                  extra_meta={"candidates": candidates})
+
+
+def _candidate(ctx, angle: float, options: dict, cost):
+    """Plan one candidate direction and rank it: ``(contact length m, cost, cost description,
+    predicted coverage fraction)``, or the reason (str) when the direction is infeasible."""
+    try:
+        tp = _plan(ctx, angle, rule="candidate", **options)
+    except InfeasibleError as exc:
+        return str(exc)
+    value, what = cost(tp)
+    return tp.contact_length, float(value), what, tp.metadata["predicted_coverage_fraction"]
+
+
+def _pickles(obj) -> bool:
+    try:
+        pickle.dumps(obj)
+    except Exception:       # noqa: BLE001 - any failure means "plan here"
+        return False
+    return True
+
+
+def _candidates_in_workers(context_args, angles, options, cost, n_workers, say) -> list:
+    """:func:`_candidate` of every angle in ``n_workers`` spawned processes, in the order of ``angles``.
+
+    Each worker builds the working mesh once (the same deterministic set-up as here) and runs with
+    one BLAS / OpenMP / numba thread, so the workers do not oversubscribe the cores.
+    """
+    ctx_spawn = multiprocessing.get_context("spawn")
+    done = 0
+    with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx_spawn, initializer=_worker_init,
+                             initargs=(context_args,)) as pool:
+        futures = [pool.submit(_worker_candidate, a, options, cost) for a in angles]
+        for _ in as_completed(futures):
+            done += 1
+            say("planning (uniform): trying pass directions", done, len(angles) + 1)
+        return [f.result() for f in futures]
+
+
+#: The working mesh of a worker process (built once by :func:`_worker_init`).
+_WORKER_CONTEXT: _Context | None = None
+
+
+def _worker_init(context_args) -> None:
+    global _WORKER_CONTEXT
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)
+    try:
+        import numba
+
+        numba.set_num_threads(1)
+    except ImportError:     # pragma: no cover - numba is a dependency
+        pass
+    surface, tool, work_spacing, max_turn_curvature = context_args
+    _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature)
+
+
+def _worker_candidate(angle: float, options: dict, cost):
+    return _candidate(_WORKER_CONTEXT, angle, options, cost)
 
 
 # ----------------------------------------------------------------------------------------------
