@@ -115,3 +115,22 @@ def test_uniform_refuses_a_bad_worker_count():
 
     with pytest.raises(InputError, match="workers"):
         uniform(doubly_curved_panel(spacing=8e-3), TOOL, workers=0)
+
+
+def test_compiled_widths_are_those_of_the_patch_model(rng):
+    from swath.contact import local_patch
+    from swath.contact.widths import widths_across
+
+    k1 = rng.uniform(-40.0, 40.0, 300)
+    k2 = rng.uniform(-40.0, 40.0, 300)
+    patch = local_patch(np.maximum(k1, k2), np.minimum(k1, k2), TOOL)
+    rows = rng.integers(0, 300, 2000)
+    psi = rng.uniform(-np.pi, np.pi, 2000)
+    from swath.contact.model import LocalPatch
+
+    sub = LocalPatch(patch.sink[rows], patch.phi, patch.rho_in[rows], patch.rho_out[rows])
+    np.testing.assert_array_equal(widths_across(patch, rows, psi), sub.width_across(psi))
+    # a flat pad is the pad diameter across every direction (to the ray resolution)
+    flat = local_patch(np.zeros(1), np.zeros(1), TOOL)
+    np.testing.assert_allclose(widths_across(flat, np.zeros(5, int), np.linspace(0, 3, 5)), 2 * TOOL.pad_radius,
+                               rtol=2e-3)
