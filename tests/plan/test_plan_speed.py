@@ -97,6 +97,13 @@ def test_uniform_candidates_in_worker_processes_give_the_serial_plan():
     assert pickle.loads(pickle.dumps(cost)) == cost              # the job's cost goes to the workers
     options = dict(work_spacing=TOOL.pad_radius / 5, cost=cost)
     serial = uniform(surface, TOOL, workers=1, **options)
+    # the plan of the same call at commit 23bb1ea (before the speed-ups), to round-off
+    assert len(serial.passes) == 3 and sum(len(p.points) for p in serial.passes) == 772
+    assert serial.contact_length == pytest.approx(0.7676265048049925, rel=1e-12)
+    assert serial.metadata["direction_rad"] == pytest.approx(2.6179938779914944, rel=1e-12)
+    assert [c["cost"] for c in serial.metadata["candidates"]] == pytest.approx(
+        [22.926508642133513, 22.926462227598655, 35.4045852611285, 35.627670295896685, 36.89510057643419,
+         22.92613282280339], rel=1e-12)
     parallel = uniform(surface, TOOL, workers=2, **options)
     assert len(serial.metadata["candidates"]) == 6
     assert parallel.metadata["candidates"] == serial.metadata["candidates"]

@@ -158,6 +158,13 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
 def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length, max_passes, rule,
           extra_meta=None) -> ToolPath:
     """One uniform plan with the feed at ``angle`` (rad from the first principal axis, or a 3-vector)."""
+    layout = _layout(ctx, angle, overlap=overlap, seed=seed, min_pass_length=min_pass_length, max_passes=max_passes)
+    return _toolpath(ctx, layout, point_spacing=point_spacing, rule=rule, extra_meta=extra_meta)
+
+
+def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes) -> dict:
+    """The passes of :func:`_plan` as working-mesh polylines, before they are resampled on the
+    surface (the point spacing plays no part in where they lie): a small picklable record."""
     t0 = time.perf_counter()
     W, tool = ctx.work, ctx.tool
     R = tool.pad_radius
@@ -243,26 +250,40 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     covered, touch_ups = _touch_up(ctx, passes_pts, covered, step, min_pass_length)
     merged = _insert_near(passes_pts, touch_ups)
     touch_up_index = [i for i, q in enumerate(merged) if any(q is t for t in touch_ups)]
-    passes = [_on_surface_pass(ctx.surface, p, point_spacing, level=generation_of.get(id(p), -1),
-                               kind="touch_up" if i in touch_up_index else "pass") for i, p in enumerate(merged)]
     # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
     # capped as in _Context.touched); the simulator's figure is the one to trust.
     covered_pred = float(W.vertex_areas[covered].sum() / W.area)
     if covered_pred < 0.995:
         notes.append(f"uniform: {100 * (1 - covered_pred):.1f} % of {ctx.surface.name or 'the part'} is predicted to "
                      "stay untouched (regions no pass reaches); lower the overlap's step or segment the part")
-    meta = dict(overlap_fraction=float(overlap), direction_rad=float(angle), direction_rule=rule,
-                predicted_coverage_fraction=covered_pred,
-                feed_direction=feed_dir.tolist(), seed=seed if isinstance(seed, str) else "polyline",
-                n_passes=len(passes), n_generations=len(generations), n_touch_up_passes=len(touch_ups),
-                touch_up_passes=touch_up_index, order_hint="zigzag", warnings=notes,
+    return dict(angle=float(angle), feed_dir=feed_dir, polylines=merged,
+                levels=[generation_of.get(id(p), -1) for p in merged], touch_up_index=touch_up_index,
+                covered_pred=covered_pred, notes=notes, n_generations=len(generations), n_touch_ups=len(touch_ups),
+                overlap=float(overlap), seed=seed if isinstance(seed, str) else "polyline",
+                min_pass_length=float(min_pass_length), seconds=time.perf_counter() - t0)
+
+
+def _toolpath(ctx: _Context, layout: dict, *, point_spacing, rule, extra_meta=None) -> ToolPath:
+    """The :func:`_layout` passes resampled ``point_spacing`` (m) apart on the surface, as a ToolPath."""
+    t0 = time.perf_counter()
+    touch_up_index = layout["touch_up_index"]
+    passes = [_on_surface_pass(ctx.surface, p, point_spacing, level=level,
+                               kind="touch_up" if i in touch_up_index else "pass")
+              for i, (p, level) in enumerate(zip(layout["polylines"], layout["levels"]))]
+    angle = layout["angle"]
+    meta = dict(overlap_fraction=layout["overlap"], direction_rad=angle, direction_rule=rule,
+                predicted_coverage_fraction=layout["covered_pred"],
+                feed_direction=layout["feed_dir"].tolist(), seed=layout["seed"],
+                n_passes=len(passes), n_generations=layout["n_generations"], n_touch_up_passes=layout["n_touch_ups"],
+                touch_up_passes=list(touch_up_index), order_hint="zigzag", warnings=list(layout["notes"]),
                 work_spacing_m=ctx.work_spacing,
-                point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
-                plan_time_s=time.perf_counter() - t0)
+                point_spacing_m=float(point_spacing), min_pass_length_m=layout["min_pass_length"],
+                plan_time_s=layout["seconds"] + time.perf_counter() - t0)
     if extra_meta:
         meta.update(extra_meta)
     log.info("uniform %s: direction %.0f deg, %d passes in %d generations, %.2f m, %.1f s", ctx.surface.name,
-             math.degrees(angle), len(passes), len(generations), sum(p.length for p in passes), meta["plan_time_s"])
+             math.degrees(angle), len(passes), layout["n_generations"], sum(p.length for p in passes),
+             meta["plan_time_s"])
     return ToolPath(ctx.surface, passes, "uniform", meta)
 
 
@@ -284,6 +305,8 @@ def length_cost(toolpath) -> tuple[float, str]:
 def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None, workers=None,
           context_args=None):
     say = progress or (lambda stage, done, total: None)
+    # Candidates are ranked at a 2 mm point spacing; the winner's passes (whose layout does not
+    # depend on the point spacing) are then resampled at the one asked for.
     options = dict(overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
                    min_pass_length=min_pass_length, max_passes=max_passes)
     angles = [float(a) for a in AUTO_DIRECTIONS]
@@ -300,12 +323,12 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cos
         for k, a in enumerate(angles):
             rows.append(_candidate(ctx, a, options, cost))
             say("planning (uniform): trying pass directions", k + 1, len(angles) + 1)
-    results, what = [], ""
+    results, layouts, what = [], {}, ""
     for a, row in zip(angles, rows):
         if isinstance(row, str):
             log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), row)
             continue
-        length, value, what, covered = row
+        length, value, what, covered, layouts[a] = row
         results.append((a, length, value, covered))
         log.info("uniform candidate %.0f deg: %.2f m in contact, cost %.4g (%s)", math.degrees(a), length, value, what)
     if not results:
@@ -320,20 +343,22 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cos
                   for a, L, c, cv in results]
     rule = (f"auto: lowest {what} among the directions whose predicted coverage is at least "
             f"{100 * min(0.995, top - 0.002):.1f} %")
-    return _plan(ctx, best[0], overlap=overlap, seed=seed, point_spacing=point_spacing,
-                 min_pass_length=min_pass_length, max_passes=max_passes, rule=rule,
-                 extra_meta={"candidates": candidates})
+    return _toolpath(ctx, layouts[best[0]], point_spacing=point_spacing, rule=rule,
+                     extra_meta={"candidates": candidates})
 
 
 def _candidate(ctx, angle: float, options: dict, cost):
     """Plan one candidate direction and rank it: ``(contact length m, cost, cost description,
-    predicted coverage fraction)``, or the reason (str) when the direction is infeasible."""
+    predicted coverage fraction, layout)``, or the reason (str) when the direction is infeasible."""
+    options = dict(options)
+    point_spacing = options.pop("point_spacing")
     try:
-        tp = _plan(ctx, angle, rule="candidate", **options)
+        layout = _layout(ctx, angle, **options)
     except InfeasibleError as exc:
         return str(exc)
+    tp = _toolpath(ctx, layout, point_spacing=point_spacing, rule="candidate")
     value, what = cost(tp)
-    return tp.contact_length, float(value), what, tp.metadata["predicted_coverage_fraction"]
+    return tp.contact_length, float(value), what, tp.metadata["predicted_coverage_fraction"], layout
 
 
 def _pickles(obj) -> bool:
