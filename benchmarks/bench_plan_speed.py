@@ -20,13 +20,16 @@ processes are reported separately, as the largest child's peak RSS).  Per part, 
   the job's cycle-time cost; ``uniform/raster`` is their ratio.
 * ``peak_MB``: the part's process peak RSS; ``workers_MB``: the largest worker's.
 
-Wall times suffer from other load on the machine; CPU times (``*_cpu_s``, this process only) less.
+Wall times suffer from other load on the machine; CPU times (``*_cpu_s``: the part's process and
+its finished worker processes) less, and the ``*_cpu`` ratios are the ones to compare when the
+load average is above the CPU count.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -48,8 +51,8 @@ def load(name: str):
     return load_mesh(SHARED_MESHES / name, units=SHARED_MESH_UNITS[name])
 
 
-def trimesh_reference(surface, toolpath) -> float:
-    """Seconds trimesh takes to cut ``surface`` with the planes of ``toolpath`` (best of 3)."""
+def trimesh_reference(surface, toolpath) -> tuple[float, float]:
+    """Wall and CPU seconds trimesh takes to cut ``surface`` with the planes of ``toolpath`` (best of 3)."""
     import numpy as np
     import trimesh
     from trimesh.intersections import mesh_multiplane
@@ -60,17 +63,23 @@ def trimesh_reference(surface, toolpath) -> float:
     h = surface.vertices @ cross
     heights = 0.5 * (h.min() + h.max()) + (np.arange(n_planes) - 0.5 * (n_planes - 1)) * spacing
     mesh = trimesh.Trimesh(surface.vertices, surface.faces, process=False)
-    best = np.inf
+    best, best_cpu = np.inf, np.inf
     for _ in range(3):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         mesh_multiplane(mesh, cross * 0.0, cross, heights)
-        best = min(best, time.perf_counter() - t0)
-    return float(best)
+        best, best_cpu = min(best, time.perf_counter() - t0), min(best_cpu, time.process_time() - c0)
+    return float(best), float(best_cpu)
+
+
+def cpu_seconds() -> float:
+    """CPU seconds of this process and of its finished children (the uniform planner's workers)."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 def end_to_end(name: str, planner: str, workers: int | None) -> tuple[float, float, object]:
     """Plan + order + time + simulate as ``swath plan`` does, on a freshly loaded part: (wall s,
-    CPU s of this process, the ordered tool path)."""
+    CPU s of this process and its workers, the ordered tool path)."""
     from swath.cli.job import make_plan, settings_from_mapping
     from swath.simulate import simulate_removal
     from swath.trajectory import time_path
@@ -80,11 +89,11 @@ def end_to_end(name: str, planner: str, workers: int | None) -> tuple[float, flo
         values["planner_options"] = {"workers": workers}
     settings = settings_from_mapping(values)
     surface = load(name)
-    t0, c0 = time.perf_counter(), time.process_time()
+    t0, c0 = time.perf_counter(), cpu_seconds()
     toolpath = make_plan(surface, settings)
     trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
     simulate_removal(trajectory, surface, settings.tool())
-    return time.perf_counter() - t0, time.process_time() - c0, toolpath
+    return time.perf_counter() - t0, cpu_seconds() - c0, toolpath
 
 
 def one_part(name: str, workers: int | None, skip_uniform: bool) -> dict:
@@ -100,14 +109,16 @@ def one_part(name: str, workers: int | None, skip_uniform: bool) -> dict:
     toolpath = raster(surface, Tool())
     row["raster_s"], row["raster_cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
     row["passes"] = len(toolpath.passes)
-    row["trimesh_s"] = trimesh_reference(surface, toolpath)
+    row["trimesh_s"], row["trimesh_cpu_s"] = trimesh_reference(surface, toolpath)
     row["ratio"] = row["raster_s"] / row["trimesh_s"]
+    row["ratio_cpu"] = row["raster_cpu_s"] / max(row["trimesh_cpu_s"], 1e-9)
     row["noether_s"] = NOETHER_S.get(name, "")
     del surface, toolpath
-    row["raster_e2e_s"], _, _ = end_to_end(name, "raster", None)
+    row["raster_e2e_s"], row["raster_e2e_cpu_s"], _ = end_to_end(name, "raster", None)
     if not skip_uniform:
         row["uniform_e2e_s"], row["uniform_e2e_cpu_s"], uni = end_to_end(name, "uniform", workers)
         row["uniform/raster"] = row["uniform_e2e_s"] / row["raster_e2e_s"]
+        row["uniform/raster_cpu"] = row["uniform_e2e_cpu_s"] / row["raster_e2e_cpu_s"]
         row["uniform_passes"] = len(uni.passes)
     row["peak_MB"] = max_rss_mb()
     row["workers_MB"] = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
@@ -125,6 +136,7 @@ def main() -> None:
     if args.one:
         print(json.dumps(one_part(args.one, args.workers, args.skip_uniform)))
         return
+    print(f"load average {os.getloadavg()[0]:.2f} (1 min) on {os.cpu_count()} CPUs")
     rows = []
     for name in args.parts.split(","):
         command = [sys.executable, __file__, "--one", name]
@@ -140,12 +152,16 @@ def main() -> None:
             row = {"part": name, "note": f"timed out after {args.timeout:.0f} s"}
         except subprocess.CalledProcessError as exc:
             row = {"part": name, "note": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]}
-        print(f"  {name}: {row.get('note', 'done')} in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+        print(f"  {name}: {row.get('note', 'done')} in {time.perf_counter() - t0:.1f} s {json.dumps(row)}",
+              file=sys.stderr, flush=True)
         rows.append(row)
     print_table(rows, [("part", ""), ("faces", "d"), ("passes", "d"), ("raster_s", ".2f"), ("raster_cpu_s", ".2f"),
-                       ("trimesh_s", ".3f"), ("ratio", ".1f"), ("noether_s", ".2f"), ("raster_e2e_s", ".1f"),
+                       ("trimesh_s", ".3f"), ("trimesh_cpu_s", ".3f"), ("ratio", ".1f"), ("ratio_cpu", ".1f"),
+                       ("noether_s", ".2f"), ("raster_e2e_s", ".1f"), ("raster_e2e_cpu_s", ".1f"),
                        ("uniform_e2e_s", ".1f"), ("uniform_e2e_cpu_s", ".1f"), ("uniform/raster", ".2f"),
-                       ("uniform_passes", "d"), ("peak_MB", ".0f"), ("workers_MB", ".0f"), ("note", "")])
+                       ("uniform/raster_cpu", ".2f"), ("uniform_passes", "d"), ("peak_MB", ".0f"),
+                       ("workers_MB", ".0f"), ("note", "")])
+    print(f"load average after {os.getloadavg()[0]:.2f} (1 min)")
 
 
 if __name__ == "__main__":
