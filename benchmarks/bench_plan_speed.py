@@ -14,6 +14,8 @@ processes are reported separately, as the largest child's peak RSS).  Per part, 
   plan's planes (same count, normal and spacing), timed in the same process: the reference that
   makes ``ratio = raster_s / trimesh_s`` comparable across machines.  noether publishes 0.23 s,
   0.67 s and 4.5 s for its plane slicer at 18k, 80k and 500k faces (``noether_s``);
+* ``slice_s``: raster with that direction and spacing given and no fill passes (slicing, chaining
+  and resampling only: the work of noether's slicer), and ``ratio_slice_cpu`` against trimesh;
 * ``raster_e2e_s`` and ``uniform_e2e_s``: plan + order (``make_plan``) + timing (``time_path``) +
   removal simulation (``simulate_removal``), as ``swath plan`` runs them, each on a freshly
   loaded surface, uniform with automatic direction (six candidates, ``--workers`` processes) and
@@ -97,6 +99,8 @@ def end_to_end(name: str, planner: str, workers: int | None) -> tuple[float, flo
 
 
 def one_part(name: str, workers: int | None, skip_uniform: bool) -> dict:
+    import numpy as np
+
     from swath.contact import Tool
     from swath.examples import flat_plate
     from swath.plan.raster import raster
@@ -113,7 +117,16 @@ def one_part(name: str, workers: int | None, skip_uniform: bool) -> dict:
     row["ratio"] = row["raster_s"] / row["trimesh_s"]
     row["ratio_cpu"] = row["raster_cpu_s"] / max(row["trimesh_cpu_s"], 1e-9)
     row["noether_s"] = NOETHER_S.get(name, "")
-    del surface, toolpath
+    # The plane slicing alone (the chosen direction and spacing given, no fill passes): slicing,
+    # chaining and resampling, the work noether's plane slicer does.
+    fresh = load(name)
+    t0, c0 = time.perf_counter(), time.process_time()
+    raster(fresh, Tool(), spacing=float(toolpath.metadata["spacing_m"]), fill_gaps=False,
+           direction=np.asarray(toolpath.metadata["feed_direction"]),
+           cross_direction=np.asarray(toolpath.metadata["cross_direction"]))
+    row["slice_s"], row["slice_cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
+    row["ratio_slice_cpu"] = row["slice_cpu_s"] / max(row["trimesh_cpu_s"], 1e-9)
+    del surface, toolpath, fresh
     row["raster_e2e_s"], row["raster_e2e_cpu_s"], _ = end_to_end(name, "raster", None)
     if not skip_uniform:
         row["uniform_e2e_s"], row["uniform_e2e_cpu_s"], uni = end_to_end(name, "uniform", workers)
@@ -157,7 +170,7 @@ def main() -> None:
         rows.append(row)
     print_table(rows, [("part", ""), ("faces", "d"), ("passes", "d"), ("raster_s", ".2f"), ("raster_cpu_s", ".2f"),
                        ("trimesh_s", ".3f"), ("trimesh_cpu_s", ".3f"), ("ratio", ".1f"), ("ratio_cpu", ".1f"),
-                       ("noether_s", ".2f"), ("raster_e2e_s", ".1f"), ("raster_e2e_cpu_s", ".1f"),
+                       ("slice_s", ".3f"), ("slice_cpu_s", ".3f"), ("ratio_slice_cpu", ".1f"), ("noether_s", ".2f"), ("raster_e2e_s", ".1f"), ("raster_e2e_cpu_s", ".1f"),
                        ("uniform_e2e_s", ".1f"), ("uniform_e2e_cpu_s", ".1f"), ("uniform/raster", ".2f"),
                        ("uniform/raster_cpu", ".2f"), ("uniform_passes", "d"), ("peak_MB", ".0f"),
                        ("workers_MB", ".0f"), ("note", "")])
