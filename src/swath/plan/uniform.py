@@ -29,6 +29,7 @@ the shortest predicted cycle time (see ``direction``).
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import multiprocessing
@@ -137,14 +138,16 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
     if workers is not None and not (isinstance(workers, int) and workers >= 1):
         raise InputError(f"workers must be a whole number >= 1 (1 = no worker processes), got {workers!r}")
     context_args = (surface, tool, work_spacing, max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
-    ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3])
 
     if direction is None or (isinstance(direction, str) and direction == "auto"):
-        return _auto(ctx, overlap=overlap, seed=seed, point_spacing=point_spacing,
+        # The working mesh is built here only when the candidates are planned here.
+        return _auto(functools.cache(lambda: _Context(*context_args[:3], max_turn_curvature=context_args[3])),
+                     overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
                      cost=cost or length_cost, progress=progress, workers=workers, context_args=context_args)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
+    ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3])
     if isinstance(direction, (int, float)) and math.isfinite(direction):
         return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
@@ -159,7 +162,7 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
           extra_meta=None) -> ToolPath:
     """One uniform plan with the feed at ``angle`` (rad from the first principal axis, or a 3-vector)."""
     layout = _layout(ctx, angle, overlap=overlap, seed=seed, min_pass_length=min_pass_length, max_passes=max_passes)
-    return _toolpath(ctx, layout, point_spacing=point_spacing, rule=rule, extra_meta=extra_meta)
+    return _toolpath(ctx.surface, layout, point_spacing=point_spacing, rule=rule, extra_meta=extra_meta)
 
 
 def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes) -> dict:
@@ -260,14 +263,15 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
                 levels=[generation_of.get(id(p), -1) for p in merged], touch_up_index=touch_up_index,
                 covered_pred=covered_pred, notes=notes, n_generations=len(generations), n_touch_ups=len(touch_ups),
                 overlap=float(overlap), seed=seed if isinstance(seed, str) else "polyline",
-                min_pass_length=float(min_pass_length), seconds=time.perf_counter() - t0)
+                min_pass_length=float(min_pass_length), work_spacing=ctx.work_spacing,
+                seconds=time.perf_counter() - t0)
 
 
-def _toolpath(ctx: _Context, layout: dict, *, point_spacing, rule, extra_meta=None) -> ToolPath:
+def _toolpath(surface, layout: dict, *, point_spacing, rule, extra_meta=None) -> ToolPath:
     """The :func:`_layout` passes resampled ``point_spacing`` (m) apart on the surface, as a ToolPath."""
     t0 = time.perf_counter()
     touch_up_index = layout["touch_up_index"]
-    passes = [_on_surface_pass(ctx.surface, p, point_spacing, level=level,
+    passes = [_on_surface_pass(surface, p, point_spacing, level=level,
                                kind="touch_up" if i in touch_up_index else "pass")
               for i, (p, level) in enumerate(zip(layout["polylines"], layout["levels"]))]
     angle = layout["angle"]
@@ -276,15 +280,15 @@ def _toolpath(ctx: _Context, layout: dict, *, point_spacing, rule, extra_meta=No
                 feed_direction=layout["feed_dir"].tolist(), seed=layout["seed"],
                 n_passes=len(passes), n_generations=layout["n_generations"], n_touch_up_passes=layout["n_touch_ups"],
                 touch_up_passes=list(touch_up_index), order_hint="zigzag", warnings=list(layout["notes"]),
-                work_spacing_m=ctx.work_spacing,
+                work_spacing_m=layout["work_spacing"],
                 point_spacing_m=float(point_spacing), min_pass_length_m=layout["min_pass_length"],
                 plan_time_s=layout["seconds"] + time.perf_counter() - t0)
     if extra_meta:
         meta.update(extra_meta)
-    log.info("uniform %s: direction %.0f deg, %d passes in %d generations, %.2f m, %.1f s", ctx.surface.name,
+    log.info("uniform %s: direction %.0f deg, %d passes in %d generations, %.2f m, %.1f s", surface.name,
              math.degrees(angle), len(passes), layout["n_generations"], sum(p.length for p in passes),
              meta["plan_time_s"])
-    return ToolPath(ctx.surface, passes, "uniform", meta)
+    return ToolPath(surface, passes, "uniform", meta)
 
 
 def length_cost(toolpath) -> tuple[float, str]:
@@ -302,7 +306,7 @@ def length_cost(toolpath) -> tuple[float, str]:
     return float(total), "contact + straight air length (m)"
 
 
-def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None, workers=None,
+def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None, workers=None,
           context_args=None):
     say = progress or (lambda stage, done, total: None)
     # Candidates are ranked at a 2 mm point spacing; the winner's passes (whose layout does not
@@ -321,7 +325,7 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cos
     else:
         rows = []
         for k, a in enumerate(angles):
-            rows.append(_candidate(ctx, a, options, cost))
+            rows.append(_candidate(make_context(), a, options, cost))
             say("planning (uniform): trying pass directions", k + 1, len(angles) + 1)
     results, layouts, what = [], {}, ""
     for a, row in zip(angles, rows):
@@ -343,7 +347,7 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cos
                   for a, L, c, cv in results]
     rule = (f"auto: lowest {what} among the directions whose predicted coverage is at least "
             f"{100 * min(0.995, top - 0.002):.1f} %")
-    return _toolpath(ctx, layouts[best[0]], point_spacing=point_spacing, rule=rule,
+    return _toolpath(context_args[0], layouts[best[0]], point_spacing=point_spacing, rule=rule,
                      extra_meta={"candidates": candidates})
 
 
@@ -356,7 +360,7 @@ def _candidate(ctx, angle: float, options: dict, cost):
         layout = _layout(ctx, angle, **options)
     except InfeasibleError as exc:
         return str(exc)
-    tp = _toolpath(ctx, layout, point_spacing=point_spacing, rule="candidate")
+    tp = _toolpath(ctx.surface, layout, point_spacing=point_spacing, rule="candidate")
     value, what = cost(tp)
     return tp.contact_length, float(value), what, tp.metadata["predicted_coverage_fraction"], layout
 
@@ -375,6 +379,10 @@ def _candidates_in_workers(context_args, angles, options, cost, n_workers, say) 
     Each worker builds the working mesh once (the same deterministic set-up as here) and runs with
     one BLAS / OpenMP / numba thread, so the workers do not oversubscribe the cores.
     """
+    # The part's own derived arrays the working mesh reads (curvature, smooth normals, KD-tree) are
+    # computed here, as in a serial run, and travel with the pickled surface.
+    surface = context_args[0]
+    _ = surface.curvature, surface.normals, surface.kdtree
     ctx_spawn = multiprocessing.get_context("spawn")
     done = 0
     with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx_spawn, initializer=_worker_init,
