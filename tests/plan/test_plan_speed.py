@@ -141,3 +141,16 @@ def test_compiled_widths_are_those_of_the_patch_model(rng):
     flat = local_patch(np.zeros(1), np.zeros(1), TOOL)
     np.testing.assert_allclose(widths_across(flat, np.zeros(5, int), np.linspace(0, 3, 5)), 2 * TOOL.pad_radius,
                                rtol=2e-3)
+
+
+def test_the_memo_lets_a_surface_go():
+    import gc
+    import weakref
+
+    surface = doubly_curved_panel(spacing=8e-3)
+    pad_scale_samples(surface, TOOL)
+    subdivided(surface, 1.0)                                      # no split needed: the surface itself
+    ref = weakref.ref(surface)
+    del surface
+    gc.collect()
+    assert ref() is None

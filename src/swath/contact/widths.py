@@ -11,6 +11,9 @@ feed direction (FORMATS.md "Tool model").  Here it is read from the local quadri
   fitted over the pad (radius ``R``), the scale at which the pad feels the surface;
 * :func:`raster_spacing` — the default plane spacing of :func:`swath.plan.raster`.
 
+Pad-scale samples and subdivisions are memoised per surface (:func:`surface_memo`; a Surface is
+immutable): a planner's candidate directions, its fill rounds and the coverage bound share them.
+
 Why the default spacing uses pad-scale curvature, a low percentile and a slope floor
 ------------------------------------------------------------------------------------
 Plane slices ``d`` apart lie ``d / |n × c|`` apart on the surface (``c`` the plane normal, ``n``
@@ -270,6 +273,9 @@ def surface_memo(surface, key, make):
 def subdivided(surface, max_edge: float):
     """``surface.subdivided(max_edge)`` (edges at most ``max_edge`` m), computed once per surface and
     edge length."""
+    if surface.edge_lengths.max() <= max_edge:
+        # the surface itself: not memoised, a memo value holding its own key would never be freed
+        return surface
     return surface_memo(surface, ("subdivided", float(max_edge)), lambda: surface.subdivided(max_edge))
 
 
