@@ -119,7 +119,7 @@ def slicing_table(face_counts=(18_000, 80_000, 500_000), repeats: int = 3) -> li
     from swath.plan.raster import raster
 
     tool = Tool()
-    raster(large_panel(n_faces=2000), tool, angle=0.0)          # warm-up: imports and caches
+    raster(large_panel(n_faces=2000), tool, direction=0.0)      # warm-up: imports and caches
     rows = []
     for n in face_counts:
         surface = large_panel(n_faces=n)
@@ -129,8 +129,10 @@ def slicing_table(face_counts=(18_000, 80_000, 500_000), repeats: int = 3) -> li
         for label, angle in (("fixed", 0.0), ("auto", None), ("slice", 0.0)):
             wall, cpu = np.inf, np.inf
             for _ in range(repeats):
+                # a fresh surface each time: the planner memoises per surface (pad-scale samples)
+                surface = large_panel(n_faces=n)
                 t0, c0 = time.perf_counter(), time.process_time()
-                toolpath = raster(surface, tool, angle=angle, spacing=spacing if label == "slice" else None)
+                toolpath = raster(surface, tool, direction=angle, spacing=spacing if label == "slice" else None)
                 wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
             row[f"raster_{label}_s"], row[f"raster_{label}_cpu_s"] = wall, cpu
             if label == "fixed":

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import logging
 import time
+from dataclasses import dataclass
 
 from ..errors import InputError
 from .settings import JobSettings, load_job_toml, settings_from_mapping  # noqa: F401  (the job's inputs)
@@ -77,20 +78,42 @@ def load_part_info(settings: JobSettings, *, progress=None):
     return surface, {"patch": patch, "footprint": footprint, "metrics": metrics}
 
 
-def cycle_time_cost(constraints, links, order: str | None = None):
+@dataclass(frozen=True)
+class CycleTimeCost:
     """A cost function for planners that compare candidates: the cycle time (s) of a candidate
     tool path ordered by ``order`` (None: the planner's hint) and timed under exactly the
-    ``constraints`` and ``links`` the job's trajectory will use."""
-    from ..order import order_toolpath
-    from ..trajectory import time_path
+    ``constraints`` and ``links`` the job's trajectory will use.
 
-    names = ", ".join(type(c).__name__ for c in constraints)
+    A plain record with ``__call__`` (not a closure), so it pickles: a planner may rank its
+    candidates in worker processes.
 
-    def cost(toolpath) -> tuple[float, str]:
-        ordered = order_toolpath(toolpath, method=order)
-        return time_path(ordered, constraints, links=links).duration, f"predicted cycle time (s) under {names}"
+    Attributes
+    ----------
+    constraints : tuple of constraint records
+        The job's trajectory limits (:mod:`swath.trajectory`).
+    links : LinkSettings
+        The job's air moves between passes.
+    order : str or None
+        Order-stage method applied before timing (None: the tool path's ``order_hint``).
+    """
 
-    return cost
+    constraints: tuple
+    links: object
+    order: str | None = None
+
+    def __call__(self, toolpath) -> tuple[float, str]:
+        from ..order import order_toolpath
+        from ..trajectory import time_path
+
+        names = ", ".join(type(c).__name__ for c in self.constraints)
+        ordered = order_toolpath(toolpath, method=self.order)
+        return time_path(ordered, list(self.constraints), links=self.links).duration, \
+            f"predicted cycle time (s) under {names}"
+
+
+def cycle_time_cost(constraints, links, order: str | None = None) -> CycleTimeCost:
+    """The :class:`CycleTimeCost` of a job's ``constraints`` (sequence), ``links`` and ``order``."""
+    return CycleTimeCost(tuple(constraints), links, order)
 
 
 def planner_arguments(settings: JobSettings, *, progress=None) -> dict:

@@ -11,6 +11,9 @@ feed direction (FORMATS.md "Tool model").  Here it is read from the local quadri
   fitted over the pad (radius ``R``), the scale at which the pad feels the surface;
 * :func:`raster_spacing` — the default plane spacing of :func:`swath.plan.raster`.
 
+Pad-scale samples and subdivisions are memoised per surface (:func:`surface_memo`; a Surface is
+immutable): a planner's candidate directions, its fill rounds and the coverage bound share them.
+
 Why the default spacing uses pad-scale curvature, a low percentile and a slope floor
 ------------------------------------------------------------------------------------
 Plane slices ``d`` apart lie ``d / |n × c|`` apart on the surface (``c`` the plane normal, ``n``
@@ -41,9 +44,11 @@ plane near the end of the cross extent misses a boundary that curves away from i
 from __future__ import annotations
 
 import logging
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..errors import InputError
 from ..surface.curvature import PrincipalCurvature, principal_curvatures
@@ -96,7 +101,7 @@ def patch_widths(curvature: PrincipalCurvature, normals: np.ndarray, feed_direct
     # under y -> -y, so the handedness of (d1, d2) does not matter.
     psi = np.arctan2(np.einsum("ij,ij->i", cross, curvature.d2), np.einsum("ij,ij->i", cross, curvature.d1))
     patch, inverse = unique_patches(curvature.k1, curvature.k2, tool, n_rays)
-    w = patch_rows(patch, inverse, lambda p, rows: p.width_across(psi[rows]))
+    w = widths_across(patch, inverse, psi)
     if undefined.any():
         w[undefined] = patch.min_width()[inverse[undefined]]
     return w
@@ -174,6 +179,57 @@ def unique_patches(k1, k2, tool, n_rays):
     return patch, inverse.ravel()
 
 
+def widths_across(patch: LocalPatch, rows: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """``patch.width_across`` of patch row ``rows[i]`` at angle ``psi[i]``, for every ``i``: ``(k,)`` (m).
+
+    Parameters
+    ----------
+    patch : LocalPatch
+        Solved contact patches (``n`` rows).
+    rows : (k,) int
+        Patch row of each query.
+    psi : (k,) float
+        Angle of the direction across which the width is measured, from ``d1``, rad.
+
+    Notes
+    -----
+    The same arithmetic as :meth:`LocalPatch.width_across` (the same projections, maxima and
+    minima, element by element, so the same numbers), compiled in one loop over the rays instead of
+    the ``(k, rays)`` temporaries and the row gather of the NumPy form.
+    """
+    rows = np.ascontiguousarray(rows, np.int64)
+    psi = np.ascontiguousarray(np.broadcast_to(np.asarray(psi, float), rows.shape))
+    if len(rows) == 0:
+        return np.zeros(0)
+    return _widths_across_kernel(rows, psi, np.ascontiguousarray(patch.phi, float),
+                                 np.ascontiguousarray(patch.rho_in, float),
+                                 np.ascontiguousarray(patch.rho_out, float))
+
+
+@njit(cache=True, nogil=True)
+def _widths_across_kernel(rows, psi, phi, rho_in, rho_out):   # pragma: no cover - compiled
+    out = np.empty(len(rows))
+    for i in range(len(rows)):
+        r = rows[i]
+        hi = -np.inf
+        lo = np.inf
+        for j in range(len(phi)):
+            if rho_out[r, j] > rho_in[r, j]:
+                proj = np.cos(phi[j] - psi[i])
+                if proj >= 0:
+                    a = rho_out[r, j] * proj
+                    b = rho_in[r, j] * proj
+                else:
+                    a = rho_in[r, j] * proj
+                    b = rho_out[r, j] * proj
+                if a > hi:
+                    hi = a
+                if b < lo:
+                    lo = b
+        out[i] = hi - lo if (np.isfinite(hi) and np.isfinite(lo)) else 0.0
+    return out
+
+
 def patch_rows(patch: LocalPatch, inverse: np.ndarray, fn, chunk: int = 20000) -> np.ndarray:
     """Apply ``fn(sub_patch, rows)`` to the patch rows of ``inverse`` in chunks; returns ``(len(inverse),)``."""
     out = np.empty(len(inverse))
@@ -182,6 +238,45 @@ def patch_rows(patch: LocalPatch, inverse: np.ndarray, fn, chunk: int = 20000) -
         sub = LocalPatch(patch.sink[idx], patch.phi, patch.rho_in[idx], patch.rho_out[idx])
         out[lo:lo + chunk] = fn(sub, np.arange(lo, lo + len(idx)))
     return out
+
+
+# ----------------------------------------------------------------------------------------------
+# per-surface memo
+# ----------------------------------------------------------------------------------------------
+#: Derived data of a surface that several planning steps (candidate directions, fill rounds, the
+#: coverage bound) ask for again: keyed by the surface object (a Surface is immutable), dropped with
+#: it.  At most :data:`MEMO_ENTRIES` entries per surface (oldest dropped first).
+_MEMO: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+MEMO_ENTRIES = 16
+
+
+def surface_memo(surface, key, make):
+    """``make()`` computed once per ``(surface, key)`` and reused while ``surface`` lives.
+
+    Parameters
+    ----------
+    surface : Surface
+        The (immutable) surface the value derives from.
+    key : hashable
+        What is derived and with which parameters, e.g. ``("subdivided", 0.005)``.
+    make : callable
+        ``make() -> value``, a pure function of ``surface`` and ``key``.
+    """
+    store = _MEMO.setdefault(surface, {})
+    if key not in store:
+        if len(store) >= MEMO_ENTRIES:
+            store.pop(next(iter(store)))
+        store[key] = make()
+    return store[key]
+
+
+def subdivided(surface, max_edge: float):
+    """``surface.subdivided(max_edge)`` (edges at most ``max_edge`` m), computed once per surface and
+    edge length."""
+    if surface.edge_lengths.max() <= max_edge:
+        # the surface itself: not memoised, a memo value holding its own key would never be freed
+        return surface
+    return surface_memo(surface, ("subdivided", float(max_edge)), lambda: surface.subdivided(max_edge))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -229,9 +324,17 @@ def pad_scale_samples(surface, tool, *, spacing: float | None = None, max_sample
     ``R``), so its cost does not grow with the scan density.  Grid cells are split by the sign of
     the dominant normal component, so the two sides of a thin part (a blade's leading edge) are
     sampled separately.
+
+    The samples are computed once per surface, tool and options and shared by later calls (their
+    arrays are read-only).
     """
+    key = ("pad_scale_samples", tool, None if spacing is None else float(spacing), int(max_samples))
+    return surface_memo(surface, key, lambda: _pad_scale_samples(surface, tool, spacing, max_samples))
+
+
+def _pad_scale_samples(surface, tool, spacing, max_samples) -> PadSamples:
     R = tool.pad_radius
-    dense = surface.subdivided(R / 4.0)
+    dense = subdivided(surface, R / 4.0)
     v, nrm, va = dense.vertices, dense.normals, dense.vertex_areas
     if spacing is None:
         spacing = max(R / 2.0, float(np.sqrt(dense.area / max(int(max_samples), 1))))
@@ -242,7 +345,10 @@ def pad_scale_samples(surface, tool, *, spacing: float | None = None, max_sample
     areas = np.bincount(inverse, weights=va, minlength=len(rep))
     curv = principal_curvatures(v[rep], nrm[rep], neighbours=128, radius=R, cloud=v[cloud],
                                 cloud_normals=nrm[cloud])
-    return PadSamples(v[rep], nrm[rep], areas, curv, float(spacing))
+    points, normals = v[rep], nrm[rep]
+    for a in (points, normals, areas, curv.k1, curv.k2, curv.d1, curv.d2):
+        a.setflags(write=False)
+    return PadSamples(points, normals, areas, curv, float(spacing))
 
 
 def _grid_representatives(points, normals, cell):
@@ -252,7 +358,16 @@ def _grid_representatives(points, normals, cell):
     axis = np.argmax(np.abs(normals), axis=1)
     side = np.sign(normals[np.arange(len(normals)), axis]).astype(np.int64)
     key = np.column_stack([ijk, 2 * axis + (side > 0)])
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    # One int64 per row in mixed radix: sorts exactly as the rows do lexicographically, so the bins,
+    # their order and their first points are those of np.unique(key, axis=0), at a fraction of the cost.
+    radix = key.max(axis=0) + 1
+    if float(np.prod(radix.astype(float))) < 2.0 ** 62:
+        code = key[:, 0]
+        for col in range(1, key.shape[1]):
+            code = code * radix[col] + key[:, col]
+        _, first, inverse = np.unique(code, return_index=True, return_inverse=True)
+    else:
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     return first, inverse.ravel()
 
 

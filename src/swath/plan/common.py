@@ -104,13 +104,15 @@ def _orient(pl, travel):
     return pl.rolled(int(np.argmin(proj[:-1])))
 
 
-def slice_passes(surface, faces, cross, offset: float, feed, point_spacing: float) -> list:
+def slice_passes(surface, faces, cross, offset: float, feed, point_spacing: float, *, edges=None) -> list:
     """The fragments of the plane ``x·cross = offset`` through ``surface``'s faces ``faces``, each
-    running along ``feed``, resampled at ``point_spacing``: ``[(points (k, 3), normals (k, 3))]``."""
+    running along ``feed``, resampled at ``point_spacing``: ``[(points (k, 3), normals (k, 3))]``.
+    ``edges``: ``mesh_edges(surface.faces[faces])`` when the caller has it."""
     from .slicing import slice_mesh
 
     out = []
-    for p in plane_passes(slice_mesh(surface.vertices, surface.faces[faces], cross, [offset], values=surface.normals),
+    for p in plane_passes(slice_mesh(surface.vertices, surface.faces[faces], cross, [offset], values=surface.normals,
+                                     edges=edges),
                           feed, surface.face_normals[faces], point_spacing):
         out.append((p.points, p.normals))
     return out

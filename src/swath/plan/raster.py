@@ -15,9 +15,10 @@ import time
 
 import numpy as np
 
-from ..contact.widths import raster_spacing
+from ..contact.widths import raster_spacing, surface_memo
 from ..core import Pass, ToolPath
 from ..errors import InfeasibleError, InputError
+from ..surface.topology import mesh_edges
 from .common import check_min_pass_length, feed_and_cross, plane_passes, positive, select_direction, split_direction
 from .slicing import slice_mesh
 
@@ -177,7 +178,8 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
         offsets, m = plane_offsets(piece_v @ cross, spacing)
         margin = max(margin, m)
         n_planes += len(offsets)
-        slices = slice_mesh(surface.vertices, surface.faces[faces], cross, offsets, values=surface.normals)
+        slices = slice_mesh(surface.vertices, surface.faces[faces], cross, offsets, values=surface.normals,
+                            edges=piece_edges(surface, pieces, k))
         n_slices += len(slices)
         lengths = np.array([pl.length for pl in slices])
         short = lengths < min_pass_length
@@ -257,6 +259,12 @@ def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANG
     return best[0], best[3], rule
 
 
+def piece_edges(surface, pieces, k: int):
+    """``mesh_edges`` of piece ``k`` of ``surface.face_pieces()`` (``pieces``), computed once per surface
+    and shared by the candidate directions and the fill passes."""
+    return surface_memo(surface, ("piece_edges", len(pieces), k), lambda: mesh_edges(surface.faces[pieces[k]]))
+
+
 def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, float]:
     """Offsets ``(p,)`` of planes ``spacing`` apart centred on the extent of ``heights`` (m).
 
@@ -300,8 +308,10 @@ def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacin
             nearest = surface.kdtree.query(check.points[idx[len(idx) // 2]])[1]
             k = int(max(piece_of_vertex[nearest], 0))
 
-            def slicer(offset, faces=pieces[k]):
-                return slice_passes(surface, faces, cross, offset, feed, point_spacing)
+            edges_k = piece_edges(surface, pieces, k)
+
+            def slicer(offset, faces=pieces[k], edges=edges_k):
+                return slice_passes(surface, faces, cross, offset, feed, point_spacing, edges=edges)
 
             for pts, nrm, off in fill_passes(check, [idx], slicer, feed, cross, tool.pad_radius):
                 level = int(np.argmin([abs(off - float(np.mean(p.points @ cross))) if p.region == k else np.inf

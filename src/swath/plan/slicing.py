@@ -105,7 +105,7 @@ class SurfaceSamples:
 
 
 def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, values: np.ndarray | None = None,
-               merge_tolerance: float = MERGE_TOLERANCE) -> list[SlicePolyline]:
+               merge_tolerance: float = MERGE_TOLERANCE, edges=None) -> list[SlicePolyline]:
     """Intersect a triangle mesh with the planes ``x · normal = offset`` and chain the result.
 
     Parameters
@@ -122,6 +122,8 @@ def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, valu
         Per-vertex values to interpolate to the slice points (e.g. smooth normals).
     merge_tolerance : float
         Segments this short or shorter (m) are merged into their neighbours after chaining.
+    edges : tuple, optional
+        ``mesh_edges(faces)``, when the caller slices one mesh many times (see :func:`level_sets`).
 
     Returns
     -------
@@ -159,7 +161,7 @@ def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, valu
     if len(F) == 0 or len(off) == 0:
         return []
 
-    return level_sets(V, F, V @ c, off, values=vals, merge_tolerance=merge_tolerance)
+    return level_sets(V, F, V @ c, off, values=vals, merge_tolerance=merge_tolerance, edges=edges)
 
 
 def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, levels, *,

@@ -29,9 +29,14 @@ the shortest predicted cycle time (see ``direction``).
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
+import multiprocessing
+import os
+import pickle
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
 
@@ -60,7 +65,7 @@ AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="boundary",
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
             feed: float = 0.05, max_angular: float = 1.0, cost=None,
-            work_spacing: float | None = None, progress=None) -> ToolPath:
+            work_spacing: float | None = None, progress=None, workers: int | None = None) -> ToolPath:
     """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
 
     Parameters
@@ -100,6 +105,12 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         :data:`MAX_WORK_VERTICES` vertices).
     progress : callable, optional
         ``progress(stage: str, done: int, total: int)``, called as candidate directions finish.
+    workers : int, optional
+        Processes that plan the candidate directions of automatic direction at once (default
+        ``min(candidates, CPU count)``; 1 = one after another in this process).  Each worker builds
+        its own working mesh and ranks its candidates with ``cost``, which must then pickle (a
+        module-level function or a record with ``__call__``; otherwise the candidates are planned
+        here, one after another).  The plan is the same whatever the number of workers.
 
     Returns
     -------
@@ -114,7 +125,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         # Each piece is covered on its own: a distance field from one piece's seed never reaches another.
         options = dict(overlap=overlap, direction=direction, seed=seed, point_spacing=point_spacing,
                        min_pass_length=min_pass_length, max_passes=max_passes, feed=feed, max_angular=max_angular,
-                       cost=cost, work_spacing=work_spacing, progress=progress)
+                       cost=cost, work_spacing=work_spacing, progress=progress, workers=workers)
         return _per_piece(surface, tool, pieces, options)
     if not (isinstance(overlap, (int, float)) and 0.0 <= overlap < 0.9):
         raise InputError(f"overlap must be a fraction in [0, 0.9), e.g. 0.1 for 10 %, got {overlap!r}")
@@ -124,14 +135,19 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
     min_pass_length = 0.25 * R if min_pass_length is None else float(min_pass_length)
     if not (feed > 0 and max_angular > 0):
         raise InputError(f"feed and max_angular must be positive (m/s, rad/s), got {feed!r}, {max_angular!r}")
-    ctx = _Context(surface, tool, work_spacing, max_turn_curvature=max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
+    if workers is not None and not (isinstance(workers, int) and workers >= 1):
+        raise InputError(f"workers must be a whole number >= 1 (1 = no worker processes), got {workers!r}")
+    context_args = (surface, tool, work_spacing, max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
 
     if direction is None or (isinstance(direction, str) and direction == "auto"):
-        return _auto(ctx, overlap=overlap, seed=seed, point_spacing=point_spacing,
+        # The working mesh is built here only when the candidates are planned here.
+        return _auto(functools.cache(lambda: _Context(*context_args[:3], max_turn_curvature=context_args[3])),
+                     overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
-                     cost=cost or length_cost, progress=progress)
+                     cost=cost or length_cost, progress=progress, workers=workers, context_args=context_args)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
+    ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3])
     if isinstance(direction, (int, float)) and math.isfinite(direction):
         return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
@@ -145,6 +161,13 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
 def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length, max_passes, rule,
           extra_meta=None) -> ToolPath:
     """One uniform plan with the feed at ``angle`` (rad from the first principal axis, or a 3-vector)."""
+    layout = _layout(ctx, angle, overlap=overlap, seed=seed, min_pass_length=min_pass_length, max_passes=max_passes)
+    return _toolpath(ctx.surface, layout, point_spacing=point_spacing, rule=rule, extra_meta=extra_meta)
+
+
+def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes) -> dict:
+    """The passes of :func:`_plan` as working-mesh polylines, before they are resampled on the
+    surface (the point spacing plays no part in where they lie): a small picklable record."""
     t0 = time.perf_counter()
     W, tool = ctx.work, ctx.tool
     R = tool.pad_radius
@@ -230,27 +253,42 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     covered, touch_ups = _touch_up(ctx, passes_pts, covered, step, min_pass_length)
     merged = _insert_near(passes_pts, touch_ups)
     touch_up_index = [i for i, q in enumerate(merged) if any(q is t for t in touch_ups)]
-    passes = [_on_surface_pass(ctx.surface, p, point_spacing, level=generation_of.get(id(p), -1),
-                               kind="touch_up" if i in touch_up_index else "pass") for i, p in enumerate(merged)]
     # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
     # capped as in _Context.touched); the simulator's figure is the one to trust.
     covered_pred = float(W.vertex_areas[covered].sum() / W.area)
     if covered_pred < 0.995:
         notes.append(f"uniform: {100 * (1 - covered_pred):.1f} % of {ctx.surface.name or 'the part'} is predicted to "
                      "stay untouched (regions no pass reaches); lower the overlap's step or segment the part")
-    meta = dict(overlap_fraction=float(overlap), direction_rad=float(angle), direction_rule=rule,
-                predicted_coverage_fraction=covered_pred,
-                feed_direction=feed_dir.tolist(), seed=seed if isinstance(seed, str) else "polyline",
-                n_passes=len(passes), n_generations=len(generations), n_touch_up_passes=len(touch_ups),
-                touch_up_passes=touch_up_index, order_hint="zigzag", warnings=notes,
-                work_spacing_m=ctx.work_spacing,
-                point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length),
-                plan_time_s=time.perf_counter() - t0)
+    return dict(angle=float(angle), feed_dir=feed_dir, polylines=merged,
+                levels=[generation_of.get(id(p), -1) for p in merged], touch_up_index=touch_up_index,
+                covered_pred=covered_pred, notes=notes, n_generations=len(generations), n_touch_ups=len(touch_ups),
+                overlap=float(overlap), seed=seed if isinstance(seed, str) else "polyline",
+                min_pass_length=float(min_pass_length), work_spacing=ctx.work_spacing,
+                seconds=time.perf_counter() - t0)
+
+
+def _toolpath(surface, layout: dict, *, point_spacing, rule, extra_meta=None) -> ToolPath:
+    """The :func:`_layout` passes resampled ``point_spacing`` (m) apart on the surface, as a ToolPath."""
+    t0 = time.perf_counter()
+    touch_up_index = layout["touch_up_index"]
+    passes = [_on_surface_pass(surface, p, point_spacing, level=level,
+                               kind="touch_up" if i in touch_up_index else "pass")
+              for i, (p, level) in enumerate(zip(layout["polylines"], layout["levels"]))]
+    angle = layout["angle"]
+    meta = dict(overlap_fraction=layout["overlap"], direction_rad=angle, direction_rule=rule,
+                predicted_coverage_fraction=layout["covered_pred"],
+                feed_direction=layout["feed_dir"].tolist(), seed=layout["seed"],
+                n_passes=len(passes), n_generations=layout["n_generations"], n_touch_up_passes=layout["n_touch_ups"],
+                touch_up_passes=list(touch_up_index), order_hint="zigzag", warnings=list(layout["notes"]),
+                work_spacing_m=layout["work_spacing"],
+                point_spacing_m=float(point_spacing), min_pass_length_m=layout["min_pass_length"],
+                plan_time_s=layout["seconds"] + time.perf_counter() - t0)
     if extra_meta:
         meta.update(extra_meta)
-    log.info("uniform %s: direction %.0f deg, %d passes in %d generations, %.2f m, %.1f s", ctx.surface.name,
-             math.degrees(angle), len(passes), len(generations), sum(p.length for p in passes), meta["plan_time_s"])
-    return ToolPath(ctx.surface, passes, "uniform", meta)
+    log.info("uniform %s: direction %.0f deg, %d passes in %d generations, %.2f m, %.1f s", surface.name,
+             math.degrees(angle), len(passes), layout["n_generations"], sum(p.length for p in passes),
+             meta["plan_time_s"])
+    return ToolPath(surface, passes, "uniform", meta)
 
 
 def length_cost(toolpath) -> tuple[float, str]:
@@ -268,22 +306,35 @@ def length_cost(toolpath) -> tuple[float, str]:
     return float(total), "contact + straight air length (m)"
 
 
-def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None):
-    results = []
+def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None, workers=None,
+          context_args=None):
     say = progress or (lambda stage, done, total: None)
-    what = ""
-    for k, a in enumerate(AUTO_DIRECTIONS):
-        say("planning (uniform): trying pass directions", k, len(AUTO_DIRECTIONS) + 1)
-        try:
-            tp = _plan(ctx, float(a), overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
-                       min_pass_length=min_pass_length, max_passes=max_passes, rule="candidate")
-        except InfeasibleError as exc:
-            log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), exc)
+    # Candidates are ranked at a 2 mm point spacing; the winner's passes (whose layout does not
+    # depend on the point spacing) are then resampled at the one asked for.
+    options = dict(overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
+                   min_pass_length=min_pass_length, max_passes=max_passes)
+    angles = [float(a) for a in AUTO_DIRECTIONS]
+    n_workers = min(len(angles), os.cpu_count() or 1) if workers is None else min(int(workers), len(angles))
+    if n_workers > 1 and context_args is not None and not _pickles(cost):
+        log.info("uniform: the cost function does not pickle, so the candidate directions are planned here, one "
+                 "after another (give a module-level function or a record with __call__)")
+        n_workers = 1
+    say("planning (uniform): trying pass directions", 0, len(angles) + 1)
+    if n_workers > 1 and context_args is not None:
+        rows = _candidates_in_workers(context_args, angles, options, cost, n_workers, say)
+    else:
+        rows = []
+        for k, a in enumerate(angles):
+            rows.append(_candidate(make_context(), a, options, cost))
+            say("planning (uniform): trying pass directions", k + 1, len(angles) + 1)
+    results, layouts, what = [], {}, ""
+    for a, row in zip(angles, rows):
+        if isinstance(row, str):
+            log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), row)
             continue
-        value, what = cost(tp)
-        results.append((float(a), tp.contact_length, float(value), tp.metadata["predicted_coverage_fraction"]))
-        log.info("uniform candidate %.0f deg: %.2f m in contact, cost %.4g (%s)", math.degrees(a),
-                 tp.contact_length, value, what)
+        length, value, what, covered, layouts[a] = row
+        results.append((a, length, value, covered))
+        log.info("uniform candidate %.0f deg: %.2f m in contact, cost %.4g (%s)", math.degrees(a), length, value, what)
     if not results:
         raise InfeasibleError("uniform found no feasible direction; check min_pass_length and the part size")
     # A direction must cover (a pad riding on the crests of waves narrower than itself leaves the
@@ -292,14 +343,78 @@ def _auto(ctx, *, overlap, seed, point_spacing, min_pass_length, max_passes, cos
     top = max(r[3] for r in results)
     good = [r for r in results if r[3] >= min(0.995, top - 0.002)]
     best = min(good, key=lambda r: r[2])
-    say("planning (uniform): trying pass directions", len(AUTO_DIRECTIONS), len(AUTO_DIRECTIONS) + 1)
     candidates = [dict(direction_deg=math.degrees(a), length_m=L, cost=c, predicted_coverage_fraction=cv)
                   for a, L, c, cv in results]
     rule = (f"auto: lowest {what} among the directions whose predicted coverage is at least "
             f"{100 * min(0.995, top - 0.002):.1f} %")
-    return _plan(ctx, best[0], overlap=overlap, seed=seed, point_spacing=point_spacing,
-                 min_pass_length=min_pass_length, max_passes=max_passes, rule=rule,
-                 extra_meta={"candidates": candidates})
+    return _toolpath(context_args[0], layouts[best[0]], point_spacing=point_spacing, rule=rule,
+                     extra_meta={"candidates": candidates})
+
+
+def _candidate(ctx, angle: float, options: dict, cost):
+    """Plan one candidate direction and rank it: ``(contact length m, cost, cost description,
+    predicted coverage fraction, layout)``, or the reason (str) when the direction is infeasible."""
+    options = dict(options)
+    point_spacing = options.pop("point_spacing")
+    try:
+        layout = _layout(ctx, angle, **options)
+    except InfeasibleError as exc:
+        return str(exc)
+    tp = _toolpath(ctx.surface, layout, point_spacing=point_spacing, rule="candidate")
+    value, what = cost(tp)
+    return tp.contact_length, float(value), what, tp.metadata["predicted_coverage_fraction"], layout
+
+
+def _pickles(obj) -> bool:
+    try:
+        pickle.dumps(obj)
+    except Exception:       # noqa: BLE001 - any failure means "plan here"
+        return False
+    return True
+
+
+def _candidates_in_workers(context_args, angles, options, cost, n_workers, say) -> list:
+    """:func:`_candidate` of every angle in ``n_workers`` spawned processes, in the order of ``angles``.
+
+    Each worker builds the working mesh once (the same deterministic set-up as here) and runs with
+    one BLAS / OpenMP / numba thread, so the workers do not oversubscribe the cores.
+    """
+    # The part's own derived arrays the working mesh reads (curvature, smooth normals, KD-tree) are
+    # computed here, as in a serial run, and travel with the pickled surface.
+    surface = context_args[0]
+    _ = surface.curvature, surface.normals, surface.kdtree
+    ctx_spawn = multiprocessing.get_context("spawn")
+    done = 0
+    with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx_spawn, initializer=_worker_init,
+                             initargs=(context_args,)) as pool:
+        futures = [pool.submit(_worker_candidate, a, options, cost) for a in angles]
+        for _ in as_completed(futures):
+            done += 1
+            say("planning (uniform): trying pass directions", done, len(angles) + 1)
+        return [f.result() for f in futures]
+
+
+#: The working mesh of a worker process (built once by :func:`_worker_init`).
+_WORKER_CONTEXT: _Context | None = None
+
+
+def _worker_init(context_args) -> None:
+    global _WORKER_CONTEXT
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)
+    try:
+        import numba
+
+        numba.set_num_threads(1)
+    except ImportError:     # pragma: no cover - numba is a dependency
+        pass
+    surface, tool, work_spacing, max_turn_curvature = context_args
+    _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature)
+
+
+def _worker_candidate(angle: float, options: dict, cost):
+    return _candidate(_WORKER_CONTEXT, angle, options, cost)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..contact.widths import patch_rows, unique_patches
+from ..contact.widths import unique_patches, widths_across
 from ..surface.curvature import PrincipalCurvature
 from ..surface.geodesic import FaceGradient
 from ..surface.geometry import normalize
@@ -41,7 +41,7 @@ class WidthModel:
         cross = np.cross(n, normalize(t))
         psi = np.arctan2(np.einsum("ij,ij->i", cross, self.curvature.d2[idx]),
                          np.einsum("ij,ij->i", cross, self.curvature.d1[idx]))
-        return patch_rows(self.patch, self.inverse[idx], lambda p, rows: p.width_across(psi[rows]))
+        return widths_across(self.patch, self.inverse[idx], psi)
 
 
 class _Context:

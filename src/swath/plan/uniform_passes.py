@@ -194,7 +194,8 @@ def _touch_up(ctx, passes: list[np.ndarray], covered: np.ndarray, step: float, m
             n = W.normals[v]
             across = normalize((c.d2[v] - (c.d2[v] @ n) * n)[None])[0]
             reach = float(np.max(np.linalg.norm(W.vertices[blob] - W.vertices[v], axis=1))) + 1.1 * R
-            pieces = slice_mesh(W.vertices, W.faces, np.cross(n, across), [float(W.vertices[v] @ np.cross(n, across))])
+            pieces = slice_mesh(W.vertices, W.faces, np.cross(n, across), [float(W.vertices[v] @ np.cross(n, across))],
+                                edges=ctx.edges)
             best = None
             for pl in pieces:
                 pts = resample(pl, step).points

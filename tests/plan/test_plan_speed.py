@@ -1,0 +1,156 @@
+"""Planning speed-ups keep the plans: pinned plans from before the caches and the parallel
+candidates, and the fast paths against the plain computations they replace."""
+
+import numpy as np
+import pytest
+
+from conftest import SHARED_MESH_UNITS, shared_mesh
+from swath.contact import Tool
+from swath.contact.widths import _grid_representatives, pad_scale_samples, subdivided
+from swath.examples import doubly_curved_panel
+from swath.plan.gaps import CoverageCheck
+from swath.plan.raster import raster
+
+TOOL = Tool()
+
+
+def test_raster_plan_of_the_curved_panel_is_the_one_planned_before_the_speed_ups():
+    # Figures of the same call at commit 23bb1ea (before the per-surface memo and the incremental
+    # coverage test): the whole plan to round-off.
+    tp = raster(doubly_curved_panel(), TOOL)
+    assert len(tp.passes) == 6
+    assert sum(len(p.points) for p in tp.passes) == 3348
+    assert tp.contact_length == pytest.approx(3.3414986780962677, rel=1e-12)
+    assert tp.metadata["spacing_m"] == pytest.approx(0.0743374921292671, rel=1e-12)
+
+
+def test_raster_plan_with_fill_passes_on_the_wavy_mesh_is_the_one_planned_before():
+    from swath.io.mesh import load_mesh
+
+    name = "noether_wavy_mesh_with_hole.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    tp = raster(surface, TOOL)
+    # commit 23bb1ea: 10 passes of which 2 fill passes, diagonal direction
+    assert len(tp.passes) == 10
+    assert tp.metadata["n_fill_passes"] == 2
+    assert tp.metadata["angle_rad"] == pytest.approx(np.pi / 4, rel=1e-12)
+    assert tp.contact_length == pytest.approx(1.3161942761745353, rel=1e-12)
+    assert tp.metadata["predicted_gap_fraction"] == pytest.approx(2.5696182032612117e-05, rel=1e-9)
+    assert tp.metadata["spacing_m"] == pytest.approx(0.05420538290937038, rel=1e-12)
+
+
+def test_grid_bins_are_those_of_unique_rows(rng):
+    points = rng.normal(size=(5000, 3)) * 0.1
+    normals = rng.normal(size=(5000, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    first, inverse = _grid_representatives(points, normals, 0.02)
+    # the plain computation: unique rows of (cell, normal side)
+    ijk = np.floor((points - points.min(axis=0)) / 0.02).astype(np.int64)
+    axis = np.argmax(np.abs(normals), axis=1)
+    side = np.sign(normals[np.arange(len(normals)), axis]).astype(np.int64)
+    key = np.column_stack([ijk, 2 * axis + (side > 0)])
+    _, first_ref, inverse_ref = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    np.testing.assert_array_equal(first, first_ref)
+    np.testing.assert_array_equal(inverse, inverse_ref.ravel())
+
+
+def test_pad_samples_and_subdivisions_are_computed_once_per_surface():
+    surface = doubly_curved_panel(spacing=8e-3)
+    a = pad_scale_samples(surface, TOOL)
+    assert pad_scale_samples(surface, TOOL) is a
+    assert not a.areas.flags.writeable and not a.curvature.k1.flags.writeable
+    # another tool or another surface is not served from the memo
+    assert pad_scale_samples(surface, Tool(pad_radius=0.025)) is not a
+    assert pad_scale_samples(doubly_curved_panel(spacing=8e-3), TOOL) is not a
+    fine = subdivided(surface, 4e-3)
+    assert subdivided(surface, 4e-3) is fine
+    assert fine.edge_lengths.max() <= 4e-3 + 1e-12
+
+
+def test_incremental_coverage_equals_testing_all_passes():
+    surface = doubly_curved_panel(spacing=8e-3)
+    tp = raster(surface, TOOL, spacing=0.09, direction=0.0, fill_gaps=False)
+    feed = np.asarray(tp.metadata["feed_direction"])
+    passes = list(tp.passes)
+    incremental = CoverageCheck(surface, TOOL, feed)
+    first = incremental.covered(passes[:3])
+    grown = incremental.covered(passes[:3] + passes[3:])          # extends the previous set
+    shuffled = incremental.covered(passes[::-1])                  # the same set re-ordered
+    fresh = CoverageCheck(surface, TOOL, feed)
+    np.testing.assert_array_equal(first, fresh.covered(passes[:3]))
+    np.testing.assert_array_equal(grown, CoverageCheck(surface, TOOL, feed).covered(passes))
+    np.testing.assert_array_equal(shuffled, grown)
+    assert 0 < first.sum() < grown.sum() < len(grown)            # the test sees partial coverage
+    # a set that does not extend the remembered one is tested from scratch
+    np.testing.assert_array_equal(incremental.covered(passes[3:]), fresh.covered(passes[3:]))
+
+
+def test_uniform_candidates_in_worker_processes_give_the_serial_plan():
+    import pickle
+
+    from swath.cli.job import cycle_time_cost
+    from swath.plan.uniform import uniform
+    from swath.trajectory import AngularSpeedLimit, FeedLimit, LinkSettings
+
+    surface = doubly_curved_panel(size_x=0.25, size_y=0.2, spacing=8e-3)
+    cost = cycle_time_cost([FeedLimit(0.05), AngularSpeedLimit(1.0)], LinkSettings())
+    assert pickle.loads(pickle.dumps(cost)) == cost              # the job's cost goes to the workers
+    options = dict(work_spacing=TOOL.pad_radius / 5, cost=cost)
+    serial = uniform(surface, TOOL, workers=1, **options)
+    # the plan of the same call at commit 23bb1ea (before the speed-ups), to round-off
+    assert len(serial.passes) == 3 and sum(len(p.points) for p in serial.passes) == 772
+    assert serial.contact_length == pytest.approx(0.7676265048049925, rel=1e-12)
+    assert serial.metadata["direction_rad"] == pytest.approx(2.6179938779914944, rel=1e-12)
+    assert [c["cost"] for c in serial.metadata["candidates"]] == pytest.approx(
+        [22.926508642133513, 22.926462227598655, 35.4045852611285, 35.627670295896685, 36.89510057643419,
+         22.92613282280339], rel=1e-12)
+    parallel = uniform(surface, TOOL, workers=2, **options)
+    assert len(serial.metadata["candidates"]) == 6
+    assert parallel.metadata["candidates"] == serial.metadata["candidates"]
+    assert parallel.metadata["direction_rad"] == serial.metadata["direction_rad"]
+    assert len(parallel.passes) == len(serial.passes)
+    for a, b in zip(parallel.passes, serial.passes):
+        np.testing.assert_array_equal(a.points, b.points)
+    # a cost that does not pickle (a lambda) is ranked here, one candidate after another
+    local = uniform(surface, TOOL, workers=2, work_spacing=TOOL.pad_radius / 5, cost=lambda tp: cost(tp))
+    assert local.metadata["candidates"] == serial.metadata["candidates"]
+
+
+def test_uniform_refuses_a_bad_worker_count():
+    from swath.errors import InputError
+    from swath.plan.uniform import uniform
+
+    with pytest.raises(InputError, match="workers"):
+        uniform(doubly_curved_panel(spacing=8e-3), TOOL, workers=0)
+
+
+def test_compiled_widths_are_those_of_the_patch_model(rng):
+    from swath.contact import local_patch
+    from swath.contact.widths import widths_across
+
+    k1 = rng.uniform(-40.0, 40.0, 300)
+    k2 = rng.uniform(-40.0, 40.0, 300)
+    patch = local_patch(np.maximum(k1, k2), np.minimum(k1, k2), TOOL)
+    rows = rng.integers(0, 300, 2000)
+    psi = rng.uniform(-np.pi, np.pi, 2000)
+    from swath.contact.model import LocalPatch
+
+    sub = LocalPatch(patch.sink[rows], patch.phi, patch.rho_in[rows], patch.rho_out[rows])
+    np.testing.assert_array_equal(widths_across(patch, rows, psi), sub.width_across(psi))
+    # a flat pad is the pad diameter across every direction (to the ray resolution)
+    flat = local_patch(np.zeros(1), np.zeros(1), TOOL)
+    np.testing.assert_allclose(widths_across(flat, np.zeros(5, int), np.linspace(0, 3, 5)), 2 * TOOL.pad_radius,
+                               rtol=2e-3)
+
+
+def test_the_memo_lets_a_surface_go():
+    import gc
+    import weakref
+
+    surface = doubly_curved_panel(spacing=8e-3)
+    pad_scale_samples(surface, TOOL)
+    subdivided(surface, 1.0)                                      # no split needed: the surface itself
+    ref = weakref.ref(surface)
+    del surface
+    gc.collect()
+    assert ref() is None
