@@ -24,11 +24,11 @@ the kernels are safe to call from several threads or forked workers at once.
 from __future__ import annotations
 
 import logging
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from ..core.cpus import usable_cpus
 from ..errors import InputError
 from ..surface.cells import AVAILABLE, SampleGrid, jit, sample_grid  # noqa: F401  (re-exported)
 from .tool import Tool
@@ -41,8 +41,8 @@ BALL = float(np.hypot(1.0, 0.5))
 
 
 def default_threads() -> int:
-    """Threads the removal kernel splits poses over: the machine's cores, at most 8."""
-    return max(1, min(8, os.cpu_count() or 1))
+    """Threads the removal kernel splits poses over: the usable CPUs (:func:`swath.core.cpus.usable_cpus`), at most 8."""
+    return max(1, min(8, usable_cpus()))
 
 
 # ----------------------------------------------------------------------------------------------

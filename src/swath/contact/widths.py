@@ -48,9 +48,9 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ..errors import InputError
+from ..surface.cells import jit
 from ..surface.curvature import PrincipalCurvature, principal_curvatures
 from .model import LocalPatch, local_patch
 
@@ -206,7 +206,7 @@ def widths_across(patch: LocalPatch, rows: np.ndarray, psi: np.ndarray) -> np.nd
                                  np.ascontiguousarray(patch.rho_out, float))
 
 
-@njit(cache=True, nogil=True)
+@jit()
 def _widths_across_kernel(rows, psi, phi, rho_in, rho_out):   # pragma: no cover - compiled
     out = np.empty(len(rows))
     for i in range(len(rows)):

@@ -33,7 +33,6 @@ import functools
 import logging
 import math
 import multiprocessing
-import os
 import pickle
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -41,6 +40,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 import numpy as np
 
 from ..core import ToolPath
+from ..core.cpus import usable_cpus
 from ..errors import InfeasibleError, InputError
 from ..surface.geometry import normalize
 from .common import feed_and_cross
@@ -314,7 +314,7 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
     options = dict(overlap=overlap, seed=seed, point_spacing=max(point_spacing, 2e-3),
                    min_pass_length=min_pass_length, max_passes=max_passes)
     angles = [float(a) for a in AUTO_DIRECTIONS]
-    n_workers = min(len(angles), os.cpu_count() or 1) if workers is None else min(int(workers), len(angles))
+    n_workers = min(len(angles), usable_cpus()) if workers is None else min(int(workers), len(angles))
     if n_workers > 1 and context_args is not None and not _pickles(cost):
         log.info("uniform: the cost function does not pickle, so the candidate directions are planned here, one "
                  "after another (give a module-level function or a record with __call__)")

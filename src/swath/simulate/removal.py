@@ -14,7 +14,6 @@ samples), or, with ``engine="numpy"`` or without numba, on the vectorised pose-s
 from __future__ import annotations
 
 import logging
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -24,6 +23,7 @@ from scipy.spatial import cKDTree
 from ..contact import Tool, mesh_contact
 from ..contact.tool import sample_spacing_for
 from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
+from ..core.cpus import usable_cpus
 from ..errors import InputError
 
 log = logging.getLogger(__name__)
@@ -194,7 +194,7 @@ def _depth_numpy(points, normals, areas, positions, axes, dwell, tool: Tool, *, 
 
     # numpy and the KD-tree release the GIL in their inner loops, so batches overlap on two threads.
     starts = list(range(0, len(positions), chunk))
-    with ThreadPoolExecutor(max_workers=max(1, min(2, os.cpu_count() or 1))) as pool:
+    with ThreadPoolExecutor(max_workers=max(1, min(2, usable_cpus()))) as pool:
         for k, part in enumerate(pool.map(batch, starts), start=1):
             depth += part
             if progress is not None:
