@@ -131,3 +131,13 @@ def test_every_planner_runs_through_the_cli(tmp_path, planner, extra):
     assert m["metrics"]["coverage_fraction"] > 0.995
     # plate 0.4 x 0.3 m: 4 or 5 passes 0.4 m long, whichever planner
     assert 1.5 < m["metrics"]["contact_length_m"] < 2.1
+
+
+@pytest.mark.parametrize("command", ["plan", "fit", "register", "demo", "run", "calibrate", "doe", "batch"])
+def test_every_command_prints_its_help(command, capsys):
+    # argparse %-formats help text: a stray % in a help string or a default ("90%") used to crash --help.
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: swath " + command) and "--help" in out

@@ -84,7 +84,7 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     e.add_argument("--target-map", help="with --optimise-feed: per-point depths (CSV x,y,z,depth in m, or PLY with a "
                                         "vertex 'depth')")
     e.add_argument("--depth-tolerance", help="with --optimise-feed: allowed removal above the target, e.g. 2um "
-                                             "(default 10 % of the target depth)")
+                                             "(default 10 %% of the target depth)")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
     r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120")
     r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")
@@ -117,7 +117,8 @@ class _DefaultsFormatter(argparse.HelpFormatter):
         default = action.default
         if default in (None, False, argparse.SUPPRESS) or "default" in text or not action.option_strings:
             return text
-        return f"{text} (default: {default})"
+        # argparse %-formats help strings: a literal % in the default (say "90%") must be doubled.
+        return f"{text} (default: {str(default).replace('%', '%%')})"
 
 
 def build_parser() -> argparse.ArgumentParser:
