@@ -25,7 +25,8 @@ from .routing import AirGuard, route_links
 
 def _tour(method: str, *, snake_regions: bool = True):
     def run(toolpath: ToolPath, **options) -> ToolPath:
-        grouped = snake_regions and "groups" not in options and len(set(toolpath.regions.tolist())) > 1
+        grouped = snake_regions and "groups" not in options and len(set(toolpath.regions.tolist())) > 1 \
+            and toolpath.metadata.get("order_method") != "snake"          # snake twice undoes it
         base = sequence.snake(toolpath) if grouped else toolpath
         return tour.order_toolpath(base, method=method, **options)
 
