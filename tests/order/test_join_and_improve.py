@@ -163,3 +163,16 @@ def test_hub_air_with_contact_step_overs(hub_plan):
            for m in ("index", "greedy", "gtsp")}
     assert air["gtsp"] <= 0.36 * air["index"]
     assert air["gtsp"] <= 0.70 * air["greedy"]
+
+
+def test_keep_direction_chooses_only_the_order():
+    # three passes all running +x, stacked in y and given in the order 0, 2, 1: keep_direction may
+    # reorder them (0, 1, 2) but not flip any; without it a snake is shorter still
+    ends = [((0, 0, 0), (1, 0, 0)), ((0, 0.2, 0), (1, 0.2, 0)), ((0, 0.1, 0), (1, 0.1, 0))]
+    tp = ToolPath(None, _passes(ends), "test")
+    kept = order_toolpath(tp, method="exact", keep_direction=True, clearance=0.0)
+    assert all(p.points[-1][0] > p.points[0][0] for p in kept.passes)
+    assert [float(p.points[0][1]) for p in kept.passes] in ([0.0, 0.1, 0.2], [0.2, 0.1, 0.0])
+    assert kept.metadata["air_after_m"] == pytest.approx(2 * np.hypot(1.0, 0.1))
+    free = order_toolpath(tp, method="exact", clearance=0.0)
+    assert free.metadata["air_after_m"] == pytest.approx(0.2)

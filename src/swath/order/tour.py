@@ -15,9 +15,13 @@ exit to the next group's entry (plus, optionally, from a start point to the firs
 is a generalised travelling-salesman problem (GTSP): one city per group must be visited, chosen
 among its variants.  It is solved here by the Noon–Bean transform (the GTSP becomes an asymmetric
 TSP whose optimal tours visit every cluster's nodes consecutively) and the Lin–Kernighan–Helsgaun
-heuristic (LKH, through the ``elkai`` package).  Baselines: ``index`` (as given) and ``greedy``
-(from the current exit, the nearest entry among the groups left).  :func:`held_karp` solves small
-instances exactly (dynamic programming over subsets of groups x end variants) to check the heuristic.
+heuristic (LKH, through the ``elkai`` package); when every group is a single pass, as a symmetric
+TSP on the passes' ends with the pass edges fixed.  :func:`solve_portfolio` (the ``gtsp`` method)
+takes the exact optimum of :func:`held_karp` (dynamic programming over subsets of groups x end
+variants) up to :data:`EXACT_UP_TO` groups, else the better of two LKH calls polished by
+:func:`improve_tour` (2-opt and Or-opt on the group order, path types re-chosen by DP for each
+order).  Baselines: ``index`` (as given) and ``greedy`` (from the current exit, the nearest entry
+among the groups left).
 
 The air distance between a lift-off point ``p`` (normal ``n``) and a touch-down point ``q`` (normal
 ``m``) is estimated as ``c + |(p + c n) - (q + c m)| + c`` with the clearance ``c``: retract, a
@@ -158,7 +162,7 @@ def _ends(p, flip: bool):
 
 
 def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel | None = None,
-                   joiner=None) -> Variants:
+                   joiner=None, keep_direction: bool = False) -> Variants:
     """Enumerate the path types of each group (see the module notes).
 
     Parameters
@@ -173,11 +177,14 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
     joiner : StepOverJoiner, optional
         When given, a step-over inside a group that it can make in contact costs no air
         (``inner_length``) and :func:`contact_cost` (``inner``).
+    keep_direction : bool
+        Offer only each group's given path type (its passes in the given order and direction):
+        the order alone is chosen (Wang's "visit order planning", Table 4-1 column C).
     """
     model = LinkModel(clearance=clearance) if model is None else model
     rows = []
     for g, idx in enumerate(groups):
-        types = [(False, False), (False, True)] if len(idx) == 1 else \
+        types = [(False, False)] if keep_direction else [(False, False), (False, True)] if len(idx) == 1 else \
             [(False, False), (False, True), (True, False), (True, True)]
         for rev, flip in types:
             order = list(idx)[::-1] if rev else list(idx)
@@ -626,7 +633,8 @@ def default_groups(toolpath) -> list[list[int]]:
 def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, seed: int = 0,
                    clearance: float = 0.02, link_speed: float | None = None, link_acceleration: float = 1.0,
                    omega_max: float | None = None, runs: int = 1, max_trials: int | None = None,
-                   join_gap: float | None = None, join_tolerance: float | None = None):
+                   join_gap: float | None = None, join_tolerance: float | None = None,
+                   keep_direction: bool = False):
     """Reorder a tool path's pass groups and choose their path types to minimise air travel
     (or, given ``link_speed``, link time).
 
@@ -665,7 +673,10 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         paths).  Default None: every move between passes is an air move.
     join_tolerance : float, optional
         Largest distance of a contact step-over's chord from the surface, m (default
-        ``0.1 * join_gap``).
+        ``0.25 * join_gap``).
+    keep_direction : bool
+        Keep every group's path type as given (its passes' order and directions); only the order of
+        the groups is chosen.
 
     Returns
     -------
@@ -703,7 +714,7 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         from .joining import StepOverJoiner
 
         joiner = StepOverJoiner(toolpath.surface, max_gap=join_gap, tolerance=join_tolerance)
-    variants = group_variants(toolpath.passes, groups, model=model, joiner=joiner)
+    variants = group_variants(toolpath.passes, groups, model=model, joiner=joiner, keep_direction=keep_direction)
     D_len = link_matrix(variants, model=model)
     D = link_matrix(variants, model=model, cost=True)
     if joiner is not None:
