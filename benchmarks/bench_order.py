@@ -27,7 +27,9 @@ planned, D = visit order and path types planned: 853 -> 732 -> 305 mm):
    against the best of 100 LKH runs on larger instances; wall and CPU seconds (the machine is
    shared: CPU seconds are the solver's own cost).
 3. Raster and uniform on the shared meshes and the hub, before (the planner's order) and after
-   (``gtsp`` on single passes, without and with contact step-overs; raster also segmented):
+   (``gtsp`` on single passes, without and with contact step-overs, and ``gtsp(time)``: ordered by
+   estimated link time with the tool's turn at 1 rad/s, no contact step-overs; raster also
+   segmented):
    trajectory (time_path: feed 50 mm/s, 1 rad/s, 2 m/s²) air length, cycle time, farthest
    excursion beyond the part's bounding box, lifts, simulated coverage (parts < 1 m²).
 
@@ -182,9 +184,14 @@ def trajectory_row(part, label, tp, removal: bool):
     return row
 
 
-def _after(tp, join):
+#: Order by estimated link time instead: the trajectory stage's link speed and acceleration and the
+#: tool's turn at the angular limit (a boustrophedon's 180-degree turn at 1 rad/s takes 3.1 s).
+TIMED = dict(link_speed=0.25, link_acceleration=1.0, omega_max=1.0)
+
+
+def _after(tp, join, **options):
     singles = [[i] for i in range(len(tp.passes))]
-    return order_toolpath(tp, method="gtsp", groups=singles, join_gap=join)
+    return order_toolpath(tp, method="gtsp", groups=singles, join_gap=join, **options)
 
 
 def parts_table(hub, hub_seg, removal: bool, with_uniform: bool):
@@ -216,6 +223,7 @@ def parts_table(hub, hub_seg, removal: bool, with_uniform: bool):
             rows.append(trajectory_row(name, label, before, sim))
             rows.append(trajectory_row(name, f"{label} + gtsp", _after(before, None), sim))
             rows.append(trajectory_row(name, f"{label} + gtsp + contact step-overs", _after(before, JOIN_GAP), sim))
+            rows.append(trajectory_row(name, f"{label} + gtsp(time)", _after(before, None, **TIMED), sim))
     print_table(rows, [("part", ""), ("plan", ""), ("passes", "d"), ("contact_m", ".2f"), ("air_m", ".2f"),
                        ("cycle_s", ".1f"), ("beyond_box_m", ".3f"), ("coverage_pct", ".2f"), ("time_s", ".1f")])
     return rows

@@ -176,3 +176,14 @@ def test_keep_direction_chooses_only_the_order():
     assert kept.metadata["air_after_m"] == pytest.approx(2 * np.hypot(1.0, 0.1))
     free = order_toolpath(tp, method="exact", clearance=0.0)
     assert free.metadata["air_after_m"] == pytest.approx(0.2)
+
+
+def test_joined_passes_have_no_zero_length_steps():
+    plate = flat_plate(size_x=0.3, size_y=0.2)
+    # the second pass starts where the first ends; the third 20 mm on
+    ps = _passes([((0.05, 0.05, 0), (0.2, 0.05, 0)), ((0.2, 0.05, 0), (0.2, 0.1, 0)), ((0.2, 0.12, 0), (0.05, 0.12, 0))])
+    out = join_passes(ToolPath(plate, ps, "test"), StepOverJoiner(plate, max_gap=0.05))
+    assert len(out.passes) == 1
+    steps = np.linalg.norm(np.diff(out.passes[0].points, axis=0), axis=1)
+    assert steps.min() > 1e-5
+    assert out.passes[0].length == pytest.approx(0.15 + 0.05 + 0.02 + 0.15)

@@ -191,7 +191,7 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
             seq = [_ends(passes[i], flip) for i in order]
             inner_len = inner = 0.0
             for a, b in pairwise(seq):
-                if joiner is not None and joiner.feasible(a[3][None], b[0][None])[0]:
+                if joiner is not None and joiner.feasible(a[3][None], b[0][None], a[5][None, :, 0], b[2][None, :, 0])[0]:
                     inner += float(contact_cost(model, np.linalg.norm(b[0] - a[3]), a[5], b[2]))
                     continue
                 L = float(model.length(a[3], a[4], b[0], b[1]))
@@ -718,7 +718,8 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     D_len = link_matrix(variants, model=model)
     D = link_matrix(variants, model=model, cost=True)
     if joiner is not None:
-        a, b = joiner.pairs(variants.exit_point, variants.entry_point)
+        a, b = joiner.pairs(variants.exit_point, variants.entry_point, variants.exit_frame[:, :, 0],
+                            variants.entry_frame[:, :, 0])
         chord = np.linalg.norm(variants.entry_point[b] - variants.exit_point[a], axis=1)
         D_len[a, b] = 0.0
         D[a, b] = contact_cost(model, chord, variants.exit_frame[a], variants.entry_frame[b])
