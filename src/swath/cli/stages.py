@@ -85,7 +85,9 @@ def write_robot_outputs(result, surface, settings, out_dir) -> dict:
 
 def segmented_plan(surface, tool, planner, settings, arguments: dict):
     """Split the part into regions that sweep lines cross without breaks (Wang §1) and plan each;
-    a planner with a spacing gets the whole part's default spacing, so neighbouring regions meet."""
+    a planner with a spacing gets the whole part's default spacing, so neighbouring regions meet,
+    and what the regions' passes leave untouched on the whole part gets fill passes
+    (:func:`swath.plan.regions.plan_regions`, ``fill_whole_part``)."""
     from ..plan.regions import plan_regions
     from ..segment import segment
 
@@ -96,7 +98,7 @@ def segmented_plan(surface, tool, planner, settings, arguments: dict):
         if "spacing" not in options:
             options["spacing"] = planner(surface, tool, **arguments).metadata["spacing_m"]
         options["fill_gaps"] = False      # a region's edge is its neighbour's: judged on the whole part only
-    return plan_regions(surface, tool, planner, regions, **options)
+    return plan_regions(surface, tool, planner, regions, fill_whole_part=True, **options)
 
 
 def feed_stage(toolpath, tool, settings, trajectory):

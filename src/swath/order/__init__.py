@@ -12,6 +12,9 @@ Methods (:data:`ORDER_METHODS`, name -> function ``f(toolpath) -> ToolPath``):
     generalised TSP (Noon–Bean transform + LKH), or exactly (Held–Karp, small instances)
     (:mod:`.tour`); inside a region the passes keep their snake order.
 
+With ``join_gap`` (m) the tour methods make short step-overs in contact where the pad can slide
+along the part, and join the passes they connect (:mod:`.joining`; Wang's continuous local paths).
+
 :func:`route_links` then gives every move between passes its air route (:mod:`.routing`).
 """
 
@@ -20,12 +23,14 @@ from __future__ import annotations
 from ..core import ToolPath
 from ..errors import InputError
 from . import sequence, tour
+from .joining import StepOverJoiner, join_passes
 from .routing import AirGuard, route_links
 
 
 def _tour(method: str, *, snake_regions: bool = True):
     def run(toolpath: ToolPath, **options) -> ToolPath:
-        grouped = snake_regions and "groups" not in options and len(set(toolpath.regions.tolist())) > 1
+        grouped = snake_regions and "groups" not in options and len(set(toolpath.regions.tolist())) > 1 \
+            and toolpath.metadata.get("order_method") != "snake"          # snake twice undoes it
         base = sequence.snake(toolpath) if grouped else toolpath
         return tour.order_toolpath(base, method=method, **options)
 
@@ -47,8 +52,8 @@ ORDER_METHODS = {
 def order_toolpath(toolpath: ToolPath, *, method: str | None = None, **options) -> ToolPath:
     """Re-sequence ``toolpath``'s passes with the named method; None: the planner's
     ``metadata["order_hint"]`` (raster and equidistant: ``snake``, uniform: ``zigzag``).
-    ``options`` go to the tour methods (``start``, ``clearance``, ``link_speed``, ``omega_max``, ...;
-    see :func:`swath.order.tour.order_toolpath`).
+    ``options`` go to the tour methods (``start``, ``clearance``, ``link_speed``, ``omega_max``,
+    ``join_gap``, ``keep_direction``, ...; see :func:`swath.order.tour.order_toolpath`).
 
     Raises
     ------
@@ -67,4 +72,5 @@ def order_toolpath(toolpath: ToolPath, *, method: str | None = None, **options) 
     return fn(toolpath, **options)
 
 
-__all__ = ["AirGuard", "ORDER_METHODS", "order_toolpath", "route_links", "sequence", "tour"]
+__all__ = ["AirGuard", "ORDER_METHODS", "StepOverJoiner", "join_passes", "order_toolpath", "route_links", "sequence",
+           "tour"]

@@ -15,9 +15,13 @@ exit to the next group's entry (plus, optionally, from a start point to the firs
 is a generalised travelling-salesman problem (GTSP): one city per group must be visited, chosen
 among its variants.  It is solved here by the Noon–Bean transform (the GTSP becomes an asymmetric
 TSP whose optimal tours visit every cluster's nodes consecutively) and the Lin–Kernighan–Helsgaun
-heuristic (LKH, through the ``elkai`` package).  Baselines: ``index`` (as given) and ``greedy``
-(from the current exit, the nearest entry among the groups left).  :func:`held_karp` solves small
-instances exactly (dynamic programming over subsets of groups x end variants) to check the heuristic.
+heuristic (LKH, through the ``elkai`` package); when every group is a single pass, as a symmetric
+TSP on the passes' ends with the pass edges fixed.  :func:`solve_portfolio` (the ``gtsp`` method)
+takes the exact optimum of :func:`held_karp` (dynamic programming over subsets of groups x end
+variants) up to :data:`EXACT_UP_TO` groups, else the better of two LKH calls polished by
+:func:`improve_tour` (2-opt and Or-opt on the group order, path types re-chosen by DP for each
+order).  Baselines: ``index`` (as given) and ``greedy`` (from the current exit, the nearest entry
+among the groups left).
 
 The air distance between a lift-off point ``p`` (normal ``n``) and a touch-down point ``q`` (normal
 ``m``) is estimated as ``c + |(p + c n) - (q + c m)| + c`` with the clearance ``c``: retract, a
@@ -157,7 +161,8 @@ def _ends(p, flip: bool):
     return pts[0], nrm[0], _frame(nrm[0], t0), pts[-1], nrm[-1], _frame(nrm[-1], t1)
 
 
-def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel | None = None) -> Variants:
+def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel | None = None,
+                   joiner=None, keep_direction: bool = False) -> Variants:
     """Enumerate the path types of each group (see the module notes).
 
     Parameters
@@ -169,17 +174,26 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
         Lift along the normal before an air move, m (used when ``model`` is None).
     model : LinkModel, optional
         Link costing (default: by length, with ``clearance``).
+    joiner : StepOverJoiner, optional
+        When given, a step-over inside a group that it can make in contact costs no air
+        (``inner_length``) and :func:`contact_cost` (``inner``).
+    keep_direction : bool
+        Offer only each group's given path type (its passes in the given order and direction):
+        the order alone is chosen (Wang's "visit order planning", Table 4-1 column C).
     """
     model = LinkModel(clearance=clearance) if model is None else model
     rows = []
     for g, idx in enumerate(groups):
-        types = [(False, False), (False, True)] if len(idx) == 1 else \
+        types = [(False, False)] if keep_direction else [(False, False), (False, True)] if len(idx) == 1 else \
             [(False, False), (False, True), (True, False), (True, True)]
         for rev, flip in types:
             order = list(idx)[::-1] if rev else list(idx)
             seq = [_ends(passes[i], flip) for i in order]
             inner_len = inner = 0.0
             for a, b in pairwise(seq):
+                if joiner is not None and joiner.feasible(a[3][None], b[0][None], a[5][None, :, 0], b[2][None, :, 0])[0]:
+                    inner += float(contact_cost(model, np.linalg.norm(b[0] - a[3]), a[5], b[2]))
+                    continue
                 L = float(model.length(a[3], a[4], b[0], b[1]))
                 inner_len += L
                 inner += float(model.cost(L, a[5], b[2]))
@@ -187,6 +201,19 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
             rows.append((g, rev, flip, first[0], first[1], first[2], last[3], last[4], last[5], inner_len, inner))
     cols = list(zip(*rows))
     return Variants(*(np.array(c) for c in cols))
+
+
+#: A step-over made in contact counts this share of its chord (m) in the air-length objective:
+#: no air, but of two contact step-overs the shorter is preferred.
+CONTACT_WEIGHT = 0.1
+
+
+def contact_cost(model: LinkModel, chord, exit_frame, entry_frame):
+    """Objective cost of a step-over of ``chord`` (m) made in contact: ``CONTACT_WEIGHT * chord``
+    by length; by time, the link time of a move of that length (the tool still turns)."""
+    if not model.timed:
+        return CONTACT_WEIGHT * np.asarray(chord, float)
+    return model.cost(np.asarray(chord, float), exit_frame, entry_frame)
 
 
 def link_matrix(variants: Variants, clearance: float = 0.02, *, model: LinkModel | None = None,
@@ -287,7 +314,7 @@ def held_karp(variants: Variants, D: np.ndarray, start_cost: np.ndarray | None) 
 
 
 def solve_gtsp(variants: Variants, D: np.ndarray, start_cost: np.ndarray | None, *, seed: int = 0,
-               runs: int = 1, max_trials: int | None = None) -> list[int]:
+               runs: int = 1, max_trials: int | None = None, subgradient: bool | None = None) -> list[int]:
     """Noon–Bean transform + LKH (``elkai``).
 
     The nodes of each group are joined in a zero-cost cycle; an arc from node ``u`` to a node ``w``
@@ -296,6 +323,10 @@ def solve_gtsp(variants: Variants, D: np.ndarray, start_cost: np.ndarray | None,
     the node it entered by is the chosen path type).  ``M`` (more than any tour's link cost) makes
     every optimal tour visit each group exactly once, in one block.  A depot node carries the start
     point (or costs nothing).  Distances are scaled to integers (0.01 mm).
+
+    When every group is a single pass, the instance is solved as a symmetric TSP with the pass
+    edges fixed instead (:func:`_solve_single_passes`).  ``subgradient``: whether LKH runs its
+    subgradient ascent (default: on for the Noon–Bean instance, off for the fixed-edge one).
     """
     g_of = variants.group
     N = len(g_of)
@@ -303,7 +334,8 @@ def solve_gtsp(variants: Variants, D: np.ndarray, start_cost: np.ndarray | None,
     if n_groups == 1:
         return [int(np.argmin(variants.inner + (0 if start_cost is None else start_cost)))]
     if n_groups >= 2 and len(g_of) == 2 * n_groups:
-        return _solve_single_passes(variants, D, start_cost, seed=seed, runs=runs, max_trials=max_trials)
+        return _solve_single_passes(variants, D, start_cost, seed=seed, runs=runs, max_trials=max_trials,
+                                    subgradient=bool(subgradient))
     succ = np.arange(N) + 1
     starts = np.unique(g_of, return_index=True)[1]
     ends = np.r_[starts[1:], N] - 1
@@ -331,7 +363,8 @@ def solve_gtsp(variants: Variants, D: np.ndarray, start_cost: np.ndarray | None,
     np.fill_diagonal(W, 0)
     if size < 3:
         return solve_index(variants)
-    order = _lkh_atsp(W, seed=seed, runs=runs, max_trials=max_trials)
+    order = _lkh_atsp(W, seed=seed, runs=runs, max_trials=max_trials,
+                      subgradient=True if subgradient is None else subgradient)
     k = order.index(N)
     order = order[k + 1:] + order[:k]
     tour, seen = [], set()
@@ -347,7 +380,7 @@ def solve_gtsp(variants: Variants, D: np.ndarray, start_cost: np.ndarray | None,
 
 
 def _solve_single_passes(variants: Variants, D: np.ndarray, start_cost, *, seed: int, runs: int,
-                         max_trials: int | None) -> list[int]:
+                         max_trials: int | None, subgradient: bool = False) -> list[int]:
     """All groups single passes: a symmetric TSP on the passes' 2n ends plus two depots.
 
     The move from a lift-off end to a touch-down end does not depend on which is which, so every
@@ -377,7 +410,7 @@ def _solve_single_passes(variants: Variants, D: np.ndarray, start_cost, *, seed:
     pair = np.arange(0, 2 * n + 2, 2)
     W[pair, pair + 1] = W[pair + 1, pair] = 0
     np.fill_diagonal(W, 0)
-    tour = _lkh_atsp(W, seed=seed, runs=runs, max_trials=max_trials, symmetric=True)
+    tour = _lkh_atsp(W, seed=seed, runs=runs, max_trials=max_trials, symmetric=True, subgradient=subgradient)
     k = tour.index(S)
     tour = tour[k:] + tour[:k]
     if tour[1] == E:
@@ -410,9 +443,111 @@ def best_variants(variants: Variants, D: np.ndarray, start_cost, groups_in_order
     return [int(layer[i]) for layer, i in zip(layers, pick)]
 
 
-def _lkh_atsp(W: np.ndarray, *, seed: int, runs: int, max_trials: int | None, symmetric: bool = False) -> list[int]:
+def reverse_nodes(variants: Variants) -> np.ndarray:
+    """(N,) int: for each node, the node of the same group that runs it backwards (passes in the
+    other order, each flipped: its entry is this node's exit and vice versa), or -1 if none."""
+    key = {(int(g), bool(r), bool(f)): i for i, (g, r, f) in
+           enumerate(zip(variants.group, variants.reverse_order, variants.flip))}
+    out = np.full(len(variants.group), -1, dtype=np.int64)
+    for i, (g, r, f) in enumerate(zip(variants.group, variants.reverse_order, variants.flip)):
+        g, r, f = int(g), bool(r), bool(f)
+        single = (g, True, False) not in key
+        out[i] = key.get((g, r, not f) if single else (g, not r, not f), -1)
+    return out
+
+
+def improve_tour(variants: Variants, D: np.ndarray, start_cost: np.ndarray | None, tour, *,
+                 max_rounds: int = 200, max_segment: int = 3) -> list[int]:
+    """Local search on a GTSP tour: best path types for the group order (:func:`best_variants`),
+    then 2-opt (a stretch of groups visited backwards, each group run backwards) and Or-opt (a run of
+    up to ``max_segment`` groups moved elsewhere, as it is or backwards), best move first, until no
+    move shortens the tour or ``max_rounds`` moves were made.  Never returns a longer tour.
+
+    The moves assume that a group run backwards costs inside what it costs forwards (true of the
+    air lengths and of the link times of :class:`LinkModel`); every accepted move is checked on
+    the true cost.
+    """
+    rev = reverse_nodes(variants)
+    tour = [int(v) for v in tour]
+    if len(tour) < 3 or (rev < 0).any():
+        return tour
+    g_of = variants.group
+
+    def total(t):
+        return tour_length(variants, D, t, start_cost)
+
+    best = best_variants(variants, D, start_cost, [int(g_of[v]) for v in tour])
+    if total(best) <= total(tour):
+        tour = best
+    cur = total(tour)
+    N = len(g_of)
+    # a depot (index N): from it the start cost (or nothing), back to it nothing
+    Dx = np.zeros((N + 1, N + 1))
+    Dx[:N, :N] = D
+    if start_cost is not None:
+        Dx[N, :N] = start_cost
+    revx = np.r_[rev, N]
+    for _ in range(max_rounds):
+        t = np.array([N] + tour)                       # cyclic: ... last -> depot -> first ...
+        n = len(t)
+        nxt = np.roll(t, -1)
+        edge = Dx[t, nxt]                              # edge[i]: t[i] -> t[i+1]
+        moves = []
+        # 2-opt: positions i..j (1 <= i < j <= n-1) run backwards
+        i = np.arange(1, n)[:, None]
+        j = np.arange(1, n)[None, :]
+        ok = j > i
+        delta = (Dx[t[i - 1], revx[t[j]]] + Dx[revx[t[i]], nxt[j]] - edge[i - 1] - edge[j])
+        delta = np.where(ok, delta, np.inf)
+        k = np.unravel_index(np.argmin(delta), delta.shape)
+        moves.append((float(delta[k]), "2opt", int(k[0]) + 1, int(k[1]) + 1, False))
+        # Or-opt: positions i..i+L-1 moved between t[p] and t[p+1], as they are or backwards
+        for L in range(1, min(max_segment, n - 2) + 1):
+            i = np.arange(1, n - L + 1)[:, None]
+            e = i + L - 1
+            gain = edge[i - 1] + edge[e] - Dx[t[i - 1], nxt[e]]
+            p = np.arange(n)[None, :]
+            inside = (p >= i - 1) & (p <= e)
+            for backwards in (False, True):
+                s_node, e_node = (revx[t[e]], revx[t[i]]) if backwards else (t[i], t[e])
+                add = Dx[t[p], s_node] + Dx[e_node, nxt[p]] - edge[p]
+                d = np.where(inside, np.inf, add - gain)
+                k = np.unravel_index(np.argmin(d), d.shape)
+                moves.append((float(d[k]), "or", int(k[0]) + 1, int(k[1]), backwards, L))
+        move = min(moves, key=lambda m: m[0])
+        if not move[0] < -1e-12:
+            break
+        tl = list(t)
+        if move[1] == "2opt":
+            _, _, a, b, _ = move
+            tl[a:b + 1] = [int(revx[v]) for v in tl[a:b + 1][::-1]]
+        else:
+            _, _, a, p, backwards, L = move
+            seg = tl[a:a + L]
+            if backwards:
+                seg = [int(revx[v]) for v in seg[::-1]]
+            anchor_node = tl[p]
+            rest = tl[:a] + tl[a + L:]
+            q = rest.index(anchor_node)
+            tl = rest[:q + 1] + seg + rest[q + 1:]
+        k0 = tl.index(N)
+        cand = [int(v) for v in tl[k0 + 1:] + tl[:k0]]
+        cand = best_variants(variants, D, start_cost, [int(g_of[v]) for v in cand])
+        new = total(cand)
+        if not new < cur - 1e-12:
+            break
+        tour, cur = cand, new
+    return tour
+
+
+def _lkh_atsp(W: np.ndarray, *, seed: int, runs: int, max_trials: int | None, symmetric: bool = False,
+              subgradient: bool = True) -> list[int]:
     """Solve the (asymmetric, or with ``symmetric`` the symmetric) TSP with integer weights ``W``
-    (s, s) by LKH; a tour as node indices."""
+    (s, s) by LKH; a tour as node indices.  ``subgradient=False`` skips LKH's subgradient ascent
+    and takes the candidate edges by plain cost: on the fixed-edge instances of
+    :func:`_solve_single_passes` (every edge but the pass edges costs ``M`` more) the ascent misleads
+    the candidate sets: at 199 passes of the hub, single runs were 1.3-3.8 % above the best of 100
+    runs with it and 0-1.5 % without it (``benchmarks/bench_order.py``)."""
     try:
         import elkai
     except ImportError as exc:                         # pragma: no cover - elkai is a dependency
@@ -420,9 +555,10 @@ def _lkh_atsp(W: np.ndarray, *, seed: int, runs: int, max_trials: int | None, sy
                          "or choose method='greedy'") from exc
     n = len(W)
     trials = max_trials if max_trials is not None else min(n, 100)
-    # A short initial subgradient period: 3-5x faster candidate sets on these geometric instances.
-    params = (f"RUNS = {runs}\nMAX_TRIALS = {trials}\nSEED = {int(seed) + 1}\nINITIAL_PERIOD = 100\n"
-              "PROBLEM_FILE = :stdin:\n")
+    # With the ascent, a short initial subgradient period: 3-5x faster candidate sets on these
+    # geometric instances.
+    ascent = "INITIAL_PERIOD = 100\n" if subgradient else "SUBGRADIENT = NO\n"
+    params = f"RUNS = {runs}\nMAX_TRIALS = {trials}\nSEED = {int(seed) + 1}\n{ascent}PROBLEM_FILE = :stdin:\n"
     kind = "TSP" if symmetric else "ATSP"
     problem = (f"TYPE : {kind}\nDIMENSION : {n}\nEDGE_WEIGHT_TYPE : EXPLICIT\nEDGE_WEIGHT_FORMAT : FULL_MATRIX\n"
                "EDGE_WEIGHT_SECTION\n" + "\n".join(" ".join(map(str, row)) for row in W.tolist()) + "\n")
@@ -436,6 +572,30 @@ def _lkh_atsp(W: np.ndarray, *, seed: int, runs: int, max_trials: int | None, sy
     return tour
 
 
+#: :func:`solve_portfolio` solves instances of at most this many groups exactly (Held–Karp).
+EXACT_UP_TO = 10
+
+
+def solve_portfolio(variants: Variants, D: np.ndarray, start_cost, *, seed: int = 0, runs: int = 1,
+                    max_trials: int | None = None) -> list[int]:
+    """The ``gtsp`` method: the exact optimum up to :data:`EXACT_UP_TO` groups; beyond, LKH twice,
+    with and without its subgradient ascent (each is stuck in different local optima on these
+    instances), the better tour polished by :func:`improve_tour`.  ``runs`` LKH runs each (at least
+    ``ceil(200 / groups)``, at most 5: small instances get more runs for the same time).
+
+    Measured on the hub (``benchmarks/bench_order.py``): within 1 % of the best of 100 LKH runs up
+    to 200 passes, in well under a second.
+    """
+    n_groups = variants.n_groups
+    if n_groups <= EXACT_UP_TO:
+        return held_karp(variants, D, start_cost)
+    runs = max(int(runs), min(5, -(-200 // n_groups)))
+    tours = [solve_gtsp(variants, D, start_cost, seed=seed, runs=runs, max_trials=max_trials, subgradient=sub)
+             for sub in (False, True)]
+    best = min(tours, key=lambda t: tour_length(variants, D, t, start_cost))
+    return improve_tour(variants, D, start_cost, best)
+
+
 def solve(variants: Variants, D: np.ndarray, start_cost, method: str, *, seed: int = 0, runs: int = 1,
           max_trials: int | None = None) -> list[int]:
     """Dispatch to the solver ``method`` (one of :data:`METHODS`)."""
@@ -446,7 +606,7 @@ def solve(variants: Variants, D: np.ndarray, start_cost, method: str, *, seed: i
     if method == "exact":
         return held_karp(variants, D, start_cost)
     if method == "gtsp":
-        tour = solve_gtsp(variants, D, start_cost, seed=seed, runs=runs, max_trials=max_trials)
+        tour = solve_portfolio(variants, D, start_cost, seed=seed, runs=runs, max_trials=max_trials)
         # LKH is a heuristic: never return worse than the greedy baseline.
         greedy = solve_greedy(variants, D, start_cost)
         if tour_length(variants, D, greedy, start_cost) < tour_length(variants, D, tour, start_cost) - 1e-12:
@@ -472,7 +632,9 @@ def default_groups(toolpath) -> list[list[int]]:
 
 def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, seed: int = 0,
                    clearance: float = 0.02, link_speed: float | None = None, link_acceleration: float = 1.0,
-                   omega_max: float | None = None, runs: int = 1, max_trials: int | None = None):
+                   omega_max: float | None = None, runs: int = 1, max_trials: int | None = None,
+                   join_gap: float | None = None, join_tolerance: float | None = None,
+                   keep_direction: bool = False):
     """Reorder a tool path's pass groups and choose their path types to minimise air travel
     (or, given ``link_speed``, link time).
 
@@ -504,6 +666,17 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         Angular speed limit, rad/s (with ``link_speed``).
     runs, max_trials : int
         LKH runs and trials per run (default ``min(nodes, 100)``).
+    join_gap : float, optional
+        Make step-overs up to this long (m; e.g. 1.5 x the pass spacing) in contact where the pad
+        can slide along the surface (:class:`~swath.order.joining.StepOverJoiner`): such moves cost
+        no air in the order and the passes they join become one pass (Wang's continuous local
+        paths).  Default None: every move between passes is an air move.
+    join_tolerance : float, optional
+        Largest distance of a contact step-over's chord from the surface, m (default
+        ``0.25 * join_gap``).
+    keep_direction : bool
+        Keep every group's path type as given (its passes' order and directions); only the order of
+        the groups is chosen.
 
     Returns
     -------
@@ -512,7 +685,9 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         ``order_method``, ``air_before_m`` (as given), ``air_after_m``, with ``link_speed`` also
         ``link_time_before_s`` and ``link_time_after_s`` (estimates), ``order_seconds``,
         ``order_groups`` (the group order as indices into ``groups``) and, when the input had it,
-        ``pass_region`` reordered.
+        ``pass_region`` reordered; with ``join_gap`` also ``joined_step_overs``,
+        ``joined_contact_m`` and ``join_max_gap_m`` (:func:`~swath.order.joining.join_passes`):
+        the tool path then has fewer, longer passes.
 
     Raises
     ------
@@ -534,9 +709,20 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         if start_pt.shape != (3,) or not np.isfinite(start_pt).all():
             raise InputError(f"start must be a finite point (3,) in m, got {start!r}")
     t0 = time.perf_counter()
-    variants = group_variants(toolpath.passes, groups, model=model)
+    joiner = None
+    if join_gap is not None:
+        from .joining import StepOverJoiner
+
+        joiner = StepOverJoiner(toolpath.surface, max_gap=join_gap, tolerance=join_tolerance)
+    variants = group_variants(toolpath.passes, groups, model=model, joiner=joiner, keep_direction=keep_direction)
     D_len = link_matrix(variants, model=model)
     D = link_matrix(variants, model=model, cost=True)
+    if joiner is not None:
+        a, b = joiner.pairs(variants.exit_point, variants.entry_point, variants.exit_frame[:, :, 0],
+                            variants.entry_frame[:, :, 0])
+        chord = np.linalg.norm(variants.entry_point[b] - variants.exit_point[a], axis=1)
+        D_len[a, b] = 0.0
+        D[a, b] = contact_cost(model, chord, variants.exit_frame[a], variants.entry_frame[b])
     start_len = start_cost = None
     if start_pt is not None:
         start_len = np.linalg.norm(variants.entry_point + clearance * variants.entry_normal - start_pt, axis=1) + clearance
@@ -561,6 +747,11 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     if model.timed:
         meta.update(link_time_before_s=tour_length(variants, D, index, start_cost),
                     link_time_after_s=tour_length(variants, D, tour, start_cost))
+    out = toolpath.replace(passes=tuple(passes), metadata=meta)
+    if joiner is not None:
+        from .joining import join_passes
+
+        out = join_passes(out, joiner)
     log.info("order %s: %d passes in %d groups, air %.3f m -> %.3f m (%.2f s)", method, n, len(groups),
              before, after, seconds)
-    return toolpath.replace(passes=tuple(passes), metadata=meta)
+    return out
