@@ -118,3 +118,18 @@ def test_feed_optimisation_runs_through_the_job_and_needs_a_target(tmp_path, cap
     tr = read_csv(out / "trajectory.csv")
     v = tr.feed[tr.contact]
     assert v.max() <= 0.05 * 1.001 and v.min() < 0.9 * v.max()        # the feed now varies along the passes
+
+
+def test_join_gap_picks_a_tour_and_refuses_a_fixed_sequence(tmp_path):
+    from swath.cli.job import order_method, order_options
+    from swath.core import ToolPath
+
+    s = settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "join_gap": "76mm"})
+    assert s.join_gap == pytest.approx(0.076) and s.as_record()["join_gap_m"] == pytest.approx(0.076)
+    tp = ToolPath(None, (), "raster", {"order_hint": "snake"})
+    assert order_method(tp, s) == "gtsp" and order_options(tp, s)["join_gap"] == pytest.approx(0.076)
+    plain = settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o")})
+    assert order_method(tp, plain) == "snake" and order_options(tp, plain) == {}
+    with pytest.raises(InputError, match="snake order keeps the planner's sequence"):
+        settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "join_gap": "76mm",
+                               "order": "snake"})

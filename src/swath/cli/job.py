@@ -162,7 +162,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None):
         toolpath = segmented_plan(surface, settings.tool(), planner, settings, arguments)
     else:
         toolpath = planner(surface, settings.tool(), **arguments)
-    ordered = order_toolpath(toolpath, method=settings.order, **order_options(toolpath, settings))
+    ordered = order_toolpath(toolpath, method=order_method(toolpath, settings), **order_options(toolpath, settings))
     return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius)
 
 
@@ -171,12 +171,25 @@ def order_options(toolpath, settings) -> dict:
     link speed and angular-speed limit (a snake's 180-degree turn costs seconds, not millimetres)."""
     from ..order import ORDER_METHODS, sequence
 
-    method = settings.order or toolpath.metadata.get("order_hint", "snake")
+    method = order_method(toolpath, settings)
     if ORDER_METHODS.get(method) in (sequence.snake, sequence.zigzag):
         return {}
     links = settings.links()
-    return {"clearance": links.clearance, "link_speed": links.speed, "link_acceleration": links.acceleration,
-            "omega_max": settings.max_angular}
+    options = {"clearance": links.clearance, "link_speed": links.speed, "link_acceleration": links.acceleration,
+               "omega_max": settings.max_angular}
+    if settings.join_gap is not None:
+        options["join_gap"] = settings.join_gap
+    return options
+
+
+def order_method(toolpath, settings) -> str:
+    """The order-stage method of a job: the one asked for, gtsp when step-overs may be joined in
+    contact (``join_gap``), else the planner's ``order_hint``."""
+    if settings.order:
+        return settings.order
+    if settings.join_gap is not None:
+        return "gtsp"
+    return toolpath.metadata.get("order_hint", "snake")
 
 
 def run_job(settings: JobSettings, *, progress=None) -> dict:

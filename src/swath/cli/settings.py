@@ -59,6 +59,7 @@ class JobSettings:
     max_angular: float | None = DEFAULT_LIMITS["max_angular"]
     max_accel: float | None = DEFAULT_LIMITS["max_accel"]
     overlap: float | None = None
+    join_gap: float | None = None
     sample_spacing: float | None = None
     planner_options: dict = field(default_factory=dict)
     fit: bool = False
@@ -119,6 +120,7 @@ class JobSettings:
         tool = self.tool()
         record = {
             "part": self.part, "units": self.units, "planner": self.planner, "order": self.order,
+            "join_gap_m": self.join_gap,
             "segment": self.segment,
             "pad_radius_m": self.pad_radius, "force_N": self.force,
             "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
@@ -201,6 +203,7 @@ SCHEMA: dict[str, Key] = {
     "direction": Key("angle", auto=True),
     "point_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 1mm"),
     "clearance": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 20mm"),
+    "join_gap": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 76mm", off=True),
     "sample_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
     "surface_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
     "max_centripetal": Key("acceleration", positive=True, off=True),
@@ -318,6 +321,9 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
         kwargs["units"] = canonical_length_unit(kwargs["units"])
     if kwargs.get("order") is not None and kwargs["order"] not in _orders():
         raise InputError(f"unknown order {kwargs['order']!r}; choose one of {', '.join(_orders())}")
+    if kwargs.get("join_gap") is not None and kwargs.get("order") in ("snake", "zigzag", "index"):
+        raise InputError(f"join_gap makes step-overs in contact while a tour is chosen; the {kwargs['order']} order "
+                         "keeps the planner's sequence: use order = gtsp (the default with join_gap) or greedy")
     if kwargs.get("planner", "raster") not in _planners():
         raise InputError(f"unknown planner {kwargs['planner']!r}; choose one of {', '.join(_planners())}")
     if kwargs.get("memory_budget") is not None:
