@@ -118,3 +118,23 @@ def test_feed_optimisation_runs_through_the_job_and_needs_a_target(tmp_path, cap
     tr = read_csv(out / "trajectory.csv")
     v = tr.feed[tr.contact]
     assert v.max() <= 0.05 * 1.001 and v.min() < 0.9 * v.max()        # the feed now varies along the passes
+
+
+def test_spacing_optimisation_is_reachable_from_jobs(tmp_path, capsys):
+    import json
+
+    from swath.contact import Tool
+    from swath.feed import ripple_spacing
+
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "greedy", "--out", str(tmp_path / "x")]) == 2
+    assert "add --optimise-feed" in capsys.readouterr().err
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "ripple", "--spacing", "40mm",
+                 "--out", str(tmp_path / "y")]) == 2
+    assert "without --spacing" in capsys.readouterr().err
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "wavy", "--out", str(tmp_path / "z")]) == 2
+    assert "ripple, greedy, joint" in capsys.readouterr().err
+    out = tmp_path / "o"
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "ripple", "--out", str(out)]) == 0
+    doc = json.loads((out / "metrics.json").read_text())
+    assert doc["settings"]["optimise_spacing"] == "ripple"
+    assert doc["metrics"]["spacing_m"] == pytest.approx(ripple_spacing(Tool())[0], rel=1e-9)
