@@ -5,7 +5,20 @@ For every part (built-in blade, panel, plate and every shared mesh found):
 1. ``const``  — raster at its default spacing and direction, constant feed;
 2. ``feed``   — the same passes with the feed optimised (:func:`swath.feed.optimise_feed`, match, L1);
 3. ``space``  — raster planes placed by Wang's greedy pattern search (:func:`swath.feed.spacing.greedy_offsets`)
-   in the same direction, then the feed optimised.
+   in the same direction, then the feed optimised;
+4. ``ripple+feed`` — the raster at the analytic least-ripple spacing (:func:`swath.feed.ripple_spacing`,
+   contact length within 1.5 L* on a plane), then the feed optimised.
+
+Breakdown columns (where the residual comes from):
+
+* ``ripple`` — the analytic across-pass ripple CoV of the plan's mean plane spacing
+  (:func:`swath.feed.ripple_cov`): the floor no feed along the passes can remove on a plane;
+* ``cov_kernel`` — the optimised removal's CoV as the kernel predicts it with the planned dwell
+  (what the programme reached); ``cov_interior`` — the simulator's on the timed trajectory;
+* over-removal: ``over_kernel_um`` (planned dwell, kernel), ``over_timed_um`` (the dwell the timed
+  trajectory really spends in each node, same kernel: the difference is timing not honouring the
+  planned feed) and ``over_um`` (the simulator: the difference is kernel vs simulator);
+  ``dwell_ratio_max`` — the largest timed / planned dwell of a node.
 
 Kernels are built on the contact poses of each plan timed at the constant feed
 (``build_kernel(..., trajectory=...)``).  The target is one uniform depth ``D`` for all three: the smallest depth both optimised plans can reach
@@ -46,7 +59,16 @@ def _load(name: str):
 
 def run_one(name: str) -> list[dict]:
     from swath.contact import Tool
-    from swath.feed import build_kernel, interior_mask, node_speed_caps, optimise_feed, removal_stats
+    from swath.feed import (
+        build_kernel,
+        interior_mask,
+        node_speed_caps,
+        optimise_feed,
+        removal_stats,
+        ripple_cov,
+        ripple_spacing,
+        trajectory_node_dwell,
+    )
     from swath.feed.spacing import greedy_offsets
     from swath.plan import raster
     from swath.simulate.removal import simulate_removal
@@ -79,7 +101,9 @@ def run_one(name: str) -> list[dict]:
     t_greedy = time.perf_counter() - t1
     k_space = build_kernel(greedy.toolpath, tool, trajectory=time_path(greedy.toolpath, cons))
     # smallest uniform depth reachable without over-grinding by both optimised plans
-    D = max(D_base, least_depth(k_space))
+    ripple_tp = raster(surface, tool, spacing=ripple_spacing(tool)[0], direction=angle)
+    k_ripple = build_kernel(ripple_tp, tool, trajectory=time_path(ripple_tp, cons))
+    D = max(D_base, least_depth(k_space), least_depth(k_ripple))
     tol = TOL_FRACTION * D
     rows = []
 
@@ -87,15 +111,26 @@ def run_one(name: str) -> list[dict]:
         depth = D if depth is None else depth
         traj = time_path(toolpath, cons + extra)
         rm = simulate_removal(traj, surface, tool)
-        st = removal_stats(rm.depth, np.full(len(rm.depth), depth), rm.surface.vertex_areas, inside)
+        st = removal_stats(rm.depth, np.full(len(rm.depth), depth), rm.surface.vertex_areas,
+                           interior_mask(rm.surface, tool.pad_radius))
         m = rm.metrics
+        breakdown = {"over_timed_um": float("nan"), "dwell_ratio_max": float("nan")}
+        if result is not None:
+            k = result.kernel
+            timed = trajectory_node_dwell(traj, k.nodes, toolpath)
+            st_t = removal_stats(k.removal(timed), result.target, k.samples.vertex_areas, result.region)
+            breakdown = {"over_timed_um": 1e6 * st_t["max_over_removal_m"],
+                         "dwell_ratio_max": float(np.max(timed / result.dwell))}
+        meta = toolpath.metadata
+        spacing = meta.get("spacing_m") or float(np.mean(np.diff(meta["offsets_m"])))
         rows.append({"part": name, "run": label, "passes": len(toolpath.passes),
                      "cov_interior": st["removal_cov"], "mean_um": 1e6 * st["removal_mean_m"], "D_um": 1e6 * depth,
                      "over_um": 1e6 * st["max_over_removal_m"], "tol_um": 1e6 * TOL_FRACTION * depth,
                      "L_over_Lstar": m["contact_length_m"] / m["coverage_lower_bound_m"],
                      "cycle_s": traj.duration, "opt_s": opt_time,
                      "over_kernel_um": 1e6 * result.metrics["max_over_removal_m"] if result else float("nan"),
-                     "cov_kernel": result.metrics["removal_cov"] if result else float("nan")})
+                     "cov_kernel": result.metrics["removal_cov"] if result else float("nan"),
+                     "spacing_R": spacing / tool.pad_radius, "ripple": ripple_cov(tool, spacing), **breakdown})
 
     measure("const", base, [], 0.0)
     t2 = time.perf_counter()
@@ -104,14 +139,18 @@ def run_one(name: str) -> list[dict]:
     t3 = time.perf_counter()
     fs = optimise_feed(greedy.toolpath, tool, cons, target=D, tolerance=tol, kernel=k_space)
     measure("space+feed", greedy.toolpath, [fs.profile], t_greedy + time.perf_counter() - t3, fs)
+    t4 = time.perf_counter()
+    fp = optimise_feed(ripple_tp, tool, cons, target=D, tolerance=tol, kernel=k_ripple)
+    measure("ripple+feed", ripple_tp, [fp.profile], time.perf_counter() - t4, fp)
     for r in rows:
         r["rss_mb"] = max_rss_mb()
     return rows
 
 
-COLUMNS = [("part", ""), ("run", ""), ("passes", "d"), ("cov_interior", ".3f"), ("mean_um", ".2f"), ("D_um", ".2f"),
-           ("over_um", ".2f"), ("over_kernel_um", ".2f"), ("tol_um", ".2f"), ("cov_kernel", ".3f"), ("L_over_Lstar", ".2f"), ("cycle_s", ".1f"), ("opt_s", ".1f"),
-           ("rss_mb", ".0f")]
+COLUMNS = [("part", ""), ("run", ""), ("passes", "d"), ("spacing_R", ".2f"), ("ripple", ".3f"), ("cov_kernel", ".3f"),
+           ("cov_interior", ".3f"), ("mean_um", ".2f"), ("D_um", ".2f"), ("tol_um", ".2f"), ("over_kernel_um", ".2f"),
+           ("over_timed_um", ".2f"), ("over_um", ".2f"), ("dwell_ratio_max", ".2f"), ("L_over_Lstar", ".2f"),
+           ("cycle_s", ".1f"), ("opt_s", ".1f"), ("rss_mb", ".0f")]
 
 
 def main(argv):
@@ -128,7 +167,7 @@ def main(argv):
             rows.append({"part": name, "run": "FAILED: " + (proc.stderr.strip().splitlines() or ["?"])[-1][:100]})
         else:
             rows.extend(json.loads(line[5:]))
-        print_table(rows[-3:], COLUMNS)
+        print_table(rows[-4:], COLUMNS)
         sys.stdout.flush()
     print()
     print_table(rows, COLUMNS)

@@ -106,13 +106,18 @@ def test_over_removal_never_exceeds_tolerance(plate, mode, objective, max_rows):
     over-grinds are added back as caps until none is over."""
     tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
     k = build_kernel(tp, TOOL)
-    fastest = k.removal(k.dwell_at_speed(V_MAX))
+    cons = [FeedLimit(V_MAX), TangentialAccelLimit(0.2)]
+    # the fastest the timing allows: the passes start and end at rest
+    fastest = k.removal(trajectory_node_dwell(time_path(tp, cons), k.nodes, tp))
     D = 1.1 * fastest.max()
     tol = 0.05 * D
-    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX), TangentialAccelLimit(0.2)], target=D, tolerance=tol,
+    res = optimise_feed(tp, TOOL, cons, target=D, tolerance=tol,
                         mode=mode, objective=objective, kernel=k, boundary_margin=0.0, max_rows=max_rows)
     over = res.predicted[res.region] - D
     assert over.max() <= tol * (1 + 1e-6)
+    # and with the dwell the timed trajectory really spends in each node (pass ends included)
+    timed = trajectory_node_dwell(time_path(tp, cons + [res.profile]), k.nodes, tp)
+    assert (k.removal(timed)[res.region] - D).max() <= tol * (1 + 1e-6)
     assert (res.speed <= V_MAX * (1 + 1e-9)).all() and (res.speed >= 0.1 * V_MAX * (1 - 1e-9)).all()
     # linearised acceleration limit: |dv/dt| = |dp/ds| / p^3 <= a_t between neighbouring nodes
     pace = 1 / res.speed

@@ -152,9 +152,16 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, 
         bad = np.flatnonzero(over > 1e-3 * max(tolerance, 1e-9))
         if len(bad) == 0:
             break
-        log.info("feed optimisation: %d thinned-out samples over the cap by up to %.3g um; adding them",
-                 len(bad), over.max() / _DEPTH_UNIT)
-        extra = np.union1d(extra, bad)
+        worst = _worst_per_cell(kernel.samples.vertices[full[bad]], over[bad], kernel.samples.vertex_areas[full[bad]],
+                                max(1, max_rows // 4))
+        log.info("feed optimisation: %d thinned-out samples over the cap by up to %.3g um; adding the worst %d",
+                 len(bad), over.max() / _DEPTH_UNIT, len(worst))
+        extra = np.union1d(extra, bad[worst])
+    else:
+        over = K_full @ dwell - cap
+        if over.max() > 1e-3 * max(tolerance, 1e-9):
+            log.warning("feed optimisation: after %d rounds %d samples are still over the cap by up to %.3g um",
+                        max_rounds, int(np.sum(over > 1e-3 * max(tolerance, 1e-9))), over.max() / _DEPTH_UNIT)
     return dwell, status
 
 
@@ -262,6 +269,19 @@ def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: float, t_min
     return np.clip(x, t_min, t_max), f"{res.status}: {res.message}"
 
 
+def _worst_per_cell(points: np.ndarray, over: np.ndarray, areas: np.ndarray, limit: int) -> np.ndarray:
+    """Indices of at most about ``limit`` of ``points`` ``(k, 3)`` (m): the one with the largest
+    ``over`` in each cell of a cubic grid sized so their area (``areas``, m²) gives about ``limit``
+    cells (neighbouring samples share their dwell nodes, so capping the worst caps its neighbours)."""
+    if len(points) <= limit:
+        return np.arange(len(points))
+    cell = float(np.sqrt(areas.sum() / limit))
+    key = np.floor(points / cell).astype(np.int64)
+    order = np.argsort(-over, kind="stable")
+    _, first = np.unique(key[order], axis=0, return_index=True)
+    return order[first]
+
+
 def thin_rows(samples, region: np.ndarray, max_rows: int) -> tuple[np.ndarray, np.ndarray]:
     """At most about ``max_rows`` region samples for the programme: one per cell of a cubic grid
     sized so the region's area gives about ``max_rows`` cells, weighted by the area of its cell's
@@ -334,7 +354,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   kernel: RemovalKernel | None = None, node_spacing: float | None = None,
                   sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
                   region: np.ndarray | None = None, smoothing: float = 2e-2, cap_margin: float = 0.5,
-                  max_rows: int = 20000, timing_rounds: int = 1, trajectory=None, progress=None) -> FeedResult:
+                  max_rows: int = 20000, timing_rounds: int = 3, ratio_tolerance: float = 0.01, trajectory=None,
+                  progress=None) -> FeedResult:
     """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
 
     Parameters
@@ -373,11 +394,13 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         ``toolpath`` timed at any feed: the kernel then uses its contact poses (see
         :func:`build_kernel`); recommended on scans.
     timing_rounds : int
-        Rounds of timing correction (default 1): the profile is timed with
+        Rounds of timing correction (default 3): the profile is timed with
         :func:`swath.trajectory.time_path` under ``constraints``, each node's commanded feed is scaled
-        by its timed-to-planned dwell ratio (within the feed range) and the profile rebuilt.  The
-        timing's linear speed interpolation between pass points and its acceleration sweep otherwise
-        add a few % of dwell where the feed changes.  0 skips it (no timing inside).
+        by its timed-to-planned dwell ratio (within the feed range) and the profile rebuilt, until
+        every ratio is within ``ratio_tolerance`` of 1.  The timing's acceleration sweep rounds the
+        speed steps between nodes and otherwise adds up to 10 % of dwell where the feed changes
+        (measured: 1, 2, 3 rounds leave at most 11 %, 7 %, 5.5 %).  0 skips it (no timing inside;
+        then the passes' start and end at rest are not known to the programme either).
     max_rows : int
         Largest number of sample rows in the programme (more region samples are thinned to one per
         grid cell, area-weighted; see :func:`thin_rows`).
@@ -424,6 +447,15 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         pace = np.minimum(accel_feasible_pace(1.0 / caps, nodes, tl.a_t, 1.0 / v_max), 1.0 / v_min)
         t_min = nodes.length * pace
         caps = 1.0 / pace
+    if timing_rounds > 0:
+        # the timing's own floor: a pass starts and ends at rest, so its first and last nodes take
+        # longer than Δs / cap at any command; the programme must know (else those nodes over-grind)
+        from ..trajectory import time_path
+        from .kernel import trajectory_node_dwell
+
+        fastest = time_path(toolpath, list(cons.values()), heading_scale=heading_scale)
+        floor = trajectory_node_dwell(fastest, nodes, toolpath)
+        t_min = np.minimum(np.maximum(t_min, floor), t_max)
     touched = np.diff(kernel.matrix.tocsr().indptr) > 0
     if region is None:
         region = touched & interior_mask(kernel.samples, margin)
@@ -454,6 +486,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         traj = time_path(toolpath, list(cons.values()) + [profile], heading_scale=heading_scale)
         timed = trajectory_node_dwell(traj, nodes, toolpath)
         timed_ratio = np.where(dwell > 0, timed / dwell, 1.0)
+        if np.abs(timed_ratio - 1).max() <= ratio_tolerance:
+            break
         command = np.clip(command * timed_ratio, v_min, caps)
         profile = dwell_to_profile(toolpath, nodes, nodes.length / command)
     predicted = kernel.removal(dwell)
