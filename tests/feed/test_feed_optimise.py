@@ -56,7 +56,7 @@ def test_straight_pass_uniform_target_needs_constant_feed(plate):
     k = build_kernel(tp, TOOL)
     v_star = 0.02
     target = k.removal(k.dwell_at_speed(v_star))
-    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=0.05 * target.max(),
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=0.05 * target.max(), model_error=0.0,
                         kernel=k, boundary_margin=0.0)
     mid = np.abs(k.nodes.s_mid - 0.1) < 0.06                         # away from the pass ends
     np.testing.assert_allclose(res.speed[mid], v_star, rtol=0.02)
@@ -83,7 +83,8 @@ def test_two_overlapping_passes_change_feed_where_they_overlap(plate):
     on_lines = (((np.abs(y - y0) < 1e-6) & (x >= 0.02 + R) & (x <= 0.22 - R))
                 | ((np.abs(y - y0 - d) < 1e-6) & (x >= 0.12 + R) & (x <= 0.22 - R)))
     D = 8e-6
-    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=D, tolerance=0.05 * D, kernel=k, region=on_lines)
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=D, tolerance=0.05 * D, kernel=k, region=on_lines,
+                        model_error=0.0)
     rate = _centre_rate()
     v_alone = rate * 2 * R / D
     v_overlap = rate * (2 * R + 2 * math.sqrt(R**2 - d**2)) / D
