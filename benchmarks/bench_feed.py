@@ -29,7 +29,8 @@ boundary (untouched ones included), contact length against the coverage lower bo
 over-removal against D, cycle time, optimisation time and the process's peak memory (each part
 runs in its own process).
 
-Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [plate panel blade crs_part_5.stl ...]``
+Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [plate panel blade crs_part_5.stl ...]``; the feed
+optimisation's time and peak memory alone: ``... bench_feed.py --solve crs_part_5.stl``.
 """
 
 from __future__ import annotations
@@ -57,12 +58,53 @@ def _load(name: str):
     return load_mesh(SHARED_MESHES / name, units=SHARED_MESH_UNITS[name])
 
 
+def _least_depth(k, cons, inside) -> float:
+    """Smallest uniform depth the plan reaches without over-grinding at the fastest feeds the
+    timing allows (the plan timed at the feed limit: caps, acceleration, passes from rest)."""
+    from swath.feed import trajectory_node_dwell
+    from swath.trajectory import time_path
+
+    r0 = k.removal(trajectory_node_dwell(time_path(k.toolpath, cons), k.nodes, k.toolpath))
+    touched = np.diff(k.matrix.tocsr().indptr) > 0
+    return float(r0[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
+
+
+def solve_one(name: str) -> dict:
+    """Only the feed optimisation of the default raster (kernel, programme, timing rounds): its time
+    and the process's peak memory, for the large parts."""
+    from swath.contact import Tool
+    from swath.feed import build_kernel, interior_mask, optimise_feed
+    from swath.plan import raster
+    from swath.trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit, time_path
+
+    surface = _load(name)
+    tool = Tool()
+    cons = [FeedLimit(FEED), CentripetalLimit(2.0), AngularSpeedLimit(1.0), TangentialAccelLimit(1.0)]
+    base = raster(surface, tool)
+    t0 = time.perf_counter()
+    k = build_kernel(base, tool, trajectory=time_path(base, cons))
+    t_kernel = time.perf_counter() - t0
+    D = _least_depth(k, cons, interior_mask(k.samples, tool.pad_radius))
+    t1 = time.perf_counter()
+    fr = optimise_feed(base, tool, cons, target=D, tolerance=TOL_FRACTION * D, kernel=k)
+    t_opt = time.perf_counter() - t1
+    m = fr.metrics
+    return {"part": name, "samples": k.matrix.shape[0], "nodes": k.matrix.shape[1], "nnz_M": k.matrix.nnz / 1e6,
+            "kernel_s": t_kernel, "solve_s": m["solve_time_s"], "optimise_s": t_opt, "total_s": t_kernel + t_opt,
+            "cov_kernel": m["removal_cov"], "over_kernel_um": 1e6 * m["max_over_removal_m"], "tol_um": 1e6 * TOL_FRACTION * D,
+            "rss_mb": max_rss_mb()}
+
+
+SOLVE_COLUMNS = [("part", ""), ("samples", "d"), ("nodes", "d"), ("nnz_M", ".1f"), ("kernel_s", ".1f"),
+                 ("solve_s", ".1f"), ("optimise_s", ".1f"), ("total_s", ".1f"), ("cov_kernel", ".3f"),
+                 ("over_kernel_um", ".2f"), ("tol_um", ".2f"), ("rss_mb", ".0f")]
+
+
 def run_one(name: str) -> list[dict]:
     from swath.contact import Tool
     from swath.feed import (
         build_kernel,
         interior_mask,
-        node_speed_caps,
         optimise_feed,
         removal_stats,
         ripple_cov,
@@ -86,14 +128,7 @@ def run_one(name: str) -> list[dict]:
     inside = interior_mask(k_base.samples, tool.pad_radius)
 
     def least_depth(k):
-        """Smallest uniform depth the plan reaches without over-grinding at the fastest allowed feeds."""
-        from swath.feed.caps import accel_feasible_pace
-
-        caps = np.clip(node_speed_caps(k.toolpath, k.nodes, cons), 0.1 * FEED, FEED)
-        pace = np.minimum(accel_feasible_pace(1.0 / caps, k.nodes, 1.0, 1.0 / FEED), 10.0 / FEED)   # a_t = 1 m/s2
-        r0 = k.removal(k.nodes.length * pace)
-        touched = np.diff(k.matrix.tocsr().indptr) > 0
-        return float(r0[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
+        return _least_depth(k, cons, inside)
 
     D_base = least_depth(k_base)
     t1 = time.perf_counter()
@@ -156,6 +191,9 @@ COLUMNS = [("part", ""), ("run", ""), ("passes", "d"), ("spacing_R", ".2f"), ("r
 def main(argv):
     if len(argv) >= 2 and argv[0] == "--one":
         print("ROWS " + json.dumps(run_one(argv[1])))
+        return
+    if len(argv) >= 2 and argv[0] == "--solve":             # solve time and memory only, e.g. crs_part_5.stl
+        print_table([solve_one(argv[1])], SOLVE_COLUMNS)
         return
     names = argv or ["plate", "panel", "blade", *[f for f in SHARED_MESH_UNITS if (SHARED_MESHES / f).exists()]]
     rows = []

@@ -144,7 +144,12 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     tolerance = np.broadcast_to(np.asarray(tolerance, float), target.shape)
     tiny = 1e-3 * max(float(tolerance.max(initial=0.0)), 1e-9)
     cap = target[full] + tolerance[full]
+    # cap rows from the start at each cell's peak of the fastest feed's removal: the ripple's peaks,
+    # where the cap binds (the objective's thinned rows sit anywhere in their cells)
     extra = np.zeros(0, dtype=int)
+    if len(full) > max_rows:
+        peaks, _ = thin_rows(kernel.samples, region, max_rows, score=kernel.removal(t_min))
+        extra = np.searchsorted(full, peaks)
     status = ""
     for _ in range(max(1, max_rounds)):
         dwell, status = _solve(kernel, target, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
@@ -285,10 +290,12 @@ def _worst_per_cell(points: np.ndarray, over: np.ndarray, areas: np.ndarray, lim
     return order[first]
 
 
-def thin_rows(samples, region: np.ndarray, max_rows: int) -> tuple[np.ndarray, np.ndarray]:
+def thin_rows(samples, region: np.ndarray, max_rows: int, score: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """At most about ``max_rows`` region samples for the programme: one per cell of a cubic grid
-    sized so the region's area gives about ``max_rows`` cells, weighted by the area of its cell's
-    region samples.  Returns ``(rows (k,) int, weights (k,) float m²)``; all region samples when they
+    sized so the region's area gives about ``max_rows`` cells (the one with the largest ``score``,
+    ``(S,)``, when given: the removal at the fastest feed, so the cap rows sit on the ripple's
+    peaks and few left-out samples end over the cap), weighted by the area of its cell's region
+    samples.  Returns ``(rows (k,) int, weights (k,) float m²)``; all region samples when they
     are few enough."""
     rows = np.flatnonzero(region)
     areas = samples.vertex_areas
@@ -297,7 +304,11 @@ def thin_rows(samples, region: np.ndarray, max_rows: int) -> tuple[np.ndarray, n
     cell = float(np.sqrt(areas[rows].sum() / max_rows))
     key = np.floor(samples.vertices[rows] / cell).astype(np.int64)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    weight = np.bincount(inverse.ravel(), weights=areas[rows])
+    inverse = inverse.ravel()
+    weight = np.bincount(inverse, weights=areas[rows])
+    if score is not None:
+        order = np.lexsort((-score[rows], inverse))            # by cell, the highest score first
+        first = order[np.concatenate([[0], np.flatnonzero(np.diff(inverse[order])) + 1])]
     return rows[first], weight
 
 
