@@ -154,3 +154,22 @@ def test_accel_sweep_makes_a_sharp_cap_feasible():
     assert (dp <= c * (3 * p[1:] - 2 * p_ref) * (1 + 1e-9)).all()
     assert (p >= p_min).all() and p[0] == p_ref and p[-1] == p_ref
     assert p[49] > p_ref and p[51] > p_ref
+
+
+def test_thin_rows_keeps_each_cells_peak_when_scored(plate):
+    """With a score, the row kept in each grid cell is the cell's highest-scoring sample; the
+    weights (cell areas) add up to the region's area either way."""
+    from swath.feed.optimise import thin_rows
+
+    region = np.ones(len(plate.vertices), bool)
+    score = np.random.default_rng(3).random(len(plate.vertices))
+    rows, w = thin_rows(plate, region, 500)
+    peaks, wp = thin_rows(plate, region, 500, score=score)
+    assert len(peaks) == len(rows) and len(rows) <= 1.3 * 500
+    np.testing.assert_allclose(w, wp)
+    assert w.sum() == pytest.approx(plate.vertex_areas.sum(), rel=1e-12)
+    cell = float(np.sqrt(plate.vertex_areas.sum() / 500))
+    key = np.floor(plate.vertices / cell).astype(np.int64)
+    for r in peaks[:50]:
+        same = np.flatnonzero((key == key[r]).all(axis=1))
+        assert score[r] == score[same].max()
