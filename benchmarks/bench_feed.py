@@ -18,7 +18,9 @@ Breakdown columns (where the residual comes from):
 * over-removal: ``over_kernel_um`` (planned dwell, kernel), ``over_timed_um`` (the dwell the timed
   trajectory really spends in each node, same kernel: the difference is timing not honouring the
   planned feed) and ``over_um`` (the simulator: the difference is kernel vs simulator);
-  ``dwell_ratio_max`` — the largest timed / planned dwell of a node.
+  ``dwell_ratio_max`` — the largest timed / planned dwell of a node;
+* ``at_vmin`` — fraction of dwell nodes at the slowest feed (a tenth of the limit): the feed range,
+  not the programme, bounds the removal there.
 
 Kernels are built on the contact poses of each plan timed at the constant feed
 (``build_kernel(..., trajectory=...)``).  The target is one uniform depth ``D`` for all three: the smallest depth both optimised plans can reach
@@ -152,13 +154,15 @@ def run_one(name: str) -> list[dict]:
         st = removal_stats(rm.depth, np.full(len(rm.depth), depth), rm.surface.vertex_areas,
                            interior_mask(rm.surface, tool.pad_radius))
         m = rm.metrics
-        breakdown = {"over_timed_um": float("nan"), "dwell_ratio_max": float("nan")}
+        breakdown = {"over_timed_um": float("nan"), "dwell_ratio_max": float("nan"), "at_vmin": float("nan")}
         if result is not None:
             k = result.kernel
             timed = trajectory_node_dwell(traj, k.nodes, toolpath)
             st_t = removal_stats(k.removal(timed), result.target, k.samples.vertex_areas, result.region)
+            v_min = result.metrics["v_min_m_per_s"]
             breakdown = {"over_timed_um": 1e6 * st_t["max_over_removal_m"],
-                         "dwell_ratio_max": float(np.max(timed / result.dwell))}
+                         "dwell_ratio_max": float(np.max(timed / result.dwell)),
+                         "at_vmin": float(np.mean(result.speed <= v_min * 1.001))}
         meta = toolpath.metadata
         spacing = meta.get("spacing_m") or float(np.mean(np.diff(meta["offsets_m"])))
         rows.append({"part": name, "run": label, "passes": len(toolpath.passes),
@@ -187,7 +191,7 @@ def run_one(name: str) -> list[dict]:
 
 COLUMNS = [("part", ""), ("run", ""), ("passes", "d"), ("spacing_R", ".2f"), ("ripple", ".3f"), ("cov_kernel", ".3f"),
            ("cov_interior", ".3f"), ("mean_um", ".2f"), ("D_um", ".2f"), ("tol_um", ".2f"), ("over_kernel_um", ".2f"),
-           ("over_timed_um", ".2f"), ("over_um", ".2f"), ("dwell_ratio_max", ".2f"), ("L_over_Lstar", ".2f"),
+           ("over_timed_um", ".2f"), ("over_um", ".2f"), ("dwell_ratio_max", ".2f"), ("at_vmin", ".2f"), ("L_over_Lstar", ".2f"),
            ("cycle_s", ".1f"), ("opt_s", ".1f"), ("rss_mb", ".0f")]
 
 
