@@ -63,10 +63,16 @@ def _load(name: str):
 def _least_depth(k, cons, inside) -> float:
     """Smallest uniform depth the plan reaches without over-grinding at the fastest feeds the
     timing allows (the plan timed at the feed limit: caps, acceleration, passes from rest)."""
-    from swath.feed import trajectory_node_dwell
+    from swath.feed import node_speed_caps, trajectory_node_dwell
+    from swath.feed.caps import accel_feasible_pace
     from swath.trajectory import time_path
 
-    r0 = k.removal(trajectory_node_dwell(time_path(k.toolpath, cons), k.nodes, k.toolpath))
+    timed = trajectory_node_dwell(time_path(k.toolpath, cons), k.nodes, k.toolpath)
+    caps = np.clip(np.minimum(node_speed_caps(k.toolpath, k.nodes, cons), k.nodes.length / np.maximum(timed, 1e-12)),
+                   0.1 * FEED, FEED)
+    # the programme's fastest: the timing's floor, then its linearised acceleration sweep (a_t = 1 m/s²)
+    pace = np.minimum(accel_feasible_pace(1.0 / caps, k.nodes, 1.0, 1.0 / FEED), 10.0 / FEED)
+    r0 = k.removal(k.nodes.length * pace)
     touched = np.diff(k.matrix.tocsr().indptr) > 0
     return float(r0[inside & touched].max() / (1 + (1 - CAP_MARGIN) * TOL_FRACTION))
 
