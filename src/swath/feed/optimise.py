@@ -126,7 +126,7 @@ def _accel_rows(nodes, a_t: float, p_ref: float):
 def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: np.ndarray,
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
                 a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
-                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 20000, max_rounds: int = 6):
+                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     When the region has more than ``max_rows`` samples the programme sees a thinned set
@@ -369,7 +369,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
                   region: np.ndarray | None = None, smoothing: float = 2e-2, cap_margin: float = 0.5,
                   model_error: float = 0.08,
-                  max_rows: int = 20000, timing_rounds: int = 5, ratio_tolerance: float = 0.01, trajectory=None,
+                  max_rows: int = 5000, timing_rounds: int = 5, ratio_tolerance: float = 0.01, trajectory=None,
                   progress=None) -> FeedResult:
     """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
 
@@ -426,8 +426,11 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         (measured: 1, 2, 3 rounds leave at most 11 %, 7 %, 5.5 %).  0 skips it (no timing inside;
         then the passes' start and end at rest are not known to the programme either).
     max_rows : int
-        Largest number of sample rows in the programme (more region samples are thinned to one per
-        grid cell, area-weighted; see :func:`thin_rows`).
+        Largest number of sample rows in the programme's objective (more region samples are thinned
+        to one per grid cell, area-weighted; see :func:`thin_rows`), and as many cap rows at the
+        cells' peaks.  The HiGHS interior-point time grows faster than linearly with it; measured on
+        the panel (47k region samples, 651 nodes): 20000 rows 12.2 s CPU, 8000 6.9 s, 4000 3.6 s,
+        with the same CoV (0.136) and over-removal.
     smoothing : float
         Weight of the cost on pace changes between neighbouring nodes, relative to the objective
         (ties between dwell distributions with the same removal go to the smoother one).
