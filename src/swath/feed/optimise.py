@@ -267,6 +267,12 @@ def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, 
         c = np.concatenate([np.zeros(n), np.full(E, lam), [zscale]])
         bounds = np.concatenate([t_bounds, g_bounds, [[0.0, np.inf]]])
         res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method=method, options=opts)
+    if res.x is None and res.status == 4 and method == "highs-ipm":
+        # interior point in numerical trouble (seen on the panel with 5000 rows): the same programme by
+        # the dual simplex, slower but robust
+        log.info("feed optimisation: interior point reports %r; solving again with the dual simplex", res.message)
+        if mode != "max_removal" and objective == "l1":
+            res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=d, bounds=bounds, method="highs-ds", options=opts)
     x = None if res.x is None else res.x[:n]
     if res.status == 2:
         raise InfeasibleError(f"the feed optimisation is infeasible ({res.message}); the acceleration limit, the "
