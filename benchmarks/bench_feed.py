@@ -50,7 +50,7 @@ from common import REPO, SHARED_MESH_UNITS, SHARED_MESHES, max_rss_mb, print_tab
 FEED = 0.05          # m/s
 TOL_FRACTION = 0.10
 CAP_MARGIN = 0.5     # optimise_feed defaults: the programme's cap is target + tolerance - holdback,
-MODEL_ERROR = 0.08   # holdback = max(CAP_MARGIN * tolerance, MODEL_ERROR * target) (kernel vs simulator)
+MODEL_ERROR = 0.10   # holdback = max(CAP_MARGIN * tolerance, MODEL_ERROR * target) (kernel vs simulator)
 
 
 def _load(name: str):
