@@ -133,3 +133,23 @@ def test_join_gap_picks_a_tour_and_refuses_a_fixed_sequence(tmp_path):
     with pytest.raises(InputError, match="snake order keeps the planner's sequence"):
         settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "join_gap": "76mm",
                                "order": "snake"})
+
+
+def test_spacing_optimisation_is_reachable_from_jobs(tmp_path, capsys):
+    import json
+
+    from swath.contact import Tool
+    from swath.feed import ripple_spacing
+
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "greedy", "--out", str(tmp_path / "x")]) == 2
+    assert "add --optimise-feed" in capsys.readouterr().err
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "ripple", "--spacing", "40mm",
+                 "--out", str(tmp_path / "y")]) == 2
+    assert "without --spacing" in capsys.readouterr().err
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "wavy", "--out", str(tmp_path / "z")]) == 2
+    assert "ripple, greedy, joint" in capsys.readouterr().err
+    out = tmp_path / "o"
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "ripple", "--out", str(out)]) == 0
+    doc = json.loads((out / "metrics.json").read_text())
+    assert doc["settings"]["optimise_spacing"] == "ripple"
+    assert doc["metrics"]["spacing_m"] == pytest.approx(ripple_spacing(Tool())[0], rel=1e-9)

@@ -56,7 +56,7 @@ def test_straight_pass_uniform_target_needs_constant_feed(plate):
     k = build_kernel(tp, TOOL)
     v_star = 0.02
     target = k.removal(k.dwell_at_speed(v_star))
-    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=0.05 * target.max(),
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=0.05 * target.max(), model_error=0.0,
                         kernel=k, boundary_margin=0.0)
     mid = np.abs(k.nodes.s_mid - 0.1) < 0.06                         # away from the pass ends
     np.testing.assert_allclose(res.speed[mid], v_star, rtol=0.02)
@@ -83,7 +83,8 @@ def test_two_overlapping_passes_change_feed_where_they_overlap(plate):
     on_lines = (((np.abs(y - y0) < 1e-6) & (x >= 0.02 + R) & (x <= 0.22 - R))
                 | ((np.abs(y - y0 - d) < 1e-6) & (x >= 0.12 + R) & (x <= 0.22 - R)))
     D = 8e-6
-    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=D, tolerance=0.05 * D, kernel=k, region=on_lines)
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=D, tolerance=0.05 * D, kernel=k, region=on_lines,
+                        model_error=0.0)
     rate = _centre_rate()
     v_alone = rate * 2 * R / D
     v_overlap = rate * (2 * R + 2 * math.sqrt(R**2 - d**2)) / D
@@ -106,13 +107,18 @@ def test_over_removal_never_exceeds_tolerance(plate, mode, objective, max_rows):
     over-grinds are added back as caps until none is over."""
     tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
     k = build_kernel(tp, TOOL)
-    fastest = k.removal(k.dwell_at_speed(V_MAX))
+    cons = [FeedLimit(V_MAX), TangentialAccelLimit(0.2)]
+    # the fastest the timing allows: the passes start and end at rest
+    fastest = k.removal(trajectory_node_dwell(time_path(tp, cons), k.nodes, tp))
     D = 1.1 * fastest.max()
     tol = 0.05 * D
-    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX), TangentialAccelLimit(0.2)], target=D, tolerance=tol,
+    res = optimise_feed(tp, TOOL, cons, target=D, tolerance=tol,
                         mode=mode, objective=objective, kernel=k, boundary_margin=0.0, max_rows=max_rows)
     over = res.predicted[res.region] - D
     assert over.max() <= tol * (1 + 1e-6)
+    # and with the dwell the timed trajectory really spends in each node (pass ends included)
+    timed = trajectory_node_dwell(time_path(tp, cons + [res.profile]), k.nodes, tp)
+    assert (k.removal(timed)[res.region] - D).max() <= tol * (1 + 1e-6)
     assert (res.speed <= V_MAX * (1 + 1e-9)).all() and (res.speed >= 0.1 * V_MAX * (1 - 1e-9)).all()
     # linearised acceleration limit: |dv/dt| = |dp/ds| / p^3 <= a_t between neighbouring nodes
     pace = 1 / res.speed
@@ -148,3 +154,22 @@ def test_accel_sweep_makes_a_sharp_cap_feasible():
     assert (dp <= c * (3 * p[1:] - 2 * p_ref) * (1 + 1e-9)).all()
     assert (p >= p_min).all() and p[0] == p_ref and p[-1] == p_ref
     assert p[49] > p_ref and p[51] > p_ref
+
+
+def test_thin_rows_keeps_each_cells_peak_when_scored(plate):
+    """With a score, the row kept in each grid cell is the cell's highest-scoring sample; the
+    weights (cell areas) add up to the region's area either way."""
+    from swath.feed.optimise import thin_rows
+
+    region = np.ones(len(plate.vertices), bool)
+    score = np.random.default_rng(3).random(len(plate.vertices))
+    rows, w = thin_rows(plate, region, 500)
+    peaks, wp = thin_rows(plate, region, 500, score=score)
+    assert len(peaks) == len(rows) and len(rows) <= 1.3 * 500
+    np.testing.assert_allclose(w, wp)
+    assert w.sum() == pytest.approx(plate.vertex_areas.sum(), rel=1e-12)
+    cell = float(np.sqrt(plate.vertex_areas.sum() / 500))
+    key = np.floor(plate.vertices / cell).astype(np.int64)
+    for r in peaks[:50]:
+        same = np.flatnonzero((key == key[r]).all(axis=1))
+        assert score[r] == score[same].max()

@@ -46,3 +46,28 @@ def test_greedy_steps_stay_in_range_and_cover_the_part(plate):
     # the last plane leaves less than one step plus a quarter radius uncovered at the far edge
     assert h.max() - res.offsets[-1] <= steps.max() + 0.25 * R + 1e-9
     assert res.metrics["n_planes"] == len(res.toolpath.passes) == len(res.offsets)
+
+
+def test_joint_spacing_finds_the_least_ripple_spacing():
+    """On a plate the feed cannot flatten the ripple across parallel passes, so the joint search's
+    best equal spacing within L <= 1.5 L* is the analytic least-ripple spacing (about 1.68 R for a
+    flat orbital pad), and its optimised removal CoV is the analytic ripple there."""
+    from swath.feed import joint_spacing, ripple_cov, ripple_spacing
+
+    R = TOOL.pad_radius
+    plate = flat_plate(size_x=0.2, size_y=0.2, spacing=4e-3)
+    rate = TOOL.preston * TOOL.force / (np.pi * R**2) * TOOL.relative_speed(0.0)
+    D = 2.0 * rate * 2 * R / 0.05                       # twice a single pass at the feed limit
+    res = joint_spacing(plate, TOOL, [FeedLimit(0.05)], target=D, tolerance=0.1 * D, n_coarse=5, n_refine=3,
+                        sample_spacing=4e-3)
+    steps = np.diff(res.offsets)
+    np.testing.assert_allclose(steps, steps[0], rtol=1e-9)                # equal spacing
+    d_best, _ = ripple_spacing(TOOL)
+    assert abs(steps[0] - d_best) < 0.12 * R
+    assert (steps >= 2 * R / 1.5 - 1e-12).all()                          # default range keeps L <= 1.5 L*
+    cov = res.feed.metrics["removal_cov"]
+    assert abs(cov - ripple_cov(TOOL, steps[0])) < 0.03
+    assert res.feed.metrics["max_over_removal_m"] <= 0.1 * D * (1 + 1e-9)
+    full = [t for t in res.trials if abs(t["spacing_m"] - 2 * R) < 1e-9]
+    assert full and full[0]["removal_cov"] > cov + 0.1                  # pads edge to edge ripple far more
+    assert res.metrics["evaluations"] == len(res.trials) <= 5 + 2 * 3

@@ -156,7 +156,11 @@ def make_plan(surface, settings: JobSettings, *, progress=None):
 
     planner = get_planner(settings.planner)
     arguments = planner_arguments(settings, progress=progress)
-    if settings.segment == "auto":
+    if settings.optimise_spacing:
+        from .stages import spacing_plan
+
+        toolpath = spacing_plan(surface, settings.tool(), planner, settings, arguments)
+    elif settings.segment == "auto":
         from .stages import segmented_plan
 
         toolpath = segmented_plan(surface, settings.tool(), planner, settings, arguments)

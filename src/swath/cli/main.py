@@ -88,6 +88,10 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                                         "vertex 'depth')")
     e.add_argument("--depth-tolerance", help="with --optimise-feed: allowed removal above the target, e.g. 2um "
                                              "(default 10 %% of the target depth)")
+    e.add_argument("--optimise-spacing",
+                   help="raster pass spacing for even removal: ripple (the spacing whose summed pad "
+                        "cross-profiles are flattest, path within 1.5x the coverage bound), greedy (Wang's pattern "
+                        "search, pass by pass, against the target) or joint (equal spacing and feed together)")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
     r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120")
     r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")

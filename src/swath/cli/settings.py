@@ -79,7 +79,7 @@ class JobSettings:
     target_depth: float | None = None
     target_map: str | None = None
     depth_tolerance: float | None = None
-    optimise_spacing: bool = False
+    optimise_spacing: str | None = None
     # robot stage
     robot: str | None = None
     base: str | None = None
@@ -217,7 +217,7 @@ SCHEMA: dict[str, Key] = {
     "tool_tilt": Key("angle"), "gravity_compensation": Key("bool"), "calibration": Key("path"), "grit": Key("str"),
     "optimise_feed": Key("bool"), "target_depth": Key("length", positive=True, bare_max=1e-2, hint="um, e.g. 20um"),
     "target_map": Key("path"), "depth_tolerance": Key("length", lo=0.0, bare_max=1e-2, hint="um, e.g. 5um"),
-    "optimise_spacing": Key("bool"),
+    "optimise_spacing": Key("str", choices=("ripple", "greedy", "joint"), off=True),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
 }
@@ -353,8 +353,13 @@ def check_settings(settings: JobSettings) -> None:
     if (settings.target_depth or settings.target_map or settings.depth_tolerance) and not settings.optimise_feed:
         raise InputError("--target-depth, --target-map and --depth-tolerance apply with --optimise-feed; add it")
     if settings.optimise_spacing:
-        raise InputError("optimise_spacing is available from Python (swath.feed.greedy_offsets, joint_spacing), "
-                         "not yet in jobs")
+        if settings.planner != "raster" or settings.segment == "auto" or settings.spacing is not None:
+            raise InputError(f"--optimise-spacing {settings.optimise_spacing} places raster passes itself: use it "
+                             "with the raster planner, without --spacing and without --segment auto")
+        if settings.optimise_spacing in ("greedy", "joint") and not settings.optimise_feed:
+            raise InputError(f"--optimise-spacing {settings.optimise_spacing} scores spacings against the target "
+                             "depth: add --optimise-feed and --target-depth or --target-map (or use "
+                             "--optimise-spacing ripple, which needs no target)")
     if settings.target_map and settings.target_depth:
         raise InputError("give either target_depth (a uniform depth) or target_map (a depth per vertex), not both")
 

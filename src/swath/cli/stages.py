@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import logging
 
+import numpy as np
+
 log = logging.getLogger(__name__)
 
 
@@ -101,11 +103,10 @@ def segmented_plan(surface, tool, planner, settings, arguments: dict):
     return plan_regions(surface, tool, planner, regions, fill_whole_part=True, **options)
 
 
-def feed_stage(toolpath, tool, settings, trajectory):
-    """Optimise the feed along the passes to the job's target depth (Wang §2) and re-time the
-    path with it; returns the new trajectory, the :class:`FeedResult` and its metrics."""
-    from ..feed import optimise_feed, read_target_map, uniform_target
-    from ..trajectory import time_path
+def job_target(settings):
+    """The job's target depth (a :class:`TargetMap`) and over-removal tolerance (m): the given
+    tolerance, else 10 % of a uniform target depth."""
+    from ..feed import read_target_map, uniform_target
 
     if settings.target_map:
         target = read_target_map(settings.target_map, units=settings.units)
@@ -114,6 +115,46 @@ def feed_stage(toolpath, tool, settings, trajectory):
         depth = settings.target_depth
         target = uniform_target(depth)
     tolerance = settings.depth_tolerance if settings.depth_tolerance is not None else 0.1 * (depth or 0.0)
+    return target, tolerance
+
+
+def spacing_plan(surface, tool, planner, settings, arguments: dict):
+    """Raster passes placed by ``settings.optimise_spacing``: ``ripple`` plans the raster at the
+    spacing whose summed pad cross-profiles are flattest with the path within 1.5x the coverage
+    bound (:func:`swath.feed.ripple_spacing`); ``greedy`` and ``joint`` place the planes against the
+    job's target depth (:func:`swath.feed.greedy_offsets`, :func:`swath.feed.joint_spacing`) in the
+    raster's direction (its automatic choice when none is given).  The feed stage then optimises
+    the feed along these passes."""
+    from ..feed import greedy_offsets, joint_spacing, ripple_spacing
+
+    method = settings.optimise_spacing
+    if method == "ripple":
+        spacing, cov = ripple_spacing(tool)
+        log.info("ripple spacing %.1f mm (pad cross-profile ripple CoV %.3f on a plane)", spacing * 1e3, cov)
+        return planner(surface, tool, **{**arguments, "spacing": spacing})
+    direction = arguments.get("direction")
+    if direction is None:
+        direction = planner(surface, tool, **arguments).metadata["angle_rad"]
+    place = {"angle": float(direction)} if np.ndim(direction) == 0 else {"direction": direction}
+    target, tolerance = job_target(settings)
+    constraints = settings.constraints()
+    if method == "greedy":
+        result = greedy_offsets(surface, tool, constraints, target=target, **place)
+    else:
+        result = joint_spacing(surface, tool, constraints, target=target, tolerance=tolerance, **place)
+    log.info("%s spacing: %d planes, mean step %.1f mm, %.1f s", method, len(result.offsets),
+             float(np.mean(np.diff(result.offsets))) * 1e3 if len(result.offsets) > 1 else float("nan"),
+             result.metrics.get("solve_time_s", float("nan")))
+    return result.toolpath
+
+
+def feed_stage(toolpath, tool, settings, trajectory):
+    """Optimise the feed along the passes to the job's target depth (Wang §2) and re-time the
+    path with it; returns the new trajectory, the :class:`FeedResult` and its metrics."""
+    from ..feed import optimise_feed
+    from ..trajectory import time_path
+
+    target, tolerance = job_target(settings)
     constraints = settings.constraints()
     result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory)
     timed = time_path(toolpath, constraints + [result.profile], links=settings.links())

@@ -166,6 +166,21 @@ def _sub_poses(toolpath, nodes: DwellNodes, step: float, trajectory=None):
     return np.vstack(pos), np.vstack(axes), np.concatenate(node), np.concatenate(weight)
 
 
+#: Most surface samples a kernel uses by default: a larger part is sampled more coarsely (the cost
+#: grows with samples × poses, about the cube of 1 / spacing).
+MAX_KERNEL_SAMPLES = 400_000
+#: Most dwell nodes by default: on longer paths the nodes grow (the programme's size follows them).
+MAX_KERNEL_NODES = 6000
+
+
+def kernel_sample_spacing(surface, tool: Tool, *, max_samples: int = MAX_KERNEL_SAMPLES) -> float:
+    """Default kernel sample spacing, m: the simulator's (:func:`sample_spacing_for`), widened so
+    the part holds at most about ``max_samples`` samples (a subdivided mesh holds about
+    ``area / (0.2 spacing²)`` vertices)."""
+    spacing = sample_spacing_for(tool)
+    return max(spacing, float(np.sqrt(surface.area / (0.2 * max_samples))))
+
+
 def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sample_spacing: float | None = None,
                  pose_step: float | None = None, samples=None, trajectory=None, chunk: int = 2000,
                  progress=None) -> RemovalKernel:
@@ -178,10 +193,11 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     tool : Tool
         The pad (radius, force, stiffness, Preston coefficient, orbital or rotary).
     node_spacing : float, optional
-        Dwell-node length along the passes, m (default :func:`default_node_spacing`).
+        Dwell-node length along the passes, m (default :func:`default_node_spacing`, longer on paths
+        that would need more than :data:`MAX_KERNEL_NODES` nodes).
     sample_spacing : float, optional
-        Largest edge of the sampled surface, m (default: the simulator's,
-        :func:`swath.simulate.removal.sample_spacing_for`).
+        Largest edge of the sampled surface, m (default :func:`kernel_sample_spacing`: the
+        simulator's, coarser on parts that would need more than :data:`MAX_KERNEL_SAMPLES`).
     pose_step : float, optional
         Spacing of the contact poses averaged within a node, m (default: half the sample spacing,
         which halves the ripple a pose grid leaves on single samples).
@@ -204,10 +220,17 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     """
     if not toolpath.passes:
         raise InputError("the tool path has no passes; plan passes before building a removal kernel")
-    spacing = sample_spacing_for(tool) if sample_spacing is None else float(sample_spacing)
+    if sample_spacing is not None:
+        spacing = float(sample_spacing)
+    elif samples is not None:
+        spacing = sample_spacing_for(tool)
+    else:
+        spacing = kernel_sample_spacing(toolpath.surface, tool)
     if not (np.isfinite(spacing) and spacing > 0):
         raise InputError(f"sample spacing must be a positive length in m, got {sample_spacing!r}")
-    nodes = dwell_nodes(toolpath, node_spacing=default_node_spacing(tool) if node_spacing is None else node_spacing)
+    if node_spacing is None:
+        node_spacing = max(default_node_spacing(tool), toolpath.contact_length / MAX_KERNEL_NODES)
+    nodes = dwell_nodes(toolpath, node_spacing=node_spacing)
     step = 0.5 * spacing if pose_step is None else float(pose_step)
     if samples is None:
         samples = toolpath.surface.subdivided(spacing)

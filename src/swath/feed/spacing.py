@@ -241,16 +241,23 @@ def _best_pace(r: np.ndarray, D: np.ndarray, w: np.ndarray, p_lo: float, p_hi: f
 
 
 def joint_spacing(surface, tool, constraints, *, target, tolerance: float, angle: float = 0.0, direction=None,
-                  spacing_range: tuple[float, float] | None = None, n_coarse: int = 7, n_refine: int = 5,
-                  length_weight: float = 0.01, objective: str = "minimax", progress=None, **feed_options) -> SpacingResult:
+                  spacing_range: tuple[float, float] | None = None, max_length_ratio: float = 1.5, n_coarse: int = 7,
+                  n_refine: int = 5, length_weight: float = 0.01, objective: str = "minimax", progress=None,
+                  **feed_options) -> SpacingResult:
     """Jointly choose an equal plane spacing and the feeds along the passes.
 
     Every evaluated spacing ``d`` plans :func:`raster_at_offsets` on planes ``d`` apart (centred on
     the part), optimises its feed (:func:`optimise_feed`, ``mode="match"``) and scores the relative
     area-weighted RMS residual plus ``length_weight · 2R/d``.  A coarse scan of ``n_coarse`` spacings
-    over ``spacing_range`` (default ``(0.4 R, 2 R)``) is refined by ``n_refine`` golden-section steps
-    around the best.  A spacing whose fastest feed already over-grinds (InfeasibleError) scores
-    infinity.
+    over ``spacing_range`` (m; default ``(2R / max_length_ratio, 2R)``: contact length within
+    ``max_length_ratio`` times the coverage lower bound on a plane) is refined by ``n_refine``
+    golden-section steps around the best.  A spacing whose fastest feed already over-grinds
+    (InfeasibleError) scores infinity.  ``feed_options`` go to :func:`optimise_feed` (e.g.
+    ``sample_spacing``, ``node_spacing``).
+
+    The feed changes removal only along the passes; across them the summed pad cross-profiles
+    leave a ripple that depends on the spacing alone (:func:`swath.feed.ripple_cov`), so on a plane
+    the winner is the analytic least-ripple spacing (:func:`swath.feed.ripple_spacing`).
 
     Returns
     -------
@@ -259,7 +266,9 @@ def joint_spacing(surface, tool, constraints, *, target, tolerance: float, angle
     """
     t_start = time.perf_counter()
     R = tool.pad_radius
-    lo, hi = (0.4 * R, 2.0 * R) if spacing_range is None else spacing_range
+    if not (np.isfinite(max_length_ratio) and max_length_ratio >= 1):
+        raise InputError(f"max_length_ratio must be >= 1 (contact length over the coverage bound), got {max_length_ratio!r}")
+    lo, hi = (2.0 * R / max_length_ratio, 2.0 * R) if spacing_range is None else spacing_range
     if not (0 < lo < hi):
         raise InputError(f"spacing_range must be (smallest, largest) in m with 0 < smallest < largest, got {spacing_range}")
     _, cross = feed_and_cross(surface, angle=angle, direction=direction)
