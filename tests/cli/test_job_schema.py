@@ -153,3 +153,17 @@ def test_spacing_optimisation_is_reachable_from_jobs(tmp_path, capsys):
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["settings"]["optimise_spacing"] == "ripple"
     assert doc["metrics"]["spacing_m"] == pytest.approx(ripple_spacing(Tool())[0], rel=1e-9)
+
+
+def test_order_groups_passes_gives_every_pass_its_own_group(tmp_path):
+    from swath.cli.job import order_options
+    from swath.core import Pass, ToolPath
+
+    pts = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]
+    tp = ToolPath(None, tuple(Pass(pts, [[0, 0, 1]] * 2) for _ in range(3)), "raster", {"order_hint": "gtsp"})
+    s = settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "order_groups": "passes"})
+    assert order_options(tp, s)["groups"] == [[0], [1], [2]]
+    assert "groups" not in order_options(tp, settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"),
+                                                                    "order": "gtsp"}))
+    with pytest.raises(InputError, match="order_groups"):
+        settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "order_groups": "cells"})

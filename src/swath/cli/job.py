@@ -183,6 +183,9 @@ def order_options(toolpath, settings) -> dict:
                "omega_max": settings.max_angular}
     if settings.join_gap is not None:
         options["join_gap"] = settings.join_gap
+    if settings.order_groups == "passes":
+        # Every pass its own group: order and direction chosen pass by pass, regions may interleave.
+        options["groups"] = [[i] for i in range(len(toolpath.passes))]
     return options
 
 

@@ -65,6 +65,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--join-gap", help="make step-overs up to this long in contact where the pad can slide along the "
                                       "part, joining the passes (Wang's continuous paths; fewer air moves, more "
                                       "contact at the ends), e.g. 76mm; orders by gtsp unless --order is given")
+    p.add_argument("--order-groups", choices=("regions", "passes"),
+                   help="what the tour orders: whole regions, each keeping its sweep (Wang), or single passes "
+                        "(default regions)")
     p.add_argument("--overlap", help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
     p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes (default 2m/s2; "
                                              "'none' turns it off)")

@@ -60,6 +60,7 @@ class JobSettings:
     max_accel: float | None = DEFAULT_LIMITS["max_accel"]
     overlap: float | None = None
     join_gap: float | None = None
+    order_groups: str = "regions"
     sample_spacing: float | None = None
     planner_options: dict = field(default_factory=dict)
     fit: bool = False
@@ -120,7 +121,7 @@ class JobSettings:
         tool = self.tool()
         record = {
             "part": self.part, "units": self.units, "planner": self.planner, "order": self.order,
-            "join_gap_m": self.join_gap,
+            "join_gap_m": self.join_gap, "order_groups": self.order_groups,
             "segment": self.segment,
             "pad_radius_m": self.pad_radius, "force_N": self.force,
             "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
@@ -203,6 +204,7 @@ SCHEMA: dict[str, Key] = {
     "direction": Key("angle", auto=True),
     "point_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 1mm"),
     "clearance": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 20mm"),
+    "order_groups": Key("str", choices=("regions", "passes")),
     "join_gap": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 76mm", off=True),
     "sample_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
     "surface_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
