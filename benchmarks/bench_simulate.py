@@ -104,7 +104,7 @@ def warm_up() -> None:
     kernels.accumulate_removal(grid, np.array([[0.2, 0.15, 0.0]]), np.array([[0.0, 0.0, -1.0]]), np.ones(1), Tool())
 
 
-def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]:
+def one_part(name: str, spacings: list[float], engines: list[str], method: str = "long_edges") -> list[dict]:
     import swath.simulate.removal as removal
     from swath.contact import Tool
     from swath.contact.widths import pad_scale_samples
@@ -127,6 +127,17 @@ def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]
     # time the integration itself (the rest of sim_s: subdividing the part, its normals, the metrics)
     removal._depth_compiled = timing(removal._depth_compiled)
     removal._depth_numpy = timing(removal._depth_numpy)
+    # the simulation's subdivision method (the planners' own calls name theirs), timed
+    subdivided = Surface.subdivided
+
+    def subdivided_by(self, max_edge, *, method=method):
+        t0 = time.perf_counter()
+        try:
+            return subdivided(self, max_edge, method=method)
+        finally:
+            timed["subdivide_s"] = timed.get("subdivide_s", 0.0) + time.perf_counter() - t0
+
+    Surface.subdivided = subdivided_by
     tool = Tool()
     warm_up()
     part, tr = load(name)
@@ -136,12 +147,14 @@ def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]
         results = {}
         for engine in engines:
             c0 = time.process_time()
+            timed["subdivide_s"] = 0.0
             with Measure() as m:
                 rm = simulate_removal(tr, part, tool, sample_spacing=spacing or None, engine=engine)
             cpu = time.process_time() - c0
             used = rm.metrics["removal_sample_spacing_m"]
             row = dict(part=name, faces=len(part.faces), path_m=path, spacing_mm=1e3 * used, engine=engine,
-                       samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
+                       method=method, subdivide_s=timed["subdivide_s"],
+                       estimate=removal.samples_for_area(part.area, used), samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
                        s_per_100m=100.0 * m.seconds / path, cpu_s=cpu, peak_MB=m.peak_mb, peak_rss_MB=max_rss_mb(),
                        cov=rm.metrics["removal_cov"], integrate_s=timed["integrate_s"],
                        integrate_s_per_100m=100.0 * timed["integrate_s"] / path,
@@ -174,12 +187,15 @@ def main():
     parser.add_argument("--parts", nargs="*", default=["panel100k", "crs_part_5.stl", "panel500k"])
     parser.add_argument("--spacings", nargs="*", type=float, default=[0.0, 0.002])
     parser.add_argument("--engines", nargs="*", default=["compiled", "numpy"])
+    parser.add_argument("--methods", nargs="*", default=["long_edges", "halving"],
+                        help="subdivision methods of the removal samples (Surface.subdivided)")
+    parser.add_argument("--method", default="long_edges", help=argparse.SUPPRESS)
     parser.add_argument("--timeout", type=float, default=1800.0)
     parser.add_argument("--one", help=argparse.SUPPRESS)
     parser.add_argument("--skip-jit", action="store_true")
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(one_part(args.one, args.spacings, args.engines)))
+        print(json.dumps(one_part(args.one, args.spacings, args.engines, args.method)))
         return
     if not args.skip_jit:
         print_table(jit_table(), [("first_call", "s"), ("seconds", ".1f")])
@@ -189,17 +205,20 @@ def main():
         if name not in ("panel100k", "panel500k") and not (SHARED_MESHES / name).exists():
             print(f"  {name}: not found in {SHARED_MESHES}", file=sys.stderr)
             continue
-        cmd = [sys.executable, __file__, "--one", name, "--spacings", *map(str, args.spacings),
-               "--engines", *args.engines]
-        try:
-            done = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=True)
-            rows += json.loads(done.stdout.strip().splitlines()[-1])
-        except subprocess.TimeoutExpired:
-            rows.append({"part": name, "engine": f"timed out after {args.timeout:.0f} s"})
-        except subprocess.CalledProcessError as exc:
-            rows.append({"part": name, "engine": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]})
-        print(f"  {name} done", file=sys.stderr, flush=True)
-    print_table(rows, [("part", "s"), ("faces", "d"), ("path_m", ".1f"), ("spacing_mm", ".2f"), ("samples", "d"),
+        for method in args.methods:
+            cmd = [sys.executable, __file__, "--one", name, "--spacings", *map(str, args.spacings),
+                   "--engines", *args.engines, "--method", method]
+            try:
+                done = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=True)
+                rows += json.loads(done.stdout.strip().splitlines()[-1])
+            except subprocess.TimeoutExpired:
+                rows.append({"part": name, "method": method, "engine": f"timed out after {args.timeout:.0f} s"})
+            except subprocess.CalledProcessError as exc:
+                rows.append({"part": name, "method": method,
+                             "engine": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]})
+            print(f"  {name} {method} done", file=sys.stderr, flush=True)
+    print_table(rows, [("part", "s"), ("faces", "d"), ("path_m", ".1f"), ("method", "s"), ("spacing_mm", ".2f"),
+                       ("estimate", "d"), ("samples", "d"), ("subdivide_s", ".2f"),
                        ("poses", "d"), ("engine", "s"), ("sim_s", ".2f"), ("s_per_100m", ".2f"), ("cpu_s", ".2f"), ("integrate_s", ".2f"),
                        ("integrate_s_per_100m", ".2f"), ("integrate_cpu_s", ".2f"), ("peak_MB", ".0f"),
                        ("peak_rss_MB", ".0f"), ("metrics_s", ".2f"), ("pad_scale_s", ".2f"),

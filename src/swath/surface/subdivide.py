@@ -65,9 +65,10 @@ def split_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
     done = []
     limit2 = max_edge * max_edge
     for round_ in range(MAX_ROUNDS + 1):
-        # (f, 3, 2) corner pairs: edge k runs from corner k to corner k+1
-        ends = np.stack([active, np.roll(active, -1, axis=1)], axis=2)
-        d = xyz[ends[:, :, 1]] - xyz[ends[:, :, 0]]
+        # edge k of a face runs from corner k to corner k + 1 (``following``)
+        following = np.concatenate([active[:, 1:], active[:, :1]], axis=1)
+        corners = np.take(xyz, active.ravel(), axis=0).reshape(-1, 3, 3)
+        d = np.concatenate([corners[:, 1:], corners[:, :1]], axis=1) - corners
         length2 = np.einsum("fkc,fkc->fk", d, d)
         long_edge = length2 > limit2
         # a face with no long edge is final: only long edges are ever split (a longest edge of a
@@ -76,7 +77,7 @@ def split_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
         if final.any():
             done.append(active[final])
             keep = ~final
-            active, ends, long_edge, length2 = active[keep], ends[keep], long_edge[keep], length2[keep]
+            active, following, long_edge, length2 = active[keep], following[keep], long_edge[keep], length2[keep]
         if len(active) == 0:
             break
         if round_ == MAX_ROUNDS:
@@ -84,8 +85,8 @@ def split_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
                              f"edges after {MAX_ROUNDS} rounds; check the mesh for huge or non-finite "
                              "coordinates, or use a larger max_edge")
         # unique (undirected) edges of the active faces
-        lo = np.minimum(ends[:, :, 0], ends[:, :, 1]).ravel()
-        hi = np.maximum(ends[:, :, 0], ends[:, :, 1]).ravel()
+        lo = np.minimum(active, following).ravel()
+        hi = np.maximum(active, following).ravel()
         unique_keys, edge_of = np.unique(lo * np.int64(n_points) + hi, return_inverse=True)
         edge_of = edge_of.reshape(-1, 3)
         # longest-edge closure: a face with any split edge has its longest edge split too, so every
