@@ -1,13 +1,18 @@
 """Removal simulation speed and memory: the compiled engine against the numpy (pair-list) engine.
 
     python benchmarks/bench_simulate.py [--parts panel100k crs_part_5.stl panel500k] [--spacings 0 0.002]
-                                        [--engines compiled numpy] [--timeout 1200]
+                                        [--engines compiled numpy] [--methods long_edges halving]
+                                        [--timeout 1200]
 
 Table 1, JIT: the first call of the compiled kernels in a fresh process with an empty numba cache
 (``NUMBA_CACHE_DIR`` set to a new folder: compile and write the cache), then again in a fresh
 process (load from the cache); both include importing swath and numba.
 
-Table 2, one child process per part (so ``peak_rss_MB`` is that part's; the compiled engine runs
+Table 2, one child process per part and subdivision method of the removal samples (``method``:
+``long_edges``, the default of :meth:`swath.surface.Surface.subdivided`, or ``halving``, the
+earlier 1-to-4 split; ``subdivide_s`` is the time in ``Surface.subdivided`` within the call,
+``estimate`` the sample count :func:`swath.simulate.removal.samples_for_area` predicts; so
+``peak_rss_MB`` is that part's and method's; the compiled engine runs
 first, so its RSS is the compiled run's and the numpy row's is the larger of the two): for each
 removal-sample spacing (``0`` = the default, :func:`swath.contact.tool.sample_spacing_for`, 3 mm
 for the 3-inch pad) and engine, ``simulate_removal`` wall time (s), seconds per 100 m of contact
@@ -24,12 +29,19 @@ Parts: ``panel100k`` is :func:`swath.examples.doubly_curved_panel` at ~91k faces
 of 2.2 mm spacing (~100 m of contact path); the shared meshes and ``panel500k``
 (:func:`swath.examples.large_panel`, 500k faces) under the default raster (spacing from the tool).
 
-Last run (2 cores shared with other jobs, load 5-7: wall times about twice the CPU times):
-panel100k at 2 mm, 101 m: compiled 4.9 s per 100 m in all (integration 3.7 s wall, 1.75 s CPU),
-numpy 72.6 s; at 3 mm 1.9 s against 17.5 s.  Metrics agree to 1.2e-6 relative, peak traced memory
-163 MB against 1357 MB.  crs_part_5 at 2 mm (4.2M samples): integration 7.6 s per 100 m against
-186 s, but the whole call 89 s per 100 m and 7 GB, nearly all subdividing the part and its vertex
-normals.  JIT: 5 s on an empty cache, 0.9 s from the cache.
+Last run, subdivision methods (compiled engine, 2 cores shared with other jobs, load 2-5; wall
+times up to 1.5 times the CPU times): crs_part_5 at 3 mm: long_edges 1.29M samples (halving 1.44M),
+subdivision 3.9 s (9.1 s), whole call 10.7 s per 100 m (18.3 s), 1.1 GB RSS (1.7 GB).  Asked for
+2 mm, both exceed the sample cap: long_edges is sampled at 2.34 mm, 2.16M samples, 14.6 s in all
+for 72.5 m (20 s per 100 m, 9.5 s CPU), 2.0 GB; halving at 2.60 mm (its first try had more samples
+than the cap), 2.26M samples, 20.8 s (28.7 s per 100 m), 3.0 GB.  Before this change crs_part_5
+at 2 mm had 4.2M samples, 89 s per 100 m and 7 GB.  panel100k at 2 mm: the same 183k samples either
+way, 2.0 s per 100 m.  panel500k at 2 mm: 630k samples either way, whole call 1.9 s (2.3 s) for
+13.6 m of path (integration 1.7 s per 100 m), 0.95 GB RSS.
+
+Earlier run, engines: panel100k at 2 mm, 101 m: compiled 4.9 s per 100 m in all (integration 3.7 s
+wall, 1.75 s CPU), numpy 72.6 s; at 3 mm 1.9 s against 17.5 s.  Metrics agree to 1.2e-6 relative,
+peak traced memory 163 MB against 1357 MB.  JIT: 5 s on an empty cache, 0.9 s from the cache.
 """
 
 from __future__ import annotations
@@ -104,7 +116,7 @@ def warm_up() -> None:
     kernels.accumulate_removal(grid, np.array([[0.2, 0.15, 0.0]]), np.array([[0.0, 0.0, -1.0]]), np.ones(1), Tool())
 
 
-def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]:
+def one_part(name: str, spacings: list[float], engines: list[str], method: str = "long_edges") -> list[dict]:
     import swath.simulate.removal as removal
     from swath.contact import Tool
     from swath.contact.widths import pad_scale_samples
@@ -127,6 +139,17 @@ def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]
     # time the integration itself (the rest of sim_s: subdividing the part, its normals, the metrics)
     removal._depth_compiled = timing(removal._depth_compiled)
     removal._depth_numpy = timing(removal._depth_numpy)
+    # the simulation's subdivision method (the planners' own calls name theirs), timed
+    subdivided = Surface.subdivided
+
+    def subdivided_by(self, max_edge, *, method=method):
+        t0 = time.perf_counter()
+        try:
+            return subdivided(self, max_edge, method=method)
+        finally:
+            timed["subdivide_s"] = timed.get("subdivide_s", 0.0) + time.perf_counter() - t0
+
+    Surface.subdivided = subdivided_by
     tool = Tool()
     warm_up()
     part, tr = load(name)
@@ -136,12 +159,14 @@ def one_part(name: str, spacings: list[float], engines: list[str]) -> list[dict]
         results = {}
         for engine in engines:
             c0 = time.process_time()
+            timed["subdivide_s"] = 0.0
             with Measure() as m:
                 rm = simulate_removal(tr, part, tool, sample_spacing=spacing or None, engine=engine)
             cpu = time.process_time() - c0
             used = rm.metrics["removal_sample_spacing_m"]
             row = dict(part=name, faces=len(part.faces), path_m=path, spacing_mm=1e3 * used, engine=engine,
-                       samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
+                       method=method, subdivide_s=timed["subdivide_s"],
+                       estimate=removal.samples_for_area(part.area, used), samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
                        s_per_100m=100.0 * m.seconds / path, cpu_s=cpu, peak_MB=m.peak_mb, peak_rss_MB=max_rss_mb(),
                        cov=rm.metrics["removal_cov"], integrate_s=timed["integrate_s"],
                        integrate_s_per_100m=100.0 * timed["integrate_s"] / path,
@@ -174,12 +199,15 @@ def main():
     parser.add_argument("--parts", nargs="*", default=["panel100k", "crs_part_5.stl", "panel500k"])
     parser.add_argument("--spacings", nargs="*", type=float, default=[0.0, 0.002])
     parser.add_argument("--engines", nargs="*", default=["compiled", "numpy"])
+    parser.add_argument("--methods", nargs="*", default=["long_edges", "halving"],
+                        help="subdivision methods of the removal samples (Surface.subdivided)")
+    parser.add_argument("--method", default="long_edges", help=argparse.SUPPRESS)
     parser.add_argument("--timeout", type=float, default=1800.0)
     parser.add_argument("--one", help=argparse.SUPPRESS)
     parser.add_argument("--skip-jit", action="store_true")
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(one_part(args.one, args.spacings, args.engines)))
+        print(json.dumps(one_part(args.one, args.spacings, args.engines, args.method)))
         return
     if not args.skip_jit:
         print_table(jit_table(), [("first_call", "s"), ("seconds", ".1f")])
@@ -189,17 +217,20 @@ def main():
         if name not in ("panel100k", "panel500k") and not (SHARED_MESHES / name).exists():
             print(f"  {name}: not found in {SHARED_MESHES}", file=sys.stderr)
             continue
-        cmd = [sys.executable, __file__, "--one", name, "--spacings", *map(str, args.spacings),
-               "--engines", *args.engines]
-        try:
-            done = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=True)
-            rows += json.loads(done.stdout.strip().splitlines()[-1])
-        except subprocess.TimeoutExpired:
-            rows.append({"part": name, "engine": f"timed out after {args.timeout:.0f} s"})
-        except subprocess.CalledProcessError as exc:
-            rows.append({"part": name, "engine": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]})
-        print(f"  {name} done", file=sys.stderr, flush=True)
-    print_table(rows, [("part", "s"), ("faces", "d"), ("path_m", ".1f"), ("spacing_mm", ".2f"), ("samples", "d"),
+        for method in args.methods:
+            cmd = [sys.executable, __file__, "--one", name, "--spacings", *map(str, args.spacings),
+                   "--engines", *args.engines, "--method", method]
+            try:
+                done = subprocess.run(cmd, capture_output=True, text=True, timeout=args.timeout, check=True)
+                rows += json.loads(done.stdout.strip().splitlines()[-1])
+            except subprocess.TimeoutExpired:
+                rows.append({"part": name, "method": method, "engine": f"timed out after {args.timeout:.0f} s"})
+            except subprocess.CalledProcessError as exc:
+                rows.append({"part": name, "method": method,
+                             "engine": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]})
+            print(f"  {name} {method} done", file=sys.stderr, flush=True)
+    print_table(rows, [("part", "s"), ("faces", "d"), ("path_m", ".1f"), ("method", "s"), ("spacing_mm", ".2f"),
+                       ("estimate", "d"), ("samples", "d"), ("subdivide_s", ".2f"),
                        ("poses", "d"), ("engine", "s"), ("sim_s", ".2f"), ("s_per_100m", ".2f"), ("cpu_s", ".2f"), ("integrate_s", ".2f"),
                        ("integrate_s_per_100m", ".2f"), ("integrate_cpu_s", ".2f"), ("peak_MB", ".0f"),
                        ("peak_rss_MB", ".0f"), ("metrics_s", ".2f"), ("pad_scale_s", ".2f"),

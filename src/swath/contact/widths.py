@@ -270,13 +270,14 @@ def surface_memo(surface, key, make):
     return store[key]
 
 
-def subdivided(surface, max_edge: float):
-    """``surface.subdivided(max_edge)`` (edges at most ``max_edge`` m), computed once per surface and
-    edge length."""
+def subdivided(surface, max_edge: float, *, method: str = "long_edges"):
+    """``surface.subdivided(max_edge, method=method)`` (edges at most ``max_edge`` m), computed once
+    per surface, edge length and method."""
     if surface.edge_lengths.max() <= max_edge:
         # the surface itself: not memoised, a memo value holding its own key would never be freed
         return surface
-    return surface_memo(surface, ("subdivided", float(max_edge)), lambda: surface.subdivided(max_edge))
+    return surface_memo(surface, ("subdivided", float(max_edge), method),
+                        lambda: surface.subdivided(max_edge, method=method))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -334,7 +335,8 @@ def pad_scale_samples(surface, tool, *, spacing: float | None = None, max_sample
 
 def _pad_scale_samples(surface, tool, spacing, max_samples) -> PadSamples:
     R = tool.pad_radius
-    dense = subdivided(surface, R / 4.0)
+    # the earlier 1-to-4 halving: the pad-scale samples (and the plans built on them) stay as they were
+    dense = subdivided(surface, R / 4.0, method="halving")
     v, nrm, va = dense.vertices, dense.normals, dense.vertex_areas
     if spacing is None:
         spacing = max(R / 2.0, float(np.sqrt(dense.area / max(int(max_samples), 1))))

@@ -109,7 +109,7 @@ class CoverageCheck:
 def _fine_samples(surface, tool, step):
     """The fine samples of :class:`CoverageCheck`: points ``(s, 3)``, areas ``(s,)`` (m²), the
     pad-scale samples and the nearest pad-scale sample of each fine sample ``(s,)``."""
-    fine = subdivided(surface, step)
+    fine = subdivided(surface, step, method="halving")
     pad = pad_scale_samples(surface, tool)
     nearest = cKDTree(pad.points).query(fine.vertices)[1]
     return fine.vertices, fine.vertex_areas, pad, nearest

@@ -58,13 +58,13 @@ class _Context:
         self.surface = surface
         self.tool = tool
         self.max_turn_curvature = float(max_turn_curvature)   # 1/m, in the tangent plane
-        self.work = surface.subdivided(work_spacing)
+        self.work = surface.subdivided(work_spacing, method="halving")
         # Halving long thin CAD triangles makes far more vertices than an even mesh of the same edge
         # length; the distance solver's set-up grows faster than linearly with them, so coarsen to
         # stay near the budget (never past R/4, where the widths would blur).
         while not given and len(self.work.vertices) > 1.3 * MAX_WORK_VERTICES and work_spacing < R / 4.0:
             work_spacing = min(work_spacing * math.sqrt(len(self.work.vertices) / MAX_WORK_VERTICES), R / 4.0)
-            self.work = surface.subdivided(work_spacing)
+            self.work = surface.subdivided(work_spacing, method="halving")
         if len(np.unique(self.work.faces)) < len(self.work.vertices):
             # vertices no face uses (a hole cut out of a grid): the distance solver refuses them
             self.work = self.work.sub_surface(np.arange(len(self.work.faces)))

@@ -68,9 +68,24 @@ ENGINES = ("auto", "compiled", "numpy")
 MAX_REMOVAL_SAMPLES = 2_500_000
 
 
+#: Vertices per ``area / (0.433 spacing²)`` that :meth:`swath.surface.Surface.subdivided` gives at
+#: most on the meshes measured (1.2 on regular grids, 1.7-1.8 on the CAD part crs_part_5; an edge
+#: just over the spacing is cut into two, so up to about 2 on a mesh of edges slightly too long).
+#: Meshes of slivers narrower than the spacing can need more (their short edges are never split):
+#: :func:`simulate_removal` counts the real samples and widens the spacing again if they exceed the cap.
+SUBDIVISION_DENSITY = 2.0
+
+
 def samples_for_area(area: float, spacing: float) -> int:
-    """About how many vertices a surface of ``area`` (m²) subdivided to edges of ``spacing`` (m) has."""
-    return int(area / (0.433 * spacing**2)) + 1
+    """An upper estimate of how many vertices a surface of ``area`` (m²) subdivided to edges of
+    ``spacing`` (m) has (:data:`SUBDIVISION_DENSITY` times the ``area / (0.433 spacing²)`` of an
+    even mesh; not for meshes of slivers narrower than ``spacing``)."""
+    return int(SUBDIVISION_DENSITY * area / (0.433 * spacing**2)) + 1
+
+
+def spacing_for_samples(area: float, samples: int) -> float:
+    """The sample spacing (m) at which :func:`samples_for_area` of ``area`` (m²) is ``samples``."""
+    return float(np.sqrt(SUBDIVISION_DENSITY * area / (0.433 * samples)))
 
 
 def contact_dwell(trajectory) -> np.ndarray:
@@ -124,7 +139,7 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     if not (np.isfinite(spacing) and spacing > 0):
         raise InputError(f"sample spacing must be positive, got {sample_spacing!r} m")
     if samples_for_area(surface.area, spacing) > MAX_REMOVAL_SAMPLES:
-        wider = float(np.sqrt(surface.area / (0.433 * MAX_REMOVAL_SAMPLES)))
+        wider = spacing_for_samples(surface.area, MAX_REMOVAL_SAMPLES)
         log.warning("removal sampled at %.2f mm instead of %.2f mm to stay within %d samples (%.2f m² part)",
                     wider * 1e3, spacing * 1e3, MAX_REMOVAL_SAMPLES, surface.area)
         spacing = wider
@@ -137,6 +152,13 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         raise InputError("the compiled removal engine needs numba; install it (pip install numba) or use "
                          "engine='numpy'")
     samples = surface.subdivided(spacing)
+    while len(samples.vertices) > MAX_REMOVAL_SAMPLES and samples is not surface:
+        # more than estimated (slivers): widen by the excess and subdivide again
+        wider = spacing * 1.05 * float(np.sqrt(len(samples.vertices) / MAX_REMOVAL_SAMPLES))
+        log.warning("removal sampled at %.2f mm instead of %.2f mm: %d samples exceed the %d cap",
+                    wider * 1e3, spacing * 1e3, len(samples.vertices), MAX_REMOVAL_SAMPLES)
+        spacing = wider
+        samples = surface.subdivided(spacing)
     # Coordinates relative to the part's centre: a part far from the origin keeps its micrometre heights.
     origin = 0.5 * (samples.vertices.min(axis=0) + samples.vertices.max(axis=0))
     local = samples.vertices - origin

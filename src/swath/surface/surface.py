@@ -9,6 +9,10 @@ import numpy as np
 from ..errors import InputError
 from . import geometry, topology
 from .curvature import PrincipalCurvature, principal_curvatures
+from .subdivide import split_long_edges
+
+#: The methods of :meth:`Surface.subdivided`.
+SUBDIVISION_METHODS = ("long_edges", "halving")
 
 
 class Surface:
@@ -222,13 +226,36 @@ class Surface:
         return Surface(self.vertices[used], inverse.reshape(-1, 3), name=name or self.name,
                        normal_smoothing=self.normal_smoothing, curvature_neighbours=self.curvature_neighbours)
 
-    def subdivided(self, max_edge: float) -> Surface:
-        """A copy whose edges are all at most ``max_edge`` metres (same shape, finer sampling)."""
-        import trimesh
+    def subdivided(self, max_edge: float, *, method: str = "long_edges") -> Surface:
+        """A copy whose edges are all at most ``max_edge`` metres (same shape, finer sampling).
 
+        Parameters
+        ----------
+        max_edge : float
+            Longest edge allowed, m.
+        method : {"long_edges", "halving"}
+            ``"long_edges"``: split only the edges longer than ``max_edge``
+            (:func:`swath.surface.subdivide.split_long_edges`), so long slivers are cut across, not
+            also along, and each edge ends in equal pieces just under ``max_edge``; the vertices of
+            this surface are kept, first and in order.  ``"halving"``: the earlier 1-to-4 split of
+            every face with a long edge (``trimesh.remesh.subdivide_to_size``), up to about twice as
+            many vertices per direction; kept for results that must not change.
+
+        Returns
+        -------
+        Surface
+            ``self`` when no edge is longer than ``max_edge``.
+        """
+        if method not in SUBDIVISION_METHODS:
+            raise InputError(f"subdivision method must be one of {', '.join(SUBDIVISION_METHODS)}, got {method!r}")
         if self.edge_lengths.max() <= max_edge:
             return self
-        v, f = trimesh.remesh.subdivide_to_size(self.vertices, self.faces, max_edge=max_edge, max_iter=20)
+        if method == "halving":
+            import trimesh
+
+            v, f = trimesh.remesh.subdivide_to_size(self.vertices, self.faces, max_edge=max_edge, max_iter=20)
+        else:
+            v, f = split_long_edges(self.vertices, self.faces, max_edge)
         return Surface(v, f, name=self.name, normal_smoothing=self.normal_smoothing,
                        curvature_neighbours=self.curvature_neighbours)
 
