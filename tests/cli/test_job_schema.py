@@ -161,9 +161,9 @@ def test_order_groups_passes_gives_every_pass_its_own_group(tmp_path):
 
     pts = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]
     tp = ToolPath(None, tuple(Pass(pts, [[0, 0, 1]] * 2) for _ in range(3)), "raster", {"order_hint": "gtsp"})
-    s = settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "order_groups": "passes"})
+    s = settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o")})     # passes by default
     assert order_options(tp, s)["groups"] == [[0], [1], [2]]
     assert "groups" not in order_options(tp, settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"),
-                                                                    "order": "gtsp"}))
+                                                                    "order": "gtsp", "order_groups": "regions"}))
     with pytest.raises(InputError, match="order_groups"):
         settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "order_groups": "cells"})

@@ -66,8 +66,8 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                                       "part, joining the passes (Wang's continuous paths; fewer air moves, more "
                                       "contact at the ends), e.g. 76mm; orders by gtsp unless --order is given")
     p.add_argument("--order-groups", choices=("regions", "passes"),
-                   help="what the tour orders: whole regions, each keeping its sweep (Wang), or single passes "
-                        "(default regions)")
+                   help="what the tour orders: single passes, each choosing its direction (default), or whole "
+                        "regions, each swept as a snake from one of its corners (Wang's path types)")
     p.add_argument("--overlap", help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
     p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes (default 2m/s2; "
                                              "'none' turns it off)")
