@@ -10,7 +10,9 @@ Instead of pose-sample pair lists this module keeps the samples in a uniform gri
 (:class:`SampleGrid`, samples sorted by cell so each cell is one contiguous run) and, for each pose,
 gathers the samples of the cells the ball reaches, solves the force balance and adds Preston's
 ``k_p · p · v_rel(r) · dwell`` to the depth of every touched sample directly
-(:func:`accumulate_removal`).  Memory is the samples plus one depth array per thread, whatever the
+(:func:`accumulate_removal`); :func:`contact_pairs` lists the touching pose-sample pairs and
+:func:`touched_samples` marks the touched samples under a capped pad-face depth (the uniform
+planner's coverage test).  Memory is the samples plus one depth array per thread, whatever the
 path length.  Poses are split over threads, each summing into its own depth array.
 
 Everything runs in float64.  The kernels are compiled on first use and cached on disk
