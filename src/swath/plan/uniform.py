@@ -107,8 +107,9 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         ``progress(stage: str, done: int, total: int)``, called as candidate directions finish.
     workers : int, optional
         Processes that plan the candidate directions of automatic direction at once (default
-        ``min(candidates, CPU count)``; 1 = one after another in this process).  Each worker builds
-        its own working mesh and ranks its candidates with ``cost``, which must then pickle (a
+        ``min(candidates, CPU count)``; 1 = one after another in this process).  On Linux the
+        workers are forked after the working mesh is built here and share it; elsewhere each
+        spawned worker builds its own.  Each ranks its candidates with ``cost``, which must then pickle (a
         module-level function or a record with ``__call__``; otherwise the candidates are planned
         here, one after another).  The plan is the same whatever the number of workers.
 
