@@ -25,6 +25,19 @@ processes are reported separately, as the largest child's peak RSS).  Per part, 
 Wall times suffer from other load on the machine; CPU times (``*_cpu_s``: the part's process and
 its finished worker processes) less, and the ``*_cpu`` ratios are the ones to compare when the
 load average is above the CPU count.
+
+Last run (2 CPUs shared, load average 3.2 falling to 0.8; default workers = 2, forked on Linux from
+the parent's working mesh; pad-touch test on the compiled contact kernel), uniform/raster end to
+end, CPU: noether_wavy_mesh_with_hole 2.2 (5.0 re-run at load 0.8, where raster's own CPU time
+halved), bezier_dac_cad 6.4 (re-run at load 0.8; the first run's raster recompiled the kernels),
+snp_part_scan 8.0, crs_part_5 6.6, bezier_complex_shape 11.1, noether_raw_mesh 14.9,
+bezier_dac_scan 8.3.  Uniform e2e CPU seconds against the code before (spawned workers, float32
+pair lists), same machine minutes apart: wavy 7.1 -> 2.9-3.0, snp 14.3 -> 9.9.  The plans (pass
+count, contact length, candidate costs) were checked equal to the earlier code's on wavy, snp,
+bezier_dac_cad, bezier_complex_shape, bezier_dac_scan and crs_part_5; on noether_raw_mesh the chosen
+plan is the same (89 passes, 9.115758 m) but the losing 90 degree candidate's predicted cycle time
+moved from 598.8 s to 608.3 s (the float64 pad-touch test marks a few different border vertices
+than float32 did, and that candidate's later passes follow).
 """
 
 from __future__ import annotations

@@ -10,7 +10,9 @@ Instead of pose-sample pair lists this module keeps the samples in a uniform gri
 (:class:`SampleGrid`, samples sorted by cell so each cell is one contiguous run) and, for each pose,
 gathers the samples of the cells the ball reaches, solves the force balance and adds Preston's
 ``k_p · p · v_rel(r) · dwell`` to the depth of every touched sample directly
-(:func:`accumulate_removal`).  Memory is the samples plus one depth array per thread, whatever the
+(:func:`accumulate_removal`); :func:`contact_pairs` lists the touching pose-sample pairs and
+:func:`touched_samples` marks the touched samples under a capped pad-face depth (the uniform
+planner's coverage test).  Memory is the samples plus one depth array per thread, whatever the
 path length.  Poses are split over threads, each summing into its own depth array.
 
 Everything runs in float64.  The kernels are compiled on first use and cached on disk
@@ -205,6 +207,28 @@ def _fill_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, R, ball
                 o += 1
 
 
+@jit()
+def _touched(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, cap, R, ball, out):
+    """Mark in ``out`` ``(S,)`` (cell order) every sample whose height along tool z lies below both
+    the pose's sink and ``cap[p]`` (poses with a NaN sink or cap mark nothing)."""
+    idx = np.empty(4096, np.int64)
+    zb = np.empty(4096)
+    wb = np.empty(4096)
+    r2b = np.empty(4096)
+    for p in range(positions.shape[0]):
+        if not (cap[p] == cap[p]):
+            continue
+        n, idx, zb, wb, r2b = _gather(pts, nrm, areas, lo, cell, dims, start, positions[p], axes[p], R, ball,
+                                      idx, zb, wb, r2b)
+        s = _sink(zb, wb, n, target[p])
+        if not (s == s):
+            continue
+        limit = s if s < cap[p] else cap[p]
+        for q in range(n):
+            if zb[q] < limit:
+                out[idx[q]] = True
+
+
 # ----------------------------------------------------------------------------------------------
 # Python entry points
 # ----------------------------------------------------------------------------------------------
@@ -337,3 +361,44 @@ def contact_pairs(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray, too
     if N:
         _fill_pairs(*args, R, BALL * R, sinks, offsets, float(tool.k), pose, sample, pressure, radius)
     return pose, grid.order[sample], pressure, radius, sinks
+
+
+def touched_samples(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray, tool: Tool, *,
+                    max_sink: np.ndarray, force=None) -> np.ndarray:
+    """Samples the pressed pad touches, with the pad-face depth capped per pose.
+
+    The model of :func:`contact_pairs` (the same sink per pose); a sample counts when it lies above
+    the pad face at depth ``min(sink, max_sink)`` along tool z, i.e. its height ``z`` below both.
+    ``max_sink = inf`` gives exactly the samples :func:`contact_pairs` returns.
+
+    Parameters
+    ----------
+    grid : SampleGrid
+        The surface samples (in the frame of ``positions``).
+    positions : (P, 3) float
+        TCP positions, m.
+    axes : (P, 3) float
+        Unit tool z-axes (pointing into the part).
+    tool : Tool
+    max_sink : (P,) float
+        Largest pad-face depth counted per pose, m (NaN: the pose touches nothing).
+    force : (P,) float, optional
+        Normal force per pose, N (default ``tool.force``).
+
+    Returns
+    -------
+    (S,) bool
+        Touched samples, in the order they were given to :func:`sample_grid`.
+    """
+    positions, axes, target = _pose_arrays(grid, positions, axes, tool, force)
+    cap = np.ascontiguousarray(max_sink, dtype=np.float64)
+    if cap.shape != (len(positions),):
+        raise InputError(f"max_sink must be one depth (m) per pose, shape ({len(positions)},), got {cap.shape}")
+    hit = np.zeros(len(grid), bool)
+    if len(positions) and len(grid):
+        R = float(tool.pad_radius)
+        _touched(grid.points, grid.normals, grid.areas, grid.origin, grid.cell, grid.dims, grid.start, positions,
+                 axes, target, cap, R, BALL * R, hit)
+    out = np.zeros(len(grid), bool)
+    out[grid.order] = hit
+    return out

@@ -107,8 +107,9 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         ``progress(stage: str, done: int, total: int)``, called as candidate directions finish.
     workers : int, optional
         Processes that plan the candidate directions of automatic direction at once (default
-        ``min(candidates, CPU count)``; 1 = one after another in this process).  Each worker builds
-        its own working mesh and ranks its candidates with ``cost``, which must then pickle (a
+        ``min(candidates, CPU count)``; 1 = one after another in this process).  On Linux the
+        workers are forked after the working mesh is built here and share it; elsewhere each
+        spawned worker builds its own.  Each ranks its candidates with ``cost``, which must then pickle (a
         module-level function or a record with ``__call__``; otherwise the candidates are planned
         here, one after another).  The plan is the same whatever the number of workers.
 
@@ -321,7 +322,8 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         n_workers = 1
     say("planning (uniform): trying pass directions", 0, len(angles) + 1)
     if n_workers > 1 and context_args is not None:
-        rows = _candidates_in_workers(context_args, angles, options, cost, n_workers, say)
+        rows = _candidates_in_workers(context_args, angles, options, cost, n_workers, say,
+                                      make_context=make_context)
     else:
         rows = []
         for k, a in enumerate(angles):
@@ -373,19 +375,40 @@ def _pickles(obj) -> bool:
     return True
 
 
-def _candidates_in_workers(context_args, angles, options, cost, n_workers, say) -> list:
-    """:func:`_candidate` of every angle in ``n_workers`` spawned processes, in the order of ``angles``.
+def _candidates_in_workers(context_args, angles, options, cost, n_workers, say, *, make_context=None) -> list:
+    """:func:`_candidate` of every angle in ``n_workers`` worker processes, in the order of ``angles``.
 
-    Each worker builds the working mesh once (the same deterministic set-up as here) and runs with
-    one BLAS / OpenMP / numba thread, so the workers do not oversubscribe the cores.
+    Where the platform forks safely (Linux) and ``make_context`` is given, the working mesh is built
+    once here and the workers are forked from this process: they inherit it and the imported
+    modules, so neither the set-up nor the imports are repeated per worker.  Elsewhere the workers
+    are spawned and each builds the working mesh once (the same deterministic set-up as here).
+    Either way each worker runs with one BLAS / OpenMP / numba thread, so the workers do not
+    oversubscribe the cores, and the plans are the same as planned here one after another.
     """
+    global _WORKER_CONTEXT
+    if make_context is not None and _can_fork():
+        _WORKER_CONTEXT = make_context()
+        try:
+            return _run_pool(multiprocessing.get_context("fork"), None, angles, options, cost, n_workers, say)
+        finally:
+            _WORKER_CONTEXT = None
     # The part's own derived arrays the working mesh reads (curvature, smooth normals, KD-tree) are
     # computed here, as in a serial run, and travel with the pickled surface.
     surface = context_args[0]
     _ = surface.curvature, surface.normals, surface.kdtree
-    ctx_spawn = multiprocessing.get_context("spawn")
+    return _run_pool(multiprocessing.get_context("spawn"), context_args, angles, options, cost, n_workers, say)
+
+
+def _can_fork() -> bool:
+    """Whether worker processes may be forked: Linux (fork is unsafe on macOS and absent on Windows)."""
+    import sys
+
+    return sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+
+
+def _run_pool(mp_context, context_args, angles, options, cost, n_workers, say) -> list:
     done = 0
-    with ProcessPoolExecutor(max_workers=n_workers, mp_context=ctx_spawn, initializer=_worker_init,
+    with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp_context, initializer=_worker_init,
                              initargs=(context_args,)) as pool:
         futures = [pool.submit(_worker_candidate, a, options, cost) for a in angles]
         for _ in as_completed(futures):
@@ -409,6 +432,8 @@ def _worker_init(context_args) -> None:
         numba.set_num_threads(1)
     except ImportError:     # pragma: no cover - numba is a dependency
         pass
+    if context_args is None:        # forked: the working mesh came with the process
+        return
     surface, tool, work_spacing, max_turn_curvature = context_args
     _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature)
 

@@ -7,8 +7,8 @@ import math
 import time
 
 import numpy as np
-from scipy.spatial import cKDTree
 
+from ..contact.kernels import default_cell, sample_grid, touched_samples
 from ..contact.widths import unique_patches, widths_across
 from ..surface.curvature import PrincipalCurvature
 from ..surface.geodesic import FaceGradient
@@ -79,12 +79,10 @@ class _Context:
                                  W.normals, tool)
         self.tree = W.kdtree
         self.edges = mesh_edges(np.asarray(W.faces, np.int64))
-        # Pad queries in float32 relative to the part's centre (micrometre heights survive far from
-        # the origin), on their own KD-tree of the same local coordinates.
+        # Pad queries on a cell grid of the working vertices, built once (compiled contact model,
+        # float64), relative to the part's centre.
         self._origin = 0.5 * (W.vertices.min(axis=0) + W.vertices.max(axis=0))
-        self._pts32 = (W.vertices - self._origin).astype(np.float32)
-        self._local_tree = cKDTree(W.vertices - self._origin)
-        self._nrm32 = W.normals.astype(np.float32)
+        self._grid = sample_grid(W.vertices - self._origin, W.normals, W.vertex_areas, cell=default_cell(tool))
         self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
         log.info("uniform: working mesh %d vertices (edges <= %.1f mm), set up in %.2f s", len(W.vertices),
                  1e3 * self.work_spacing, time.perf_counter() - t0)
@@ -141,18 +139,8 @@ class _Context:
         wider edge would bow outward more with every generation.  The cap only ever shrinks the
         region counted as covered, so the simulator agrees with it.
         """
-        from ..contact import mesh_contact
-
         if len(poses) == 0:
             return np.zeros(len(self.work.vertices), bool)
         closest, normals = self.project(poses)
-        axes = -normals
-        W = self.work
-        mc = mesh_contact(self._pts32, self._nrm32, W.vertex_areas, self._local_tree, closest - self._origin, axes,
-                          self.tool)
-        cap = np.minimum(mc.sink, self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]])
-        height = mc.sink[mc.pose] - mc.pressure / self.tool.k        # sample height along tool z
-        sample = mc.sample[height < cap[mc.pose]]
-        out = np.zeros(len(W.vertices), bool)
-        out[sample] = True
-        return out
+        cap = self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]]
+        return touched_samples(self._grid, closest - self._origin, -normals, self.tool, max_sink=cap)

@@ -1,0 +1,66 @@
+"""Uniform planner speed-ups keep the plans: the pad-touch test on the compiled contact kernel
+against the pair lists it replaces, and a plan pinned from before the speed-ups, planned here and
+in worker processes."""
+
+import numpy as np
+import pytest
+
+from swath.cli.job import cycle_time_cost, settings_from_mapping
+from swath.contact import Tool, mesh_contact
+from swath.contact.kernels import contact_pairs, default_cell, sample_grid, touched_samples
+from swath.errors import InputError
+from swath.examples import doubly_curved_panel
+from swath.plan.uniform import uniform
+
+TOOL = Tool()
+
+
+def _poses(surface, rng, n):
+    idx = rng.choice(len(surface.vertices), n, replace=False)
+    return surface.vertices[idx] + 1e-4 * surface.normals[idx], -surface.normals[idx]
+
+
+def test_touched_samples_without_a_cap_are_the_touching_pairs(rng):
+    surface = doubly_curved_panel(spacing=8e-3)
+    positions, axes = _poses(surface, rng, 40)
+    grid = sample_grid(surface.vertices, surface.normals, surface.vertex_areas, cell=default_cell(TOOL))
+    pose, sample, _, _, _ = contact_pairs(grid, positions, axes, TOOL)
+    expected = np.zeros(len(surface.vertices), bool)
+    expected[sample] = True
+    got = touched_samples(grid, positions, axes, TOOL, max_sink=np.full(len(positions), np.inf))
+    np.testing.assert_array_equal(got, expected)
+    assert 0 < got.sum() < len(got)
+
+
+def test_touched_samples_with_a_cap_keep_the_samples_above_the_capped_pad_face(rng):
+    surface = doubly_curved_panel(spacing=8e-3)
+    positions, axes = _poses(surface, rng, 30)
+    # the reference: float64 pair lists of the numpy model, filtered by height as the planner did
+    mc = mesh_contact(surface.vertices, surface.normals, surface.vertex_areas, surface.kdtree, positions, axes, TOOL)
+    cap = 0.5 * mc.sink
+    cap[3] = np.nan                                           # a pose with no cap touches nothing
+    height = mc.sink[mc.pose] - mc.pressure / TOOL.k
+    keep = height < np.minimum(mc.sink, cap)[mc.pose]
+    expected = np.zeros(len(surface.vertices), bool)
+    expected[mc.sample[keep]] = True
+    grid = sample_grid(surface.vertices, surface.normals, surface.vertex_areas, cell=default_cell(TOOL))
+    got = touched_samples(grid, positions, axes, TOOL, max_sink=cap)
+    np.testing.assert_array_equal(got, expected)
+    full = touched_samples(grid, positions, axes, TOOL, max_sink=np.full(len(positions), np.inf))
+    assert got.sum() < full.sum() and not (got & ~full).any()
+    with pytest.raises(InputError, match="max_sink"):
+        touched_samples(grid, positions, axes, TOOL, max_sink=cap[:-1])
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_uniform_auto_plan_with_the_job_cost_is_the_one_planned_before_the_speed_ups(workers):
+    # Figures of the same call at commit d5edbbf (float32 pair-list pad test, spawned workers).
+    settings = settings_from_mapping({"part": "unused", "out": "unused", "planner": "uniform"})
+    cost = cycle_time_cost(settings.constraints(), settings.links(), settings.order)
+    tp = uniform(doubly_curved_panel(spacing=8e-3), TOOL, cost=cost, workers=workers)
+    assert len(tp.passes) == 6
+    assert tp.contact_length == pytest.approx(3.3411198727613804, abs=1e-9)
+    assert tp.metadata["predicted_coverage_fraction"] == pytest.approx(0.999995801697217, abs=1e-12)
+    costs = [c["cost"] for c in tp.metadata["candidates"]]
+    np.testing.assert_allclose(costs, [85.213181271585, 114.85062566926675, 115.54033056477854,
+                                       115.65385923943806, 112.26894837194308, 113.14116974886352], rtol=1e-9)
