@@ -83,3 +83,13 @@ def test_without_numba_auto_falls_back_to_numpy_and_compiled_is_refused(monkeypa
     assert np.array_equal(simulate_removal(tr, s, Tool()).depth, numpy_.depth)
     with pytest.raises(InputError, match="needs numba"):
         simulate_removal(tr, s, Tool(), engine="compiled")
+
+
+def test_depth_is_the_same_on_any_cpu_share(monkeypatch):
+    # A batch job on one CPU (Ray sets OMP_NUM_THREADS=1) must give the figures of the same job on two.
+    s, tr = plate_raster()
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    one = simulate_removal(tr, s, Tool(), engine="compiled")
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    two = simulate_removal(tr, s, Tool(), engine="compiled")
+    assert np.array_equal(one.depth, two.depth) and one.metrics == two.metrics

@@ -42,6 +42,12 @@ log = logging.getLogger(__name__)
 BALL = float(np.hypot(1.0, 0.5))
 
 
+#: Depth accumulators (lanes) of a simulation: a fixed number, whatever the threads, so the summed
+#: depth does not depend on how many CPUs the process may use (a batch job on one CPU gives the same
+#: figures to the last digit as the same job run with two).
+LANES = 4
+
+
 def default_threads() -> int:
     """Threads the removal kernel splits poses over: the usable CPUs (:func:`swath.core.cpus.usable_cpus`), at most 8."""
     return max(1, min(8, usable_cpus()))
@@ -278,8 +284,8 @@ def accumulate_removal(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray
         Threads (rows of ``out``) when ``out`` is created (default :func:`default_threads`).  The
         kernel releases the GIL; each thread takes a contiguous block of poses and its own row.
     executor : ThreadPoolExecutor, optional
-        Worker threads to reuse over many calls (at least ``len(out)`` workers); a pool is made
-        for this call when None.
+        Worker threads to reuse over many calls (any number: rows are queued on them); a pool of
+        up to :func:`default_threads` workers is made for this call when None.
 
     Returns
     -------
@@ -319,7 +325,7 @@ def accumulate_removal(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray
     elif executor is not None:
         list(executor.map(run, range(len(out))))
     else:
-        with ThreadPoolExecutor(max_workers=len(out)) as pool:
+        with ThreadPoolExecutor(max_workers=min(len(out), default_threads())) as pool:
             list(pool.map(run, range(len(out))))
     return out, sinks
 

@@ -186,9 +186,9 @@ def _depth_compiled(points, normals, areas, positions, axes, dwell, tool: Tool, 
     from ..contact import kernels
 
     grid = kernels.sample_grid(points, normals, areas, cell=kernels.default_cell(tool))
-    out = np.zeros((kernels.default_threads(), len(grid)))
+    out = np.zeros((kernels.LANES, len(grid)))           # fixed lanes: the same sum on any CPU count
     step = max(int(chunk), 1)
-    with ThreadPoolExecutor(max_workers=len(out)) as pool:
+    with ThreadPoolExecutor(max_workers=min(len(out), kernels.default_threads())) as pool:
         for lo in range(0, len(positions), step):
             hi = min(lo + step, len(positions))
             kernels.accumulate_removal(grid, positions[lo:hi], axes[lo:hi], dwell[lo:hi], tool, out=out,
