@@ -148,13 +148,16 @@ def _sink(zb, wb, n, target):
 
 
 @jit()
+def _buffers():
+    """Empty gather buffers ``(idx, z, w, r2)`` for :func:`_gather` (it grows them when full)."""
+    return np.empty(4096, np.int64), np.empty(4096), np.empty(4096), np.empty(4096)
+
+
+@jit()
 def _removal(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, weight, k, preston,
              rotary, speed, R, ball, out, sinks):
     """Add ``weight · k_p · k·h · v_rel(r)`` of every pose to ``out`` ``(S,)``; the sinks to ``sinks``."""
-    idx = np.empty(4096, np.int64)
-    zb = np.empty(4096)
-    wb = np.empty(4096)
-    r2b = np.empty(4096)
+    idx, zb, wb, r2b = _buffers()
     for p in range(positions.shape[0]):
         n, idx, zb, wb, r2b = _gather(pts, nrm, areas, lo, cell, dims, start, positions[p], axes[p], R, ball,
                                       idx, zb, wb, r2b)
@@ -172,10 +175,7 @@ def _removal(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, we
 @jit()
 def _count_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, R, ball, sinks, counts):
     """Sink per pose and the number of touching samples per pose."""
-    idx = np.empty(4096, np.int64)
-    zb = np.empty(4096)
-    wb = np.empty(4096)
-    r2b = np.empty(4096)
+    idx, zb, wb, r2b = _buffers()
     for p in range(positions.shape[0]):
         n, idx, zb, wb, r2b = _gather(pts, nrm, areas, lo, cell, dims, start, positions[p], axes[p], R, ball,
                                       idx, zb, wb, r2b)
@@ -192,10 +192,7 @@ def _count_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, target
 def _fill_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, R, ball, sinks, offsets, k,
                 pose, sample, pressure, radius):
     """Write the touching pairs of every pose at ``offsets[p]`` (after :func:`_count_pairs`)."""
-    idx = np.empty(4096, np.int64)
-    zb = np.empty(4096)
-    wb = np.empty(4096)
-    r2b = np.empty(4096)
+    idx, zb, wb, r2b = _buffers()
     for p in range(positions.shape[0]):
         s = sinks[p]
         if not (s == s):
@@ -217,10 +214,7 @@ def _fill_pairs(pts, nrm, areas, lo, cell, dims, start, positions, axes, R, ball
 def _touched(pts, nrm, areas, lo, cell, dims, start, positions, axes, target, cap, R, ball, out):
     """Mark in ``out`` ``(S,)`` (cell order) every sample whose height along tool z lies below both
     the pose's sink and ``cap[p]`` (poses with a NaN sink or cap mark nothing)."""
-    idx = np.empty(4096, np.int64)
-    zb = np.empty(4096)
-    wb = np.empty(4096)
-    r2b = np.empty(4096)
+    idx, zb, wb, r2b = _buffers()
     for p in range(positions.shape[0]):
         if not (cap[p] == cap[p]):
             continue
