@@ -139,19 +139,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-q", "--quiet", action="store_true", help="only errors")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = parser.add_subparsers(dest="command", required=True)
-    _add = sub.add_parser
 
-    def add_parser(name, **kw):                 # every subcommand's --help shows its defaults
-        return _add(name, formatter_class=_DefaultsFormatter, **kw)
+    def add_parser(name: str, **kw) -> argparse.ArgumentParser:     # every --help shows its defaults
+        return sub.add_parser(name, formatter_class=_DefaultsFormatter, **kw)
 
-    sub.add_parser = add_parser
-
-    p = sub.add_parser("plan", help="plan a part: trajectory.csv, metrics.json, report.html")
+    p = add_parser("plan", help="plan a part: trajectory.csv, metrics.json, report.html")
     p.add_argument("part", help="mesh file (STL, PLY, OBJ), patch.json from swath fit, example:NAME (blade, "
                                 "plate, panel), or with --fit a scan (point cloud PLY/XYZ/PCD or mesh)")
     _add_plan_options(p)
 
-    f = sub.add_parser("fit", help="fit a B-spline patch to a scan: patch.json, surface.ply, fit.json, fit.html")
+    f = add_parser("fit", help="fit a B-spline patch to a scan: patch.json, surface.ply, fit.json, fit.html")
     f.add_argument("scan", help="point cloud (XYZ/TXT/CSV/PTS, PCD, PLY without faces) or mesh (STL, OBJ, PLY)")
     f.add_argument("--units", default="m", help="unit of the scan file: m, mm, cm or in (default m)")
     f.add_argument("--parameterization", default="auto", choices=PARAMETERIZATIONS,
@@ -165,7 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", required=True, help="output directory (written atomically)")
     f.add_argument("--overwrite", action="store_true", help="replace an existing non-empty folder swath did not write")
 
-    g = sub.add_parser("register", help="register a CAD mesh onto a scan: transform.json (cad2scan), residuals.csv")
+    g = add_parser("register", help="register a CAD mesh onto a scan: transform.json (cad2scan), residuals.csv")
     g.add_argument("cad", help="nominal CAD surface: mesh (STL, PLY, OBJ) or patch.json")
     g.add_argument("scan", help="the measured scan: mesh (all its pieces are used) or point cloud")
     g.add_argument("--units", default="m", help="unit of the CAD file (default m)")
@@ -186,23 +183,23 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--out", required=True, help="output directory (written atomically)")
     g.add_argument("--overwrite", action="store_true", help="replace an existing non-empty folder swath did not write")
 
-    d = sub.add_parser("demo", help="plan the built-in helicopter-blade section with the uniform planner")
+    d = add_parser("demo", help="plan the built-in helicopter-blade section with the uniform planner")
     d.add_argument("--part", default="example:blade", help="built-in part (example:blade, example:plate, example:panel)")
     _add_plan_options(d, with_part_options=False)
     d.set_defaults(planner="uniform")
 
-    r = sub.add_parser("run", help="run a TOML job file")
+    r = add_parser("run", help="run a TOML job file")
     r.add_argument("job", help="job file (TOML)")
 
     from .calibrate_cmd import add_calibrate_arguments, add_doe_arguments
 
-    add_calibrate_arguments(sub.add_parser("calibrate", help="fit the Preston coefficient from trials: "
+    add_calibrate_arguments(add_parser("calibrate", help="fit the Preston coefficient from trials: "
                                                              "calibration.json, calibration.png"))
-    add_doe_arguments(sub.add_parser("doe", help="write a trials template (full or fractional factorial design)"))
+    add_doe_arguments(add_parser("doe", help="write a trials template (full or fractional factorial design)"))
 
     from .batch import add_arguments as add_batch_arguments
 
-    b = sub.add_parser("batch", help="run a sweep of jobs (parts x settings) in parallel on Ray; one results table")
+    b = add_parser("batch", help="run a sweep of jobs (parts x settings) in parallel on Ray; one results table")
     add_batch_arguments(b)
     return parser
 
@@ -212,7 +209,7 @@ class _Progress:
 
     def __init__(self, quiet: bool):
         self.quiet = quiet
-        self.stage = None
+        self.stage: str | None = None
         self.t0 = time.perf_counter()
         self.last = 0.0
 
