@@ -430,6 +430,55 @@ def solve(variants: Variants, D: np.ndarray, start_cost, method: str, *, seed: i
     raise InputError(f"unknown order method {method!r}; choose one of {', '.join(METHODS)}")
 
 
+#: :func:`route_tour` solves again at most this many times.
+MAX_ROUTE_ROUNDS = 8
+
+
+def route_tour(variants: Variants, tour, guard, model: LinkModel, D_len: np.ndarray, D: np.ndarray,
+               checked: np.ndarray, *, solver=None):
+    """Make the links of a tour cost what their air routes do.
+
+    Every air link of ``tour`` (a list of nodes; None: ``solver()``'s) not yet ``checked`` is routed
+    by ``guard`` (:class:`~swath.order.routing.AirGuard`); where the route is longer than the
+    straight move at the clearance that ``D_len`` (m) holds, ``D_len`` and ``D`` (the objective:
+    ``model.cost`` of the route's length) are raised in place, for the link and for the same move
+    run backwards.  With a ``solver`` the tour is solved again until every link it uses has its
+    route's cost (at most :data:`MAX_ROUTE_ROUNDS` times).  The straight move is the shortest
+    route, so the costs only rise: a tour whose links all keep their cost is optimal for the
+    routed costs as far as the solver is.  Contact step-overs (``D_len == 0``) are not routed.
+
+    Returns
+    -------
+    tour : list of int
+    rounds : int
+        How many times the tour was solved again.
+    """
+    rev = reverse_nodes(variants)
+    rounds = 0
+    if tour is None:
+        tour = solver()
+    while True:
+        raised = False
+        for u, w in pairwise(tour):
+            if checked[u, w] or D_len[u, w] <= 0.0:
+                continue
+            n_exit, n_entry = variants.exit_normal[u], variants.entry_normal[w]
+            route = guard.route(variants.exit_point[u], n_exit / np.linalg.norm(n_exit), variants.entry_point[w],
+                                n_entry / np.linalg.norm(n_entry))
+            length = float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
+            pairs = [(u, w)] + ([(int(rev[w]), int(rev[u]))] if rev[u] >= 0 and rev[w] >= 0 else [])
+            for a, b in pairs:
+                checked[a, b] = True
+                if length > D_len[a, b] + 1e-9:
+                    D_len[a, b] = length
+                    D[a, b] = model.cost(length, variants.exit_frame[a], variants.entry_frame[b])
+                    raised = True
+        if not raised or solver is None or rounds >= MAX_ROUTE_ROUNDS:
+            return tour, rounds
+        tour = solver()
+        rounds += 1
+
+
 # --- the public entry point ----------------------------------------------------------------------
 
 def default_groups(toolpath) -> list[list[int]]:
@@ -449,7 +498,7 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
                    clearance: float = 0.02, link_speed: float | None = None, link_acceleration: float = 1.0,
                    omega_max: float | None = None, runs: int = 1, max_trials: int | None = None,
                    join_gap: float | None = None, join_tolerance: float | None = None,
-                   keep_direction: bool = False):
+                   keep_direction: bool = False, routed: bool = True, pad_radius: float | None = None):
     """Reorder a tool path's pass groups and choose their path types to minimise air travel
     (or, given ``link_speed``, link time).
 
@@ -492,6 +541,15 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     keep_direction : bool
         Keep every group's path type as given (its passes' order and directions); only the order of
         the groups is chosen.
+    routed : bool
+        Cost the links the tour uses by their air routes (:class:`~swath.order.routing.AirGuard`,
+        as :func:`~swath.order.routing.route_links` and the trajectory stage fly them) instead of
+        the straight move at the clearance: where a route must climb over the part, the link costs
+        what the route does and the tour is solved again (:func:`route_tour`).  Default True
+        (ignored for a tool path without a surface or with ``clearance == 0``).
+    pad_radius : float, optional
+        Pad radius, m, for the routes' reach box (default
+        :data:`~swath.order.routing.DEFAULT_PAD_RADIUS`).
 
     Returns
     -------
@@ -544,7 +602,18 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         eye = np.broadcast_to(np.eye(3), (len(start_len), 3, 3))
         start_cost = model.cost(start_len, eye, eye)
     index = solve_index(variants)
-    tour = solve(variants, D, start_cost, method, seed=seed, runs=runs, max_trials=max_trials)
+    rounds = 0
+    if routed and toolpath.surface is not None and clearance > 0:     # no surface: nothing to route round
+        from .routing import DEFAULT_PAD_RADIUS, AirGuard
+
+        guard = AirGuard(toolpath.surface, clearance, pad_radius=DEFAULT_PAD_RADIUS if pad_radius is None else pad_radius)
+        checked = np.zeros(D.shape, bool)
+        route_tour(variants, index, guard, model, D_len, D, checked)
+        tour, rounds = route_tour(variants, None, guard, model, D_len, D, checked,
+                                  solver=lambda: solve(variants, D, start_cost, method, seed=seed, runs=runs,
+                                                       max_trials=max_trials))
+    else:
+        tour = solve(variants, D, start_cost, method, seed=seed, runs=runs, max_trials=max_trials)
     before = tour_length(variants, D_len, index, start_len, inner=variants.inner_length)
     after = tour_length(variants, D_len, tour, start_len, inner=variants.inner_length)
     seconds = time.perf_counter() - t0
@@ -558,7 +627,8 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
             passes.append(p.reversed() if variants.flip[node] else p)
     meta = dict(toolpath.metadata)
     meta.update(order_method=method, air_before_m=before, air_after_m=after, order_seconds=seconds,
-                order_groups=[int(variants.group[v]) for v in tour], order_clearance_m=float(clearance))
+                order_groups=[int(variants.group[v]) for v in tour], order_clearance_m=float(clearance),
+                order_route_rounds=rounds, order_objective="time" if model.timed else "length")
     if model.timed:
         meta.update(link_time_before_s=tour_length(variants, D, index, start_cost),
                     link_time_after_s=tour_length(variants, D, tour, start_cost))
