@@ -75,3 +75,23 @@ def test_links_that_must_climb_over_the_part_cost_their_route():
     assert flown.metadata["air_route_length_m"] == pytest.approx(routed.metadata["air_after_m"])
     climbs = route_links(straight, clearance=0.02).metadata["air_route_length_m"]
     assert climbs > 0.04 + 0.1 + 2 * 0.04                               # up over the 60 mm wall and down
+
+
+def test_job_key_order_objective_chooses_time_or_length(tmp_path):
+    from swath.cli.job import order_options
+    from swath.cli.settings import settings_from_mapping
+    from swath.errors import InputError
+
+    pts = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]
+    tp = ToolPath(None, tuple(Pass(pts, [[0, 0, 1]] * 2) for _ in range(3)), "raster", {"order_hint": "gtsp"})
+    base = {"part": "example:plate", "out": str(tmp_path / "o"), "pad_radius": "50mm"}
+    timed = order_options(tp, settings_from_mapping(base))                        # time by default
+    assert timed["link_speed"] == pytest.approx(0.25) and timed["omega_max"] == pytest.approx(1.0)
+    assert timed["pad_radius"] == pytest.approx(0.05) and timed["clearance"] == pytest.approx(0.02)
+    s = settings_from_mapping({**base, "order_objective": "length"})
+    assert s.as_record()["order_objective"] == "length"
+    by_length = order_options(tp, s)
+    assert {"link_speed", "omega_max", "link_acceleration"}.isdisjoint(by_length)
+    assert by_length["pad_radius"] == pytest.approx(0.05)
+    with pytest.raises(InputError, match="order_objective"):
+        settings_from_mapping({**base, "order_objective": "energy"})
