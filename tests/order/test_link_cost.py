@@ -93,5 +93,37 @@ def test_job_key_order_objective_chooses_time_or_length(tmp_path):
     by_length = order_options(tp, s)
     assert {"link_speed", "omega_max", "link_acceleration"}.isdisjoint(by_length)
     assert by_length["pad_radius"] == pytest.approx(0.05)
+    assert timed["feed"] == pytest.approx(0.05)
     with pytest.raises(InputError, match="order_objective"):
         settings_from_mapping({**base, "order_objective": "energy"})
+
+
+@pytest.mark.parametrize("kind", ["U", "L"])
+def test_contact_step_over_costs_the_contact_time_it_adds(kind):
+    """Two 200 mm passes on a plate joined by a 39 mm step-over in contact: the timed trajectory
+    takes ``contact_cost`` longer than the two passes timed apart (each with its approach and
+    retract, 0.57 s)."""
+    from swath.examples import flat_plate
+    from swath.order.joining import StepOverJoiner, join_passes
+    from swath.order.variants import contact_cost, pass_ends
+    from swath.trajectory.constraints import AngularSpeedLimit, CentripetalLimit, FeedLimit
+    from swath.trajectory.timing import time_path
+
+    plate = flat_plate()
+    limits = [FeedLimit(0.05), AngularSpeedLimit(1.0), CentripetalLimit(2.0)]
+
+    def line(p0, p1):
+        w = np.linspace(0, 1, 41)[:, None]
+        return Pass(np.asarray(p0) * (1 - w) + np.asarray(p1) * w, np.tile([0, 0, 1.0], (41, 1)))
+
+    a = line([0.1, 0.1, 0], [0.3, 0.1, 0])
+    b = line([0.3, 0.139, 0], [0.1, 0.139, 0]) if kind == "U" else line([0.3, 0.139, 0], [0.3, 0.28, 0])
+    joined = join_passes(ToolPath(plate, (a, b), "t"), StepOverJoiner(plate, max_gap=0.08))
+    assert len(joined.passes) == 1
+    apart = sum(time_path(ToolPath(plate, (p,), "t"), limits).duration for p in (a, b))
+    added = time_path(joined, limits).duration - apart + 0.571            # one approach and retract fewer
+    end, start = pass_ends(a), pass_ends(b)
+    model = LinkModel(clearance=0.02, speed=0.25, acceleration=1.0, omega_max=1.0, feed=0.05)
+    cost = float(contact_cost(model, start[0] - end[3], end[5], start[2]))
+    assert cost == pytest.approx(0.039 / 0.05 + 0.81 * (np.pi if kind == "U" else np.pi / 2))
+    assert cost == pytest.approx(added, abs=0.1)

@@ -182,7 +182,8 @@ def order_options(toolpath, settings) -> dict:
     links = settings.links()
     options = {"clearance": links.clearance, "pad_radius": settings.pad_radius}
     if settings.order_objective == "time":
-        options.update(link_speed=links.speed, link_acceleration=links.acceleration, omega_max=settings.max_angular)
+        options.update(link_speed=links.speed, link_acceleration=links.acceleration, omega_max=settings.max_angular,
+                       feed=settings.feed)
     if settings.join_gap is not None:
         options["join_gap"] = settings.join_gap
     if settings.order_groups == "passes":

@@ -41,11 +41,11 @@ from .variants import (  # noqa: F401  (re-exported)
     CONTACT_WEIGHT,
     LinkModel,
     Variants,
-    _ends,
-    _frame,
     contact_cost,
     group_variants,
     link_matrix,
+    link_time_estimate,
+    pass_ends,
     tour_length,
 )
 
@@ -496,7 +496,8 @@ def default_groups(toolpath) -> list[list[int]]:
 
 def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, seed: int = 0,
                    clearance: float = 0.02, link_speed: float | None = None, link_acceleration: float = 1.0,
-                   omega_max: float | None = None, runs: int = 1, max_trials: int | None = None,
+                   omega_max: float | None = None, feed: float | None = None, runs: int = 1,
+                   max_trials: int | None = None,
                    join_gap: float | None = None, join_tolerance: float | None = None,
                    keep_direction: bool = False, routed: bool = True, pad_radius: float | None = None):
     """Reorder a tool path's pass groups and choose their path types to minimise air travel
@@ -528,6 +529,10 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         m/s² (with ``link_speed``).
     omega_max : float, optional
         Angular speed limit, rad/s (with ``link_speed``).
+    feed : float, optional
+        Contact feed, m/s (with ``link_speed`` and ``join_gap``): a step-over made in contact
+        costs the contact time it adds (:func:`~swath.order.variants.contact_cost`); default: a
+        move at the link speed.
     runs, max_trials : int
         LKH runs and trials per run (default ``min(nodes, 100)``).
     join_gap : float, optional
@@ -570,7 +575,8 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     n = len(toolpath.passes)
     if n == 0:
         raise InputError("the tool path has no passes to order")
-    model = LinkModel(clearance=clearance, speed=link_speed, acceleration=link_acceleration, omega_max=omega_max)
+    model = LinkModel(clearance=clearance, speed=link_speed, acceleration=link_acceleration, omega_max=omega_max,
+                      feed=feed)
     groups = default_groups(toolpath) if groups is None else [list(map(int, g)) for g in groups]
     flat = sorted(i for g in groups for i in g)
     if flat != list(range(n)) or any(len(g) == 0 for g in groups):
@@ -593,9 +599,9 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     if joiner is not None:
         a, b = joiner.pairs(variants.exit_point, variants.entry_point, variants.exit_frame[:, :, 0],
                             variants.entry_frame[:, :, 0])
-        chord = np.linalg.norm(variants.entry_point[b] - variants.exit_point[a], axis=1)
         D_len[a, b] = 0.0
-        D[a, b] = contact_cost(model, chord, variants.exit_frame[a], variants.entry_frame[b])
+        D[a, b] = contact_cost(model, variants.entry_point[b] - variants.exit_point[a], variants.exit_frame[a],
+                               variants.entry_frame[b])
     start_len = start_cost = None
     if start_pt is not None:
         start_len = np.linalg.norm(variants.entry_point + clearance * variants.entry_normal - start_pt, axis=1) + clearance
