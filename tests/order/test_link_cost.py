@@ -127,3 +127,15 @@ def test_contact_step_over_costs_the_contact_time_it_adds(kind):
     cost = float(contact_cost(model, start[0] - end[3], end[5], start[2]))
     assert cost == pytest.approx(0.039 / 0.05 + 0.81 * (np.pi if kind == "U" else np.pi / 2))
     assert cost == pytest.approx(added, abs=0.1)
+
+
+def test_links_inside_a_group_cost_their_route_too():
+    surf = ridge_plate()
+    passes = [Pass(np.array([[0.0, 0.0, 0], [0.0, 0.2, 0]]), np.tile([0, 0, 1.0], (2, 1))),
+              Pass(np.array([[0.1, 0.2, 0], [0.11, 0.0, 0]]), np.tile([0, 0, 1.0], (2, 1)))]   # a snake
+    tp = ToolPath(surf, passes, "test")
+    straight = order_toolpath(tp, groups=[[0, 1]], method="exact", routed=False)
+    assert straight.metadata["air_after_m"] == pytest.approx(0.04 + 0.1)   # through the wall
+    routed = order_toolpath(tp, groups=[[0, 1]], method="exact")
+    assert routed.metadata["air_after_m"] == pytest.approx(0.04 + 0.11)    # the group run from y = 0.2 down
+    assert routed.passes[0].points[-1][1] == pytest.approx(0.0)

@@ -24,8 +24,15 @@ order).  Baselines: ``index`` (as given) and ``greedy`` (from the current exit, 
 among the groups left).
 
 The air distance between a lift-off point ``p`` (normal ``n``) and a touch-down point ``q`` (normal
-``m``) is estimated as ``c + |(p + c n) - (q + c m)| + c`` with the clearance ``c``: retract, a
-straight move at the clearance, approach.  The trajectory stage routes the real links.
+``m``) is first taken as ``c + |(p + c n) - (q + c m)| + c`` with the clearance ``c``: retract, a
+straight move at the clearance, approach — what :class:`~swath.order.routing.AirGuard` flies when
+that move clears the part.  Where it does not, the route climbs over the part; :func:`route_tour`
+routes every link a tour uses, raises its cost to the route's and solves again, so the tour's
+costs are those of the links the trajectory flies.  By time, a link costs
+:func:`~swath.order.variants.link_time_estimate` (the trajectory stage's rounded, toppra-timed
+link in closed form, within 0.05 s per link on the hub) and a contact step-over the contact time
+it adds (:func:`~swath.order.variants.contact_cost`).  ``benchmarks/bench_order.py`` table 4
+checks both link by link against the timed trajectory.
 """
 
 from __future__ import annotations
@@ -550,8 +557,9 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         Cost the links the tour uses by their air routes (:class:`~swath.order.routing.AirGuard`,
         as :func:`~swath.order.routing.route_links` and the trajectory stage fly them) instead of
         the straight move at the clearance: where a route must climb over the part, the link costs
-        what the route does and the tour is solved again (:func:`route_tour`).  Default True
-        (ignored for a tool path without a surface or with ``clearance == 0``).
+        what the route does and the tour is solved again (:func:`route_tour`); links inside a
+        group cost their routes too.  Default True (ignored for a tool path without a surface or
+        with ``clearance == 0``).
     pad_radius : float, optional
         Pad radius, m, for the routes' reach box (default
         :data:`~swath.order.routing.DEFAULT_PAD_RADIUS`).
@@ -593,7 +601,13 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         from .joining import StepOverJoiner
 
         joiner = StepOverJoiner(toolpath.surface, max_gap=join_gap, tolerance=join_tolerance)
-    variants = group_variants(toolpath.passes, groups, model=model, joiner=joiner, keep_direction=keep_direction)
+    guard = None
+    if routed and toolpath.surface is not None and clearance > 0:     # no surface: nothing to route round
+        from .routing import DEFAULT_PAD_RADIUS, AirGuard
+
+        guard = AirGuard(toolpath.surface, clearance, pad_radius=DEFAULT_PAD_RADIUS if pad_radius is None else pad_radius)
+    variants = group_variants(toolpath.passes, groups, model=model, joiner=joiner, keep_direction=keep_direction,
+                              guard=guard)
     D_len = link_matrix(variants, model=model)
     D = link_matrix(variants, model=model, cost=True)
     if joiner is not None:
@@ -609,10 +623,7 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
         start_cost = model.cost(start_len, eye, eye)
     index = solve_index(variants)
     rounds = 0
-    if routed and toolpath.surface is not None and clearance > 0:     # no surface: nothing to route round
-        from .routing import DEFAULT_PAD_RADIUS, AirGuard
-
-        guard = AirGuard(toolpath.surface, clearance, pad_radius=DEFAULT_PAD_RADIUS if pad_radius is None else pad_radius)
+    if guard is not None:
         checked = np.zeros(D.shape, bool)
         route_tour(variants, index, guard, model, D_len, D, checked)
         tour, rounds = route_tour(variants, None, guard, model, D_len, D, checked,

@@ -1,9 +1,11 @@
 """Path types (variants) of pass groups and what links between them cost (Wang §4).
 
 :func:`group_variants` enumerates each group's path types with their touch-down and lift-off
-points and frames; :class:`LinkModel` costs a link by air length or by time (a rest-to-rest move
-at the link speed, at least the tool's turn at the angular-speed limit); :func:`link_matrix` and
-:func:`tour_length` cost whole tours.  The solvers are in :mod:`swath.order.tour`.
+points and frames; :class:`LinkModel` costs a link by air length or by time
+(:func:`link_time_estimate`: the trajectory stage's rounded link, timed in closed form, the tool
+turning at the angular-speed limit); :func:`contact_cost` costs a step-over made in contact;
+:func:`link_matrix` and :func:`tour_length` cost whole tours.  The solvers are in
+:mod:`swath.order.tour`.
 """
 
 from __future__ import annotations
@@ -202,7 +204,7 @@ def pass_ends(p, flip: bool = False):
 
 
 def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel | None = None,
-                   joiner=None, keep_direction: bool = False) -> Variants:
+                   joiner=None, keep_direction: bool = False, guard=None) -> Variants:
     """Enumerate the path types of each group (see the module notes).
 
     Parameters
@@ -220,6 +222,9 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
     keep_direction : bool
         Offer only each group's given path type (its passes in the given order and direction):
         the order alone is chosen (Wang's "visit order planning", Table 4-1 column C).
+    guard : AirGuard, optional
+        When given, the air links inside a group cost their routes' length (a route that climbs
+        over the part is longer than the straight move at the clearance).
     """
     model = LinkModel(clearance=clearance) if model is None else model
     rows = []
@@ -235,6 +240,9 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
                     inner += float(contact_cost(model, b[0] - a[3], a[5], b[2]))
                     continue
                 L = float(model.length(a[3], a[4], b[0], b[1]))
+                if guard is not None:
+                    route = guard.route(a[3], a[4] / np.linalg.norm(a[4]), b[0], b[1] / np.linalg.norm(b[1]))
+                    L = max(L, float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum()))
                 inner_len += L
                 inner += float(model.cost(L, a[5], b[2]))
             first, last = seq[0], seq[-1]
