@@ -26,14 +26,19 @@ planned, D = visit order and path types planned: 853 -> 732 -> 305 mm):
    groups; the LKH path is forced on these too: below 11 groups ``gtsp`` is the DP itself) and
    against the best of 100 LKH runs on larger instances; wall and CPU seconds (the machine is
    shared: CPU seconds are the solver's own cost).
-3. Raster and uniform on the shared meshes and the hub, before (the planner's order) and after
-   (``gtsp`` on single passes, without and with contact step-overs, and ``gtsp(time)``: ordered by
-   estimated link time with the tool's turn at 1 rad/s, no contact step-overs; raster also
-   segmented):
-   trajectory (time_path: feed 50 mm/s, 1 rad/s, 2 m/s²) air length, cycle time, farthest
-   excursion beyond the part's bounding box, lifts, simulated coverage (parts < 1 m²).
+3. Raster and uniform on the hub and the shared meshes, as planned (index: the planner's own
+   order) and ordered pass by pass (every pass its own group, as jobs do) by ``greedy`` and
+   ``gtsp``, by air length (``order_objective = length``) or by link time (``time``, the job's
+   default: the trajectory stage's link speed and acceleration, 1 rad/s, contact step-overs at the
+   feed), without and with contact step-overs ('+ join'); raster also segmented.  Every figure
+   is of the timed trajectory (time_path: feed 50 mm/s, 1 rad/s, 2 m/s²): air length and % less
+   than index and than greedy with the same step-over rule, cycle time, farthest excursion beyond
+   the part's bounding box, simulated coverage (parts < 1 m²).
+4. Why the objective and the trajectory agree (or did not): every link of the hub's segmented
+   plan, ordered as in table 3, as the order stage costs it (straight at the clearance, routed,
+   closed-form time; last session's time estimate alongside) against the timed trajectory.
 
-Run: ``PYTHONPATH=src python benchmarks/bench_order.py [--no-removal] [--no-uniform]``.
+Run: ``PYTHONPATH=src python benchmarks/bench_order.py [--no-removal] [--no-uniform] [--only N] [--hub-only]``.
 """
 
 from __future__ import annotations
@@ -180,7 +185,8 @@ def trajectory_row(part, label, tp, removal: bool):
     air = ~traj.contact
     excess = np.maximum(np.maximum(lo - traj.position[air], traj.position[air] - hi), 0.0).max() if air.any() else 0.0
     row = dict(part=part, plan=label, passes=len(tp.passes), contact_m=tp.contact_length, air_m=traj.air_length,
-               cycle_s=traj.duration, beyond_box_m=float(excess))
+               cycle_s=traj.duration, beyond_box_m=float(excess), order_s=tp.metadata.get("order_seconds", np.nan),
+               route_rounds=tp.metadata.get("order_route_rounds", 0))
     if removal:
         rm = simulate_removal(traj, tp.surface, TOOL)
         row["coverage_pct"] = 100 * rm.metrics["coverage_fraction"]
@@ -249,7 +255,7 @@ def parts_table(hub, hub_seg, removal: bool, with_uniform: bool, *, only_hub: bo
                 rows.append(row)
     print_table(rows, [("part", ""), ("plan", ""), ("passes", "d"), ("contact_m", ".2f"), ("air_m", ".2f"),
                        ("vs_index", ".1f"), ("vs_greedy", ".1f"), ("cycle_s", ".1f"), ("beyond_box_m", ".3f"),
-                       ("coverage_pct", ".2f"), ("time_s", ".1f")])
+                       ("coverage_pct", ".2f"), ("order_s", ".2f"), ("route_rounds", "d"), ("time_s", ".1f")])
     return rows
 
 
