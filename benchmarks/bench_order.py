@@ -26,14 +26,19 @@ planned, D = visit order and path types planned: 853 -> 732 -> 305 mm):
    groups; the LKH path is forced on these too: below 11 groups ``gtsp`` is the DP itself) and
    against the best of 100 LKH runs on larger instances; wall and CPU seconds (the machine is
    shared: CPU seconds are the solver's own cost).
-3. Raster and uniform on the shared meshes and the hub, before (the planner's order) and after
-   (``gtsp`` on single passes, without and with contact step-overs, and ``gtsp(time)``: ordered by
-   estimated link time with the tool's turn at 1 rad/s, no contact step-overs; raster also
-   segmented):
-   trajectory (time_path: feed 50 mm/s, 1 rad/s, 2 m/s²) air length, cycle time, farthest
-   excursion beyond the part's bounding box, lifts, simulated coverage (parts < 1 m²).
+3. Raster and uniform on the hub and the shared meshes, as planned (index: the planner's own
+   order) and ordered pass by pass (every pass its own group, as jobs do) by ``greedy`` and
+   ``gtsp``, by air length (``order_objective = length``) or by link time (``time``, the job's
+   default: the trajectory stage's link speed and acceleration, 1 rad/s, contact step-overs at the
+   feed), without and with contact step-overs ('+ join'); raster also segmented.  Every figure
+   is of the timed trajectory (time_path: feed 50 mm/s, 1 rad/s, 2 m/s²): air length and % less
+   than index and than greedy with the same step-over rule, cycle time, farthest excursion beyond
+   the part's bounding box, simulated coverage (parts < 1 m²).
+4. Why the objective and the trajectory agree (or did not): every link of the hub's segmented
+   plan, ordered as in table 3, as the order stage costs it (straight at the clearance, routed,
+   closed-form time; last session's time estimate alongside) against the timed trajectory.
 
-Run: ``PYTHONPATH=src python benchmarks/bench_order.py [--no-removal] [--no-uniform]``.
+Run: ``PYTHONPATH=src python benchmarks/bench_order.py [--no-removal] [--no-uniform] [--only N] [--hub-only]``.
 """
 
 from __future__ import annotations
@@ -49,12 +54,16 @@ from swath.core import ToolPath
 from swath.examples import wheel_hub
 from swath.io.mesh import load_mesh
 from swath.order import order_toolpath
+from swath.order.routing import AirGuard
 from swath.order.sequence import snake
 from swath.order.tour import (
+    LinkModel,
     group_variants,
     held_karp,
     improve_tour,
     link_matrix,
+    link_time_estimate,
+    pass_ends,
     solve,
     solve_gtsp,
     tour_length,
@@ -64,6 +73,7 @@ from swath.plan.regions import plan_regions
 from swath.segment import segment
 from swath.simulate.removal import simulate_removal
 from swath.trajectory.constraints import AngularSpeedLimit, CentripetalLimit, FeedLimit
+from swath.trajectory.links import LinkSettings
 from swath.trajectory.timing import time_path
 
 TOOL = Tool()
@@ -171,11 +181,12 @@ CONSTRAINTS = [FeedLimit(0.05), AngularSpeedLimit(1.0), CentripetalLimit(2.0)]
 def trajectory_row(part, label, tp, removal: bool):
     lo, hi = tp.surface.bounds
     t0 = time.perf_counter()
-    traj = time_path(tp, CONSTRAINTS)
+    traj = time_path(tp, CONSTRAINTS, links=LINKS)
     air = ~traj.contact
     excess = np.maximum(np.maximum(lo - traj.position[air], traj.position[air] - hi), 0.0).max() if air.any() else 0.0
     row = dict(part=part, plan=label, passes=len(tp.passes), contact_m=tp.contact_length, air_m=traj.air_length,
-               cycle_s=traj.duration, beyond_box_m=float(excess))
+               cycle_s=traj.duration, beyond_box_m=float(excess), order_s=tp.metadata.get("order_seconds", np.nan),
+               route_rounds=tp.metadata.get("order_route_rounds", 0))
     if removal:
         rm = simulate_removal(traj, tp.surface, TOOL)
         row["coverage_pct"] = 100 * rm.metrics["coverage_fraction"]
@@ -184,23 +195,35 @@ def trajectory_row(part, label, tp, removal: bool):
     return row
 
 
-#: Order by estimated link time instead: the trajectory stage's link speed and acceleration and the
-#: tool's turn at the angular limit (a boustrophedon's 180-degree turn at 1 rad/s takes 3.1 s).
-TIMED = dict(link_speed=0.25, link_acceleration=1.0, omega_max=1.0)
+#: The trajectory stage's link speed and acceleration and the tool's angular limit: what the order
+#: stage costs by time (``order_objective = time``, the job's default).
+LINKS = LinkSettings()
+TIMED = dict(link_speed=LINKS.speed, link_acceleration=LINKS.acceleration, omega_max=1.0, feed=0.05)
+
+#: Orders of tables 3 and 4: (label, method, contact step-overs, timed objective).
+ORDERS = [("greedy", "greedy", False, False), ("gtsp(length)", "gtsp", False, False),
+          ("greedy + join", "greedy", True, False), ("gtsp(length) + join", "gtsp", True, False),
+          ("gtsp(time)", "gtsp", False, True), ("gtsp(time) + join", "gtsp", True, True)]
 
 
-def _after(tp, join, **options):
+def ordered(tp, method, join, timed):
+    """``tp`` ordered pass by pass (every pass its own group, as jobs do), links costed as routed."""
     singles = [[i] for i in range(len(tp.passes))]
-    return order_toolpath(tp, method="gtsp", groups=singles, join_gap=join, **options)
+    return order_toolpath(tp, method=method, groups=singles, join_gap=JOIN_GAP if join else None,
+                          **(TIMED if timed else {}))
 
 
-def parts_table(hub, hub_seg, removal: bool, with_uniform: bool):
+def parts_table(hub, hub_seg, removal: bool, with_uniform: bool, *, only_hub: bool = False):
     print("\n## 3. raster and uniform before/after ordering (time_path: feed 50 mm/s, 1 rad/s, 2 m/s²)")
+    print("index = the plan as planned (snake; uniform: its zigzag); greedy / gtsp over single passes, by air "
+          "length or by link time (the job's order_objective), '+ join': contact step-overs up to "
+          f"{1e3 * JOIN_GAP:.1f} mm; air and cycle of the timed trajectory; vs_index / vs_greedy: % less "
+          "trajectory air (greedy with the same step-over rule)")
     from swath.plan.uniform import uniform
 
     rows = []
     surfaces = [("wheel_hub", hub)]
-    for file in ("crs_part_5.stl", "noether_wavy_mesh_with_hole.ply", "bezier_dac_scan.ply"):
+    for file in () if only_hub else ("crs_part_5.stl", "noether_wavy_mesh_with_hole.ply", "bezier_dac_scan.ply"):
         path = SHARED_MESHES / file
         if path.exists():
             surfaces.append((file, load_mesh(path, units=SHARED_MESH_UNITS[file])))
@@ -214,18 +237,89 @@ def parts_table(hub, hub_seg, removal: bool, with_uniform: bool):
             plans.append((f"segment({seg.metadata['n_regions']}) raster", seg))
         except Exception as exc:  # noqa: BLE001 - a benchmark reports and goes on
             rows.append(dict(part=name, plan=f"segment failed: {type(exc).__name__}: {exc}"[:90]))
-        if with_uniform:
+        if with_uniform and not only_hub:
             t0 = time.perf_counter()
             uni = uniform(surf, TOOL)
             print(f"  {name}: uniform planned in {time.perf_counter() - t0:.0f} s", flush=True)
             plans.append(("uniform", order_toolpath(uni)))             # its own order (zigzag)
         for label, before in plans:
-            rows.append(trajectory_row(name, label, before, sim))
-            rows.append(trajectory_row(name, f"{label} + gtsp", _after(before, None), sim))
-            rows.append(trajectory_row(name, f"{label} + gtsp + contact step-overs", _after(before, JOIN_GAP), sim))
-            rows.append(trajectory_row(name, f"{label} + gtsp(time)", _after(before, None, **TIMED), sim))
+            index = trajectory_row(name, f"{label} (index)", before, sim)
+            rows.append(index)
+            greedy = {}
+            for order_label, method, join, timed in ORDERS:
+                row = trajectory_row(name, f"{label} + {order_label}", ordered(before, method, join, timed), sim)
+                if method == "greedy":
+                    greedy[join] = row["air_m"]
+                row["vs_index"] = 100 * (1 - row["air_m"] / index["air_m"])
+                row["vs_greedy"] = 100 * (1 - row["air_m"] / greedy[join])
+                rows.append(row)
     print_table(rows, [("part", ""), ("plan", ""), ("passes", "d"), ("contact_m", ".2f"), ("air_m", ".2f"),
-                       ("cycle_s", ".1f"), ("beyond_box_m", ".3f"), ("coverage_pct", ".2f"), ("time_s", ".1f")])
+                       ("vs_index", ".1f"), ("vs_greedy", ".1f"), ("cycle_s", ".1f"), ("beyond_box_m", ".3f"),
+                       ("coverage_pct", ".2f"), ("order_s", ".2f"), ("route_rounds", "d"), ("time_s", ".1f")])
+    return rows
+
+
+def _old_link_time(length, turn):
+    """Last session's link time: max(rest-to-rest trapezoid, turn at 1 rad/s), s."""
+    v, a = LINKS.speed, LINKS.acceleration
+    move = length / v + v / a if length >= v * v / a else 2 * np.sqrt(length / a)
+    return max(move, turn / 1.0)
+
+
+def link_audit(label, tp, *, show=0):
+    """Every link of ``tp`` as the order stage costs it (straight at the clearance; the time of the
+    order's frames) against its air route and the timed trajectory; one summary row."""
+    traj = time_path(tp, CONSTRAINTS, links=LINKS)
+    guard = AirGuard(tp.surface, LINKS.clearance)
+    model = LinkModel(clearance=LINKS.clearance)
+    step = np.r_[0.0, np.linalg.norm(np.diff(traj.position, axis=0), axis=1)]
+    per = []
+    for i, (a, b) in enumerate(zip(tp.passes[:-1], tp.passes[1:])):
+        ia, ib = np.flatnonzero(traj.pass_index == i)[-1], np.flatnonzero(traj.pass_index == i + 1)[0]
+        end, start = pass_ends(a), pass_ends(b)
+        length = float(model.length(end[3], end[4], start[0], start[1]))
+        turn = float(np.arccos(np.clip(0.5 * (np.trace(end[5].T @ start[2]) - 1), -1, 1)))
+        route = guard.route(end[3], end[4] / np.linalg.norm(end[4]), start[0], start[1] / np.linalg.norm(start[1]))
+        routed = float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum())
+        q0, q1 = traj.quaternion[ia], traj.quaternion[ib]
+        per.append(dict(link=i, model_m=length, routed_m=routed, flown_m=float(step[ia + 1:ib + 1].sum()),
+                        turn_rad=turn, flown_turn_rad=2 * float(np.arccos(min(abs(float(q0 @ q1)), 1.0))),
+                        model_s=float(link_time_estimate(routed, turn, clearance=LINKS.clearance, speed=LINKS.speed,
+                                                         acceleration=LINKS.acceleration, omega_max=1.0)),
+                        old_model_s=_old_link_time(length, turn), flown_s=float(traj.t[ib] - traj.t[ia]),
+                        detour=len(route) > 4))
+    if show and per:
+        worst = sorted(per, key=lambda r: -abs(r["flown_s"] - r["model_s"]))[:show]
+        print(f"  {label}: the {show} links the time model misses most")
+        print_table(worst, [("link", "d"), ("model_m", ".3f"), ("routed_m", ".3f"), ("flown_m", ".3f"),
+                            ("turn_rad", ".2f"), ("flown_turn_rad", ".2f"), ("old_model_s", ".2f"), ("model_s", ".2f"),
+                            ("flown_s", ".2f")])
+    col = {k: np.array([r[k] for r in per], float) for k in per[0]} if per else \
+        {k: np.zeros(1) for k in ("model_m", "routed_m", "flown_m", "turn_rad", "model_s", "old_model_s", "flown_s",
+                                  "detour")}
+    link_s = float(col["flown_s"].sum())
+    return dict(plan=label, links=len(per), model_m=col["model_m"].sum(), routed_m=col["routed_m"].sum(),
+                flown_m=col["flown_m"].sum(), traj_air_m=traj.air_length, detours=int(col["detour"].sum()),
+                turns_over_2_5=int((col["turn_rad"] > 2.5).sum()), old_model_s=col["old_model_s"].sum(),
+                model_s=col["model_s"].sum(), flown_s=link_s,
+                worst_err_s=float(np.abs(col["flown_s"] - col["model_s"]).max()),
+                contact_s=traj.duration - link_s, cycle_s=traj.duration)
+
+
+def audit_table(hub_seg):
+    print("\n## 4. why: every link of the hub's plans as the order stage costs it and as the trajectory flies it")
+    print("model_m: retract + straight at 20 mm + approach; routed_m: AirGuard's route (what the order stage now "
+          "costs); flown_m: the timed trajectory between the passes (corners rounded); traj_air_m adds the first "
+          "approach and the last retract; old_model_s: last session's link time max(trapezoid, turn / 1 rad/s); "
+          "model_s: the closed form now used (retract, rounded corners, turn on the move only); flown_s: toppra; "
+          "contact_s: the passes (contact step-overs included)")
+    rows = [link_audit("index (as planned)", hub_seg)]
+    for i, (label, method, join, timed) in enumerate(ORDERS):
+        rows.append(link_audit(label, ordered(hub_seg, method, join, timed), show=5 if i == 1 else 0))
+    print_table(rows, [("plan", ""), ("links", "d"), ("model_m", ".3f"), ("routed_m", ".3f"), ("flown_m", ".3f"),
+                       ("traj_air_m", ".3f"), ("detours", "d"), ("turns_over_2_5", "d"), ("old_model_s", ".1f"),
+                       ("model_s", ".1f"), ("flown_s", ".1f"), ("worst_err_s", ".3f"), ("contact_s", ".1f"),
+                       ("cycle_s", ".1f")])
     return rows
 
 
@@ -233,9 +327,12 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--no-removal", action="store_true", help="skip the removal simulation")
     ap.add_argument("--no-uniform", action="store_true", help="skip the uniform planner (slow on crs_part_5)")
-    ap.add_argument("--only", choices=("1", "2", "3"), help="run one table only")
+    ap.add_argument("--only", choices=("1", "2", "3", "4"), help="run one table only")
+    ap.add_argument("--hub-only", action="store_true", help="table 3 on the hub only")
     args = ap.parse_args()
-    hub, hub_seg = hub_table() if args.only in (None, "1", "3") else (None, None)
+    hub, hub_seg = hub_table() if args.only in (None, "1", "3", "4") else (None, None)
+    if args.only in (None, "4"):
+        audit_table(hub_seg)
     if args.only in (None, "2"):
         hub = hub or wheel_hub()
         rng = np.random.default_rng(5)
@@ -251,7 +348,7 @@ def main():
             instances.append((label, tp, [[i] for i in range(len(tp.passes))], False))
         optimality_table(instances)
     if args.only in (None, "3"):
-        parts_table(hub, hub_seg, not args.no_removal, not args.no_uniform)
+        parts_table(hub, hub_seg, not args.no_removal, not args.no_uniform, only_hub=args.hub_only)
 
 
 if __name__ == "__main__":

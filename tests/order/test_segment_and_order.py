@@ -232,9 +232,16 @@ def test_time_ordering_weighs_the_tool_turn_against_the_move():
     # at 0.5 rad/s the turn takes 6.3 s: every pass the same way
     one_way = order_toolpath(tp, method="exact", link_speed=0.25, link_acceleration=1.0, omega_max=0.5)
     assert len(set(directions(one_way))) == 1
-    # each link: 0.04 m of retract/approach plus the 1.00125 m diagonal, trapezoid at 0.25 m/s, 1 m/s²
-    L = 0.04 + np.hypot(1.0, 0.05)
-    assert one_way.metadata["link_time_after_s"] == pytest.approx(2 * (L / 0.25 + 0.25))
+    # each link: 20 mm retract, the 1.00125 m diagonal, 20 mm approach, no turn: as the trajectory
+    # stage times it (rounded corners, toppra at 0.25 m/s, 1 m/s²), to 30 ms
+    from swath.trajectory.links import LinkSettings, time_link
+
+    d = np.hypot(1.0, 0.05)
+    route = np.array([[0, 0, 0], [0, 0, 0.02], [d, 0, 0.02], [d, 0, 0]])
+    q = np.array([1.0, 0, 0, 0])
+    timed = time_link(route, q, q, LinkSettings(speed=0.25, acceleration=1.0)).duration
+    assert one_way.metadata["link_time_after_s"] == pytest.approx(2 * timed, abs=0.06)
+    assert one_way.metadata["link_time_after_s"] > 2 * (0.04 + d) / 0.25 + 2 * 0.25   # more than the trapezoid
 
 
 def test_the_order_stage_routes_every_link_and_the_trajectory_follows_it():

@@ -171,16 +171,19 @@ def make_plan(surface, settings: JobSettings, *, progress=None):
 
 
 def order_options(toolpath, settings) -> dict:
-    """Options for the tour methods of the order stage: links costed by time under the job's own
-    link speed and angular-speed limit (a snake's 180-degree turn costs seconds, not millimetres)."""
+    """Options for the tour methods of the order stage: links routed as the trajectory flies them
+    and costed by time under the job's own link speed and angular-speed limit (a snake's 180-degree
+    turn costs seconds, not millimetres), or with ``order_objective = "length"`` by air length."""
     from ..order import ORDER_METHODS, sequence
 
     method = order_method(toolpath, settings)
     if ORDER_METHODS.get(method) in (sequence.snake, sequence.zigzag):
         return {}
     links = settings.links()
-    options = {"clearance": links.clearance, "link_speed": links.speed, "link_acceleration": links.acceleration,
-               "omega_max": settings.max_angular}
+    options = {"clearance": links.clearance, "pad_radius": settings.pad_radius}
+    if settings.order_objective == "time":
+        options.update(link_speed=links.speed, link_acceleration=links.acceleration, omega_max=settings.max_angular,
+                       feed=settings.feed)
     if settings.join_gap is not None:
         options["join_gap"] = settings.join_gap
     if settings.order_groups == "passes":

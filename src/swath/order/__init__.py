@@ -15,7 +15,11 @@ Methods (:data:`ORDER_METHODS`, name -> function ``f(toolpath) -> ToolPath``):
 With ``join_gap`` (m) the tour methods make short step-overs in contact where the pad can slide
 along the part, and join the passes they connect (:mod:`.joining`; Wang's continuous local paths).
 
-:func:`route_links` then gives every move between passes its air route (:mod:`.routing`).
+The tour methods cost links as the trajectory stage flies them: by air length along the route
+:class:`AirGuard` gives them (a tour is solved again when one of its links must climb over the
+part), or with ``link_speed`` by time (rounded, toppra-timed links in closed form; contact
+step-overs at the ``feed``).  :func:`route_links` then gives every move between passes its air
+route (:mod:`.routing`).
 """
 
 from __future__ import annotations
@@ -53,7 +57,8 @@ def order_toolpath(toolpath: ToolPath, *, method: str | None = None, **options) 
     """Re-sequence ``toolpath``'s passes with the named method; None: the planner's
     ``metadata["order_hint"]`` (raster and equidistant: ``snake``, uniform: ``zigzag``).
     ``options`` go to the tour methods (``start``, ``clearance``, ``link_speed``, ``omega_max``,
-    ``join_gap``, ``keep_direction``, ...; see :func:`swath.order.tour.order_toolpath`).
+    ``feed``, ``join_gap``, ``keep_direction``, ``routed``, ``pad_radius``, ...; see
+    :func:`swath.order.tour.order_toolpath`).
 
     Raises
     ------

@@ -1,9 +1,11 @@
 """Path types (variants) of pass groups and what links between them cost (Wang §4).
 
 :func:`group_variants` enumerates each group's path types with their touch-down and lift-off
-points and frames; :class:`LinkModel` costs a link by air length or by time (a rest-to-rest move
-at the link speed, at least the tool's turn at the angular-speed limit); :func:`link_matrix` and
-:func:`tour_length` cost whole tours.  The solvers are in :mod:`swath.order.tour`.
+points and frames; :class:`LinkModel` costs a link by air length or by time
+(:func:`link_time_estimate`: the trajectory stage's rounded link, timed in closed form, the tool
+turning at the angular-speed limit); :func:`contact_cost` costs a step-over made in contact;
+:func:`link_matrix` and :func:`tour_length` cost whole tours.  The solvers are in
+:mod:`swath.order.tour`.
 """
 
 from __future__ import annotations
@@ -31,17 +33,21 @@ class LinkModel:
     omega_max : float or None
         Angular speed limit of the tool, rad/s: the link lasts at least the turn from the lift-off
         frame to the touch-down frame (tool z = -normal, x = travel direction) divided by it.
+    feed : float or None
+        Contact feed, m/s: with ``speed``, step-overs made in contact cost the contact time they
+        add (:func:`contact_cost`); None: they cost :meth:`straight_time`.
     """
 
     clearance: float = 0.02
     speed: float | None = None
     acceleration: float = 1.0
     omega_max: float | None = None
+    feed: float | None = None
 
     def __post_init__(self):
         if not (np.isfinite(self.clearance) and self.clearance >= 0):
             raise InputError(f"clearance must be a length >= 0 m, got {self.clearance!r}")
-        for name in ("speed", "omega_max"):
+        for name in ("speed", "omega_max", "feed"):
             v = getattr(self, name)
             if v is not None and not (np.isfinite(v) and v > 0):
                 raise InputError(f"link {name} must be positive or None, got {v!r}")
@@ -58,16 +64,83 @@ class LinkModel:
         return 2 * c + np.linalg.norm((exit_p + c * exit_n) - (entry_p + c * entry_n), axis=-1)
 
     def cost(self, length, exit_frame, entry_frame) -> np.ndarray:
-        """Link time (s) for ``length`` (m) between frames ``(..., 3, 3)``, or the length if untimed."""
+        """Link time (s) for a link of route ``length`` (m) between frames ``(..., 3, 3)``, or the
+        length if untimed.
+
+        The time is that of the trajectory stage's rounded, toppra-timed link
+        (:mod:`swath.trajectory.links`), estimated in closed form: the route is a retract of
+        ``clearance`` along the normal, a move of ``length - 2 clearance`` and an approach; its two
+        corners (taken as right angles) are rounded with the stage's arcs (tangent length
+        ``min(clearance, 0.45 x the shorter leg)``) and passed at most at ``sqrt(a r)``; the tool
+        turns only between retract and approach, at most at ``omega_max``; rest to rest, at the
+        acceleration ``a`` (the stage's 16-gon inscribed in the acceleration disk, ``0.981 a``).
+        On the hub's links this is within 0.05 s of the timed trajectory (the earlier estimate,
+        ``max(trapezoid, turn / omega_max)``, was 0.24-0.40 s short per link).
+        """
         if not self.timed:
             return length
+        return link_time_estimate(length, _turn_angle(exit_frame, entry_frame), clearance=self.clearance,
+                                  speed=self.speed, acceleration=self.acceleration, omega_max=self.omega_max)
+
+    def straight_time(self, length, exit_frame, entry_frame) -> np.ndarray:
+        """A rest-to-rest move of ``length`` (m) at the link speed and acceleration, or the turn at
+        ``omega_max`` if that takes longer, s (no retract or approach: a contact step-over)."""
         v, a = self.speed, self.acceleration
+        length = np.asarray(length, float)
         t = np.where(length >= v * v / a, length / v + v / a, 2 * np.sqrt(np.maximum(length, 0) / a))
         if self.omega_max is not None:
-            tr = np.einsum("...ij,...ij->...", exit_frame, entry_frame)
-            turn = np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0))
-            t = np.maximum(t, turn / self.omega_max)
+            t = np.maximum(t, _turn_angle(exit_frame, entry_frame) / self.omega_max)
         return t
+
+
+def _turn_angle(frame_a, frame_b) -> np.ndarray:
+    """Rotation angle (rad) between frames ``(..., 3, 3)``."""
+    tr = np.einsum("...ij,...ij->...", frame_a, frame_b)
+    return np.arccos(np.clip(0.5 * (tr - 1.0), -1.0, 1.0))
+
+
+#: The trajectory stage bounds the acceleration by a 16-gon inscribed in the disk of radius a.
+_DISK = float(np.cos(np.pi / 16))
+
+
+def _segment_time(length, v0, v1, cap, a):
+    """Time (s) to run ``length`` (m) from speed ``v0`` to ``v1`` (m/s) under ``cap`` at
+    acceleration ``a`` (m/s²); the speeds must be reachable (forward/backward passes done)."""
+    peak = np.minimum(cap, np.sqrt(np.maximum(a * length + 0.5 * (v0 * v0 + v1 * v1), 0.0)))
+    peak = np.maximum(peak, np.maximum(v0, v1))
+    ramp = (2 * peak * peak - v0 * v0 - v1 * v1) / (2 * a)
+    return (2 * peak - v0 - v1) / a + np.maximum(length - ramp, 0.0) / np.maximum(peak, 1e-12)
+
+
+def link_time_estimate(length, turn, *, clearance: float, speed: float, acceleration: float,
+                       omega_max: float | None = None) -> np.ndarray:
+    """Time (s) of a link of route ``length`` (m, retract + move + approach) with the tool turning
+    by ``turn`` (rad) between retract and approach, as the trajectory stage times it (see
+    :meth:`LinkModel.cost`); broadcasts over ``length`` and ``turn``."""
+    length = np.asarray(length, float)
+    turn = np.asarray(turn, float)
+    c, v, a = clearance, speed, acceleration * _DISK
+    mid = np.maximum(length - 2 * c, 0.0)
+    cut = np.minimum(c, 0.45 * np.minimum(c, mid))          # corner tangent length = radius (right angle)
+    arc = 0.5 * np.pi * cut
+    straight = np.maximum(mid - 2 * cut, 0.0)
+    span = straight + 2 * arc                                # where the tool turns
+    side = c - cut                                           # retract / approach lines
+    turning = turn > 1e-9
+    cap = np.full(np.broadcast(length, turn).shape, v)
+    if omega_max is not None:
+        cap = np.where(turning, np.minimum(v, omega_max * span / np.maximum(turn, 1e-12)), cap)
+    # On a corner arc the centripetal acceleration uses the whole budget: the pad runs it at
+    # sqrt(a r) (or less), at constant speed.
+    v_arc = np.minimum(np.minimum(np.sqrt(a * np.maximum(cut, 1e-12)), cap), np.sqrt(2 * a * side))
+    t = (2 * _segment_time(side, 0.0, v_arc, v, a) + 2 * arc / np.maximum(v_arc, 1e-12)
+         + _segment_time(straight, v_arc, v_arc, np.maximum(cap, v_arc), a))
+    # Straight up and down (no move between): the route stops at the top and the tool turns on the way.
+    up_cap = np.full(cap.shape, v)
+    if omega_max is not None:
+        up_cap = np.where(turning, np.minimum(v, omega_max * 2 * c / np.maximum(turn, 1e-12)), up_cap)
+    t_up = 2 * _segment_time(np.full(cap.shape, c), 0.0, 0.0, up_cap, a)
+    return np.where(mid > 1e-9, t, t_up)
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,15 +195,16 @@ def _frame(normal, tangent) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
-def _ends(p, flip: bool):
-    """(start point, start normal, start frame, end point, end normal, end frame) of a pass."""
+def pass_ends(p, flip: bool = False):
+    """(start point, start normal, start frame, end point, end normal, end frame) of a pass run as
+    given or flipped: points (3,) m, normals (3,), tool frames (3, 3) (columns x = travel, y, z = -normal)."""
     pts, nrm = (p.points[::-1], p.normals[::-1]) if flip else (p.points, p.normals)
     t0, t1 = pts[1] - pts[0], pts[-1] - pts[-2]
     return pts[0], nrm[0], _frame(nrm[0], t0), pts[-1], nrm[-1], _frame(nrm[-1], t1)
 
 
 def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel | None = None,
-                   joiner=None, keep_direction: bool = False) -> Variants:
+                   joiner=None, keep_direction: bool = False, guard=None) -> Variants:
     """Enumerate the path types of each group (see the module notes).
 
     Parameters
@@ -148,6 +222,9 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
     keep_direction : bool
         Offer only each group's given path type (its passes in the given order and direction):
         the order alone is chosen (Wang's "visit order planning", Table 4-1 column C).
+    guard : AirGuard, optional
+        When given, the air links inside a group cost their routes' length (a route that climbs
+        over the part is longer than the straight move at the clearance).
     """
     model = LinkModel(clearance=clearance) if model is None else model
     rows = []
@@ -156,13 +233,16 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
             [(False, False), (False, True), (True, False), (True, True)]
         for rev, flip in types:
             order = list(idx)[::-1] if rev else list(idx)
-            seq = [_ends(passes[i], flip) for i in order]
+            seq = [pass_ends(passes[i], flip) for i in order]
             inner_len = inner = 0.0
             for a, b in pairwise(seq):
                 if joiner is not None and joiner.feasible(a[3][None], b[0][None], a[5][None, :, 0], b[2][None, :, 0])[0]:
-                    inner += float(contact_cost(model, np.linalg.norm(b[0] - a[3]), a[5], b[2]))
+                    inner += float(contact_cost(model, b[0] - a[3], a[5], b[2]))
                     continue
                 L = float(model.length(a[3], a[4], b[0], b[1]))
+                if guard is not None:
+                    route = guard.route(a[3], a[4] / np.linalg.norm(a[4]), b[0], b[1] / np.linalg.norm(b[1]))
+                    L = max(L, float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum()))
                 inner_len += L
                 inner += float(model.cost(L, a[5], b[2]))
             first, last = seq[0], seq[-1]
@@ -176,12 +256,35 @@ def group_variants(passes, groups, *, clearance: float = 0.02, model: LinkModel 
 CONTACT_WEIGHT = 0.1
 
 
+#: A contact step-over's turns cost this share of ``turn / omega_max`` on top of ``chord / feed``:
+#: the tool turns while it moves.  Measured with the trajectory stage on a plate (feed 50 mm/s,
+#: 1 rad/s, 5 mm heading scale): U-turn and L-turn step-overs of 20-60 mm took
+#: ``chord / feed + (0.81 +- 0.01) turn / omega_max`` more contact time than the two passes apart.
+CONTACT_TURN_SHARE = 0.81
+
+
 def contact_cost(model: LinkModel, chord, exit_frame, entry_frame):
-    """Objective cost of a step-over of ``chord`` (m) made in contact: ``CONTACT_WEIGHT * chord``
-    by length; by time, the link time of a move of that length (the tool still turns)."""
+    """Objective cost of step-overs made in contact along ``chord`` ((..., 3) float, m: from the
+    lift-off point to the touch-down point) between tool frames ``(..., 3, 3)``.
+
+    By length ``CONTACT_WEIGHT * |chord|``; by time with ``model.feed`` (m/s) the contact time the
+    step-over adds, ``|chord| / feed + CONTACT_TURN_SHARE * (turn onto the chord + turn off it) /
+    omega_max`` (the trajectory stage runs it at the feed and turns the tool's heading with the
+    travel direction); by time without a feed, :meth:`LinkModel.straight_time`.
+    """
+    chord = np.asarray(chord, float)
+    length = np.linalg.norm(chord, axis=-1)
     if not model.timed:
-        return CONTACT_WEIGHT * np.asarray(chord, float)
-    return model.cost(np.asarray(chord, float), exit_frame, entry_frame)
+        return CONTACT_WEIGHT * length
+    if model.feed is None:
+        return model.straight_time(length, exit_frame, entry_frame)
+    u = chord / np.maximum(length, 1e-12)[..., None]
+    x_exit, x_entry = np.asarray(exit_frame)[..., :, 0], np.asarray(entry_frame)[..., :, 0]
+    turns = np.arccos(np.clip((x_exit * u).sum(-1), -1, 1)) + np.arccos(np.clip((u * x_entry).sum(-1), -1, 1))
+    t = length / model.feed
+    if model.omega_max is not None:
+        t = t + CONTACT_TURN_SHARE * turns / model.omega_max
+    return t
 
 
 def link_matrix(variants: Variants, clearance: float = 0.02, *, model: LinkModel | None = None,
