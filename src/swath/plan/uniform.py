@@ -209,15 +209,13 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         if _area(W, left) <= 1e-4 * W.area:
             break
         band = np.flatnonzero((d <= 2.5 * R) & left)
-        w_here = np.full(len(W.vertices), 2 * R)
-        if len(band):
-            gdir = ctx.gradient_directions(d)
-            w_here[band] = ctx.widths.across(band, np.cross(W.normals[band], gdir[band]))
+        w_here = _band_widths(ctx, d, band, reach)
         g = d - reach * w_here
         pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
         if not pieces:
             # The far boundary is nearer than a full step: pull the last pass in so its ribbon
             # reaches the boundary.
+            w_here = _band_widths(ctx, d, band, reach, everywhere=True)
             d_far = float(np.max(d[left]))
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
@@ -266,6 +264,44 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
                 overlap=float(overlap), seed=seed if isinstance(seed, str) else "polyline",
                 min_pass_length=float(min_pass_length), work_spacing=ctx.work_spacing,
                 seconds=time.perf_counter() - t0)
+
+
+def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *,
+                 everywhere: bool = False) -> np.ndarray:
+    """Swath widths ``w_here`` ``(n,)`` (m) across the passes that follow the level sets of the
+    distance field ``d`` ``(n,)`` (m): ``2R`` off the ``band`` vertices, the local contact model's
+    width on them.
+
+    Only the zero level set of ``g = d - reach * w_here`` is extracted, and it reads ``g`` only on
+    the faces it cuts.  A band vertex with ``d > reach * w_max`` (``w_max`` an upper bound of its
+    widths over all directions, :attr:`WidthModel.max_width`) has ``g > 0`` whatever its width, so
+    unless it shares a face with a vertex whose ``g`` may be negative, its exact width cannot change
+    the level set: it gets ``w_max`` instead (``g`` stays positive), and the contact model runs on
+    the rest only.  The level set is then the same, bit for bit, as with every width computed.
+    ``everywhere=True`` (or ``reach <= 0``) computes every band width.
+    """
+    W = ctx.work
+    w_here = np.full(len(W.vertices), 2 * ctx.tool.pad_radius)
+    if len(band) == 0:
+        return w_here
+    if everywhere or not reach > 0:
+        need = band
+    else:
+        bound = ctx.widths.max_width[band]
+        far = d[band] - reach * (bound * (1.0 + 1e-9)) > 0.0          # false for a NaN bound
+        maybe_negative = d - reach * w_here < 0.0                    # off the band: g exactly
+        maybe_negative[band] = ~far
+        F = W.faces
+        near_face = maybe_negative[F[:, 0]] | maybe_negative[F[:, 1]] | maybe_negative[F[:, 2]]
+        on_cut_face = np.zeros(len(W.vertices), bool)
+        on_cut_face[F[near_face].ravel()] = True
+        exact = on_cut_face[band]
+        need = band[exact]
+        w_here[band[~exact]] = bound[~exact]
+    if len(need):
+        gdir = ctx.gradient_directions(d)[need]
+        w_here[need] = ctx.widths.across(need, np.cross(W.normals[need], gdir))
+    return w_here
 
 
 def _toolpath(surface, layout: dict, *, point_spacing, rule, extra_meta=None) -> ToolPath:

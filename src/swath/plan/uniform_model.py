@@ -33,6 +33,10 @@ class WidthModel:
         self.curvature = curvature
         self.normals = normals
         self.patch, self.inverse = unique_patches(curvature.k1, curvature.k2, tool, 180)
+        # An upper bound of the width at each vertex over every direction, m: no chord of the
+        # patch is longer than twice its farthest ray (NaN where a patch holds NaN).
+        reach = np.maximum(np.abs(self.patch.rho_out), np.abs(self.patch.rho_in))
+        self.max_width = (2.0 * reach.max(axis=1))[self.inverse]
 
     def across(self, idx: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Width (m) of the swath at vertices ``idx`` ``(k,)`` for feed directions ``feed`` ``(k, 3)``."""
@@ -101,7 +105,8 @@ class _Context:
         """Covered vertices with an uncovered neighbour: the edge of the covered region."""
         F = self.work.faces
         c = covered[F]
-        mixed = c.any(axis=1) & ~c.all(axis=1)
+        c0, c1, c2 = c[:, 0], c[:, 1], c[:, 2]
+        mixed = (c0 | c1 | c2) & ~(c0 & c1 & c2)
         v = F[mixed][c[mixed]]
         return np.unique(v)
 
