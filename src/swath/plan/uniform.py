@@ -209,13 +209,14 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         if _area(W, left) <= 1e-4 * W.area:
             break
         band = np.flatnonzero((d <= 2.5 * R) & left)
-        w_here = _band_widths(ctx, d, band, reach)
+        directions = functools.cache(lambda d=d: ctx.gradient_directions(d))   # once per distance field
+        w_here = _band_widths(ctx, d, band, reach, directions=directions)
         g = d - reach * w_here
         pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
         if not pieces:
             # The far boundary is nearer than a full step: pull the last pass in so its ribbon
             # reaches the boundary.
-            w_here = _band_widths(ctx, d, band, reach, everywhere=True)
+            w_here = _band_widths(ctx, d, band, reach, everywhere=True, directions=directions)
             d_far = float(np.max(d[left]))
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
@@ -267,7 +268,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
 
 
 def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *,
-                 everywhere: bool = False) -> np.ndarray:
+                 everywhere: bool = False, directions=None) -> np.ndarray:
     """Swath widths ``w_here`` ``(n,)`` (m) across the passes that follow the level sets of the
     distance field ``d`` ``(n,)`` (m): ``2R`` off the ``band`` vertices, the local contact model's
     width on them.
@@ -278,7 +279,8 @@ def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *
     unless it shares a face with a vertex whose ``g`` may be negative, its exact width cannot change
     the level set: it gets ``w_max`` instead (``g`` stays positive), and the contact model runs on
     the rest only.  The level set is then the same, bit for bit, as with every width computed.
-    ``everywhere=True`` (or ``reach <= 0``) computes every band width.
+    ``everywhere=True`` (or ``reach <= 0``) computes every band width.  ``directions()``, if given,
+    returns ``ctx.gradient_directions(d)`` ``(n, 3)`` (a memo shared by the calls on one field).
     """
     W = ctx.work
     w_here = np.full(len(W.vertices), 2 * ctx.tool.pad_radius)
@@ -299,7 +301,7 @@ def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *
         need = band[exact]
         w_here[band[~exact]] = bound[~exact]
     if len(need):
-        gdir = ctx.gradient_directions(d)[need]
+        gdir = (directions() if directions is not None else ctx.gradient_directions(d))[need]
         w_here[need] = ctx.widths.across(need, np.cross(W.normals[need], gdir))
     return w_here
 
