@@ -180,7 +180,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         feed_dir, cross = feed_and_cross(ctx.surface, angle=angle)
     step = min(2e-3, 0.5 * ctx.work_spacing)
 
-    generations = []          # each: list of (points (k,3), widths (k,))
+    generations = []          # each: list of pass points (k, 3)
     notes: list[str] = []     # what the kept plan must warn about
     covered = np.zeros(len(W.vertices), bool)
     current = _seed_curves(ctx, seed, cross, step)
@@ -191,7 +191,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         if not first:
             raise InfeasibleError("the middle slice of the surface is shorter than min_pass_length")
         generations.append(first)
-        for pts, _ in first:
+        for pts in first:
             covered |= ctx.touched(pts)
         sources = None
     else:
@@ -245,8 +245,8 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         notes.append(f"uniform: stopped after max_passes={max_passes} generations")
         log.info("%s", notes[-1])
 
-    passes_pts = [p for gen in generations for p, _ in gen]
-    generation_of = {id(p): g for g, gen in enumerate(generations) for p, _ in gen}
+    passes_pts = [p for gen in generations for p in gen]
+    generation_of = {id(p): g for g, gen in enumerate(generations) for p in gen}
     if not passes_pts:
         raise InfeasibleError("uniform found no pass: the surface is narrower than the shortest allowed pass "
                               f"({min_pass_length * 1e3:.1f} mm) in every direction tried")
