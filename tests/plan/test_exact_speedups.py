@@ -72,10 +72,14 @@ def test_width_bound_holds_at_every_vertex_in_every_direction(context, rng):
     idx = np.arange(len(W.vertices))
     for _ in range(4):
         feed = rng.normal(size=(len(idx), 3))
-        assert np.all(context.widths.across(idx, feed) <= context.widths.max_width)
-    # a flat plate: every chord is at most the pad's diameter, and the bound is that diameter
+        w = context.widths.across(idx, feed)
+        assert np.all(w <= context.widths.max_width)
+        assert np.all(w >= context.widths.min_width)
+    assert np.median(context.widths.min_width / context.widths.max_width) > 0.5      # bounds that bite
+    # a flat plate: every chord is the pad's diameter, and both bounds are that diameter
     flat = _Context(flat_plate(size_x=0.2, size_y=0.1), TOOL, None)
     assert flat.widths.max_width == pytest.approx(2 * TOOL.pad_radius, rel=1e-6)
+    assert flat.widths.min_width == pytest.approx(2 * TOOL.pad_radius, rel=1e-3)
 
 
 @pytest.mark.parametrize("reach", [0.4, 0.1])
@@ -90,7 +94,8 @@ def test_widths_on_the_cut_faces_only_give_the_level_set_of_all_widths(context, 
     full = _band_widths(context, d, band, reach, everywhere=True)
     exact = lazy == full
     assert not exact.all()                                   # some widths were skipped ...
-    assert np.all(lazy[~exact] > full[~exact])               # ... and replaced by their upper bound
+    skipped = ~exact                                         # ... and replaced by a bound on g's side
+    np.testing.assert_array_equal(d[skipped] - reach * lazy[skipped] < 0, d[skipped] - reach * full[skipped] < 0)
     pieces_lazy = level_sets(W.vertices, W.faces, d - reach * lazy, [0.0], edges=context.edges)
     pieces_full = level_sets(W.vertices, W.faces, d - reach * full, [0.0], edges=context.edges)
     assert len(pieces_lazy) == len(pieces_full) > 0

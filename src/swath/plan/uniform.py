@@ -274,35 +274,45 @@ def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *
     width on them.
 
     Only the zero level set of ``g = d - reach * w_here`` is extracted, and it reads ``g`` only on
-    the faces it cuts.  A band vertex with ``d > reach * w_max`` (``w_max`` an upper bound of its
-    widths over all directions, :attr:`WidthModel.max_width`) has ``g > 0`` whatever its width, so
-    unless it shares a face with a vertex whose ``g`` may be negative, its exact width cannot change
-    the level set: it gets ``w_max`` instead (``g`` stays positive), and the contact model runs on
-    the rest only.  The level set is then the same, bit for bit, as with every width computed.
-    ``everywhere=True`` (or ``reach <= 0``) computes every band width.  ``directions()``, if given,
-    returns ``ctx.gradient_directions(d)`` ``(n, 3)`` (a memo shared by the calls on one field).
+    the faces it cuts (a face is cut where some corner has ``g < 0`` and some not).  Each band
+    vertex's width lies between bounds over all directions (:attr:`WidthModel.min_width`,
+    :attr:`WidthModel.max_width`), so where ``d`` is beyond ``reach`` times them the sign of ``g``
+    is known without the width.  The widths are computed first where the sign is not known, then on
+    every band vertex of a face the signs show is cut; the others get a bound of the right side
+    (``g`` keeps its sign).  The level set is then the same, bit for bit, as with every width
+    computed.  ``everywhere=True`` (or ``reach <= 0``) computes every band width.
+    ``directions()``, if given, returns ``ctx.gradient_directions(d)`` ``(n, 3)`` (a memo shared by
+    the calls on one field).
     """
     W = ctx.work
     w_here = np.full(len(W.vertices), 2 * ctx.tool.pad_radius)
     if len(band) == 0:
         return w_here
+    directions = directions or (lambda: ctx.gradient_directions(d))
+
+    def exact(idx):
+        if len(idx):
+            w_here[idx] = ctx.widths.across(idx, np.cross(W.normals[idx], directions()[idx]))
+
     if everywhere or not reach > 0:
-        need = band
-    else:
-        bound = ctx.widths.max_width[band]
-        far = d[band] - reach * (bound * (1.0 + 1e-9)) > 0.0          # false for a NaN bound
-        maybe_negative = d - reach * w_here < 0.0                    # off the band: g exactly
-        maybe_negative[band] = ~far
-        F = W.faces
-        near_face = maybe_negative[F[:, 0]] | maybe_negative[F[:, 1]] | maybe_negative[F[:, 2]]
-        on_cut_face = np.zeros(len(W.vertices), bool)
-        on_cut_face[F[near_face].ravel()] = True
-        exact = on_cut_face[band]
-        need = band[exact]
-        w_here[band[~exact]] = bound[~exact]
-    if len(need):
-        gdir = (directions() if directions is not None else ctx.gradient_directions(d))[need]
-        w_here[need] = ctx.widths.across(need, np.cross(W.normals[need], gdir))
+        exact(band)
+        return w_here
+    high = ctx.widths.max_width[band]
+    low = ctx.widths.min_width[band] * (1.0 - 1e-6)
+    positive = d[band] - reach * (high * (1.0 + 1e-9)) > 0.0         # g > 0 whatever the width
+    negative = d[band] - reach * low < 0.0                           # g < 0 whatever the width
+    unknown = ~(positive | negative)                                 # (NaN bounds land here)
+    w_here[band[positive]] = high[positive]
+    w_here[band[negative]] = low[negative]
+    exact(band[unknown])
+    below = d - reach * w_here < 0.0                                 # now the sign of g everywhere
+    F = W.faces
+    b0, b1, b2 = below[F[:, 0]], below[F[:, 1]], below[F[:, 2]]
+    cut = (b0 | b1 | b2) & ~(b0 & b1 & b2)
+    on_cut_face = np.zeros(len(W.vertices), bool)
+    on_cut_face[F[cut].ravel()] = True
+    known = ~unknown
+    exact(band[known & on_cut_face[band]])
     return w_here
 
 

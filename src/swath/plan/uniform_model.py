@@ -38,6 +38,17 @@ class WidthModel:
         # patch is longer than twice its farthest ray (NaN where a patch holds NaN).
         reach = np.maximum(np.abs(self.patch.rho_out), np.abs(self.patch.rho_in))
         self.max_width = (2.0 * reach.max(axis=1))[self.inverse]
+        # And a lower bound: across any direction ψ the ray nearest ψ (within half the widest gap Δ
+        # between rays) reaches at least rho_out cos Δ ahead and the ray nearest ψ + π as far
+        # behind, so the width is at least 2 min(rho_out) cos Δ, less a relative 1e-6 for
+        # rounding; 0 where some ray has no contact (or holds NaN).
+        phi = np.sort(np.asarray(self.patch.phi, float))
+        gaps = np.diff(np.concatenate([phi, [phi[0] + 2 * np.pi]]))
+        half_gap = 0.5 * float(gaps.max())
+        every_ray = np.all(self.patch.rho_out > self.patch.rho_in, axis=1)
+        low = 2.0 * self.patch.rho_out.min(axis=1) * math.cos(half_gap) * (1.0 - 1e-6)
+        ok = every_ray & np.isfinite(low) & (half_gap < 0.5 * np.pi)
+        self.min_width = np.where(ok, np.maximum(low, 0.0), 0.0)[self.inverse]
 
     def across(self, idx: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Width (m) of the swath at vertices ``idx`` ``(k,)`` for feed directions ``feed`` ``(k, 3)``."""
