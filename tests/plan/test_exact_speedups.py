@@ -65,6 +65,10 @@ def test_compiled_gradient_directions_are_those_of_the_face_gradient(context, rn
         got = _vertex_gradient_directions(context.gradient, field, W.normals)
         np.testing.assert_array_equal(got, expected)
         np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1.0, atol=1e-12)
+        some = np.sort(rng.choice(len(W.vertices), 200, replace=False))[::-1]     # any order
+        np.testing.assert_array_equal(_vertex_gradient_directions(context.gradient, field, W.normals, some),
+                                      expected[some])
+        np.testing.assert_array_equal(context.gradient_directions(field, some), expected[some])
 
 
 def test_width_bound_holds_at_every_vertex_in_every_direction(context, rng):

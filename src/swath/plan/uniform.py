@@ -209,14 +209,13 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         if _area(W, left) <= 1e-4 * W.area:
             break
         band = np.flatnonzero((d <= 2.5 * R) & left)
-        directions = functools.cache(lambda d=d: ctx.gradient_directions(d))   # once per distance field
-        w_here = _band_widths(ctx, d, band, reach, directions=directions)
+        w_here = _band_widths(ctx, d, band, reach)
         g = d - reach * w_here
         pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
         if not pieces:
             # The far boundary is nearer than a full step: pull the last pass in so its ribbon
             # reaches the boundary.
-            w_here = _band_widths(ctx, d, band, reach, everywhere=True, directions=directions)
+            w_here = _band_widths(ctx, d, band, reach, everywhere=True)
             d_far = float(np.max(d[left]))
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
@@ -281,18 +280,18 @@ def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *
     every band vertex of a face the signs show is cut; the others get a bound of the right side
     (``g`` keeps its sign).  The level set is then the same, bit for bit, as with every width
     computed.  ``everywhere=True`` (or ``reach <= 0``) computes every band width.
-    ``directions()``, if given, returns ``ctx.gradient_directions(d)`` ``(n, 3)`` (a memo shared by
-    the calls on one field).
+    ``directions()``, if given, returns ``ctx.gradient_directions(d)`` ``(n, 3)``; otherwise the
+    directions are computed at the vertices that need them only.
     """
     W = ctx.work
     w_here = np.full(len(W.vertices), 2 * ctx.tool.pad_radius)
     if len(band) == 0:
         return w_here
-    directions = directions or (lambda: ctx.gradient_directions(d))
 
     def exact(idx):
         if len(idx):
-            w_here[idx] = ctx.widths.across(idx, np.cross(W.normals[idx], directions()[idx]))
+            gdir = directions()[idx] if directions is not None else ctx.gradient_directions(d, idx)
+            w_here[idx] = ctx.widths.across(idx, np.cross(W.normals[idx], gdir))
 
     if everywhere or not reach > 0:
         exact(band)

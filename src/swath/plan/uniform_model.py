@@ -122,9 +122,10 @@ class _Context:
         v = F[mixed][c[mixed]]
         return np.unique(v)
 
-    def gradient_directions(self, d: np.ndarray) -> np.ndarray:
-        """Unit tangent direction of increasing ``d`` at each vertex ``(n, 3)``."""
-        return _vertex_gradient_directions(self.gradient, d, self.work.normals)
+    def gradient_directions(self, d: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
+        """Unit tangent direction of increasing ``d`` ``(n,)`` (m) at each vertex ``(n, 3)``, or at
+        the vertices ``idx`` ``(k,)`` only ``(k, 3)`` (the same values as ``[idx]`` of the whole)."""
+        return _vertex_gradient_directions(self.gradient, d, self.work.normals, idx)
 
     def nearest_vertices(self, points: np.ndarray) -> np.ndarray:
         return self.tree.query(points)[1]
@@ -163,39 +164,59 @@ class _Context:
         return touched_samples(self._grid, closest - self._origin, -normals, self.tool, max_sink=cap)
 
 
-def _vertex_gradient_directions(gradient: FaceGradient, field: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """``gradient.vertex_directions(field, normals)`` ``(n, 3)``, the face gradients and their
-    per-vertex sums in one compiled loop over the faces.
+def _vertex_gradient_directions(gradient: FaceGradient, field: np.ndarray, normals: np.ndarray,
+                                idx: np.ndarray | None = None) -> np.ndarray:
+    """``gradient.vertex_directions(field, normals)`` ``(n, 3)`` (or its rows ``idx`` ``(k,)``:
+    ``(k, 3)``), the face gradients and their per-vertex sums in one compiled loop over the faces.
 
     The arithmetic is that of :meth:`FaceGradient.vertex_directions` term by term and in the same
     order (each face's gradient as ``((0 + f0 b0) + f1 b1) + f2 b2`` times its area; each vertex's sum
     over its faces in face order, once per corner slot, the three slot sums added in slot order), so
-    the directions are the same bit for bit, without the nine weighted ``bincount`` passes.
+    the directions are the same bit for bit, without the nine weighted ``bincount`` passes.  With
+    ``idx`` only the faces round those vertices are visited (each vertex still gets all its faces,
+    in the same order).
     """
     basis = getattr(gradient, "_stacked_basis", None)
     if basis is None:
         basis = np.ascontiguousarray(np.stack(gradient.basis))                 # (3, m, 3)
         gradient._stacked_basis = basis
+    n = gradient.n_vertices
+    if idx is None:
+        rows, k = np.arange(n, dtype=np.int64), n
+    else:
+        idx = np.asarray(idx, np.int64)
+        rows = np.full(n, -1, np.int64)
+        rows[idx] = np.arange(len(idx))
+        k = len(idx)
+        normals = normals[idx]
     acc = _gradient_vertex_sums(np.ascontiguousarray(gradient.faces, np.int64), np.ascontiguousarray(field, float),
-                                basis, np.ascontiguousarray(gradient.face_areas, float), gradient.n_vertices)
+                                basis, np.ascontiguousarray(gradient.face_areas, float), rows, k)
     acc -= np.einsum("ij,ij->i", acc, normals)[:, None] * normals
     return normalize(acc)
 
 
 @jit()
-def _gradient_vertex_sums(faces, field, basis, face_areas, n_vertices):   # pragma: no cover - compiled
-    slots = np.zeros((3, n_vertices, 3))
+def _gradient_vertex_sums(faces, field, basis, face_areas, rows, k):   # pragma: no cover - compiled
+    """Per-vertex sums of area-weighted face gradients into ``rows[v]`` (``-1``: not wanted), ``(k, 3)``."""
+    slots = np.zeros((3, k, 3))
     for f in range(len(faces)):
+        r0, r1, r2 = rows[faces[f, 0]], rows[faces[f, 1]], rows[faces[f, 2]]
+        if r0 < 0 and r1 < 0 and r2 < 0:
+            continue
         a = field[faces[f, 0]]
         b = field[faces[f, 1]]
         c = field[faces[f, 2]]
         for j in range(3):
             g = (((0.0 + a * basis[0, f, j]) + b * basis[1, f, j]) + c * basis[2, f, j]) * face_areas[f]
-            for i in range(3):
-                slots[i, faces[f, i], j] += g
-    acc = np.zeros((n_vertices, 3))
+            if r0 >= 0:
+                slots[0, r0, j] += g
+            if r1 >= 0:
+                slots[1, r1, j] += g
+            if r2 >= 0:
+                slots[2, r2, j] += g
+    acc = np.zeros((k, 3))
     for i in range(3):
-        for v in range(n_vertices):
+        for v in range(k):
             for j in range(3):
                 acc[v, j] += slots[i, v, j]
     return acc
