@@ -26,18 +26,23 @@ Wall times suffer from other load on the machine; CPU times (``*_cpu_s``: the pa
 its finished worker processes) less, and the ``*_cpu`` ratios are the ones to compare when the
 load average is above the CPU count.
 
-Last run (2 CPUs shared, load average 3.2 falling to 0.8; default workers = 2, forked on Linux from
-the parent's working mesh; pad-touch test on the compiled contact kernel), uniform/raster end to
-end, CPU: noether_wavy_mesh_with_hole 2.2 (5.0 re-run at load 0.8, where raster's own CPU time
-halved), bezier_dac_cad 6.4 (re-run at load 0.8; the first run's raster recompiled the kernels),
-snp_part_scan 8.0, crs_part_5 6.6, bezier_complex_shape 11.1, noether_raw_mesh 14.9,
-bezier_dac_scan 8.3.  Uniform e2e CPU seconds against the code before (spawned workers, float32
-pair lists), same machine minutes apart: wavy 7.1 -> 2.9-3.0, snp 14.3 -> 9.9.  The plans (pass
-count, contact length, candidate costs) were checked equal to the earlier code's on wavy, snp,
-bezier_dac_cad, bezier_complex_shape, bezier_dac_scan and crs_part_5; on noether_raw_mesh the chosen
-plan is the same (89 passes, 9.115758 m) but the losing 90 degree candidate's predicted cycle time
-moved from 598.8 s to 608.3 s (the float64 pad-touch test marks a few different border vertices
-than float32 did, and that candidate's later passes follow).
+Last run (2 CPUs, quiet machine: load average 0.01 before, 1.3 after; default workers = 2),
+raster plan CPU at 18k/80k/500k faces 0.49/0.61/1.79 s = 2.1x/0.9x/0.4x noether's published
+0.23/0.67/4.5 s (0.45 s = 1.96x on an earlier, loaded run: 18k sits at the 2x line); ratio to
+trimesh's own multiplane slicing 111/47/12 (CPU), slicing alone 4.0/5.2/3.9x trimesh.
+Uniform/raster end to end, CPU (wall): noether_wavy_mesh_with_hole 3.95 (2.54), bezier_dac_cad 4.85
+(3.15), snp_part_scan 6.09 (4.02), crs_part_5 5.60 (3.76), bezier_complex_shape 7.53 (4.86),
+noether_raw_mesh 9.83 (6.55), bezier_dac_scan 7.62 (5.33); panels 12.6/12.8/7.4 (8.3/8.6/6.8).
+Uniform end to end, CPU s, the code before this change run right after on the same quiet machine
+-> now: wavy 2.57 -> 1.79, bezier_dac_cad 4.66 -> 2.84, snp 8.31 -> 5.70, crs_part_5 72.7 -> 42.6,
+bezier_complex_shape 18.0 -> 11.0, noether_raw_mesh 32.7 -> 19.3, bezier_dac_scan 25.2 -> 16.8,
+panel_18k 32.9 -> 21.6 (its uniform/raster CPU ratios then: 5.5, 7.4, 5.5, 8.2, 11.4, 15.2, 9.3).
+The uniform planner's own serial time (workers=1, the job's cycle-time cost) against the code
+before this change, same quiet machine minutes apart: snp 8.0 -> 5.4 s, bezier_complex_shape
+17.2 -> 10.6 s, noether_raw_mesh 37.5 -> 18.7 s CPU, with the same plans (pass count, contact
+length and all six candidate costs equal to the last digit).  What is left is mostly the heat
+method: on snp 2.1 s of solves and 0.7 s of factorisation of the 5.4 s; on the 18k panel 19 s of
+24 s (loaded machine); the plans depend on its distances, so a cheaper distance would change them.
 """
 
 from __future__ import annotations

@@ -18,6 +18,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..contact.widths import pad_scale_samples, patch_widths, subdivided, surface_memo
+from ..surface.cells import jit
 
 log = logging.getLogger("swath.plan")
 
@@ -78,8 +79,7 @@ class CoverageCheck:
             todo = np.flatnonzero(~out)
             if len(todo):
                 pts = np.vstack([p.points for p in added])
-                d = cKDTree(pts).query(self.points[todo], distance_upper_bound=float(reach.max()) + 1e-9)[0]
-                out[todo] = d <= reach[todo]
+                out[todo] = within_reach(self.points[todo], reach[todo], pts)
         # keep the passes themselves, so their ids stay theirs while the result is remembered
         self._last = (list(passes), out)
         return out.copy()
@@ -104,6 +104,69 @@ class CoverageCheck:
             if self.areas[idx].sum() >= min_share * self.total:
                 out.append(idx)
         return out
+
+
+#: Grids of the pass points with more cells than this fall back to a KD-tree query.
+MAX_GRID_CELLS = 20_000_000
+
+
+def within_reach(samples: np.ndarray, reach: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(s,) bool: whether some of ``points`` ``(p, 3)`` lies within ``reach[i]`` (m) of ``samples[i]``
+    ``(s, 3)`` (m), the distance being ``sqrt(dx² + dy² + dz²)`` as in :class:`scipy.spatial.cKDTree`.
+
+    The points are binned on a grid of cells as wide as the largest reach and each sample looks in
+    its own and the 26 neighbouring cells, stopping at the first point close enough (compiled); most
+    samples near a pass stop within a few points, where a nearest-neighbour query would keep looking
+    for the nearest one.
+    """
+    samples = np.ascontiguousarray(samples, float)
+    reach = np.ascontiguousarray(reach, float)
+    points = np.ascontiguousarray(points, float)
+    if len(samples) == 0 or len(points) == 0:
+        return np.zeros(len(samples), bool)
+    cell = float(reach.max())
+    lo = points.min(axis=0)
+    dims = (np.floor((points.max(axis=0) - lo) / cell) + 1) if cell > 0 else np.full(3, np.inf)
+    if not (np.isfinite(dims).all() and float(np.prod(dims)) <= MAX_GRID_CELLS):
+        d = cKDTree(points).query(samples, distance_upper_bound=cell + 1e-9)[0]
+        return d <= reach
+    dims = dims.astype(np.int64)
+    ijk = np.floor((points - lo) / cell).astype(np.int64)
+    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
+    order = np.argsort(key, kind="stable")
+    start = np.searchsorted(key[order], np.arange(int(np.prod(dims)) + 1))
+    return _within_reach_kernel(samples, reach, points[order], lo, cell, dims, start)
+
+
+@jit()
+def _within_reach_kernel(samples, reach, points, lo, cell, dims, start):   # pragma: no cover - compiled
+    out = np.zeros(len(samples), np.bool_)
+    for s in range(len(samples)):
+        x, y, z = samples[s, 0], samples[s, 1], samples[s, 2]
+        r = reach[s]
+        ci = int(np.floor((x - lo[0]) / cell))
+        cj = int(np.floor((y - lo[1]) / cell))
+        ck = int(np.floor((z - lo[2]) / cell))
+        found = False
+        for i in range(max(ci - 1, 0), min(ci + 2, dims[0])):
+            for j in range(max(cj - 1, 0), min(cj + 2, dims[1])):
+                for k in range(max(ck - 1, 0), min(ck + 2, dims[2])):
+                    c = (i * dims[1] + j) * dims[2] + k
+                    for q in range(start[c], start[c + 1]):
+                        dx = points[q, 0] - x
+                        dy = points[q, 1] - y
+                        dz = points[q, 2] - z
+                        if np.sqrt(dx * dx + dy * dy + dz * dz) <= r:
+                            found = True
+                            break
+                    if found:
+                        break
+                if found:
+                    break
+            if found:
+                break
+        out[s] = found
+    return out
 
 
 def _fine_samples(surface, tool, step):

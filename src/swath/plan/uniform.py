@@ -180,7 +180,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         feed_dir, cross = feed_and_cross(ctx.surface, angle=angle)
     step = min(2e-3, 0.5 * ctx.work_spacing)
 
-    generations = []          # each: list of (points (k,3), widths (k,))
+    generations = []          # each: list of pass points (k, 3)
     notes: list[str] = []     # what the kept plan must warn about
     covered = np.zeros(len(W.vertices), bool)
     current = _seed_curves(ctx, seed, cross, step)
@@ -191,7 +191,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         if not first:
             raise InfeasibleError("the middle slice of the surface is shorter than min_pass_length")
         generations.append(first)
-        for pts, _ in first:
+        for pts in first:
             covered |= ctx.touched(pts)
         sources = None
     else:
@@ -209,15 +209,13 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         if _area(W, left) <= 1e-4 * W.area:
             break
         band = np.flatnonzero((d <= 2.5 * R) & left)
-        w_here = np.full(len(W.vertices), 2 * R)
-        if len(band):
-            gdir = ctx.gradient_directions(d)
-            w_here[band] = ctx.widths.across(band, np.cross(W.normals[band], gdir[band]))
+        w_here = _band_widths(ctx, d, band, reach)
         g = d - reach * w_here
         pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
         if not pieces:
             # The far boundary is nearer than a full step: pull the last pass in so its ribbon
             # reaches the boundary.
+            w_here = _band_widths(ctx, d, band, reach, everywhere=True)
             d_far = float(np.max(d[left]))
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
@@ -246,8 +244,8 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         notes.append(f"uniform: stopped after max_passes={max_passes} generations")
         log.info("%s", notes[-1])
 
-    passes_pts = [p for gen in generations for p, _ in gen]
-    generation_of = {id(p): g for g, gen in enumerate(generations) for p, _ in gen}
+    passes_pts = [p for gen in generations for p in gen]
+    generation_of = {id(p): g for g, gen in enumerate(generations) for p in gen}
     if not passes_pts:
         raise InfeasibleError("uniform found no pass: the surface is narrower than the shortest allowed pass "
                               f"({min_pass_length * 1e3:.1f} mm) in every direction tried")
@@ -266,6 +264,55 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
                 overlap=float(overlap), seed=seed if isinstance(seed, str) else "polyline",
                 min_pass_length=float(min_pass_length), work_spacing=ctx.work_spacing,
                 seconds=time.perf_counter() - t0)
+
+
+def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *,
+                 everywhere: bool = False, directions=None) -> np.ndarray:
+    """Swath widths ``w_here`` ``(n,)`` (m) across the passes that follow the level sets of the
+    distance field ``d`` ``(n,)`` (m): ``2R`` off the ``band`` vertices, the local contact model's
+    width on them.
+
+    Only the zero level set of ``g = d - reach * w_here`` is extracted, and it reads ``g`` only on
+    the faces it cuts (a face is cut where some corner has ``g < 0`` and some not).  Each band
+    vertex's width lies between bounds over all directions (:attr:`WidthModel.min_width`,
+    :attr:`WidthModel.max_width`), so where ``d`` is beyond ``reach`` times them the sign of ``g``
+    is known without the width.  The widths are computed first where the sign is not known, then on
+    every band vertex of a face the signs show is cut; the others get a bound of the right side
+    (``g`` keeps its sign).  The level set is then the same, bit for bit, as with every width
+    computed.  ``everywhere=True`` (or ``reach <= 0``) computes every band width.
+    ``directions()``, if given, returns ``ctx.gradient_directions(d)`` ``(n, 3)``; otherwise the
+    directions are computed at the vertices that need them only.
+    """
+    W = ctx.work
+    w_here = np.full(len(W.vertices), 2 * ctx.tool.pad_radius)
+    if len(band) == 0:
+        return w_here
+
+    def exact(idx):
+        if len(idx):
+            gdir = directions()[idx] if directions is not None else ctx.gradient_directions(d, idx)
+            w_here[idx] = ctx.widths.across(idx, np.cross(W.normals[idx], gdir))
+
+    if everywhere or not reach > 0:
+        exact(band)
+        return w_here
+    high = ctx.widths.max_width[band]
+    low = ctx.widths.min_width[band] * (1.0 - 1e-6)
+    positive = d[band] - reach * (high * (1.0 + 1e-9)) > 0.0         # g > 0 whatever the width
+    negative = d[band] - reach * low < 0.0                           # g < 0 whatever the width
+    unknown = ~(positive | negative)                                 # (NaN bounds land here)
+    w_here[band[positive]] = high[positive]
+    w_here[band[negative]] = low[negative]
+    exact(band[unknown])
+    below = d - reach * w_here < 0.0                                 # now the sign of g everywhere
+    F = W.faces
+    b0, b1, b2 = below[F[:, 0]], below[F[:, 1]], below[F[:, 2]]
+    cut = (b0 | b1 | b2) & ~(b0 & b1 & b2)
+    on_cut_face = np.zeros(len(W.vertices), bool)
+    on_cut_face[F[cut].ravel()] = True
+    known = ~unknown
+    exact(band[known & on_cut_face[band]])
+    return w_here
 
 
 def _toolpath(surface, layout: dict, *, point_spacing, rule, extra_meta=None) -> ToolPath:
@@ -325,10 +372,16 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         rows = _candidates_in_workers(context_args, angles, options, cost, n_workers, say,
                                       make_context=make_context)
     else:
+        from threadpoolctl import threadpool_limits
+
         rows = []
-        for k, a in enumerate(angles):
-            rows.append(_candidate(make_context(), a, options, cost))
-            say("planning (uniform): trying pass directions", k + 1, len(angles) + 1)
+        # One BLAS thread, as in the worker processes: the planner's matrix products are thin
+        # ((n, 3) @ (3,)), where a second BLAS thread only synchronises (a plane slice of a 170k-vertex
+        # working mesh took 12 ms with two threads and 0.1 ms with one on a loaded machine).
+        with threadpool_limits(limits=1, user_api="blas"):
+            for k, a in enumerate(angles):
+                rows.append(_candidate(make_context(), a, options, cost))
+                say("planning (uniform): trying pass directions", k + 1, len(angles) + 1)
     results, layouts, what = [], {}, ""
     for a, row in zip(angles, rows):
         if isinstance(row, str):

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..contact.kernels import default_cell, sample_grid, touched_samples
 from ..contact.widths import unique_patches, widths_across
+from ..surface.cells import jit
 from ..surface.curvature import PrincipalCurvature
 from ..surface.geodesic import FaceGradient
 from ..surface.geometry import normalize
@@ -33,6 +34,21 @@ class WidthModel:
         self.curvature = curvature
         self.normals = normals
         self.patch, self.inverse = unique_patches(curvature.k1, curvature.k2, tool, 180)
+        # An upper bound of the width at each vertex over every direction, m: no chord of the
+        # patch is longer than twice its farthest ray (NaN where a patch holds NaN).
+        reach = np.maximum(np.abs(self.patch.rho_out), np.abs(self.patch.rho_in))
+        self.max_width = (2.0 * reach.max(axis=1))[self.inverse]
+        # And a lower bound: across any direction ψ the ray nearest ψ (within half the widest gap Δ
+        # between rays) reaches at least rho_out cos Δ ahead and the ray nearest ψ + π as far
+        # behind, so the width is at least 2 min(rho_out) cos Δ, less a relative 1e-6 for
+        # rounding; 0 where some ray has no contact (or holds NaN).
+        phi = np.sort(np.asarray(self.patch.phi, float))
+        gaps = np.diff(np.concatenate([phi, [phi[0] + 2 * np.pi]]))
+        half_gap = 0.5 * float(gaps.max())
+        every_ray = np.all(self.patch.rho_out > self.patch.rho_in, axis=1)
+        low = 2.0 * self.patch.rho_out.min(axis=1) * math.cos(half_gap) * (1.0 - 1e-6)
+        ok = every_ray & np.isfinite(low) & (half_gap < 0.5 * np.pi)
+        self.min_width = np.where(ok, np.maximum(low, 0.0), 0.0)[self.inverse]
 
     def across(self, idx: np.ndarray, feed: np.ndarray) -> np.ndarray:
         """Width (m) of the swath at vertices ``idx`` ``(k,)`` for feed directions ``feed`` ``(k, 3)``."""
@@ -101,13 +117,15 @@ class _Context:
         """Covered vertices with an uncovered neighbour: the edge of the covered region."""
         F = self.work.faces
         c = covered[F]
-        mixed = c.any(axis=1) & ~c.all(axis=1)
+        c0, c1, c2 = c[:, 0], c[:, 1], c[:, 2]
+        mixed = (c0 | c1 | c2) & ~(c0 & c1 & c2)
         v = F[mixed][c[mixed]]
         return np.unique(v)
 
-    def gradient_directions(self, d: np.ndarray) -> np.ndarray:
-        """Unit tangent direction of increasing ``d`` at each vertex ``(n, 3)``."""
-        return self.gradient.vertex_directions(d, self.work.normals)
+    def gradient_directions(self, d: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
+        """Unit tangent direction of increasing ``d`` ``(n,)`` (m) at each vertex ``(n, 3)``, or at
+        the vertices ``idx`` ``(k,)`` only ``(k, 3)`` (the same values as ``[idx]`` of the whole)."""
+        return _vertex_gradient_directions(self.gradient, d, self.work.normals, idx)
 
     def nearest_vertices(self, points: np.ndarray) -> np.ndarray:
         return self.tree.query(points)[1]
@@ -144,3 +162,61 @@ class _Context:
         closest, normals = self.project(poses)
         cap = self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]]
         return touched_samples(self._grid, closest - self._origin, -normals, self.tool, max_sink=cap)
+
+
+def _vertex_gradient_directions(gradient: FaceGradient, field: np.ndarray, normals: np.ndarray,
+                                idx: np.ndarray | None = None) -> np.ndarray:
+    """``gradient.vertex_directions(field, normals)`` ``(n, 3)`` (or its rows ``idx`` ``(k,)``:
+    ``(k, 3)``), the face gradients and their per-vertex sums in one compiled loop over the faces.
+
+    The arithmetic is that of :meth:`FaceGradient.vertex_directions` term by term and in the same
+    order (each face's gradient as ``((0 + f0 b0) + f1 b1) + f2 b2`` times its area; each vertex's sum
+    over its faces in face order, once per corner slot, the three slot sums added in slot order), so
+    the directions are the same bit for bit, without the nine weighted ``bincount`` passes.  With
+    ``idx`` only the faces round those vertices are visited (each vertex still gets all its faces,
+    in the same order).
+    """
+    basis = getattr(gradient, "_stacked_basis", None)
+    if basis is None:
+        basis = np.ascontiguousarray(np.stack(gradient.basis))                 # (3, m, 3)
+        gradient._stacked_basis = basis
+    n = gradient.n_vertices
+    if idx is None:
+        rows, k = np.arange(n, dtype=np.int64), n
+    else:
+        idx = np.asarray(idx, np.int64)
+        rows = np.full(n, -1, np.int64)
+        rows[idx] = np.arange(len(idx))
+        k = len(idx)
+        normals = normals[idx]
+    acc = _gradient_vertex_sums(np.ascontiguousarray(gradient.faces, np.int64), np.ascontiguousarray(field, float),
+                                basis, np.ascontiguousarray(gradient.face_areas, float), rows, k)
+    acc -= np.einsum("ij,ij->i", acc, normals)[:, None] * normals
+    return normalize(acc)
+
+
+@jit()
+def _gradient_vertex_sums(faces, field, basis, face_areas, rows, k):   # pragma: no cover - compiled
+    """Per-vertex sums of area-weighted face gradients into ``rows[v]`` (``-1``: not wanted), ``(k, 3)``."""
+    slots = np.zeros((3, k, 3))
+    for f in range(len(faces)):
+        r0, r1, r2 = rows[faces[f, 0]], rows[faces[f, 1]], rows[faces[f, 2]]
+        if r0 < 0 and r1 < 0 and r2 < 0:
+            continue
+        a = field[faces[f, 0]]
+        b = field[faces[f, 1]]
+        c = field[faces[f, 2]]
+        for j in range(3):
+            g = (((0.0 + a * basis[0, f, j]) + b * basis[1, f, j]) + c * basis[2, f, j]) * face_areas[f]
+            if r0 >= 0:
+                slots[0, r0, j] += g
+            if r1 >= 0:
+                slots[1, r1, j] += g
+            if r2 >= 0:
+                slots[2, r2, j] += g
+    acc = np.zeros((k, 3))
+    for i in range(3):
+        for v in range(k):
+            for j in range(3):
+                acc[v, j] += slots[i, v, j]
+    return acc

@@ -20,14 +20,14 @@ log = logging.getLogger(__name__)
 SMOOTHING_WINDOW = 1.0
 
 
-def _finished(ctx, pieces, step, min_length: float, cut: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+def _finished(ctx, pieces, step, min_length: float, cut: bool = True) -> list[np.ndarray]:
     """:func:`_finish_piece` over level-set ``pieces``, keeping the parts at least ``min_length`` m long."""
-    return [c for p in pieces for c in _finish_piece(ctx, p, step, cut) if _length(c[0]) >= min_length]
+    return [c for p in pieces for c in _finish_piece(ctx, p, step, cut) if _length(c) >= min_length]
 
 
-def _finish_piece(ctx, pl, step, cut: bool = True) -> list[tuple[np.ndarray, np.ndarray]]:
+def _finish_piece(ctx, pl, step, cut: bool = True) -> list[np.ndarray]:
     """Resample, smooth and project a pass piece and (if ``cut``) cut it at sharp turns; return its
-    parts as (points (k, 3), widths (k,)) pairs."""
+    parts, each (k, 3) points, m."""
     pts = pl if isinstance(pl, np.ndarray) else resample(pl, step).points
     if len(pts) < 3:
         return []
@@ -39,11 +39,8 @@ def _finish_piece(ctx, pl, step, cut: bool = True) -> list[tuple[np.ndarray, np.
     out = []
     limit = ctx.max_turn_curvature if cut else math.inf
     for part in _cut_sharp_turns(pts, nrm, limit, ctx.tool.pad_radius / 8):
-        if len(part) < 3:
-            continue
-        tangents = normalize(np.gradient(part, axis=0))
-        w = ctx.widths.across(ctx.nearest_vertices(part), tangents)
-        out.append((part, w))
+        if len(part) >= 3:
+            out.append(part)
     return out
 
 
@@ -122,9 +119,9 @@ def _smooth(pts, window):
 
 
 def _touched_by(ctx, pieces) -> np.ndarray:
-    """(n,) bool: working vertices the pad touches along any of ``pieces`` ((points, widths) pairs)."""
+    """(n,) bool: working vertices the pad touches along any of ``pieces`` (each (k, 3) points, m)."""
     gained = np.zeros(len(ctx.work.vertices), bool)
-    for pts, _ in pieces:
+    for pts in pieces:
         gained |= ctx.touched(pts)
     return gained
 
