@@ -167,3 +167,15 @@ def test_order_groups_passes_gives_every_pass_its_own_group(tmp_path):
                                                                     "order": "gtsp", "order_groups": "regions"}))
     with pytest.raises(InputError, match="order_groups"):
         settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "order_groups": "cells"})
+
+
+def test_order_objective_flag_reaches_the_job_settings(tmp_path):
+    from swath.cli.main import _settings_from_args, build_parser
+
+    args = build_parser().parse_args(["plan", "example:plate", "--out", str(tmp_path / "o"),
+                                      "--order-objective", "length"])
+    assert _settings_from_args(args).order_objective == "length"
+    args = build_parser().parse_args(["plan", "example:plate", "--out", str(tmp_path / "o")])
+    assert _settings_from_args(args).order_objective == "time"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["plan", "example:plate", "--out", "o", "--order-objective", "air"])

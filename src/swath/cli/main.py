@@ -68,6 +68,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--order-groups", choices=("regions", "passes"),
                    help="what the tour orders: single passes, each choosing its direction (default), or whole "
                         "regions, each swept as a snake from one of its corners (Wang's path types)")
+    p.add_argument("--order-objective", choices=("time", "length"),
+                   help="what the tour minimises: link and step-over time, the shortest cycle (default), or air "
+                        "length (tool turns then may cost time)")
     p.add_argument("--overlap", help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
     p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes (default 2m/s2; "
                                              "'none' turns it off)")
