@@ -62,3 +62,20 @@ def test_real_simulator_never_over_grinds_after_correction(curved):
     assert np.array_equal(final.surface.vertices, k.samples.vertices)
     assert (final.depth - D)[res.region].max() <= tol
     assert res.metrics["simulated_rounds"][-1]["samples_over"] == 0
+
+
+def test_simulated_depth_maps_to_the_nearest_kernel_sample(curved):
+    """A simulator sampling the part differently: each kernel sample gets the largest simulated depth
+    of the simulator samples nearest to it."""
+    from swath.feed.optimise import _simulated_on_kernel
+
+    k = curved[2]
+    v = k.samples.vertices
+    rng = np.random.default_rng(3)
+    depth = rng.uniform(0, 1e-6, len(v))
+    # every kernel sample twice, moved 10 µm off: the second copy 0.5 µm deeper
+    moved = np.vstack([v + 1e-5, v - 1e-5])
+    sim = SimpleNamespace(surface=SimpleNamespace(vertices=moved), depth=np.concatenate([depth, depth + 5e-7]))
+    np.testing.assert_allclose(_simulated_on_kernel(sim, k.samples), depth + 5e-7)
+    same = SimpleNamespace(surface=k.samples, depth=depth)
+    assert _simulated_on_kernel(same, k.samples) is depth
