@@ -75,7 +75,10 @@ class FeedResult:
     metrics : dict
         Figures with units in their keys: ``status``, ``solve_time_s``, ``kernel_time_s``,
         ``removal_cov``, ``removal_mean_m``, ``target_mean_m``, ``max_over_removal_m``,
-        ``max_under_removal_m``, ``residual_rms_m``, ``contact_time_s``, ``fastest_contact_time_s``, ...
+        ``max_under_removal_m``, ``residual_rms_m``, ``contact_time_s``, ``fastest_contact_time_s``, and
+        with ``simulate=``: ``simulated_rounds`` (per round ``max_over_target_m``, ``samples_over``,
+        ``held_back_ratio``), ``simulated_max_over_target_m``, ``simulate_time_s`` (``solve_time_s``
+        then includes the re-solves), ...
     """
 
     profile: FeedProfile
@@ -578,6 +581,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   rounds=timing_rounds, ratio_tolerance=ratio_tolerance)
     profile, timed_ratio, traj = _time_dwell(toolpath, nodes, dwell, **timing)
     sim_rounds = []
+    t_simulate = 0.0
     if simulate is not None:
         limit = target_s + tolerance
         excess = 0.0
@@ -588,7 +592,9 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                 traj = time_path(toolpath, timing["cons"] + [profile], heading_scale=heading_scale)
             if progress is not None:
                 progress("simulate", rnd, simulate_rounds + 1)
+            t3 = time.perf_counter()
             worst = _simulated_on_kernel(simulate(traj), kernel.samples)
+            t_simulate += time.perf_counter() - t3
             over = worst - limit
             timed_pred = kernel.removal(trajectory_node_dwell(traj, nodes, toolpath))
             bad = np.flatnonzero(region & (over > 0))
@@ -637,6 +643,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     if sim_rounds:
         metrics["simulated_rounds"] = sim_rounds
         metrics["simulated_max_over_target_m"] = sim_rounds[-1]["max_over_target_m"]
+        metrics["simulate_time_s"] = t_simulate
     if timed_ratio is not None:
         metrics["timed_dwell_ratio_p5_p50_p95"] = [float(x) for x in np.percentile(timed_ratio, [5, 50, 95])]
     return FeedResult(profile, dwell, speed, kernel, target_s, predicted, region, metrics)
