@@ -14,8 +14,11 @@ Proposed CLI flags / job keys (wired by the CLI, not here): ``--optimise-feed [m
 ``--target-depth 20um`` (uniform, :func:`swath.units.parse_quantity` kind ``length``), ``--target-map FILE``
 (CSV ``x,y,z,depth`` in m or PLY with a vertex ``depth``), ``--target-excess-over CAD_FILE`` (scan excess),
 ``--depth-tolerance 2um``, ``--min-feed 5mm/s``, ``--optimise-spacing ripple|greedy|joint`` (raster only).
-The job then calls ``optimise_feed(toolpath, tool, constraints, target=..., tolerance=...)`` and passes
-``constraints + [result.profile]`` to :func:`swath.trajectory.time_path`.
+The job then calls ``optimise_feed(toolpath, tool, constraints, target=..., tolerance=...,
+simulate=lambda traj: simulate_removal(traj, surface, tool))`` and passes ``constraints + [result.profile]``
+to :func:`swath.trajectory.time_path`.  ``simulate`` (job key ``feed_simulate_rounds``, default 3; 0 turns
+it off) makes the over-removal cap hold as :func:`swath.simulate.simulate_removal` measures it: the feed
+stage may not import the simulator, so the job hands it in.
 """
 
 from .kernel import DwellNodes, RemovalKernel, build_kernel, dwell_nodes, interior_mask, trajectory_node_dwell

@@ -1,0 +1,81 @@
+"""The simulator-in-the-loop correction of :func:`swath.feed.optimise_feed` (``simulate=``)."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from swath.contact import Tool
+from swath.examples import doubly_curved_panel
+from swath.feed import build_kernel, interior_mask, optimise_feed, trajectory_node_dwell
+from swath.plan import raster
+from swath.simulate.removal import simulate_removal
+from swath.trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit, time_path
+
+TOOL = Tool(pad_radius=0.02, force=20.0)
+CONS = [FeedLimit(0.05), CentripetalLimit(2.0), AngularSpeedLimit(1.0), TangentialAccelLimit(1.0)]
+
+
+@pytest.fixture(scope="module")
+def curved():
+    """A small doubly curved panel (radii 0.15 m and 0.25 m), raster passes, its kernel on the
+    timed poses and a target depth D the fastest feed reaches nowhere above 0.9 D."""
+    surface = doubly_curved_panel(size_x=0.16, size_y=0.12, radius_x=0.15, radius_y=0.25, spacing=3e-3)
+    tp = raster(surface, TOOL)
+    k = build_kernel(tp, TOOL, trajectory=time_path(tp, CONS))
+    fastest = k.removal(trajectory_node_dwell(time_path(tp, CONS), k.nodes, tp))
+    inside = interior_mask(k.samples, TOOL.pad_radius) & (fastest > 0)
+    D = float(fastest[inside].max()) / 0.9
+    return surface, tp, k, D, float(fastest[inside].max())
+
+
+def test_scaled_simulator_is_held_back_by_its_ratio(curved):
+    """A 'simulator' that removes 1.3 times what the kernel predicts for the timed dwell: after the
+    correction its largest removal is within the tolerance, and the hold-back found is 30 %."""
+    surface, tp, k, _, fastest = curved
+    D = fastest / 0.7                         # 1.3 x the fastest feed's removal stays below D + tolerance
+    tol = 0.1 * D
+
+    def simulate(traj):
+        return SimpleNamespace(surface=k.samples, depth=1.3 * k.removal(trajectory_node_dwell(traj, k.nodes, tp)))
+
+    plain = optimise_feed(tp, TOOL, CONS, target=D, tolerance=tol, kernel=k)
+    over_plain = (simulate(time_path(tp, CONS + [plain.profile])).depth - D)[plain.region].max()
+    assert over_plain > tol                                   # the uncorrected feed does over-grind
+    res = optimise_feed(tp, TOOL, CONS, target=D, tolerance=tol, kernel=k, simulate=simulate, simulate_rounds=3)
+    rounds = res.metrics["simulated_rounds"]
+    assert rounds[0]["held_back_ratio"] == pytest.approx(0.3, abs=0.01)
+    assert rounds[-1]["samples_over"] == 0
+    final = simulate(time_path(tp, CONS + [res.profile])).depth
+    assert (final - D)[res.region].max() <= tol * (1 + 1e-6)
+    assert res.metrics["simulated_max_over_target_m"] == pytest.approx((final - D)[res.region].max(), rel=1e-9)
+
+
+def test_real_simulator_never_over_grinds_after_correction(curved):
+    """With :func:`simulate_removal` in the loop, the simulated depth of the final timed trajectory
+    is at most target + tolerance at every optimised sample."""
+    surface, tp, k, D, _ = curved
+    tol = 0.1 * D
+    res = optimise_feed(tp, TOOL, CONS, target=D, tolerance=tol, kernel=k, simulate_rounds=3,
+                        simulate=lambda traj: simulate_removal(traj, surface, TOOL))
+    final = simulate_removal(time_path(tp, CONS + [res.profile]), surface, TOOL)
+    assert np.array_equal(final.surface.vertices, k.samples.vertices)
+    assert (final.depth - D)[res.region].max() <= tol
+    assert res.metrics["simulated_rounds"][-1]["samples_over"] == 0
+
+
+def test_simulated_depth_maps_to_the_nearest_kernel_sample(curved):
+    """A simulator sampling the part differently: each kernel sample gets the largest simulated depth
+    of the simulator samples nearest to it."""
+    from swath.feed.optimise import _simulated_on_kernel
+
+    k = curved[2]
+    v = k.samples.vertices
+    rng = np.random.default_rng(3)
+    depth = rng.uniform(0, 1e-6, len(v))
+    # every kernel sample twice, moved 10 µm off: the second copy 0.5 µm deeper
+    moved = np.vstack([v + 1e-5, v - 1e-5])
+    sim = SimpleNamespace(surface=SimpleNamespace(vertices=moved), depth=np.concatenate([depth, depth + 5e-7]))
+    np.testing.assert_allclose(_simulated_on_kernel(sim, k.samples), depth + 5e-7)
+    same = SimpleNamespace(surface=k.samples, depth=depth)
+    assert _simulated_on_kernel(same, k.samples) is depth
