@@ -227,10 +227,12 @@ def _depth_numpy(points, normals, areas, positions, axes, dwell, tool: Tool, *, 
 def _integration_poses(trajectory, max_travel: float) -> tuple[np.ndarray, np.ndarray]:
     """In-contact poses to integrate at, and the dwell (s) each stands for.
 
-    Consecutive in-contact samples are grouped so that a group spans at most about ``max_travel``
-    metres; the middle sample of each group carries the group's whole dwell.  The trajectory is
-    sampled finer (≤ 20 ms) than the removal samples need, so this loses nothing measurable and
-    saves most of the work.
+    Consecutive in-contact samples are grouped by the distance travelled: a group spans at most
+    about ``max_travel`` metres of path (a whole number of the median step) (a single longer step is a group of its own); the middle
+    sample of each group carries the group's whole dwell.  Grouping by travel, not by a fixed
+    sample count, matters when the feed varies: the trajectory is sampled in time (≤ 20 ms), so a
+    fixed count would lump 10-30 mm of a fast stretch into one pose.  The trajectory is sampled
+    finer than the removal samples need, so this loses nothing measurable and saves most of the work.
     """
     dwell = contact_dwell(trajectory)
     live = trajectory.contact & (dwell > 0)
@@ -239,12 +241,16 @@ def _integration_poses(trajectory, max_travel: float) -> tuple[np.ndarray, np.nd
         return idx, dwell[idx]
     step = np.linalg.norm(np.diff(trajectory.position[idx], axis=0), axis=1)
     run_start = np.concatenate([[True], (np.diff(idx) > 1)])
-    typical = float(np.median(step[~run_start[1:]])) if (~run_start[1:]).any() else max_travel
-    m = max(1, int(max_travel / max(typical, 1e-9)))
+    # travel along the path from the start of each contact run, m
+    travel = np.concatenate([[0.0], np.cumsum(np.where(run_start[1:], 0.0, step))])
     run_id = np.cumsum(run_start) - 1
-    first_of_run = np.flatnonzero(run_start)
-    pos_in_run = np.arange(len(idx)) - first_of_run[run_id]
-    group = np.cumsum(np.concatenate([[True], (run_id[1:] != run_id[:-1]) | (pos_in_run[1:] // m != pos_in_run[:-1] // m)])) - 1
+    travel -= travel[np.flatnonzero(run_start)][run_id]
+    # Bucket width: a whole number of the typical step, and a half-step offset, so that at a constant
+    # feed every group holds the same number of samples (uneven groups alias against the samples).
+    typical = float(np.median(step[~run_start[1:]])) if (~run_start[1:]).any() else max_travel
+    width = max(1, int(max_travel / max(typical, 1e-12))) * typical
+    bucket = np.floor((travel + 0.5 * typical) / width).astype(np.int64)
+    group = np.cumsum(np.concatenate([[True], (run_id[1:] != run_id[:-1]) | (bucket[1:] != bucket[:-1])])) - 1
     sums = np.bincount(group, weights=dwell[idx])
     counts = np.bincount(group)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])

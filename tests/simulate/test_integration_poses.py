@@ -1,0 +1,38 @@
+"""The simulator groups trajectory samples by the distance travelled, so a varying feed is
+integrated as finely as a constant one (the trajectory is sampled in time)."""
+
+import numpy as np
+
+from swath.contact import Tool
+from swath.examples import flat_plate
+from swath.simulate import simulate_removal
+from swath.trajectory import Trajectory
+
+
+def two_speed_pass(slow: float, fast: float, dt: float = 0.02) -> Trajectory:
+    """A straight pass along x at y = 0.15 m on the plate: ``slow`` m/s up to x = 0.2 m, then
+    ``fast`` m/s to x = 0.4 m, sampled every ``dt`` s (as timing samples: in time, not in distance)."""
+    x = [0.0]
+    while x[-1] < 0.4:
+        x.append(x[-1] + (slow if x[-1] < 0.2 else fast) * dt)
+    x = np.asarray(x)
+    n = len(x)
+    position = np.column_stack([x, np.full(n, 0.15), np.zeros(n)])
+    quaternion = np.tile([0.0, 1.0, 0.0, 0.0], (n, 1))     # w, x, y, z: tool z along -z of the part
+    feed = np.where(x < 0.2, slow, fast)
+    return Trajectory(t=np.arange(n) * dt, position=position, quaternion=quaternion, contact=np.ones(n, bool),
+                      feed=feed, pass_index=np.zeros(n, int))
+
+
+def test_fast_stretch_of_a_varying_feed_gets_the_preston_depth():
+    tool, plate = Tool(), flat_plate()
+    slow, fast = 0.02, 0.1               # 0.4 mm and 2 mm per sample
+    removal = simulate_removal(two_speed_pass(slow, fast), plate, tool, sample_spacing=2e-3)
+    v = removal.surface.vertices
+    y = np.abs(v[:, 1] - 0.15)
+    inside = y < 0.9 * tool.pad_radius
+    rate = tool.preston * tool.k * tool.flat_depression * tool.relative_speed(0.0)
+    for x_mid, feed in ((0.1, slow), (0.3, fast)):
+        near = inside & (np.abs(v[:, 0] - x_mid) < 0.04)
+        expected = rate * 2 * np.sqrt(tool.pad_radius**2 - y[near] ** 2) / feed
+        assert np.max(np.abs(removal.depth[near] / expected - 1)) < 0.05, feed
