@@ -88,7 +88,7 @@ def test_preston_profile_on_a_plate_of_slivers():
     s = sliver_plate()
     feed = 0.05
     tr = time_path(ToolPath(s, [one_pass(0.15)], "test"), [FeedLimit(feed)])
-    rm = simulate_removal(tr, s, tool, sample_spacing=2e-3)
+    rm = simulate_removal(tr, s, tool, sample_spacing=2e-3, sampling="lattice")
     assert rm.metrics["removal_sample_spacing_m"] == 2e-3
     v = rm.surface.vertices
     mid = np.abs(v[:, 0] - 0.2) < 0.05
@@ -113,7 +113,7 @@ def test_lattice_metrics_converge_to_the_fine_mesh_ones():
     tr = raster(s, np.linspace(0.04, 0.26, 5))                       # passes 55 mm apart: a strong ripple
     fine = simulate_removal(tr, s, Tool(), sample_spacing=1e-3, sampling="mesh").metrics
     for spacing in (2e-3, 3e-3):
-        lat = simulate_removal(tr, s, Tool(), sample_spacing=spacing).metrics
+        lat = simulate_removal(tr, s, Tool(), sample_spacing=spacing, sampling="lattice").metrics
         mesh = simulate_removal(tr, s, Tool(), sample_spacing=spacing, sampling="mesh").metrics
         assert lat["surface_area_m2"] == pytest.approx(fine["surface_area_m2"], rel=1e-12)
         assert lat["n_removal_samples"] < 0.5 * mesh["n_removal_samples"]
@@ -132,7 +132,7 @@ def test_sphere_cap_depth_agrees_between_samplings():
         d = np.stack([x, np.full_like(x, y), np.sqrt(0.2**2 - x**2 - y**2)], 1)
         passes.append(Pass(d, d / np.linalg.norm(d, axis=1, keepdims=True)))
     tr = time_path(ToolPath(s, passes, "test"), [FeedLimit(0.05)])
-    lat = simulate_removal(tr, s, Tool(), sample_spacing=2e-3)
+    lat = simulate_removal(tr, s, Tool(), sample_spacing=2e-3, sampling="lattice")
     mesh = simulate_removal(tr, s, Tool(), sample_spacing=2e-3, sampling="mesh")
     # the samples lie on the facets, within the chord sag of the sphere
     r = np.linalg.norm(lat.surface.vertices, axis=1)
@@ -151,7 +151,7 @@ def test_the_cap_widens_the_spacing_before_sampling(monkeypatch):
     tr = raster(s, [0.15])
     n = count_removal_samples(s, 2e-3)
     monkeypatch.setattr(removal_module, "MAX_REMOVAL_SAMPLES", n // 2)
-    rm = simulate_removal(tr, s, Tool(), sample_spacing=2e-3)
+    rm = simulate_removal(tr, s, Tool(), sample_spacing=2e-3, sampling="lattice")
     assert len(rm.depth) <= n // 2 and rm.metrics["removal_sample_spacing_m"] > 2e-3
 
 
@@ -162,3 +162,18 @@ def test_bad_sampling_and_spacing_are_refused():
         simulate_removal(tr, s, Tool(), sampling="random")
     with pytest.raises(InputError, match="positive length"):
         removal_samples(s, 0.0)
+
+
+def test_engines_agree_and_the_report_draws_lattice_samples():
+    from swath.report.html import display_mesh
+    from swath.report.plots import depth_histogram_figure, removal_map_figure
+
+    s = flat_plate(spacing=0.01)
+    tr = raster(s, np.linspace(0.04, 0.26, 3))
+    compiled = simulate_removal(tr, s, Tool(), sample_spacing=3e-3, sampling="lattice", engine="compiled")
+    numpy_ = simulate_removal(tr, s, Tool(), sample_spacing=3e-3, sampling="lattice", engine="numpy")
+    assert np.abs(compiled.depth - numpy_.depth).max() <= 1e-4 * numpy_.depth.max()
+    assert compiled.metrics["removal_cov"] == pytest.approx(numpy_.metrics["removal_cov"], rel=5e-5)
+    v, f, d = display_mesh(s, compiled, max_faces=len(s.faces))        # samples over budget: onto the part
+    assert np.array_equal(v, s.vertices) and d.max() == pytest.approx(compiled.depth.max(), rel=0.2)
+    assert len(removal_map_figure(compiled).axes) >= 1 and len(depth_histogram_figure(compiled).axes) == 1

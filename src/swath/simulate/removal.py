@@ -111,7 +111,7 @@ def contact_dwell(trajectory) -> np.ndarray:
 
 def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float | None = None,
                      chunk: int = 1500, progress=None, force=None, engine: str = "auto",
-                     sampling: str = "lattice") -> RemovalMap:
+                     sampling: str = "mesh") -> RemovalMap:
     """Integrate Preston removal of ``trajectory`` over ``surface``.
 
     Parameters
@@ -146,6 +146,8 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         interpolated from the part's; ``"mesh"``: the vertices of
         ``surface.subdivided(sample_spacing)`` (every edge split to at most the spacing; the
         sampling before, several times the samples on meshes of slivers, and slower to build).
+        The default stays ``"mesh"`` while :func:`swath.feed.build_kernel` samples the part by
+        subdivision (its kernel is checked sample by sample against this simulation).
 
     Returns
     -------
