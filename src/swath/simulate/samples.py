@@ -165,7 +165,8 @@ class RemovalSamples:
         self.normals = _ro(np.ascontiguousarray(normals, float))
         self.vertex_areas = _ro(np.ascontiguousarray(vertex_areas, float))
         self.face_of = _ro(np.asarray(face_of, np.int64))
-        self.faces = _ro(np.asarray(faces, np.int64).reshape(-1, 3))
+        # the display triangles, or a function that makes them (on first use: only the report needs them)
+        self._faces = faces
         self.part = part
         self.spacing = float(spacing)
         self.name = getattr(part, "name", "")
@@ -173,9 +174,15 @@ class RemovalSamples:
     def __len__(self) -> int:
         return len(self.vertices)
 
+    @cached_property
+    def faces(self) -> np.ndarray:
+        """(k, 3) int: the display triangles (see the class notes)."""
+        faces = self._faces() if callable(self._faces) else self._faces
+        self._faces = None
+        return _ro(np.asarray(faces, np.int64).reshape(-1, 3))
+
     def __repr__(self) -> str:
-        return (f"RemovalSamples({self.name!r}, {len(self)} samples at {self.spacing * 1e3:.3g} mm, "
-                f"{len(self.faces)} display faces)")
+        return f"RemovalSamples({self.name!r}, {len(self)} samples at {self.spacing * 1e3:.3g} mm)"
 
     @property
     def area(self) -> float:
@@ -272,9 +279,12 @@ def removal_samples(surface, spacing: float) -> RemovalSamples:
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     areas = (cols["col_area"] / rows)[s_col]
     # --- display triangles: corner faces, and columns zipped together within each large face
-    offset = len(corner_ids)
-    zipped = _zip_columns(cols["n_cols"], rows, col_first) + offset
-    display = np.concatenate([remap[faces[small]], zipped]) if len(small) else zipped
+    corner_faces = remap[faces[small]]
+    n_cols, offset = cols["n_cols"], len(corner_ids)
+
+    def display():
+        return np.concatenate([corner_faces, _zip_columns(n_cols, rows, col_first) + offset])
+
     return RemovalSamples(np.concatenate([xyz[corner_ids], points]),
                           np.concatenate([part_normals[corner_ids], normals]),
                           np.concatenate([corner_area, areas]),
