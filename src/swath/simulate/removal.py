@@ -27,7 +27,7 @@ from ..contact.tool import sample_spacing_for
 from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
 from ..core.cpus import usable_cpus
 from ..errors import InputError
-from .samples import count_removal_samples, removal_samples
+from .samples import lattice_columns, lattice_count, removal_samples
 
 log = logging.getLogger(__name__)
 
@@ -194,14 +194,14 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
 def _lattice_samples(surface, spacing: float):
     """(RemovalSamples, spacing used, m): the lattice of :func:`removal_samples` at ``spacing``,
     widened until it has at most :data:`MAX_REMOVAL_SAMPLES` samples (counted before any is made)."""
-    count = count_removal_samples(surface, spacing)
-    while count > MAX_REMOVAL_SAMPLES:
+    cols = lattice_columns(surface, spacing)
+    while (count := lattice_count(cols)) > MAX_REMOVAL_SAMPLES:
         wider = spacing * 1.02 * float(np.sqrt(count / MAX_REMOVAL_SAMPLES))
         log.warning("removal sampled at %.2f mm instead of %.2f mm: %d samples exceed the %d cap",
                     wider * 1e3, spacing * 1e3, count, MAX_REMOVAL_SAMPLES)
         spacing = wider
-        count = count_removal_samples(surface, spacing)
-    return removal_samples(surface, spacing), spacing
+        cols = lattice_columns(surface, spacing)
+    return removal_samples(surface, spacing, columns=cols), spacing
 
 
 def _mesh_samples(surface, spacing: float):

@@ -45,9 +45,10 @@ def _face_frames(surface, spacing: float):
     face's column count and its ``ceil`` limit."""
     faces = np.asarray(surface.faces)
     xyz = np.asarray(surface.vertices, float)
-    corners = xyz[faces]                                        # (m, 3, 3)
-    edge = np.roll(corners, -1, axis=1) - corners               # edge k: corner k -> k + 1
-    length = np.sqrt(np.einsum("fkc,fkc->fk", edge, edge))
+    p0, p1, p2 = xyz[faces[:, 0]], xyz[faces[:, 1]], xyz[faces[:, 2]]
+    # edge k runs from corner k to corner k + 1
+    length = np.stack([np.linalg.norm(p1 - p0, axis=1), np.linalg.norm(p2 - p1, axis=1),
+                       np.linalg.norm(p0 - p2, axis=1)], axis=1)
     longest = np.argmax(length, axis=1)
     L = length[np.arange(len(faces)), longest]
     area = np.asarray(surface.face_areas, float)
@@ -67,9 +68,12 @@ def _is_vertex_sampled(cover: np.ndarray, spacing: float) -> np.ndarray:
 def count_removal_samples(surface, spacing: float) -> int:
     """The number of samples :func:`removal_samples` gives ``surface`` at ``spacing`` (m), without
     making them (a few vectorised passes over the faces)."""
-    spacing = _check_spacing(spacing)
-    cols = _columns(surface, spacing)
-    return int(cols["vertex_samples"].sum()) + int(cols["rows"].sum())
+    return lattice_count(lattice_columns(surface, _check_spacing(spacing)))
+
+
+def lattice_count(cols: dict) -> int:
+    """Samples of the lattice ``cols`` (:func:`lattice_columns`)."""
+    return int(cols["used"].sum()) + int(cols["rows"].sum())
 
 
 def _check_spacing(spacing) -> float:
@@ -79,8 +83,10 @@ def _check_spacing(spacing) -> float:
     return spacing
 
 
-def _columns(surface, spacing: float) -> dict:
-    """The column lattice of the faces too large to be sampled by their corners."""
+def lattice_columns(surface, spacing: float) -> dict:
+    """The sampling plan of ``surface`` at ``spacing`` (m): which faces are sampled by their
+    corners, and the columns (position, exact area, rows) of the others; counted by
+    :func:`lattice_count`, made into samples by :func:`removal_samples`."""
     faces, longest, L, area, cover = _face_frames(surface, spacing)
     small = _is_vertex_sampled(cover, spacing)
     used = np.zeros(len(surface.vertices), bool)
@@ -109,7 +115,7 @@ def _columns(surface, spacing: float) -> dict:
     col_area = _area_below(x1, Lc, hc, xcc) - _area_below(x0, Lc, hc, xcc)
     height = _top(xm, Lc, hc, xcc)
     n_rows = np.maximum(np.ceil(height / spacing * (1.0 - 1e-12)), 1.0).astype(np.int64)
-    return {"faces": faces, "longest": k, "used": used, "vertex_samples": used, "small": small, "big": big, "A": A, "B": B,
+    return {"faces": faces, "longest": k, "used": used, "small": small, "big": big, "A": A, "B": B,
             "C": C, "ex": ex, "h": h, "xc": xc, "L": L_big, "col_face": col_face, "col_index": col_index,
             "n_cols": n_cols, "xm": xm, "col_area": col_area, "height": height, "rows": n_rows}
 
@@ -221,7 +227,7 @@ def _ro(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def removal_samples(surface, spacing: float) -> RemovalSamples:
+def removal_samples(surface, spacing: float, *, columns: dict | None = None) -> RemovalSamples:
     """Samples of ``surface`` at most ``spacing`` apart in both directions (see the module notes).
 
     Parameters
@@ -230,6 +236,8 @@ def removal_samples(surface, spacing: float) -> RemovalSamples:
         The part (part frame, normals toward the tool).
     spacing : float
         Largest distance between neighbouring samples along and across each triangle, m.
+    columns : dict, optional
+        ``lattice_columns(surface, spacing)`` when the caller has it (it counted the samples).
 
     Returns
     -------
@@ -238,7 +246,7 @@ def removal_samples(surface, spacing: float) -> RemovalSamples:
         lattice samples face by face.
     """
     spacing = _check_spacing(spacing)
-    cols = _columns(surface, spacing)
+    cols = lattice_columns(surface, spacing) if columns is None else columns
     part_normals = np.asarray(surface.normals, float)
     xyz = np.asarray(surface.vertices, float)
     faces = cols["faces"]
