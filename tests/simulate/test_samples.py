@@ -177,3 +177,13 @@ def test_engines_agree_and_the_report_draws_lattice_samples():
     v, f, d = display_mesh(s, compiled, max_faces=len(s.faces))        # samples over budget: onto the part
     assert np.array_equal(v, s.vertices) and d.max() == pytest.approx(compiled.depth.max(), rel=0.2)
     assert len(removal_map_figure(compiled).axes) >= 1 and len(depth_histogram_figure(compiled).axes) == 1
+
+
+def test_samples_pickle_before_and_after_drawing():
+    import pickle
+
+    v = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.02, 0.05, 0.0], [0.1, 0.05, 0.0]])
+    s = removal_samples(Surface(v, [[0, 1, 2], [1, 3, 2]]), 0.004)
+    again = pickle.loads(pickle.dumps(s))
+    assert np.array_equal(again.faces, s.faces) and np.array_equal(again.vertices, s.vertices)
+    assert len(s.faces) > len(s) and s.faces.max() < len(s)

@@ -171,7 +171,8 @@ class RemovalSamples:
         self.normals = _ro(np.ascontiguousarray(normals, float))
         self.vertex_areas = _ro(np.ascontiguousarray(vertex_areas, float))
         self.face_of = _ro(np.asarray(face_of, np.int64))
-        # the display triangles, or a function that makes them (on first use: only the report needs them)
+        # the display triangles, or (corner triangles, columns per face, rows per column) to make
+        # them from on first use (only the report needs them)
         self._faces = faces
         self.part = part
         self.spacing = float(spacing)
@@ -183,7 +184,12 @@ class RemovalSamples:
     @cached_property
     def faces(self) -> np.ndarray:
         """(k, 3) int: the display triangles (see the class notes)."""
-        faces = self._faces() if callable(self._faces) else self._faces
+        if isinstance(self._faces, tuple):
+            corner_faces, n_cols, rows = self._faces
+            zipped = _zip_columns(n_cols, rows, np.cumsum(rows) - rows) + (len(self) - int(rows.sum()))
+            faces = np.concatenate([corner_faces, zipped])
+        else:
+            faces = self._faces
         self._faces = None
         return _ro(np.asarray(faces, np.int64).reshape(-1, 3))
 
@@ -287,12 +293,7 @@ def removal_samples(surface, spacing: float, *, columns: dict | None = None) -> 
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     areas = (cols["col_area"] / rows)[s_col]
     # --- display triangles: corner faces, and columns zipped together within each large face
-    corner_faces = remap[faces[small]]
-    n_cols, offset = cols["n_cols"], len(corner_ids)
-
-    def display():
-        return np.concatenate([corner_faces, _zip_columns(n_cols, rows, col_first) + offset])
-
+    display = (remap[faces[small]], cols["n_cols"], rows)
     return RemovalSamples(np.concatenate([xyz[corner_ids], points]),
                           np.concatenate([part_normals[corner_ids], normals]),
                           np.concatenate([corner_area, areas]),
