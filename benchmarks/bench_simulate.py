@@ -33,15 +33,26 @@ Parts: ``panel100k`` is :func:`swath.examples.doubly_curved_panel` at ~91k faces
 of 2.2 mm spacing (~100 m of contact path); the shared meshes and ``panel500k``
 (:func:`swath.examples.large_panel`, 500k faces) under the default raster (spacing from the tool).
 
-Last run, subdivision methods (compiled engine, 2 cores shared with other jobs, load 2-5; wall
-times up to 1.5 times the CPU times): crs_part_5 at 3 mm: long_edges 1.29M samples (halving 1.44M),
-subdivision 3.9 s (9.1 s), whole call 10.7 s per 100 m (18.3 s), 1.1 GB RSS (1.7 GB).  Asked for
-2 mm, both exceed the sample cap: long_edges is sampled at 2.34 mm, 2.16M samples, 14.6 s in all
-for 72.5 m (20 s per 100 m, 9.5 s CPU), 2.0 GB; halving at 2.60 mm (its first try had more samples
-than the cap), 2.26M samples, 20.8 s (28.7 s per 100 m), 3.0 GB.  Before this change crs_part_5
-at 2 mm had 4.2M samples, 89 s per 100 m and 7 GB.  panel100k at 2 mm: the same 183k samples either
-way, 2.0 s per 100 m.  panel500k at 2 mm: 630k samples either way, whole call 1.9 s (2.3 s) for
-13.6 m of path (integration 1.7 s per 100 m), 0.95 GB RSS.
+Last run, removal samples (compiled engine, 2 cores shared with other jobs: wall times up to 3
+times the CPU times; per 100 m = whole simulate_removal call over the contact path):
+
+============== ====== ========== ======= ========= ========= ======== ======= =======
+part           path   layout     spacing samples   samples_s s/100 m  CPU s   RSS MB
+============== ====== ========== ======= ========= ========= ======== ======= =======
+crs_part_5     72.5 m lattice    2.00 mm 777,446   0.20      3.77     1.35    839
+crs_part_5     72.5 m long_edges 2.34 mm 2,156,847 9.54      25.8     9.18    1895
+crs_part_5     72.5 m lattice    3.00 mm 353,973   0.10      2.11     0.74    839
+crs_part_5     72.5 m long_edges 3.00 mm 1,293,487 4.80      13.9     5.01    1101
+panel100k      101 m  lattice    2.00 mm 162,552   0.25      5.99     1.82    401
+panel100k      101 m  long_edges 2.00 mm 183,457   0.37      4.22     2.07    472
+panel500k      13.6 m lattice    2.00 mm 251,126   0.20      6.48     0.44    661
+panel500k      13.6 m long_edges 2.00 mm 630,238   1.77      25.0     1.67    944
+============== ====== ========== ======= ========= ========= ======== ======= =======
+
+crs_part_5 asked for 2 mm is now sampled at 2 mm (long_edges hit the 2.5 M cap and widened to
+2.34 mm); of its 2.7 s call, 1.5 s is plan_metrics (1.0 s of it pad_scale_samples on the part).
+The panel100k wall times at 2 mm are load (CPU 1.82 s lattice against 2.07 s). panel500k: the
+whole call is 0.9 s for its 13.6 m path, so per 100 m it is the fixed cost of the metrics.
 
 Earlier run, engines: panel100k at 2 mm, 101 m: compiled 4.9 s per 100 m in all (integration 3.7 s
 wall, 1.75 s CPU), numpy 72.6 s; at 3 mm 1.9 s against 17.5 s.  Metrics agree to 1.2e-6 relative,
