@@ -51,7 +51,11 @@ panel500k      13.6 m long_edges 2.00 mm 630,238   1.77      25.0     1.67    94
 
 crs_part_5 asked for 2 mm is now sampled at 2 mm (long_edges hit the 2.5 M cap and widened to
 2.34 mm); of its 2.7 s call, 1.5 s is plan_metrics (1.0 s of it pad_scale_samples on the part).
-The panel100k wall times at 2 mm are load (CPU 1.82 s lattice against 2.07 s). panel500k: the
+The panel100k wall times at 2 mm are load (CPU 1.82 s lattice against 2.07 s).  Rerun on a
+quiet machine (load 0.1): crs_part_5 at 2 mm lattice 1.57 s (2.17 s per 100 m, 823 MB RSS)
+against long_edges at 2.34 mm 7.38 s (10.2 s per 100 m, 1541 MB); panel100k at 2 mm lattice
+1.56 s (1.54 s per 100 m) against long_edges 1.78 s; panel100k at 3 mm lattice 0.29 s per 100 m,
+numpy engine 2.44 s, metrics within 2.4e-6 relative. panel500k: the
 whole call is 0.9 s for its 13.6 m path, so per 100 m it is the fixed cost of the metrics.
 
 Earlier run, engines: panel100k at 2 mm, 101 m: compiled 4.9 s per 100 m in all (integration 3.7 s
