@@ -1,17 +1,21 @@
 """Removal simulation speed and memory: the compiled engine against the numpy (pair-list) engine.
 
     python benchmarks/bench_simulate.py [--parts panel100k crs_part_5.stl panel500k] [--spacings 0 0.002]
-                                        [--engines compiled numpy] [--methods long_edges halving]
+                                        [--engines compiled numpy] [--methods lattice long_edges halving]
                                         [--timeout 1200]
 
 Table 1, JIT: the first call of the compiled kernels in a fresh process with an empty numba cache
 (``NUMBA_CACHE_DIR`` set to a new folder: compile and write the cache), then again in a fresh
 process (load from the cache); both include importing swath and numba.
 
-Table 2, one child process per part and subdivision method of the removal samples (``method``:
-``long_edges``, the default of :meth:`swath.surface.Surface.subdivided`, or ``halving``, the
-earlier 1-to-4 split; ``subdivide_s`` is the time in ``Surface.subdivided`` within the call,
-``estimate`` the sample count :func:`swath.simulate.removal.samples_for_area` predicts; so
+Table 2, one child process per part and removal-sample layout (``method``: ``lattice``,
+``simulate_removal(sampling="lattice")``, :func:`swath.simulate.samples.removal_samples`; or
+``sampling="mesh"`` with the subdivision method ``long_edges``, the default of
+:meth:`swath.surface.Surface.subdivided`, or ``halving``, the earlier 1-to-4 split);
+``samples_s`` is the time spent making the removal samples within the call (lattice, or
+subdivision and the subdivided surface's normals and areas), ``estimate`` the sample count
+predicted before sampling (lattice: :func:`~swath.simulate.samples.count_removal_samples`, exact;
+mesh: :func:`swath.simulate.removal.samples_for_area`, an upper estimate); so
 ``peak_rss_MB`` is that part's and method's; the compiled engine runs
 first, so its RSS is the compiled run's and the numpy row's is the larger of the two): for each
 removal-sample spacing (``0`` = the default, :func:`swath.contact.tool.sample_spacing_for`, 3 mm
@@ -29,15 +33,30 @@ Parts: ``panel100k`` is :func:`swath.examples.doubly_curved_panel` at ~91k faces
 of 2.2 mm spacing (~100 m of contact path); the shared meshes and ``panel500k``
 (:func:`swath.examples.large_panel`, 500k faces) under the default raster (spacing from the tool).
 
-Last run, subdivision methods (compiled engine, 2 cores shared with other jobs, load 2-5; wall
-times up to 1.5 times the CPU times): crs_part_5 at 3 mm: long_edges 1.29M samples (halving 1.44M),
-subdivision 3.9 s (9.1 s), whole call 10.7 s per 100 m (18.3 s), 1.1 GB RSS (1.7 GB).  Asked for
-2 mm, both exceed the sample cap: long_edges is sampled at 2.34 mm, 2.16M samples, 14.6 s in all
-for 72.5 m (20 s per 100 m, 9.5 s CPU), 2.0 GB; halving at 2.60 mm (its first try had more samples
-than the cap), 2.26M samples, 20.8 s (28.7 s per 100 m), 3.0 GB.  Before this change crs_part_5
-at 2 mm had 4.2M samples, 89 s per 100 m and 7 GB.  panel100k at 2 mm: the same 183k samples either
-way, 2.0 s per 100 m.  panel500k at 2 mm: 630k samples either way, whole call 1.9 s (2.3 s) for
-13.6 m of path (integration 1.7 s per 100 m), 0.95 GB RSS.
+Last run, removal samples (compiled engine, 2 cores shared with other jobs: wall times up to 3
+times the CPU times; per 100 m = whole simulate_removal call over the contact path):
+
+============== ====== ========== ======= ========= ========= ======== ======= =======
+part           path   layout     spacing samples   samples_s s/100 m  CPU s   RSS MB
+============== ====== ========== ======= ========= ========= ======== ======= =======
+crs_part_5     72.5 m lattice    2.00 mm 777,446   0.20      3.77     1.35    839
+crs_part_5     72.5 m long_edges 2.34 mm 2,156,847 9.54      25.8     9.18    1895
+crs_part_5     72.5 m lattice    3.00 mm 353,973   0.10      2.11     0.74    839
+crs_part_5     72.5 m long_edges 3.00 mm 1,293,487 4.80      13.9     5.01    1101
+panel100k      101 m  lattice    2.00 mm 162,552   0.25      5.99     1.82    401
+panel100k      101 m  long_edges 2.00 mm 183,457   0.37      4.22     2.07    472
+panel500k      13.6 m lattice    2.00 mm 251,126   0.20      6.48     0.44    661
+panel500k      13.6 m long_edges 2.00 mm 630,238   1.77      25.0     1.67    944
+============== ====== ========== ======= ========= ========= ======== ======= =======
+
+crs_part_5 asked for 2 mm is now sampled at 2 mm (long_edges hit the 2.5 M cap and widened to
+2.34 mm); of its 2.7 s call, 1.5 s is plan_metrics (1.0 s of it pad_scale_samples on the part).
+The panel100k wall times at 2 mm are load (CPU 1.82 s lattice against 2.07 s).  Rerun on a
+quiet machine (load 0.1): crs_part_5 at 2 mm lattice 1.57 s (2.17 s per 100 m, 823 MB RSS)
+against long_edges at 2.34 mm 7.38 s (10.2 s per 100 m, 1541 MB); panel100k at 2 mm lattice
+1.56 s (1.54 s per 100 m) against long_edges 1.78 s; panel100k at 3 mm lattice 0.29 s per 100 m,
+numpy engine 2.44 s, metrics within 2.4e-6 relative. panel500k: the
+whole call is 0.9 s for its 13.6 m path, so per 100 m it is the fixed cost of the metrics.
 
 Earlier run, engines: panel100k at 2 mm, 101 m: compiled 4.9 s per 100 m in all (integration 3.7 s
 wall, 1.75 s CPU), numpy 72.6 s; at 3 mm 1.9 s against 17.5 s.  Metrics agree to 1.2e-6 relative,
@@ -116,12 +135,13 @@ def warm_up() -> None:
     kernels.accumulate_removal(grid, np.array([[0.2, 0.15, 0.0]]), np.array([[0.0, 0.0, -1.0]]), np.ones(1), Tool())
 
 
-def one_part(name: str, spacings: list[float], engines: list[str], method: str = "long_edges") -> list[dict]:
+def one_part(name: str, spacings: list[float], engines: list[str], method: str = "lattice") -> list[dict]:
     import swath.simulate.removal as removal
     from swath.contact import Tool
     from swath.contact.widths import pad_scale_samples
     from swath.simulate import plan_metrics, simulate_removal
     from swath.simulate.removal import _integration_poses
+    from swath.simulate.samples import count_removal_samples
     from swath.surface import Surface
 
     timed = {}
@@ -139,17 +159,26 @@ def one_part(name: str, spacings: list[float], engines: list[str], method: str =
     # time the integration itself (the rest of sim_s: subdividing the part, its normals, the metrics)
     removal._depth_compiled = timing(removal._depth_compiled)
     removal._depth_numpy = timing(removal._depth_numpy)
-    # the simulation's subdivision method (the planners' own calls name theirs), timed
+    # the removal samples (lattice, or the subdivision method of sampling="mesh"), timed
     subdivided = Surface.subdivided
 
     def subdivided_by(self, max_edge, *, method=method):
-        t0 = time.perf_counter()
-        try:
-            return subdivided(self, max_edge, method=method)
-        finally:
-            timed["subdivide_s"] = timed.get("subdivide_s", 0.0) + time.perf_counter() - t0
+        return subdivided(self, max_edge, method=method)
 
-    Surface.subdivided = subdivided_by
+    if method != "lattice":
+        Surface.subdivided = subdivided_by
+    for name_ in ("_lattice_samples", "_mesh_samples"):
+        build = getattr(removal, name_)
+
+        def timed_build(*args, _build=build, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return _build(*args, **kwargs)
+            finally:
+                timed["samples_s"] = timed.get("samples_s", 0.0) + time.perf_counter() - t0
+
+        setattr(removal, name_, timed_build)
+    sampling = "lattice" if method == "lattice" else "mesh"
     tool = Tool()
     warm_up()
     part, tr = load(name)
@@ -159,14 +188,16 @@ def one_part(name: str, spacings: list[float], engines: list[str], method: str =
         results = {}
         for engine in engines:
             c0 = time.process_time()
-            timed["subdivide_s"] = 0.0
+            timed["samples_s"] = 0.0
             with Measure() as m:
-                rm = simulate_removal(tr, part, tool, sample_spacing=spacing or None, engine=engine)
+                rm = simulate_removal(tr, part, tool, sample_spacing=spacing or None, engine=engine,
+                                      sampling=sampling)
             cpu = time.process_time() - c0
             used = rm.metrics["removal_sample_spacing_m"]
             row = dict(part=name, faces=len(part.faces), path_m=path, spacing_mm=1e3 * used, engine=engine,
-                       method=method, subdivide_s=timed["subdivide_s"],
-                       estimate=removal.samples_for_area(part.area, used), samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
+                       method=method, samples_s=timed["samples_s"],
+                       estimate=(count_removal_samples(part, used) if method == "lattice"
+                                 else removal.samples_for_area(part.area, used)), samples=len(rm.depth), poses=len(_integration_poses(tr, used)[0]), sim_s=m.seconds,
                        s_per_100m=100.0 * m.seconds / path, cpu_s=cpu, peak_MB=m.peak_mb, peak_rss_MB=max_rss_mb(),
                        cov=rm.metrics["removal_cov"], integrate_s=timed["integrate_s"],
                        integrate_s_per_100m=100.0 * timed["integrate_s"] / path,
@@ -199,9 +230,10 @@ def main():
     parser.add_argument("--parts", nargs="*", default=["panel100k", "crs_part_5.stl", "panel500k"])
     parser.add_argument("--spacings", nargs="*", type=float, default=[0.0, 0.002])
     parser.add_argument("--engines", nargs="*", default=["compiled", "numpy"])
-    parser.add_argument("--methods", nargs="*", default=["long_edges", "halving"],
-                        help="subdivision methods of the removal samples (Surface.subdivided)")
-    parser.add_argument("--method", default="long_edges", help=argparse.SUPPRESS)
+    parser.add_argument("--methods", nargs="*", default=["lattice", "long_edges"],
+                        help="removal samples: lattice (sampling='lattice') or a subdivision method of "
+                             "sampling='mesh' (long_edges, halving)")
+    parser.add_argument("--method", default="lattice", help=argparse.SUPPRESS)
     parser.add_argument("--timeout", type=float, default=1800.0)
     parser.add_argument("--one", help=argparse.SUPPRESS)
     parser.add_argument("--skip-jit", action="store_true")
@@ -230,7 +262,7 @@ def main():
                              "engine": (exc.stderr.strip().splitlines() or ["failed"])[-1][:80]})
             print(f"  {name} {method} done", file=sys.stderr, flush=True)
     print_table(rows, [("part", "s"), ("faces", "d"), ("path_m", ".1f"), ("method", "s"), ("spacing_mm", ".2f"),
-                       ("estimate", "d"), ("samples", "d"), ("subdivide_s", ".2f"),
+                       ("estimate", "d"), ("samples", "d"), ("samples_s", ".2f"),
                        ("poses", "d"), ("engine", "s"), ("sim_s", ".2f"), ("s_per_100m", ".2f"), ("cpu_s", ".2f"), ("integrate_s", ".2f"),
                        ("integrate_s_per_100m", ".2f"), ("integrate_cpu_s", ".2f"), ("peak_MB", ".0f"),
                        ("peak_rss_MB", ".0f"), ("metrics_s", ".2f"), ("pad_scale_s", ".2f"),

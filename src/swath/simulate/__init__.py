@@ -15,8 +15,9 @@ from .calibrate import (
 from .force import Disturbance, ForceController, ForceTrace, gravity_for_tilt, simulate_force, trajectory_with_force
 from .preston_doe import factorial_design, write_doe
 from .removal import RemovalMap, coverage_lower_bound, plan_metrics, simulate_removal
+from .samples import RemovalSamples, count_removal_samples, removal_samples
 
-__all__ = ["Calibration", "Disturbance", "ForceController", "ForceTrace", "PrestonFit", "RemovalMap", "calibrate",
-           "coverage_lower_bound", "factorial_design", "gravity_for_tilt", "load_calibration", "plan_metrics",
-           "predict_depth", "predict_job_depth", "read_trials", "simulate_force", "simulate_removal",
+__all__ = ["Calibration", "Disturbance", "ForceController", "ForceTrace", "PrestonFit", "RemovalMap",
+           "RemovalSamples", "calibrate", "count_removal_samples", "coverage_lower_bound", "factorial_design", "gravity_for_tilt", "load_calibration", "plan_metrics",
+           "predict_depth", "predict_job_depth", "read_trials", "removal_samples", "simulate_force", "simulate_removal",
            "tool_with_calibration", "trajectory_with_force", "write_calibration", "write_doe"]

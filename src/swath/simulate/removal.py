@@ -3,7 +3,9 @@
 Removal rate at a surface point under the pad is Preston's ``k_p · p · v_rel`` (FORMATS.md): ``p``
 from the pad contact model at each in-contact pose, ``v_rel`` the abrasive's sliding speed
 (uniform for an orbital pad, ``ω·r`` for a rotary one).  Depth is integrated over the
-trajectory's in-contact samples on a finely sampled copy of the part.
+trajectory's in-contact samples at removal samples that cover the part at a set spacing in both
+directions (:mod:`swath.simulate.samples`; or, with ``sampling="mesh"``, the vertices of a
+subdivided copy of the part).
 
 The integration runs in the compiled kernels of :mod:`swath.contact.kernels` (numba: each pose's
 force balance solved and its removal added straight into the depth array, memory just the
@@ -25,6 +27,7 @@ from ..contact.tool import sample_spacing_for
 from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
 from ..core.cpus import usable_cpus
 from ..errors import InputError
+from .samples import lattice_columns, lattice_count, removal_samples
 
 log = logging.getLogger(__name__)
 
@@ -41,10 +44,12 @@ class RemovalMap:
 
     Attributes
     ----------
-    surface : Surface
-        The surface the removal is sampled on (the part, subdivided so the pad spans many samples).
+    surface : RemovalSamples or Surface
+        The samples the removal is computed at (:class:`~swath.simulate.samples.RemovalSamples`:
+        ``vertices``, ``normals``, ``vertex_areas`` and display ``faces``; or a subdivided
+        :class:`~swath.surface.Surface`), fine enough that the pad spans many samples.
     depth : (n,) float
-        Removal depth at each vertex of ``surface``, m.
+        Removal depth at each sample (``surface.vertices``), m.
     metrics : dict
         Figures derived from the removal and the trajectory; every key carries its unit
         (see :func:`plan_metrics`).
@@ -62,6 +67,9 @@ class RemovalMap:
 
 #: The removal engines of :func:`simulate_removal`.
 ENGINES = ("auto", "compiled", "numpy")
+
+#: The removal samplings of :func:`simulate_removal`.
+SAMPLINGS = ("lattice", "mesh")
 
 #: The removal samples are kept below this count: on a larger part the sample spacing grows (and
 #: the metrics say so), so the simulation's memory stays bounded whatever the part's size.
@@ -102,7 +110,8 @@ def contact_dwell(trajectory) -> np.ndarray:
 
 
 def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float | None = None,
-                     chunk: int = 1500, progress=None, force=None, engine: str = "auto") -> RemovalMap:
+                     chunk: int = 1500, progress=None, force=None, engine: str = "auto",
+                     sampling: str = "mesh") -> RemovalMap:
     """Integrate Preston removal of ``trajectory`` over ``surface``.
 
     Parameters
@@ -113,7 +122,9 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         The part surface (part frame, normals toward the tool).
     tool : Tool
     sample_spacing : float, optional
-        Largest edge of the sampled surface, m (default :func:`sample_spacing_for`).
+        Distance between removal samples, m (default :func:`sample_spacing_for`); widened, with a
+        warning and ``metrics["removal_sample_spacing_m"]`` saying so, where the part would need
+        more than :data:`MAX_REMOVAL_SAMPLES`.
     chunk : int
         Poses per batch (numpy engine: memory ~ chunk × samples under the pad); ``progress`` is
         called after each.
@@ -129,20 +140,27 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         :func:`swath.contact.mesh_contact` in float32 (the earlier path, 10-20 times slower);
         ``"auto"``: compiled when numba is installed.  Both evaluate the same model; their depths
         differ by the numpy path's float32 rounding (about 1e-5 relative).
+    sampling : {"lattice", "mesh"}
+        ``"lattice"``: :func:`swath.simulate.samples.removal_samples`, samples at most
+        ``sample_spacing`` apart along and across every triangle (a sliver gets one row), normals
+        interpolated from the part's; ``"mesh"``: the vertices of
+        ``surface.subdivided(sample_spacing)`` (every edge split to at most the spacing; the
+        sampling before, several times the samples on meshes of slivers, and slower to build).
+        The default stays ``"mesh"`` while :func:`swath.feed.build_kernel` samples the part by
+        subdivision (its kernel is checked sample by sample against this simulation).
 
     Returns
     -------
     RemovalMap
-        Depth per vertex of the sampled surface; ``metrics`` filled by :func:`plan_metrics`.
+        Depth per sample (``surface``: the :class:`~swath.simulate.samples.RemovalSamples`, or the
+        subdivided :class:`~swath.surface.Surface` with ``sampling="mesh"``); ``metrics`` filled
+        by :func:`plan_metrics`.
     """
     spacing = sample_spacing_for(tool) if sample_spacing is None else float(sample_spacing)
     if not (np.isfinite(spacing) and spacing > 0):
         raise InputError(f"sample spacing must be positive, got {sample_spacing!r} m")
-    if samples_for_area(surface.area, spacing) > MAX_REMOVAL_SAMPLES:
-        wider = spacing_for_samples(surface.area, MAX_REMOVAL_SAMPLES)
-        log.warning("removal sampled at %.2f mm instead of %.2f mm to stay within %d samples (%.2f m² part)",
-                    wider * 1e3, spacing * 1e3, MAX_REMOVAL_SAMPLES, surface.area)
-        spacing = wider
+    if sampling not in SAMPLINGS:
+        raise InputError(f"removal sampling must be one of {', '.join(SAMPLINGS)}, got {sampling!r}")
     # imported here: numba takes about half a second to import, needed only when simulating
     from ..contact import kernels
 
@@ -151,14 +169,10 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     if engine == "compiled" and not kernels.AVAILABLE:
         raise InputError("the compiled removal engine needs numba; install it (pip install numba) or use "
                          "engine='numpy'")
-    samples = surface.subdivided(spacing)
-    while len(samples.vertices) > MAX_REMOVAL_SAMPLES and samples is not surface:
-        # more than estimated (slivers): widen by the excess and subdivide again
-        wider = spacing * 1.05 * float(np.sqrt(len(samples.vertices) / MAX_REMOVAL_SAMPLES))
-        log.warning("removal sampled at %.2f mm instead of %.2f mm: %d samples exceed the %d cap",
-                    wider * 1e3, spacing * 1e3, len(samples.vertices), MAX_REMOVAL_SAMPLES)
-        spacing = wider
-        samples = surface.subdivided(spacing)
+    if sampling == "lattice":
+        samples, spacing = _lattice_samples(surface, spacing)
+    else:
+        samples, spacing = _mesh_samples(surface, spacing)
     # Coordinates relative to the part's centre: a part far from the origin keeps its micrometre heights.
     origin = 0.5 * (samples.vertices.min(axis=0) + samples.vertices.max(axis=0))
     local = samples.vertices - origin
@@ -175,6 +189,38 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     metrics = plan_metrics(trajectory, surface, tool, removal)
     metrics["removal_sample_spacing_m"] = spacing
     return RemovalMap(samples, depth, metrics)
+
+
+def _lattice_samples(surface, spacing: float):
+    """(RemovalSamples, spacing used, m): the lattice of :func:`removal_samples` at ``spacing``,
+    widened until it has at most :data:`MAX_REMOVAL_SAMPLES` samples (counted before any is made)."""
+    cols = lattice_columns(surface, spacing)
+    while (count := lattice_count(cols)) > MAX_REMOVAL_SAMPLES:
+        wider = spacing * 1.02 * float(np.sqrt(count / MAX_REMOVAL_SAMPLES))
+        log.warning("removal sampled at %.2f mm instead of %.2f mm: %d samples exceed the %d cap",
+                    wider * 1e3, spacing * 1e3, count, MAX_REMOVAL_SAMPLES)
+        spacing = wider
+        cols = lattice_columns(surface, spacing)
+    return removal_samples(surface, spacing, columns=cols), spacing
+
+
+def _mesh_samples(surface, spacing: float):
+    """(Surface, spacing used, m): ``surface.subdivided(spacing)``, the spacing widened first by
+    the area estimate and then by the real count until at most :data:`MAX_REMOVAL_SAMPLES`."""
+    if samples_for_area(surface.area, spacing) > MAX_REMOVAL_SAMPLES:
+        wider = spacing_for_samples(surface.area, MAX_REMOVAL_SAMPLES)
+        log.warning("removal sampled at %.2f mm instead of %.2f mm to stay within %d samples (%.2f m² part)",
+                    wider * 1e3, spacing * 1e3, MAX_REMOVAL_SAMPLES, surface.area)
+        spacing = wider
+    samples = surface.subdivided(spacing)
+    while len(samples.vertices) > MAX_REMOVAL_SAMPLES and samples is not surface:
+        # more than estimated (slivers): widen by the excess and subdivide again
+        wider = spacing * 1.05 * float(np.sqrt(len(samples.vertices) / MAX_REMOVAL_SAMPLES))
+        log.warning("removal sampled at %.2f mm instead of %.2f mm: %d samples exceed the %d cap",
+                    wider * 1e3, spacing * 1e3, len(samples.vertices), MAX_REMOVAL_SAMPLES)
+        spacing = wider
+        samples = surface.subdivided(spacing)
+    return samples, spacing
 
 
 def _depth_compiled(points, normals, areas, positions, axes, dwell, tool: Tool, *, pose_force=None,
