@@ -179,3 +179,16 @@ def test_order_objective_flag_reaches_the_job_settings(tmp_path):
     assert _settings_from_args(args).order_objective == "time"
     with pytest.raises(SystemExit):
         build_parser().parse_args(["plan", "example:plate", "--out", "o", "--order-objective", "air"])
+
+
+def test_removal_sampling_and_feed_check_flags_reach_the_job_settings(tmp_path):
+    from swath.cli.main import _settings_from_args, build_parser
+
+    out = str(tmp_path / "o")
+    defaults = _settings_from_args(build_parser().parse_args(["plan", "example:plate", "--out", out]))
+    assert defaults.removal_sampling == "mesh" and defaults.feed_simulate_check is True
+    chosen = _settings_from_args(build_parser().parse_args(
+        ["plan", "example:plate", "--out", out, "--removal-sampling", "lattice", "--no-feed-simulate-check"]))
+    assert chosen.removal_sampling == "lattice" and chosen.feed_simulate_check is False
+    with pytest.raises(InputError, match="removal_sampling"):
+        settings_from_mapping({"part": "example:plate", "out": out, "removal_sampling": "grid"})

@@ -254,7 +254,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.optimise_feed:
         t0 = time.perf_counter()
         say("optimising the feed (dwell) to the target depth", 0, 1)
-        trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory)
+        trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory, surface)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
     if settings.robot:
@@ -272,7 +272,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
-                               force=None if force is None else force.force,
+                               sampling=settings.removal_sampling, force=None if force is None else force.force,
                                progress=lambda d, n: say("simulating removal", d, n))
     timings["simulate_s"] = time.perf_counter() - t0
 

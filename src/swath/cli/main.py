@@ -81,6 +81,10 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                                                 "is refused unless it is an earlier swath output or --overwrite)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing non-empty output folder that swath did not write")
+    p.add_argument("--removal-sampling", choices=("lattice", "mesh"),
+                   help="where removal is simulated: the part subdivided to the sample spacing (default) or a "
+                        "lattice at that spacing on every triangle (much faster on CAD parts with long slivers; the "
+                        "depth picture then shows seams between faces)")
     p.add_argument("--memory-budget", help="refuse work estimated to need more memory than this, e.g. 8GiB "
                                            "(default: 3/4 of this machine's memory)")
     p.add_argument("--segment", help="auto: split the part into regions that parallel passes cross without breaks "
@@ -98,6 +102,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="raster pass spacing for even removal: ripple (the spacing whose summed pad "
                         "cross-profiles are flattest, path within 1.5x the coverage bound), greedy (Wang's pattern "
                         "search, pass by pass, against the target) or joint (equal spacing and feed together)")
+    e.add_argument("--feed-simulate-check", action=argparse.BooleanOptionalAction, default=None,
+                   help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "
+                        "simulator finds more than the target plus the tolerance (up to 3 rounds; default on)")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
     r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120")
     r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")

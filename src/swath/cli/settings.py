@@ -67,6 +67,11 @@ class JobSettings:
     # against 212 s ordered by length with contact step-overs) or air length.
     order_objective: str = "time"
     sample_spacing: float | None = None
+    # Removal samples: the part subdivided to the sample spacing (default: the feed kernel's own
+    # samples, and a gap-free depth picture), or a lattice at that spacing on every triangle (6-8x
+    # faster on CAD parts with long slivers, same metrics within 0.5 %, but the depth picture shows
+    # white seams between the part's faces).
+    removal_sampling: str = "mesh"
     planner_options: dict = field(default_factory=dict)
     fit: bool = False
     parameterization: str = "auto"
@@ -86,6 +91,8 @@ class JobSettings:
     target_map: str | None = None
     depth_tolerance: float | None = None
     optimise_spacing: str | None = None
+    # the optimised feed is checked in the removal simulator and corrected where it over-removes
+    feed_simulate_check: bool = True
     # robot stage
     robot: str | None = None
     base: str | None = None
@@ -127,7 +134,7 @@ class JobSettings:
         record = {
             "part": self.part, "units": self.units, "planner": self.planner, "order": self.order,
             "join_gap_m": self.join_gap, "order_groups": self.order_groups, "order_objective": self.order_objective,
-            "segment": self.segment,
+            "segment": self.segment, "removal_sampling": self.removal_sampling,
             "pad_radius_m": self.pad_radius, "force_N": self.force,
             "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
             "motion": self.motion, "feed_m_per_s": self.feed, "spacing_m": self.spacing,
@@ -146,7 +153,7 @@ class JobSettings:
         if self.optimise_feed or self.optimise_spacing:
             record.update(optimise_feed=self.optimise_feed, optimise_spacing=self.optimise_spacing,
                           target_depth_m=self.target_depth, target_map=self.target_map,
-                          depth_tolerance_m=self.depth_tolerance)
+                          depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
         if self.robot:
             record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
                           place=self.place, table_z_m=self.table_z)
@@ -213,6 +220,7 @@ SCHEMA: dict[str, Key] = {
     "order_objective": Key("str", choices=("length", "time")),
     "join_gap": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 76mm", off=True),
     "sample_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
+    "removal_sampling": Key("str", choices=("lattice", "mesh")),
     "surface_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
     "max_centripetal": Key("acceleration", positive=True, off=True),
     "max_angular": Key("angular_speed", positive=True, off=True),
@@ -226,6 +234,7 @@ SCHEMA: dict[str, Key] = {
     "optimise_feed": Key("bool"), "target_depth": Key("length", positive=True, bare_max=1e-2, hint="um, e.g. 20um"),
     "target_map": Key("path"), "depth_tolerance": Key("length", lo=0.0, bare_max=1e-2, hint="um, e.g. 5um"),
     "optimise_spacing": Key("str", choices=("ripple", "greedy", "joint"), off=True),
+    "feed_simulate_check": Key("bool"),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
 }

@@ -148,15 +148,26 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict):
     return result.toolpath
 
 
-def feed_stage(toolpath, tool, settings, trajectory):
+def feed_stage(toolpath, tool, settings, trajectory, surface=None):
     """Optimise the feed along the passes to the job's target depth (Wang §2) and re-time the
-    path with it; returns the new trajectory, the :class:`FeedResult` and its metrics."""
+    path with it; returns the new trajectory, the :class:`FeedResult` and its metrics.
+
+    With ``settings.feed_simulate_check`` (and the ``surface`` the job simulates on), each optimised
+    trajectory is run through the job's own removal simulation and the feed is tightened where the
+    simulator finds more than the target plus the tolerance."""
     from ..feed import optimise_feed
+    from ..simulate import simulate_removal
     from ..trajectory import time_path
 
     target, tolerance = job_target(settings)
     constraints = settings.constraints()
-    result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory)
+    simulate = None
+    if settings.feed_simulate_check and surface is not None:
+        def simulate(timed):
+            return simulate_removal(timed, surface, tool, sample_spacing=settings.sample_spacing,
+                                    sampling=settings.removal_sampling)
+    result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory,
+                           simulate=simulate)
     timed = time_path(toolpath, constraints + [result.profile], links=settings.links())
     metrics = {k if k.startswith("feed") else f"feed_{k}": v for k, v in result.metrics.items()
                if isinstance(v, (int, float, str, bool))}
