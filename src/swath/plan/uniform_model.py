@@ -176,10 +176,7 @@ def _vertex_gradient_directions(gradient: FaceGradient, field: np.ndarray, norma
     ``idx`` only the faces round those vertices are visited (each vertex still gets all its faces,
     in the same order).
     """
-    basis = getattr(gradient, "_stacked_basis", None)
-    if basis is None:
-        basis = np.ascontiguousarray(np.stack(gradient.basis))                 # (3, m, 3)
-        gradient._stacked_basis = basis
+    basis = gradient.stacked_basis                                             # (3, m, 3)
     n = gradient.n_vertices
     if idx is None:
         rows, k = np.arange(n, dtype=np.int64), n

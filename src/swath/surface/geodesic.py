@@ -3,6 +3,7 @@ gradients and geodesic distance fields (potpourri3d's fast marching or heat meth
 
 from __future__ import annotations
 
+import functools
 import logging
 
 import numpy as np
@@ -186,6 +187,11 @@ class FaceGradient:
         self.face_areas = 0.5 * area2
         self.n_vertices = len(V)
         self.basis = [np.cross(nh, tri[:, (i + 2) % 3] - tri[:, (i + 1) % 3]) * inv for i in range(3)]
+
+    @functools.cached_property
+    def stacked_basis(self) -> np.ndarray:
+        """The three corner bases as one contiguous ``(3, m, 3)`` array (for compiled loops)."""
+        return np.ascontiguousarray(np.stack(self.basis))
 
     def __call__(self, field: np.ndarray) -> np.ndarray:
         """Gradient ``(m, 3)`` of the per-vertex ``field`` ``(n,)`` on each face (in the face plane)."""
