@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from ..core import ToolPath
 from ..errors import InputError
-from . import sequence, tour
+from . import sequence, stage
 from .joining import StepOverJoiner, join_passes
 from .routing import AirGuard, route_links
 
@@ -36,7 +36,7 @@ def _tour(method: str, *, snake_regions: bool = True):
         grouped = snake_regions and "groups" not in options and len(set(toolpath.regions.tolist())) > 1 \
             and toolpath.metadata.get("order_method") != "snake"          # snake twice undoes it
         base = sequence.snake(toolpath) if grouped else toolpath
-        return tour.order_toolpath(base, method=method, **options)
+        return stage.order_toolpath(base, method=method, **options)
 
     run.__name__ = f"order_{method}"
     return run
@@ -58,7 +58,7 @@ def order_toolpath(toolpath: ToolPath, *, method: str | None = None, **options) 
     ``metadata["order_hint"]`` (raster and equidistant: ``snake``, uniform: ``zigzag``).
     ``options`` go to the tour methods (``start``, ``clearance``, ``link_speed``, ``omega_max``,
     ``feed``, ``join_gap``, ``keep_direction``, ``routed``, ``pad_radius``, ...; see
-    :func:`swath.order.tour.order_toolpath`).
+    :func:`swath.order.stage.order_toolpath`).
 
     Raises
     ------
