@@ -47,7 +47,9 @@ over-removal and solves again (at most 3 rounds; ``opt_s`` includes them).  Jobs
 runs feed / space+feed / ripple+feed: without the loop plate 0.08/0.10/0.12 of 0.22, panel 0.03/0.11/0.07
 of 0.25, blade -13.8/0.93/0.49 of 3.38, snp_part_scan 0.86/0.48/0.63 of 1.08, bezier_complex_shape
 0.88/0.81/1.01 of 1.14, noether_wavy 0.82/1.59/1.98 of 1.10; with the loop noether_wavy
-0.82/-0.16/-0.65.
+0.82/-0.16/-0.65, noether_raw_mesh 0.29/0.35/0.32 of 0.40, bezier_dac_scan **5.83**/1.91/1.72 of 2.34 (the
+feed row stays over: the timed dwell there reaches 2.27x the planned one and the simulator's grouped
+integration reads 5.83 where every-sample integration reads 1.07; not understood yet).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [plate panel blade crs_part_5.stl ...]``; the feed
 optimisation's time and peak memory alone: ``... bench_feed.py --solve crs_part_5.stl``.
