@@ -139,3 +139,10 @@ def test_links_inside_a_group_cost_their_route_too():
     routed = order_toolpath(tp, groups=[[0, 1]], method="exact")
     assert routed.metadata["air_after_m"] == pytest.approx(0.04 + 0.11)    # the group run from y = 0.2 down
     assert routed.passes[0].points[-1][1] == pytest.approx(0.0)
+
+
+def test_a_length_only_link_model_refuses_to_time_a_step_over():
+    frame = np.eye(3)[None]
+    assert LinkModel().cost(np.array([0.3]), frame, frame) == pytest.approx([0.3])
+    with pytest.raises(Exception, match="link speed"):
+        LinkModel().straight_time(np.array([0.3]), frame, frame)

@@ -265,3 +265,8 @@ def test_the_order_stage_routes_every_link_and_the_trajectory_follows_it():
     assert np.all(air >= lo - 0.0581 - 1e-6) and np.all(air <= hi + 0.0581 + 1e-6)
     routed = sum(link.length for link in tp.links) + 2 * 0.02          # links + approach and retract
     assert 0.9 * routed <= tr.air_length <= routed                     # corners rounded, never longer
+
+
+def test_segment_refuses_an_empty_angle_list():
+    with pytest.raises(InputError, match="candidate angle"):
+        segment(flat_plate(), angles=())

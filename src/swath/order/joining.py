@@ -65,8 +65,8 @@ class StepOverJoiner:
         self.tolerance = 0.25 * self.max_gap if tolerance is None else float(tolerance)
         self.step = min(self.max_gap / 20.0, 2e-3) if step is None else float(step)
 
-    def _samples(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """(m, 3) points along the chords from ``p`` (k, 3) to ``q`` (k, 3), m = k * s, s per chord."""
+    def _samples(self, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, int]:
+        """``((m, 3) points along the chords from p (k, 3) to q (k, 3), s)``: m = k * s, s points per chord."""
         s = max(int(np.ceil(self.max_gap / self.step)), 1) + 1
         w = np.linspace(0.0, 1.0, s)[None, :, None]
         return (p[:, None, :] * (1 - w) + q[:, None, :] * w).reshape(-1, 3), s

@@ -59,9 +59,9 @@ class AirGuard:
 
     def _clear(self, route: np.ndarray) -> bool:
         seg = np.linalg.norm(np.diff(route, axis=0), axis=1)
-        pts = [a + np.linspace(0, 1, max(int(np.ceil(L / (0.25 * self.clearance))), 1), endpoint=False)[:, None] * (b - a)
+        pieces = [a + np.linspace(0, 1, max(int(np.ceil(L / (0.25 * self.clearance))), 1), endpoint=False)[:, None] * (b - a)
                for a, b, L in zip(route[:-1], route[1:], seg)]
-        pts = np.vstack(pts + [route[-1:]])
+        pts = np.vstack(pieces + [route[-1:]])
         _, dist, _ = self.surface.closest_points(pts)
         return bool(dist.min() >= 0.5 * self.clearance * 0.999)
 

@@ -321,7 +321,7 @@ def improve_tour(variants: Variants, D: np.ndarray, start_cost: np.ndarray | Non
         delta = (Dx[t[i - 1], revx[t[j]]] + Dx[revx[t[i]], nxt[j]] - edge[i - 1] - edge[j])
         delta = np.where(ok, delta, np.inf)
         k = np.unravel_index(np.argmin(delta), delta.shape)
-        moves.append((float(delta[k]), "2opt", int(k[0]) + 1, int(k[1]) + 1, False))
+        moves.append((float(delta[k]), "2opt", int(k[0]) + 1, int(k[1]) + 1, False, 0))
         # Or-opt: positions i..i+L-1 moved between t[p] and t[p+1], as they are or backwards
         for L in range(1, min(max_segment, n - 2) + 1):
             i = np.arange(1, n - L + 1)[:, None]
@@ -340,14 +340,14 @@ def improve_tour(variants: Variants, D: np.ndarray, start_cost: np.ndarray | Non
             break
         tl = list(t)
         if move[1] == "2opt":
-            _, _, a, b, _ = move
+            _, _, a, b, _, _ = move
             tl[a:b + 1] = [int(revx[v]) for v in tl[a:b + 1][::-1]]
         else:
-            _, _, a, p, backwards, L = move
+            _, _, a, after, backwards, L = move
             seg = tl[a:a + L]
             if backwards:
                 seg = [int(revx[v]) for v in seg[::-1]]
-            anchor_node = tl[p]
+            anchor_node = tl[after]
             rest = tl[:a] + tl[a + L:]
             q = rest.index(anchor_node)
             tl = rest[:q + 1] + seg + rest[q + 1:]

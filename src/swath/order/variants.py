@@ -77,7 +77,7 @@ class LinkModel:
         On the hub's links this is within 0.05 s of the timed trajectory (the earlier estimate,
         ``max(trapezoid, turn / omega_max)``, was 0.24-0.40 s short per link).
         """
-        if not self.timed:
+        if self.speed is None:
             return length
         return link_time_estimate(length, _turn_angle(exit_frame, entry_frame), clearance=self.clearance,
                                   speed=self.speed, acceleration=self.acceleration, omega_max=self.omega_max)
@@ -85,9 +85,11 @@ class LinkModel:
     def straight_time(self, length, exit_frame, entry_frame) -> np.ndarray:
         """A rest-to-rest move of ``length`` (m) at the link speed and acceleration, or the turn at
         ``omega_max`` if that takes longer, s (no retract or approach: a contact step-over)."""
+        if self.speed is None:
+            raise InputError("straight_time needs a link speed (LinkModel(speed=...)); this model costs length")
         v, a = self.speed, self.acceleration
         length = np.asarray(length, float)
-        t = np.where(length >= v * v / a, length / v + v / a, 2 * np.sqrt(np.maximum(length, 0) / a))
+        t: np.ndarray = np.where(length >= v * v / a, length / v + v / a, 2 * np.sqrt(np.maximum(length, 0) / a))
         if self.omega_max is not None:
             t = np.maximum(t, _turn_angle(exit_frame, entry_frame) / self.omega_max)
         return t

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+from collections.abc import Mapping
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -75,6 +76,7 @@ def plan_regions(surface, tool, planner, regions, *, fill_whole_part: bool = Fal
     regions = list(regions)
     if not regions:
         raise InputError("plan_regions needs at least one region; segment the surface first")
+    params: Mapping[str, inspect.Parameter]
     try:
         params = inspect.signature(planner).parameters
     except (TypeError, ValueError):          # pragma: no cover - builtins
@@ -82,7 +84,9 @@ def plan_regions(surface, tool, planner, regions, *, fill_whole_part: bool = Fal
     give_direction = "direction" in params and "direction" not in options and \
         getattr(planner, "__name__", "") != "uniform"          # uniform's direction is an angle rule
     give_cross = "cross_direction" in params and "cross_direction" not in options
-    passes, per_region, skipped = [], [], []
+    passes: list[Pass] = []
+    per_region: list[dict] = []
+    skipped: list[int] = []
     name = getattr(planner, "__name__", "planner")
     for i, region in enumerate(regions):
         opts = dict(options)
@@ -112,7 +116,7 @@ def plan_regions(surface, tool, planner, regions, *, fill_whole_part: bool = Fal
                                                  point_spacing=point_spacing, chord_share=fill_chord_share)
         meta.update(n_fill_passes=n_fill, predicted_gap_fraction=gap)
     meta["n_passes"] = len(passes)
-    return ToolPath(surface, passes, name, meta)
+    return ToolPath(surface, tuple(passes), name, meta)
 
 
 def fill_whole_surface(surface, tool, passes, regions, feed, cross, *, point_spacing: float = 1e-3,

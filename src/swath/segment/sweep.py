@@ -308,7 +308,7 @@ def decompose(surface, feed: np.ndarray, cross: np.ndarray, *, min_area: float =
         nbrs = {b: w for (a, b), w in reg_border.items() if a == r and b in alive and b != r}
         if not nbrs:
             continue
-        target = max(nbrs, key=nbrs.get)
+        target = max(nbrs, key=lambda b: nbrs[b])
         merged_into[merged_into == r] = target
         alive.discard(r)
         reg_area[target] += reg_area[r]
@@ -371,10 +371,13 @@ def segment(surface, *, direction=None, min_area: float = MIN_AREA, min_feature:
     if direction is not None:
         feed, cross = sweep_frame(surface, direction=direction)
         return decompose(surface, feed, cross, min_area=min_area, min_feature=min_feature)
-    best, best_count = None, None
+    best: tuple[np.ndarray, np.ndarray] | None = None
+    best_count: int | None = None
     for a in angles:
         feed, cross = sweep_frame(surface, angle=a)
         count = len(decompose(surface, feed, cross, min_area=0.0, min_feature=min_feature))
         if best_count is None or count < best_count:
             best, best_count = (feed, cross), count
+    if best is None:
+        raise InputError(f"segment needs at least one candidate angle (rad) when direction is None, got {angles!r}")
     return decompose(surface, *best, min_area=min_area, min_feature=min_feature)

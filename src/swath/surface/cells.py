@@ -23,7 +23,7 @@ log = logging.getLogger(__name__)
 try:
     import numba
 except ImportError:                                            # pragma: no cover - numba is a dependency
-    numba = None
+    numba = None  # type: ignore[assignment]
 
 #: True when numba is importable and the compiled kernels can be used.
 AVAILABLE = numba is not None
