@@ -11,9 +11,13 @@ import json
 import logging
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from ..errors import InputError
 from .settings import JobSettings, load_job_toml, settings_from_mapping  # noqa: F401  (the job's inputs)
+
+if TYPE_CHECKING:                   # the trajectory stage is imported only when a job times a path
+    from ..trajectory.links import LinkSettings
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +102,7 @@ class CycleTimeCost:
     """
 
     constraints: tuple
-    links: object
+    links: LinkSettings | None
     order: str | None = None
 
     def __call__(self, toolpath) -> tuple[float, str]:

@@ -71,7 +71,7 @@ class TargetMap:
         if self.points is None:
             return np.full(len(surface.vertices), self.depth)
         _, j = cKDTree(self.points).query(surface.vertices)
-        return self.depth[j]
+        return np.asarray(self.depth)[j]
 
 
 def uniform_target(depth: float) -> TargetMap:
@@ -102,7 +102,8 @@ def read_target_map(path, *, units: str = "m") -> TargetMap:
         if "depth" not in raw:
             raise InputError(f"{path.name}: the PLY vertex element has no 'depth' property; add one (m) per vertex")
         depth = np.asarray(raw["depth"], float).reshape(-1)
-        return TargetMap(np.asarray(mesh.vertices, float) * length_unit_factor(units), depth, name=path.name)
+        vertices = np.asarray(getattr(mesh, "vertices"), dtype=np.float64)   # a Trimesh (force="mesh")
+        return TargetMap(vertices * length_unit_factor(units), depth, name=path.name)
     raise InputError(f"target map {path.name}: expected a .csv (x,y,z,depth in m) or a .ply with a vertex 'depth'")
 
 
@@ -135,7 +136,7 @@ def write_target_map(path, target: TargetMap) -> None:
 
     if target.points is None:
         raise InputError("a uniform target has no points to write; give the depth instead")
-    lines = ["x,y,z,depth"] + [f"{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{d:.9g}" for p, d in zip(target.points, target.depth)]
+    lines = ["x,y,z,depth"] + [f"{p[0]:.9g},{p[1]:.9g},{p[2]:.9g},{d:.9g}" for p, d in zip(target.points, np.asarray(target.depth))]
     write_text_atomic(path, "\n".join(lines) + "\n")
 
 

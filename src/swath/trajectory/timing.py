@@ -134,7 +134,7 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
 
     timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale)
              for i, p in enumerate(toolpath.passes)]
-    out = {k: [] for k in ("pos", "quat", "contact", "feed", "pass", "t", "omega")}
+    out: dict[str, list] = {k: [] for k in ("pos", "quat", "contact", "feed", "pass", "t", "omega")}
     clock = 0.0
     methods = {"toppra": 0, "trapezoid": 0, "none": 0}
 
@@ -204,7 +204,7 @@ def _collect(constraints) -> dict:
 
 
 def _describe(c) -> dict:
-    d = {"type": type(c).__name__}
+    d: dict[str, object] = {"type": type(c).__name__}
     if isinstance(c, FeedProfile):
         d["passes"] = len(c.speeds)
     else:
