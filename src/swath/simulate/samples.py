@@ -1,7 +1,7 @@
 """Removal samples: points, normals and areas that cover a part at a given spacing in both directions.
 
 The removal simulation needs only sample points on the part, their normals and the area each
-stands for (and, for the report, a triangulation to draw the depth on).  A conforming subdivision
+stands for (and, for the report, the depth anywhere on the part: :meth:`RemovalSamples.depth_at`).  A conforming subdivision
 (:meth:`swath.surface.Surface.subdivided`) gives these, but it must put points along every edge of
 a long sliver triangle, so a CAD mesh of slivers narrower than the spacing gets several times the
 samples its area needs, and building a whole :class:`~swath.surface.Surface` of millions of
@@ -23,6 +23,11 @@ Normals are the part's smooth vertex normals (:attr:`Surface.normals`) interpola
 each triangle and normalised, so nothing is smoothed again on the samples.  The sample count is
 known before any sample is made (:func:`count_removal_samples`), so a too-fine request is widened
 before memory is spent.
+
+The samples of neighbouring triangles are not joined into one mesh, so the report draws the depth
+on the part's own (subdivided) triangulation instead: :meth:`RemovalSamples.depth_at` reads it at
+any point as the mean of the samples around it (:func:`interpolate_depth`: weighted by area and a
+tent of the distance, across faces and slivers alike, the far side of a thin part left out).
 """
 
 from __future__ import annotations
@@ -157,9 +162,10 @@ class RemovalSamples:
     face_of : (n,) int
         The part face each sample lies on (for a corner sample, one of its faces).
     faces : (k, 3) int
-        Triangles over the samples for drawing: the corner-sampled faces, and within each larger
-        face the cells of neighbouring columns joined; not conforming between lattice faces (gaps
-        up to a spacing), and a face with a single row of samples (a sliver) has none.
+        Triangles over the samples: the corner-sampled faces, and within each larger face the
+        cells of neighbouring columns joined; not conforming between lattice faces (gaps up to a
+        spacing), and a face with a single row of samples (a sliver) has none.  The report does not
+        draw these: it draws the part's own mesh with :meth:`depth_at`.
     part : Surface
         The sampled part.
     spacing : float
