@@ -174,8 +174,10 @@ def test_engines_agree_and_the_report_draws_lattice_samples():
     numpy_ = simulate_removal(tr, s, Tool(), sample_spacing=3e-3, sampling="lattice", engine="numpy")
     assert np.abs(compiled.depth - numpy_.depth).max() <= 1e-4 * numpy_.depth.max()
     assert compiled.metrics["removal_cov"] == pytest.approx(numpy_.metrics["removal_cov"], rel=5e-5)
-    v, f, d = display_mesh(s, compiled, max_faces=len(s.faces))        # samples over budget: onto the part
-    assert np.array_equal(v, s.vertices) and d.max() == pytest.approx(compiled.depth.max(), rel=0.2)
+    # drawn on the part's own mesh (its vertices first, split within the budget), depth read off the samples
+    v, f, d = display_mesh(s, compiled, max_faces=2 * len(s.faces))
+    assert np.array_equal(v[:len(s.vertices)], s.vertices) and len(f) <= 2 * len(s.faces)
+    assert d.max() == pytest.approx(compiled.depth.max(), rel=0.2)
     assert len(removal_map_figure(compiled).axes) >= 1 and len(depth_histogram_figure(compiled).axes) == 1
 
 

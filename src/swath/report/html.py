@@ -36,8 +36,8 @@ _NO_REMOVAL_GREY = "rgb(208,208,208)"
 
 _EXPLAIN = {
     "view3d": (
-        "The part as the removal simulation sampled it, coloured by the predicted depth of material "
-        "removed (µm); grey means the pad did not touch that spot (or removed under 1 % of the peak depth). Coloured lines are the contact "
+        "The part coloured by the predicted depth of material removed (µm), read off the removal "
+        "simulation's samples; grey means the pad did not touch that spot (or removed under 1 % of the peak depth). Coloured lines are the contact "
         "passes, from cyan (first) to magenta (last), drawn slightly above the surface; thin grey "
         "lines are the moves in the air between passes (retract, travel, approach); the white dot is "
         "where the job starts. Drag to rotate, scroll to zoom, hover for values."
