@@ -1,6 +1,6 @@
 """Removal simulation speed and memory: the compiled engine against the numpy (pair-list) engine.
 
-    python benchmarks/bench_simulate.py [--parts panel100k crs_part_5.stl panel500k] [--spacings 0 0.002]
+    python benchmarks/bench_simulate.py [--parts crs_part_5.stl panel500k ...] [--spacings 0 0.002]
                                         [--engines compiled numpy] [--methods lattice long_edges halving]
                                         [--timeout 1200]
 
@@ -33,30 +33,48 @@ Parts: ``panel100k`` is :func:`swath.examples.doubly_curved_panel` at ~91k faces
 of 2.2 mm spacing (~100 m of contact path); the shared meshes and ``panel500k``
 (:func:`swath.examples.large_panel`, 500k faces) under the default raster (spacing from the tool).
 
-Last run, removal samples (compiled engine, 2 cores shared with other jobs: wall times up to 3
-times the CPU times; per 100 m = whole simulate_removal call over the contact path):
+Last run (defaults: every shared mesh, panel100k, panel500k, 2 mm, compiled engine; 2 cores shared
+with other jobs; ``s/100 m`` = the whole simulate_removal call over the contact path, so short paths
+show mostly the fixed cost of the metrics; ``RSS before`` = the child after loading and planning;
+``picture`` = the report's two depth meshes, :func:`picture_seconds`):
 
-============== ====== ========== ======= ========= ========= ======== ======= =======
-part           path   layout     spacing samples   samples_s s/100 m  CPU s   RSS MB
-============== ====== ========== ======= ========= ========= ======== ======= =======
-crs_part_5     72.5 m lattice    2.00 mm 777,446   0.20      3.77     1.35    839
-crs_part_5     72.5 m long_edges 2.34 mm 2,156,847 9.54      25.8     9.18    1895
-crs_part_5     72.5 m lattice    3.00 mm 353,973   0.10      2.11     0.74    839
-crs_part_5     72.5 m long_edges 3.00 mm 1,293,487 4.80      13.9     5.01    1101
-panel100k      101 m  lattice    2.00 mm 162,552   0.25      5.99     1.82    401
-panel100k      101 m  long_edges 2.00 mm 183,457   0.37      4.22     2.07    472
-panel500k      13.6 m lattice    2.00 mm 251,126   0.20      6.48     0.44    661
-panel500k      13.6 m long_edges 2.00 mm 630,238   1.77      25.0     1.67    944
-============== ====== ========== ======= ========= ========= ======== ======= =======
+=============== ====== ========== ======= ========= ======= ======== ========== ======= =======
+part            path   layout     spacing samples   s/100 m integr.  RSS before RSS MB  picture
+                                                            s/100 m  MB                 s
+=============== ====== ========== ======= ========= ======= ======== ========== ======= =======
+snp_part_scan   5.6 m  lattice    2.00 mm 89,968    10.0    3.33     270        294     1.12
+snp_part_scan   5.6 m  long_edges 2.00 mm 174,412   24.4    7.10     269        361     2.46
+noether_raw     21.6 m lattice    2.00 mm 271,188   11.7    6.38     325        391     1.21
+noether_raw     21.6 m long_edges 2.00 mm 387,970   31.1    9.08     325        508     5.84
+bezier_dac_cad  4.3 m  lattice    2.00 mm 56,621    3.83    1.43     268        283     0.65
+bezier_dac_cad  4.3 m  long_edges 2.00 mm 152,432   30.4    7.52     267        354     0.66
+bezier_dac_scan 18.1 m lattice    2.00 mm 247,579   7.21    3.63     360        433     1.45
+bezier_dac_scan 18.1 m long_edges 2.00 mm 288,883   16.8    5.77     360        510     3.23
+noether_wavy    1.2 m  lattice    2.00 mm 24,761    12.3    2.79     258        265     0.99
+noether_wavy    1.2 m  long_edges 2.00 mm 54,427    34.9    7.24     258        289     0.03
+bezier_complex  13.9 m lattice    2.00 mm 145,650   6.41    2.04     288        322     0.89
+bezier_complex  13.9 m long_edges 2.00 mm 356,718   18.2    5.23     282        470     1.83
+crs_part_5      72.5 m lattice    2.00 mm 777,446   3.30    1.88     824        824     1.04
+crs_part_5      72.5 m long_edges 2.34 mm 2,156,847 17.9    3.99     834        1578    9.22
+panel100k       101 m  lattice    2.00 mm 162,552   2.48    2.15     328        382     1.06
+panel100k       101 m  long_edges 2.00 mm 183,457   3.40    2.90     328        438     1.31
+panel500k       13.6 m lattice    2.00 mm 251,126   6.54    1.54     447        566     2.60
+panel500k       13.6 m long_edges 2.00 mm 630,238   14.6    2.39     448        882     3.41
+=============== ====== ========== ======= ========= ======= ======== ========== ======= =======
 
-crs_part_5 asked for 2 mm is now sampled at 2 mm (long_edges hit the 2.5 M cap and widened to
-2.34 mm); of its 2.7 s call, 1.5 s is plan_metrics (1.0 s of it pad_scale_samples on the part).
-The panel100k wall times at 2 mm are load (CPU 1.82 s lattice against 2.07 s).  Rerun on a
-quiet machine (load 0.1): crs_part_5 at 2 mm lattice 1.57 s (2.17 s per 100 m, 823 MB RSS)
-against long_edges at 2.34 mm 7.38 s (10.2 s per 100 m, 1541 MB); panel100k at 2 mm lattice
-1.56 s (1.54 s per 100 m) against long_edges 1.78 s; panel100k at 3 mm lattice 0.29 s per 100 m,
-numpy engine 2.44 s, metrics within 2.4e-6 relative. panel500k: the
-whole call is 0.9 s for its 13.6 m path, so per 100 m it is the fixed cost of the metrics.
+The lattice (the job default) is faster on every part, with up to 2.8 times fewer samples; on the two
+long paths 3.30 s per 100 m (crs_part_5, 2.39 s for 72.5 m; 2.17 s per 100 m on a quiet machine earlier)
+and 2.48 s (panel100k, 101 m), under the issue's 5 s; the short paths' figures per 100 m are the fixed
+cost of the metrics (0.1-1 s per call).  Peak RSS stays under 0.9 GB everywhere (crs_part_5: planning's 824 MB is
+the peak, the lattice simulation adds nothing visible; the subdivided mesh 1.58 GB).  The lattice's exact
+count (``estimate``) equals its samples; the area estimate of the mesh over-counts by 1.2-1.7x (and is
+capped on crs_part_5).  The depth pictures cost 0.7-2.6 s on the lattice (subdividing the part for
+display and reading the depth off the samples) against 0.03-9.2 s on the subdivided mesh.
+
+Earlier run (before the lattice was the default), on a quiet machine (load 0.1): crs_part_5 at 2 mm
+lattice 1.57 s (2.17 s per 100 m, 823 MB RSS) against long_edges at 2.34 mm 7.38 s (10.2 s per 100 m,
+1541 MB); panel100k at 2 mm lattice 1.56 s (1.54 s per 100 m) against long_edges 1.78 s; panel100k at
+3 mm lattice 0.29 s per 100 m, numpy engine 2.44 s, metrics within 2.4e-6 relative.
 
 Earlier run, engines: panel100k at 2 mm, 101 m: compiled 4.9 s per 100 m in all (integration 3.7 s
 wall, 1.75 s CPU), numpy 72.6 s; at 3 mm 1.9 s against 17.5 s.  Metrics agree to 1.2e-6 relative,
@@ -183,6 +201,7 @@ def one_part(name: str, spacings: list[float], engines: list[str], method: str =
     warm_up()
     part, tr = load(name)
     path = tr.contact_length
+    rss_before = max_rss_mb()                 # the process after loading and planning, before any simulation
     rows = []
     for spacing in spacings:
         results = {}
@@ -201,9 +220,10 @@ def one_part(name: str, spacings: list[float], engines: list[str], method: str =
                        s_per_100m=100.0 * m.seconds / path, cpu_s=cpu, peak_MB=m.peak_mb, peak_rss_MB=max_rss_mb(),
                        cov=rm.metrics["removal_cov"], integrate_s=timed["integrate_s"],
                        integrate_s_per_100m=100.0 * timed["integrate_s"] / path,
-                       integrate_cpu_s=timed["integrate_cpu_s"])
+                       integrate_cpu_s=timed["integrate_cpu_s"], rss_before_MB=rss_before)
             results[engine] = rm
             if engine == engines[0]:
+                row["picture_s"] = picture_seconds(part, rm)
                 fresh = Surface(part.vertices, part.faces)
                 t0 = time.perf_counter()
                 pad_scale_samples(fresh, tool)
@@ -225,11 +245,24 @@ def one_part(name: str, spacings: list[float], engines: list[str], method: str =
     return rows
 
 
+def picture_seconds(part, removal) -> float:
+    """Wall time (s) of the report's two depth pictures' meshes: the PNG map's
+    (:func:`swath.report.plots.depth_mesh` at ``MAX_PLOT_FACES``) and the 3D view's
+    (:func:`swath.report.html.display_mesh` at ``MAX_VIEW_FACES``)."""
+    from swath.report.html import MAX_VIEW_FACES, display_mesh
+    from swath.report.plots import MAX_PLOT_FACES, depth_mesh
+
+    t0 = time.perf_counter()
+    depth_mesh(removal, max_faces=MAX_PLOT_FACES)
+    display_mesh(part, removal, max_faces=MAX_VIEW_FACES)
+    return time.perf_counter() - t0
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--parts", nargs="*", default=["panel100k", "crs_part_5.stl", "panel500k"])
-    parser.add_argument("--spacings", nargs="*", type=float, default=[0.0, 0.002])
-    parser.add_argument("--engines", nargs="*", default=["compiled", "numpy"])
+    parser.add_argument("--parts", nargs="*", default=[*SHARED_MESH_UNITS, "panel100k", "panel500k"])
+    parser.add_argument("--spacings", nargs="*", type=float, default=[0.002])
+    parser.add_argument("--engines", nargs="*", default=["compiled"], help="compiled, numpy (numpy: 10-20x slower)")
     parser.add_argument("--methods", nargs="*", default=["lattice", "long_edges"],
                         help="removal samples: lattice (sampling='lattice') or a subdivision method of "
                              "sampling='mesh' (long_edges, halving)")
@@ -265,7 +298,8 @@ def main():
                        ("estimate", "d"), ("samples", "d"), ("samples_s", ".2f"),
                        ("poses", "d"), ("engine", "s"), ("sim_s", ".2f"), ("s_per_100m", ".2f"), ("cpu_s", ".2f"), ("integrate_s", ".2f"),
                        ("integrate_s_per_100m", ".2f"), ("integrate_cpu_s", ".2f"), ("peak_MB", ".0f"),
-                       ("peak_rss_MB", ".0f"), ("metrics_s", ".2f"), ("pad_scale_s", ".2f"),
+                       ("rss_before_MB", ".0f"), ("peak_rss_MB", ".0f"), ("metrics_s", ".2f"), ("pad_scale_s", ".2f"),
+                       ("picture_s", ".2f"),
                        ("metric_rel_diff", ".1e")])
 
 

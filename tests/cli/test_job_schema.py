@@ -186,9 +186,12 @@ def test_removal_sampling_and_feed_check_flags_reach_the_job_settings(tmp_path):
 
     out = str(tmp_path / "o")
     defaults = _settings_from_args(build_parser().parse_args(["plan", "example:plate", "--out", out]))
-    assert defaults.removal_sampling == "mesh" and defaults.feed_simulate_check is True
+    assert defaults.removal_sampling == "lattice" and defaults.feed_simulate_check is True
+    assert settings_from_mapping({"part": "example:plate", "out": out}).removal_sampling == "lattice"
     chosen = _settings_from_args(build_parser().parse_args(
-        ["plan", "example:plate", "--out", out, "--removal-sampling", "lattice", "--no-feed-simulate-check"]))
-    assert chosen.removal_sampling == "lattice" and chosen.feed_simulate_check is False
+        ["plan", "example:plate", "--out", out, "--removal-sampling", "mesh", "--no-feed-simulate-check"]))
+    assert chosen.removal_sampling == "mesh" and chosen.feed_simulate_check is False
+    assert settings_from_mapping({"part": "example:plate", "out": out, "removal_sampling": "mesh"}).removal_sampling \
+        == "mesh"
     with pytest.raises(InputError, match="removal_sampling"):
         settings_from_mapping({"part": "example:plate", "out": out, "removal_sampling": "grid"})

@@ -32,14 +32,24 @@ def machine_memory() -> float:
 def estimate_bytes(surface, settings) -> dict:
     """The estimated peak memory of planning and simulating ``surface`` under ``settings``.
 
+    The removal samples are counted exactly for ``removal_sampling = "lattice"``
+    (:func:`swath.simulate.samples.count_removal_samples`, a few vectorised passes over the faces)
+    and estimated from the area for ``"mesh"`` (:func:`swath.simulate.removal.samples_for_area`, an
+    upper estimate except on meshes of slivers).
+
     Returns a dict with ``removal_samples`` (count, after the simulation's own cap), ``bytes``.
     """
     from ..contact.tool import sample_spacing_for
     from ..simulate.removal import MAX_REMOVAL_SAMPLES, samples_for_area
+    from ..simulate.samples import count_removal_samples
 
     tool = settings.tool()
     spacing = settings.sample_spacing or sample_spacing_for(tool)
-    samples = min(samples_for_area(surface.area, spacing), MAX_REMOVAL_SAMPLES)
+    if getattr(settings, "removal_sampling", "mesh") == "lattice":
+        count = count_removal_samples(surface, spacing)
+    else:
+        count = samples_for_area(surface.area, spacing)
+    samples = min(count, MAX_REMOVAL_SAMPLES)
     total = BASE_BYTES + BYTES_PER_FACE * len(surface.faces) + BYTES_PER_SAMPLE * samples
     return {"removal_samples": int(samples), "bytes": float(total)}
 

@@ -82,9 +82,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing non-empty output folder that swath did not write")
     p.add_argument("--removal-sampling", choices=("lattice", "mesh"),
-                   help="where removal is simulated: the part subdivided to the sample spacing (default) or a "
-                        "lattice at that spacing on every triangle (much faster on CAD parts with long slivers; the "
-                        "depth picture then shows seams between faces)")
+                   help="where removal is simulated: a lattice at the sample spacing on every triangle (default; "
+                        "much faster on CAD parts with long slivers) or the part subdivided to the sample spacing "
+                        "(mesh, the sampling of the feed optimiser's kernel)")
     p.add_argument("--memory-budget", help="refuse work estimated to need more memory than this, e.g. 8GiB "
                                            "(default: 3/4 of this machine's memory)")
     p.add_argument("--segment", help="auto: split the part into regions that parallel passes cross without breaks "

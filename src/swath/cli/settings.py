@@ -67,11 +67,11 @@ class JobSettings:
     # against 212 s ordered by length with contact step-overs) or air length.
     order_objective: str = "time"
     sample_spacing: float | None = None
-    # Removal samples: the part subdivided to the sample spacing (default: the feed kernel's own
-    # samples, and a gap-free depth picture), or a lattice at that spacing on every triangle (6-8x
-    # faster on CAD parts with long slivers, same metrics within 0.5 %, but the depth picture shows
-    # white seams between the part's faces).
-    removal_sampling: str = "mesh"
+    # Removal samples: a lattice at the sample spacing on every triangle (default: 2-5x faster and a
+    # third of the samples on CAD parts with long slivers, same metrics within 0.5 %; the depth
+    # picture is drawn on the part's own mesh, interpolated from the samples), or the part
+    # subdivided to the sample spacing ("mesh", the feed kernel's own sampling).
+    removal_sampling: str = "lattice"
     planner_options: dict = field(default_factory=dict)
     fit: bool = False
     parameterization: str = "auto"

@@ -36,8 +36,8 @@ _NO_REMOVAL_GREY = "rgb(208,208,208)"
 
 _EXPLAIN = {
     "view3d": (
-        "The part as the removal simulation sampled it, coloured by the predicted depth of material "
-        "removed (µm); grey means the pad did not touch that spot (or removed under 1 % of the peak depth). Coloured lines are the contact "
+        "The part coloured by the predicted depth of material removed (µm), read off the removal "
+        "simulation's samples; grey means the pad did not touch that spot (or removed under 1 % of the peak depth). Coloured lines are the contact "
         "passes, from cyan (first) to magenta (last), drawn slightly above the surface; thin grey "
         "lines are the moves in the air between passes (retract, travel, approach); the white dot is "
         "where the job starts. Drag to rotate, scroll to zoom, hover for values."
@@ -89,7 +89,9 @@ def display_mesh(surface, removal=None, *, max_faces: int = MAX_VIEW_FACES):
 
     Notes
     -----
-    With a removal map the sampled surface is shown when it fits the budget; otherwise the part
+    Removal on lattice samples is shown on the part's own triangulation, subdivided to fit the
+    budget, with the depth interpolated from the samples (:func:`plots.depth_mesh`).  Removal on a
+    subdivided surface: the sampled surface is shown when it fits the budget; otherwise the part
     itself when it fits, each part vertex carrying the area-weighted mean depth of the samples
     nearest to it (or of its nearest sample when none is); otherwise the sampled surface
     coarsened by vertex clustering (:func:`plots.cluster_decimate`).
@@ -99,6 +101,8 @@ def display_mesh(surface, removal=None, *, max_faces: int = MAX_VIEW_FACES):
                                          surface.vertex_areas, max_faces=max_faces)
         return v, f, None
     samples = removal.surface
+    if hasattr(samples, "depth_at"):           # lattice samples: the part's own mesh, depth interpolated
+        return plots.depth_mesh(removal, max_faces=max_faces)
     depth = np.nan_to_num(np.asarray(removal.depth, float))
     if len(samples.faces) <= max_faces:
         return np.asarray(samples.vertices), np.asarray(samples.faces), depth

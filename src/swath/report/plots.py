@@ -137,6 +137,96 @@ def cluster_decimate(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
     return v_new[used], remap[f], val_new[used]
 
 
+#: Faces of a part display mesh per ``area / edge²`` (longest-edge bisection of a regular mesh gives
+#: triangles of about a quarter of the squared edge limit): the first display edge tried for a budget.
+_FACES_PER_EDGE2 = 4.0
+
+
+def part_display_mesh(part, *, max_faces: int, min_edge: float = 0.0) -> tuple[np.ndarray, np.ndarray, float]:
+    """The part's own connected triangulation at about the finest resolution ``max_faces`` allows.
+
+    The part's faces are split (:func:`swath.surface.subdivide.split_long_edges`, conforming, so
+    neighbouring faces keep sharing their edges) until no edge is longer than an edge limit of at
+    least ``min_edge`` chosen for the budget; when the part alone, or its subdivision after a few
+    coarser tries, has more than ``max_faces`` faces, it is coarsened by :func:`cluster_decimate`.
+
+    Parameters
+    ----------
+    part : Surface
+        The part.
+    max_faces : int
+        Face budget (>= 1).
+    min_edge : float
+        Finest edge limit worth drawing, m (e.g. the removal-sample spacing).
+
+    Returns
+    -------
+    vertices : (n, 3) float
+        m, part frame.
+    faces : (m, 3) int
+        Triangles, wound as the part's.
+    edge : float
+        The display resolution, m: the edge limit used, or the clustering's typical edge.
+    """
+    from ..surface.geometry import face_normals_and_areas, vertex_areas
+    from ..surface.subdivide import split_long_edges
+
+    if max_faces < 1:
+        raise InputError(f"max_faces must be at least 1, got {max_faces}")
+    vertices, faces = np.asarray(part.vertices, float), np.asarray(part.faces, np.int64)
+    area = float(np.sum(face_normals_and_areas(vertices, faces)[1]))
+    budget_edge = float(np.sqrt(_FACES_PER_EDGE2 * area / max_faces))
+    if len(faces) <= max_faces:
+        edge = max(float(min_edge), budget_edge)
+        for _ in range(4):
+            v, f = split_long_edges(vertices, faces, edge)
+            if len(f) <= max_faces:
+                return v, f, edge
+            # meshes of slivers gain faces about as 1 / edge, regular ones as 1 / edge²
+            edge *= 1.05 * (len(f) / max_faces) ** 0.75
+        vertices, faces = v, f
+    weights = vertex_areas(len(vertices), faces, face_normals_and_areas(vertices, faces)[1])
+    v, f, _ = cluster_decimate(vertices, faces, np.zeros(len(vertices)), weights, max_faces=max_faces)
+    return v, f, max(float(np.sqrt(_FACES_PER_EDGE2 * area / max(len(f), 1))), budget_edge)
+
+
+def depth_mesh(removal, *, max_faces: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A connected mesh of at most ``max_faces`` faces to draw the removal depth on, with the depth
+    at each vertex.
+
+    Removal on lattice samples (:class:`swath.simulate.samples.RemovalSamples`) is drawn on the
+    part's own triangulation (:func:`part_display_mesh`, no finer than the sample spacing), each
+    vertex carrying the area- and distance-weighted mean depth of the samples around it
+    (:meth:`~swath.simulate.samples.RemovalSamples.depth_at`, over a quarter of a display edge and at least
+    1.5 sample spacings): every face of the part is drawn and neighbouring faces join.  Removal on a
+    subdivided surface is drawn on that surface, coarsened by :func:`cluster_decimate` over the budget.
+
+    Parameters
+    ----------
+    removal : RemovalMap
+        Samples and removal depth per sample, m.
+    max_faces : int
+        Face budget.
+
+    Returns
+    -------
+    vertices : (n, 3) float
+        m, part frame.
+    faces : (m, 3) int
+    depth : (n,) float
+        Removal depth at each vertex, m.
+    """
+    from ..surface.geometry import face_normals_and_areas, vertex_normals
+
+    samples = removal.surface
+    depth = np.nan_to_num(_check_removal(removal))
+    if not hasattr(samples, "depth_at"):
+        return cluster_decimate(samples.vertices, samples.faces, depth, samples.vertex_areas, max_faces=max_faces)
+    vertices, faces, edge = part_display_mesh(samples.part, max_faces=max_faces, min_edge=samples.spacing)
+    normals = vertex_normals(len(vertices), faces, *face_normals_and_areas(vertices, faces))
+    return vertices, faces, samples.depth_at(vertices, depth, normals=normals, radius=0.25 * edge)
+
+
 def covered_mask(removal, *, min_depth: float | None = None) -> np.ndarray:
     """(n,) bool: samples of ``removal.surface`` with removal depth above ``min_depth`` (m).
 
@@ -177,7 +267,7 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
     toolpath : ToolPath, optional
         Passes to draw on top, coloured by processing order.
     max_faces : int
-        Larger sampled surfaces are coarsened by vertex clustering before drawing.
+        Faces drawn at most (see :func:`depth_mesh`).
 
     Returns
     -------
@@ -188,10 +278,8 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
     from matplotlib.tri import Triangulation
 
     surf = removal.surface
-    depth = _check_removal(removal)
-    frame = view_frame(surf)
-    verts, faces, d = cluster_decimate(surf.vertices, surf.faces, np.nan_to_num(depth), surf.vertex_areas,
-                                       max_faces=max_faces)
+    frame = view_frame(getattr(surf, "part", surf))
+    verts, faces, d = depth_mesh(removal, max_faces=max_faces)
     uvw = frame.project(verts)
     # Painter's order: faces nearer the viewer (+w) drawn last, so overlapping sheets look right.
     faces = faces[np.argsort(uvw[faces, 2].mean(axis=1), kind="stable")]

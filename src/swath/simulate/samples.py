@@ -1,7 +1,7 @@
 """Removal samples: points, normals and areas that cover a part at a given spacing in both directions.
 
 The removal simulation needs only sample points on the part, their normals and the area each
-stands for (and, for the report, a triangulation to draw the depth on).  A conforming subdivision
+stands for (and, for the report, the depth anywhere on the part: :meth:`RemovalSamples.depth_at`).  A conforming subdivision
 (:meth:`swath.surface.Surface.subdivided`) gives these, but it must put points along every edge of
 a long sliver triangle, so a CAD mesh of slivers narrower than the spacing gets several times the
 samples its area needs, and building a whole :class:`~swath.surface.Surface` of millions of
@@ -23,6 +23,11 @@ Normals are the part's smooth vertex normals (:attr:`Surface.normals`) interpola
 each triangle and normalised, so nothing is smoothed again on the samples.  The sample count is
 known before any sample is made (:func:`count_removal_samples`), so a too-fine request is widened
 before memory is spent.
+
+The samples of neighbouring triangles are not joined into one mesh, so the report draws the depth
+on the part's own (subdivided) triangulation instead: :meth:`RemovalSamples.depth_at` reads it at
+any point as the mean of the samples around it (:func:`interpolate_depth`: weighted by area and a
+tent of the distance, across faces and slivers alike, the far side of a thin part left out).
 """
 
 from __future__ import annotations
@@ -157,9 +162,10 @@ class RemovalSamples:
     face_of : (n,) int
         The part face each sample lies on (for a corner sample, one of its faces).
     faces : (k, 3) int
-        Triangles over the samples for drawing: the corner-sampled faces, and within each larger
-        face the cells of neighbouring columns joined; not conforming between lattice faces (gaps
-        up to a spacing), and a face with a single row of samples (a sliver) has none.
+        Triangles over the samples: the corner-sampled faces, and within each larger face the
+        cells of neighbouring columns joined; not conforming between lattice faces (gaps up to a
+        spacing), and a face with a single row of samples (a sliver) has none.  The report does not
+        draw these: it draws the part's own mesh with :meth:`depth_at`.
     part : Surface
         The sampled part.
     spacing : float
@@ -226,6 +232,103 @@ class RemovalSamples:
     def principal_axes(self):
         """The part's principal axes (:attr:`Surface.principal_axes`)."""
         return self.part.principal_axes
+
+    def depth_at(self, points, depth, *, normals=None, radius: float | None = None) -> np.ndarray:
+        """Removal depth at ``points`` interpolated from the samples' ``depth`` (see :func:`interpolate_depth`).
+
+        Parameters
+        ----------
+        points : (p, 3) float
+            Where to read the depth, m, part frame (on or near the part).
+        depth : (n,) float
+            Depth at each sample, m.
+        normals : (p, 3) float, optional
+            Unit surface normals at ``points``: samples facing away (the other side of a thin part)
+            are not used.
+        radius : float, optional
+            Support of the weights, m (default and least ``DEPTH_RADIUS · spacing``).
+
+        Returns
+        -------
+        (p,) float
+            Depth, m.
+        """
+        return interpolate_depth(self.vertices, self.normals, self.vertex_areas, depth, points,
+                                 normals=normals, radius=max(DEPTH_RADIUS * self.spacing, radius or 0.0),
+                                 tree=self.kdtree)
+
+
+#: Radius of the depth interpolation (:meth:`RemovalSamples.depth_at`) in sample spacings: every point
+#: of the part is within about ``0.75 · spacing`` of a sample, so a radius of 1.5 spacings holds the
+#: nearest 5-10 samples around any point.
+DEPTH_RADIUS = 1.5
+#: Neighbours read at most per point by :func:`interpolate_depth`.
+DEPTH_NEIGHBOURS = 48
+
+
+def interpolate_depth(sample_points, sample_normals, sample_areas, depth, points, *, normals=None,
+                      radius: float, tree=None) -> np.ndarray:
+    """Depth at ``points``: the mean of the samples within ``radius``, weighted by their area and a
+    tent ``1 − d / radius`` of their distance ``d``.
+
+    Samples across faces, columns and slivers all count, so neighbouring points get neighbouring
+    values wherever they are on the part; with ``normals``, only samples facing the same side
+    (normals at less than about 70°) count, so the two skins of a thin part do not mix.  A point
+    with no such sample within ``radius`` takes the depth of its nearest sample.
+
+    Parameters
+    ----------
+    sample_points, sample_normals : (n, 3) float
+        The samples (m) and their unit normals.
+    sample_areas : (n,) float
+        Area each sample stands for, m².
+    depth : (n,) float
+        Depth at each sample, m.
+    points : (p, 3) float
+        Where to read the depth, m.
+    normals : (p, 3) float, optional
+        Unit normals at ``points``.
+    radius : float
+        Support of the tent, m (> 0).
+    tree : scipy.spatial.cKDTree, optional
+        KD-tree of ``sample_points``.
+
+    Returns
+    -------
+    (p,) float
+        Depth, m.
+    """
+    from scipy.spatial import cKDTree
+
+    points = np.asarray(points, float).reshape(-1, 3)
+    depth = np.asarray(depth, float)
+    if depth.shape != (len(sample_points),):
+        raise InputError(f"depth must have one value per sample, shape ({len(sample_points)},), got {depth.shape}")
+    if not (np.isfinite(radius) and radius > 0):
+        raise InputError(f"interpolation radius must be a positive length in m, got {radius!r}")
+    out = np.zeros(len(points))
+    if len(points) == 0 or len(sample_points) == 0:
+        return out
+    tree = cKDTree(sample_points) if tree is None else tree
+    k = int(min(DEPTH_NEIGHBOURS, len(sample_points)))
+    step = max(1, 2_000_000 // k)                                # bounded memory: (step, k) blocks
+    for lo in range(0, len(points), step):
+        sl = slice(lo, lo + step)
+        dist, idx = tree.query(points[sl], k=k, distance_upper_bound=radius)
+        dist, idx = dist.reshape(len(dist), -1), idx.reshape(len(idx), -1)
+        found = idx < len(sample_points)
+        safe = np.where(found, idx, 0)
+        w = np.where(found, np.asarray(sample_areas)[safe] * np.clip(1.0 - dist / radius, 0.0, 1.0), 0.0)
+        if normals is not None:
+            facing = np.einsum("pkc,pc->pk", np.asarray(sample_normals)[safe], np.asarray(normals, float)[sl])
+            w = np.where(facing > 0.35, w, 0.0)
+        wsum = w.sum(axis=1)
+        block = np.einsum("pk,pk->p", w, depth[safe]) / np.maximum(wsum, 1e-300)
+        lonely = wsum <= 0
+        if lonely.any():
+            block[lonely] = depth[tree.query(points[sl][lonely])[1]]
+        out[sl] = block
+    return out
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
