@@ -139,6 +139,17 @@ class _Context:
         off = np.einsum("ij,ij->i", points - self.work.vertices[idx], n)
         return points - off[:, None] * n, n
 
+    def warm(self) -> None:
+        """Load the compiled kernels every candidate direction calls (pad touch test, widths across a
+        direction, vertex gradient directions) now, from numba's cache, with the argument types the
+        planner passes them.  Worker processes forked afterwards inherit them loaded, instead of each
+        loading them again on its first candidate (about 0.06 s of CPU per worker).  No state of the
+        context changes."""
+        first = np.zeros(1, np.int64)
+        self.touched_at(self.work.vertices[:1])
+        self.widths.across(first, np.asarray(self.widths.curvature.d1[:1], float))
+        self.gradient_directions(np.zeros(len(self.work.vertices)), first)
+
     def touched(self, pts: np.ndarray) -> np.ndarray:
         """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``,
         at poses at most R/8 apart (see :meth:`touched_at`)."""
