@@ -20,13 +20,13 @@ import sys
 from swath.cli.job import cycle_time_cost
 from swath.contact import Tool
 from swath.contact.kernels import _touched
-from swath.contact.widths import _widths_across_kernel
+from swath.contact.widths import _widths_across_near
 from swath.examples import doubly_curved_panel
 from swath.plan.uniform import _warm_before_fork
 from swath.plan.uniform_model import _Context, _gradient_vertex_sums
 from swath.trajectory import FeedLimit, LinkSettings
 
-kernels = (_touched, _widths_across_kernel, _gradient_vertex_sums)
+kernels = (_touched, _widths_across_near, _gradient_vertex_sums)
 ctx = _Context(doubly_curved_panel(size_x=0.2, size_y=0.15, spacing=8e-3), Tool(), Tool().pad_radius / 4)
 before = [len(k.signatures) for k in kernels], "toppra" in sys.modules
 _warm_before_fork(ctx, cycle_time_cost([FeedLimit(0.05)], LinkSettings()))
