@@ -211,17 +211,11 @@ def widths_across(patch: LocalPatch, rows: np.ndarray, psi: np.ndarray) -> np.nd
     spacing = _even_ray_spacing(phi)
     if spacing is None:
         return _widths_across_kernel(rows, psi, phi, rho_in, rho_out)
-    valid = rho_out > rho_in
-    # Rows whose rays all start at or beyond the centre (rho_in >= 0 where the ray has contact):
-    # there the bounds of _widths_across_near hold.  Other rows take the full loop.
-    row_ok = np.all(~valid | (rho_in >= 0.0), axis=1)
-    row_max = np.where(valid, rho_out, -np.inf).max(axis=1)
     offsets = np.arange(len(phi) // 2 + 1)
     # cos of the least angle between a query and a ray k rays from the nearest one, with margins
     # far above the rounding of the angles and of cos (see _widths_across_near)
     ray_bound = np.cos(np.maximum((offsets - 0.5) * spacing - 1e-9, 0.0)) + 1e-12
-    return _widths_across_near(rows, psi, phi, rho_in, rho_out, float(phi[0]), spacing, row_max, row_ok,
-                               ray_bound)
+    return _widths_across_near(rows, psi, phi, rho_in, rho_out, float(phi[0]), spacing, ray_bound)
 
 
 def _even_ray_spacing(phi: np.ndarray) -> float | None:
@@ -267,19 +261,19 @@ def _widths_across_kernel(rows, psi, phi, rho_in, rho_out):   # pragma: no cover
 
 
 @jit()
-def _widths_across_near(rows, psi, phi, rho_in, rho_out, phi0, spacing, row_max, row_ok,
-                        ray_bound):   # pragma: no cover - compiled
+def _widths_across_near(rows, psi, phi, rho_in, rho_out, phi0, spacing, ray_bound):   # pragma: no cover - compiled
     """:func:`_widths_across_kernel` visiting, per query, only the rays that can hold its extremes.
 
-    With ``0 <= rho_in < rho_out`` on every ray with contact (``row_ok``), a ray's far end
-    ``a = rho_out cos`` (cos >= 0; ``rho_in cos <= 0`` behind) is at most ``M max(cos, 0)``, ``M``
-    the row's longest ray (``row_max``), and its near end ``b`` is at least ``-M max(-cos, 0)``.
+    With ``0 <= rho_in < rho_out`` on every ray with contact (checked per query, a pass over the
+    row without any cos), a ray's far end ``a = rho_out cos`` (cos >= 0; ``rho_in cos <= 0``
+    behind) is at most ``M max(cos, 0)``, ``M`` the row's longest ray, and its near end ``b`` is at
+    least ``-M max(-cos, 0)``.
     The maximum of ``a`` is searched outward from the ray nearest ``psi``, that of ``-b`` from the
     ray nearest ``psi + pi``; the rays ``k`` or more away are at least ``(k - 1/2)`` ray spacings
     off, so their cos is below ``ray_bound[k]`` and the search stops once ``M ray_bound[k]`` is
     below the extreme found (rounding is monotone, so the rays skipped cannot reach it).  The
     extremes are the same products as in the full loop, so the widths are the same bit for bit.
-    A non-finite ``psi`` or a row outside ``row_ok`` takes the full loop.
+    A non-finite ``psi`` or a row with a ray through the centre (``rho_in < 0``) takes the full loop.
     """
     n = len(phi)
     half = len(ray_bound)
@@ -287,10 +281,17 @@ def _widths_across_near(rows, psi, phi, rho_in, rho_out, phi0, spacing, row_max,
     for i in range(len(rows)):
         r = rows[i]
         p = psi[i]
-        if not (row_ok[r] and np.isfinite(p)):
+        m = -np.inf
+        row_ok = True
+        for j in range(n):
+            if rho_out[r, j] > rho_in[r, j]:
+                if rho_in[r, j] < 0.0:
+                    row_ok = False
+                if rho_out[r, j] > m:
+                    m = rho_out[r, j]
+        if not (row_ok and np.isfinite(p)):
             out[i] = _width_all_rays(r, p, phi, rho_in, rho_out)
             continue
-        m = row_max[r]
         hi = -np.inf
         j0 = int(np.floor((p - phi0) / spacing + 0.5))
         for k in range(half):
