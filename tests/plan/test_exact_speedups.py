@@ -188,3 +188,20 @@ def test_widths_near_the_query_on_the_working_mesh_of_a_real_part(context, rng):
     cross = np.cross(n, t / np.linalg.norm(t, axis=1, keepdims=True))
     psi = np.arctan2(np.einsum("ij,ij->i", cross, model.curvature.d2), np.einsum("ij,ij->i", cross, model.curvature.d1))
     np.testing.assert_array_equal(model.across(idx, feed), _all_rays(model.patch, model.inverse[idx], psi))
+
+
+def _numpy_frontier(faces, covered):
+    c = covered[faces]
+    mixed = c.any(axis=1) & ~c.all(axis=1)
+    return np.unique(faces[mixed][c[mixed]])
+
+
+def test_compiled_frontier_is_the_numpy_one(context, rng):
+    W = context.work
+    d = np.linalg.norm(W.vertices - W.vertices[0], axis=1)
+    for covered in (d < 0.3 * d.max(), rng.random(len(d)) < 0.5, np.zeros(len(d), bool), np.ones(len(d), bool)):
+        got = context.frontier(covered)
+        expected = _numpy_frontier(np.asarray(W.faces), covered)
+        np.testing.assert_array_equal(got, expected)
+        assert got.dtype == expected.dtype
+    assert 0 < len(context.frontier(d < 0.3 * d.max())) < len(d)
