@@ -26,23 +26,46 @@ Wall times suffer from other load on the machine; CPU times (``*_cpu_s``: the pa
 its finished worker processes) less, and the ``*_cpu`` ratios are the ones to compare when the
 load average is above the CPU count.
 
-Last run (2 CPUs, quiet machine: load average 0.01 before, 1.3 after; default workers = 2),
-raster plan CPU at 18k/80k/500k faces 0.49/0.61/1.79 s = 2.1x/0.9x/0.4x noether's published
-0.23/0.67/4.5 s (0.45 s = 1.96x on an earlier, loaded run: 18k sits at the 2x line); ratio to
-trimesh's own multiplane slicing 111/47/12 (CPU), slicing alone 4.0/5.2/3.9x trimesh.
-Uniform/raster end to end, CPU (wall): noether_wavy_mesh_with_hole 3.95 (2.54), bezier_dac_cad 4.85
-(3.15), snp_part_scan 6.09 (4.02), crs_part_5 5.60 (3.76), bezier_complex_shape 7.53 (4.86),
-noether_raw_mesh 9.83 (6.55), bezier_dac_scan 7.62 (5.33); panels 12.6/12.8/7.4 (8.3/8.6/6.8).
-Uniform end to end, CPU s, the code before this change run right after on the same quiet machine
--> now: wavy 2.57 -> 1.79, bezier_dac_cad 4.66 -> 2.84, snp 8.31 -> 5.70, crs_part_5 72.7 -> 42.6,
-bezier_complex_shape 18.0 -> 11.0, noether_raw_mesh 32.7 -> 19.3, bezier_dac_scan 25.2 -> 16.8,
-panel_18k 32.9 -> 21.6 (its uniform/raster CPU ratios then: 5.5, 7.4, 5.5, 8.2, 11.4, 15.2, 9.3).
-The uniform planner's own serial time (workers=1, the job's cycle-time cost) against the code
-before this change, same quiet machine minutes apart: snp 8.0 -> 5.4 s, bezier_complex_shape
-17.2 -> 10.6 s, noether_raw_mesh 37.5 -> 18.7 s CPU, with the same plans (pass count, contact
-length and all six candidate costs equal to the last digit).  What is left is mostly the heat
-method: on snp 2.1 s of solves and 0.7 s of factorisation of the 5.4 s; on the 18k panel 19 s of
-24 s (loaded machine); the plans depend on its distances, so a cheaper distance would change them.
+Last run (commit f5104cc, 2 CPUs, loaded machine: load average 7.9 before, 6.9 after, from other
+jobs; default workers = 2).  CPU times inflate under such load (the previous session's quiet-machine
+figures, e.g. uniform e2e crs_part_5 42.6 s, are below this run's 49.3 s for code that is faster),
+so compare ratios, and speed-ups only between runs minutes apart.
+
+| part | raster CPU s | x noether | ratio_cpu to trimesh | slice / trimesh | uniform/raster e2e CPU (wall) |
+|---|---|---|---|---|---|
+| panel_18k | 0.48 | 2.1 (0.23 s) | 100 | 3.8 | 14.2 (13.0) |
+| panel_80k | 0.56 | 0.84 (0.67 s) | 37 | 5.1 | 12.9 (9.3) |
+| panel_500k | 2.11 | 0.47 (4.5 s) | 19 | 6.6 | 6.8 (5.5) |
+| snp_part_scan | 0.39 | | 124 | 2.7 | 5.24 (4.32) |
+| noether_raw_mesh | 0.94 | | 43 | 2.8 | 9.40 (5.03) |
+| bezier_dac_cad | 0.18 | | 132 | 3.1 | 4.38 (4.32) |
+| bezier_dac_scan | 1.17 | | 23 | 2.8 | 7.78 (7.82) |
+| noether_wavy_mesh_with_hole | 0.11 | | 97 | 2.8 | 3.54 (3.52) |
+| bezier_complex_shape | 0.61 | | 197 | 1.8 | 7.66 (7.55) |
+| crs_part_5 | 3.20 | | 412 | 1.7 | 5.87 (5.81) |
+
+The 18k panel stays at the 2x line: 0.48 s here; in a process of its own on the same loaded machine
+0.43 s for the first plan after the warm-up and 0.37 s for a second one on a fresh copy of the panel
+(nothing memoised; the difference is not in imports or compiled kernels).  Uniform meets 3x raster
+on no mesh.
+
+Uniform, serial (workers=1, the job's cycle-time cost, toppra imported beforehand), the code before
+this session (9e5d4f4) against now, minutes apart: snp_part_scan 5.93 -> 5.50 s CPU, noether_raw_mesh
+21.59 -> 19.71 s CPU, noether_wavy 2.01 -> 1.88 s; the same plans (pass count, contact length to
+1e-12 and all six candidate costs equal).  From: the contact widths visiting only the rays that can
+hold a query's extremes (widths_across, 2.0 -> 0.5 s on noether), the frontier in one compiled pass,
+and, with workers, the kernels and the cost's imports (toppra, ~0.3 s CPU) loaded once before the
+fork instead of once per worker.
+
+Where uniform's time goes (serial cProfile, this code): snp_part_scan 79 heat-method solves
+(generations + 1 per candidate) 2.9 s and the solver's set-up 0.6 s of 8.4 s wall; the cycle-time
+cost 2.5 s (toppra link timing 1.6 s); noether_raw_mesh 142 solves and a 3.8 s set-up; on
+bezier_dac_scan the cost's link routing (order.routing._clear -> Surface.closest_points, 2076 calls,
+2.4 s) and the width model's contact patches (contact.model.local_patch, 3.4 s of the 4.6 s set-up).
+The heat solver is built once per working mesh, in the parent before the workers fork (they inherit
+the factorisation); potpourri3d holds the GIL while it factorises and solves one source set per
+call, and each generation's sources are the previous generation's coverage frontier, so the solves
+of a candidate cannot be batched; a different solver would change the distances and the plans.
 """
 
 from __future__ import annotations

@@ -113,3 +113,95 @@ def test_a_negative_reach_computes_every_band_width(context):
     band = np.flatnonzero((d > 0) & (d <= 0.1))
     np.testing.assert_array_equal(_band_widths(context, d, band, -0.1),
                                   _band_widths(context, d, band, -0.1, everywhere=True))
+
+
+def _all_rays(patch, rows, psi):
+    from swath.contact.widths import _widths_across_kernel
+
+    rows = np.ascontiguousarray(rows, np.int64)
+    psi = np.ascontiguousarray(np.broadcast_to(np.asarray(psi, float), rows.shape))
+    return _widths_across_kernel(rows, psi, np.ascontiguousarray(patch.phi, float),
+                                 np.ascontiguousarray(patch.rho_in, float), np.ascontiguousarray(patch.rho_out, float))
+
+
+def _query_angles(patch, rng, n):
+    """Random angles, the rays' own angles, the half-way angles between rays and the ends of the range."""
+    phi = np.asarray(patch.phi, float)
+    half_way = phi + 0.5 * (phi[1] - phi[0])
+    special = np.concatenate([phi, half_way, phi - np.pi, half_way - np.pi, [-np.pi, np.pi, 0.0, np.nextafter(0, 1)]])
+    return np.concatenate([rng.uniform(-np.pi, np.pi, n), special])
+
+
+def test_widths_from_the_rays_near_the_query_are_those_of_every_ray(rng):
+    from swath.contact import local_patch
+    from swath.contact.widths import widths_across
+
+    k1 = np.concatenate([rng.uniform(-60.0, 60.0, 400), [0.0, 40.0, -40.0]])
+    k2 = np.concatenate([rng.uniform(-60.0, 60.0, 400), [0.0, -40.0, -40.0]])
+    patch = local_patch(np.maximum(k1, k2), np.minimum(k1, k2), TOOL)
+    psi = _query_angles(patch, rng, 20_000)
+    rows = rng.integers(0, len(k1), len(psi))
+    got = widths_across(patch, rows, psi)
+    np.testing.assert_array_equal(got, _all_rays(patch, rows, psi))
+    assert np.all(got > 0)
+
+
+def test_widths_from_the_rays_near_the_query_on_patches_with_gaps_and_odd_rays(rng):
+    from swath.contact.model import LocalPatch
+    from swath.contact.widths import widths_across
+
+    for n_rays in (7, 180, 181):
+        phi = (np.arange(n_rays) + 0.5) * 2 * np.pi / n_rays
+        n = 60
+        rho_out = 0.02 * (1 + 0.5 * rng.random((n, n_rays)))            # uneven patches
+        rho_in = np.where(rng.random((n, n_rays)) < 0.3, 0.005 * rng.random((n, n_rays)), 0.0)
+        rho_out[rng.random((n, n_rays)) < 0.2] = 0.0                    # rays without contact
+        rho_out[0] = 0.0                                                # a row without any contact
+        rho_out[1, : n_rays // 2] = 0.0                                 # contact on one side only
+        rho_in[2, 0] = -0.004                                           # a ray through the centre: full loop
+        rho_out[3, 1] = np.nan                                          # NaN ray
+        patch = LocalPatch(np.zeros(n), phi, rho_in, rho_out)
+        psi = np.concatenate([_query_angles(patch, rng, 5000), [np.nan]])
+        rows = np.concatenate([rng.integers(0, n, len(psi) - 4), [0, 1, 2, 3]])
+        np.testing.assert_array_equal(widths_across(patch, rows, psi), _all_rays(patch, rows, psi))
+
+
+def test_widths_on_unevenly_spaced_rays_take_every_ray(rng):
+    from swath.contact.model import LocalPatch
+    from swath.contact.widths import _even_ray_spacing, widths_across
+
+    phi = np.sort(rng.uniform(0, 2 * np.pi, 50))
+    assert _even_ray_spacing(phi) is None
+    assert _even_ray_spacing((np.arange(180) + 0.5) * 2 * np.pi / 180) == pytest.approx(2 * np.pi / 180)
+    patch = LocalPatch(np.zeros(5), phi, np.zeros((5, 50)), 0.02 * (1 + rng.random((5, 50))))
+    rows, psi = rng.integers(0, 5, 300), rng.uniform(-np.pi, np.pi, 300)
+    np.testing.assert_array_equal(widths_across(patch, rows, psi), _all_rays(patch, rows, psi))
+
+
+def test_widths_near_the_query_on_the_working_mesh_of_a_real_part(context, rng):
+    # every vertex of the working mesh, across its gradient direction and across random ones
+    W, model = context.work, context.widths
+    idx = np.arange(len(W.vertices))
+    feed = np.cross(W.normals, rng.normal(size=(len(idx), 3)))
+    n = W.normals
+    t = feed - np.einsum("ij,ij->i", feed, n)[:, None] * n
+    cross = np.cross(n, t / np.linalg.norm(t, axis=1, keepdims=True))
+    psi = np.arctan2(np.einsum("ij,ij->i", cross, model.curvature.d2), np.einsum("ij,ij->i", cross, model.curvature.d1))
+    np.testing.assert_array_equal(model.across(idx, feed), _all_rays(model.patch, model.inverse[idx], psi))
+
+
+def _numpy_frontier(faces, covered):
+    c = covered[faces]
+    mixed = c.any(axis=1) & ~c.all(axis=1)
+    return np.unique(faces[mixed][c[mixed]])
+
+
+def test_compiled_frontier_is_the_numpy_one(context, rng):
+    W = context.work
+    d = np.linalg.norm(W.vertices - W.vertices[0], axis=1)
+    for covered in (d < 0.3 * d.max(), rng.random(len(d)) < 0.5, np.zeros(len(d), bool), np.ones(len(d), bool)):
+        got = context.frontier(covered)
+        expected = _numpy_frontier(np.asarray(W.faces), covered)
+        np.testing.assert_array_equal(got, expected)
+        assert got.dtype == expected.dtype
+    assert 0 < len(context.frontier(d < 0.3 * d.max())) < len(d)

@@ -196,36 +196,126 @@ def widths_across(patch: LocalPatch, rows: np.ndarray, psi: np.ndarray) -> np.nd
     The same arithmetic as :meth:`LocalPatch.width_across` (the same projections, maxima and
     minima, element by element, so the same numbers), compiled in one loop over the rays instead of
     the ``(k, rays)`` temporaries and the row gather of the NumPy form.
+
+    Where the rays are evenly spaced round the circle (as :func:`swath.contact.local_patch` lays
+    them), each query visits only the rays that can hold its extremes (:func:`_widths_across_near`):
+    the same maxima and minima of the same products, so the same widths bit for bit.
     """
     rows = np.ascontiguousarray(rows, np.int64)
     psi = np.ascontiguousarray(np.broadcast_to(np.asarray(psi, float), rows.shape))
     if len(rows) == 0:
         return np.zeros(0)
-    return _widths_across_kernel(rows, psi, np.ascontiguousarray(patch.phi, float),
-                                 np.ascontiguousarray(patch.rho_in, float),
-                                 np.ascontiguousarray(patch.rho_out, float))
+    phi = np.ascontiguousarray(patch.phi, float)
+    rho_in = np.ascontiguousarray(patch.rho_in, float)
+    rho_out = np.ascontiguousarray(patch.rho_out, float)
+    spacing = _even_ray_spacing(phi)
+    if spacing is None:
+        return _widths_across_kernel(rows, psi, phi, rho_in, rho_out)
+    offsets = np.arange(len(phi) // 2 + 1)
+    # cos of the least angle between a query and a ray k rays from the nearest one, with margins
+    # far above the rounding of the angles and of cos (see _widths_across_near)
+    ray_bound = np.cos(np.maximum((offsets - 0.5) * spacing - 1e-9, 0.0)) + 1e-12
+    return _widths_across_near(rows, psi, phi, rho_in, rho_out, float(phi[0]), spacing, ray_bound)
+
+
+def _even_ray_spacing(phi: np.ndarray) -> float | None:
+    """The angle between neighbouring rays, rad, when ``phi`` ``(n,)`` is ``n`` evenly spaced
+    increasing angles round the whole circle (to 1e-12 rad); otherwise None."""
+    n = len(phi)
+    if n < 4 or not np.isfinite(phi).all():
+        return None
+    spacing = 2.0 * np.pi / n
+    expected = phi[0] + spacing * np.arange(n)
+    if float(np.max(np.abs(phi - expected))) > 1e-12:
+        return None
+    return float(spacing)
+
+
+@jit()
+def _width_all_rays(r, p, phi, rho_in, rho_out):   # pragma: no cover - compiled
+    """Width of patch row ``r`` across angle ``p``, every ray visited (the kernel's inner loop)."""
+    hi = -np.inf
+    lo = np.inf
+    for j in range(len(phi)):
+        if rho_out[r, j] > rho_in[r, j]:
+            proj = np.cos(phi[j] - p)
+            if proj >= 0:
+                a = rho_out[r, j] * proj
+                b = rho_in[r, j] * proj
+            else:
+                a = rho_in[r, j] * proj
+                b = rho_out[r, j] * proj
+            if a > hi:
+                hi = a
+            if b < lo:
+                lo = b
+    return hi - lo if (np.isfinite(hi) and np.isfinite(lo)) else 0.0
 
 
 @jit()
 def _widths_across_kernel(rows, psi, phi, rho_in, rho_out):   # pragma: no cover - compiled
     out = np.empty(len(rows))
     for i in range(len(rows)):
+        out[i] = _width_all_rays(rows[i], psi[i], phi, rho_in, rho_out)
+    return out
+
+
+@jit()
+def _widths_across_near(rows, psi, phi, rho_in, rho_out, phi0, spacing, ray_bound):   # pragma: no cover - compiled
+    """:func:`_widths_across_kernel` visiting, per query, only the rays that can hold its extremes.
+
+    With ``0 <= rho_in < rho_out`` on every ray with contact (checked per query, a pass over the
+    row without any cos), a ray's far end ``a = rho_out cos`` (cos >= 0; ``rho_in cos <= 0``
+    behind) is at most ``M max(cos, 0)``, ``M`` the row's longest ray, and its near end ``b`` is at
+    least ``-M max(-cos, 0)``.
+    The maximum of ``a`` is searched outward from the ray nearest ``psi``, that of ``-b`` from the
+    ray nearest ``psi + pi``; the rays ``k`` or more away are at least ``(k - 1/2)`` ray spacings
+    off, so their cos is below ``ray_bound[k]`` and the search stops once ``M ray_bound[k]`` is
+    below the extreme found (rounding is monotone, so the rays skipped cannot reach it).  The
+    extremes are the same products as in the full loop, so the widths are the same bit for bit.
+    A non-finite ``psi`` or a row with a ray through the centre (``rho_in < 0``) takes the full loop.
+    """
+    n = len(phi)
+    half = len(ray_bound)
+    out = np.empty(len(rows))
+    for i in range(len(rows)):
         r = rows[i]
-        hi = -np.inf
-        lo = np.inf
-        for j in range(len(phi)):
+        p = psi[i]
+        m = -np.inf
+        row_ok = True
+        for j in range(n):
             if rho_out[r, j] > rho_in[r, j]:
-                proj = np.cos(phi[j] - psi[i])
-                if proj >= 0:
-                    a = rho_out[r, j] * proj
-                    b = rho_in[r, j] * proj
-                else:
-                    a = rho_in[r, j] * proj
-                    b = rho_out[r, j] * proj
-                if a > hi:
-                    hi = a
-                if b < lo:
-                    lo = b
+                if rho_in[r, j] < 0.0:
+                    row_ok = False
+                if rho_out[r, j] > m:
+                    m = rho_out[r, j]
+        if not (row_ok and np.isfinite(p)):
+            out[i] = _width_all_rays(r, p, phi, rho_in, rho_out)
+            continue
+        hi = -np.inf
+        j0 = int(np.floor((p - phi0) / spacing + 0.5))
+        for k in range(half):
+            if max(m * ray_bound[k], 0.0) < hi:
+                break
+            for side in range(2):
+                j = ((j0 + k if side == 0 else j0 - k) % n + n) % n
+                if rho_out[r, j] > rho_in[r, j]:
+                    proj = np.cos(phi[j] - p)
+                    a = rho_out[r, j] * proj if proj >= 0 else rho_in[r, j] * proj
+                    if a > hi:
+                        hi = a
+        lo = np.inf
+        j1 = int(np.floor((p + np.pi - phi0) / spacing + 0.5))
+        for k in range(half):
+            if max(m * ray_bound[k], 0.0) < -lo:
+                break
+            for side in range(2):
+                j = ((j1 + k if side == 0 else j1 - k) % n + n) % n
+                if rho_out[r, j] > rho_in[r, j]:
+                    proj = np.cos(phi[j] - p)
+                    b = rho_in[r, j] * proj if proj >= 0 else rho_out[r, j] * proj
+                    if b < lo:
+                        lo = b
         out[i] = hi - lo if (np.isfinite(hi) and np.isfinite(lo)) else 0.0
     return out
 

@@ -115,12 +115,9 @@ class _Context:
 
     def frontier(self, covered: np.ndarray) -> np.ndarray:
         """Covered vertices with an uncovered neighbour: the edge of the covered region."""
-        F = self.work.faces
-        c = covered[F]
-        c0, c1, c2 = c[:, 0], c[:, 1], c[:, 2]
-        mixed = (c0 | c1 | c2) & ~(c0 & c1 & c2)
-        v = F[mixed][c[mixed]]
-        return np.unique(v)
+        flags = np.zeros(len(self.work.vertices), np.bool_)
+        _frontier_flags(np.ascontiguousarray(self.work.faces, np.int64), np.ascontiguousarray(covered, np.bool_), flags)
+        return np.flatnonzero(flags)
 
     def gradient_directions(self, d: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
         """Unit tangent direction of increasing ``d`` ``(n,)`` (m) at each vertex ``(n, 3)``, or at
@@ -138,6 +135,18 @@ class _Context:
         n = self.work.normals[idx]
         off = np.einsum("ij,ij->i", points - self.work.vertices[idx], n)
         return points - off[:, None] * n, n
+
+    def warm(self) -> None:
+        """Load the compiled kernels every candidate direction calls (pad touch test, widths across a
+        direction, vertex gradient directions) now, from numba's cache, with the argument types the
+        planner passes them.  Worker processes forked afterwards inherit them loaded, instead of each
+        loading them again on its first candidate (about 0.06 s of CPU per worker).  No state of the
+        context changes."""
+        first = np.zeros(1, np.int64)
+        self.touched_at(self.work.vertices[:1])
+        self.widths.across(first, np.asarray(self.widths.curvature.d1[:1], float))
+        self.gradient_directions(np.zeros(len(self.work.vertices)), first)
+        self.frontier(np.zeros(len(self.work.vertices), bool))
 
     def touched(self, pts: np.ndarray) -> np.ndarray:
         """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``,
@@ -190,6 +199,23 @@ def _vertex_gradient_directions(gradient: FaceGradient, field: np.ndarray, norma
                                 basis, np.ascontiguousarray(gradient.face_areas, float), rows, k)
     acc -= np.einsum("ij,ij->i", acc, normals)[:, None] * normals
     return normalize(acc)
+
+
+@jit()
+def _frontier_flags(faces, covered, flags):   # pragma: no cover - compiled
+    """Set ``flags[v]`` for each covered corner ``v`` of a face with covered and uncovered corners
+    (:meth:`_Context.frontier` in one pass over the faces, without the ``(m, 3)`` gathers and the sort)."""
+    for f in range(len(faces)):
+        a = covered[faces[f, 0]]
+        b = covered[faces[f, 1]]
+        c = covered[faces[f, 2]]
+        if (a or b or c) and not (a and b and c):
+            if a:
+                flags[faces[f, 0]] = True
+            if b:
+                flags[faces[f, 1]] = True
+            if c:
+                flags[faces[f, 2]] = True
 
 
 @jit()
