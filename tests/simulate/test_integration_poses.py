@@ -54,3 +54,19 @@ def test_slow_stretch_gets_the_preston_depth_at_the_edge_of_the_contact_patch():
     assert rim.sum() > 20
     expected = rate * chord[rim] / slow
     assert np.max(np.abs(removal.depth[rim] / expected - 1)) < 0.03
+
+
+def test_constant_feed_groups_equal_travel_and_a_slow_stretch_equal_time():
+    """1 mm steps at 50 mm/s: groups of three samples (3 mm, 60 ms).  At 5 mm/s (0.1 mm steps) a
+    3 mm group would hold 0.6 s; bounded in time at the fast feed it holds the same 60 ms."""
+    from swath.simulate.removal import _integration_poses
+
+    dt = 0.02
+    trajectory = two_speed_pass(0.005, 0.05, dt=dt)
+    idx, dwell = _integration_poses(trajectory, 3e-3)
+    x = trajectory.position[idx, 0]
+    inner = dwell[1:-1]
+    assert np.allclose(inner, 3 * dt)                          # every group but the ends: 3 samples
+    fast, slow = np.diff(x)[x[1:] > 0.21], np.diff(x)[x[:-1] < 0.19]
+    assert np.allclose(fast, 3e-3, atol=1e-9) and np.allclose(slow, 0.3e-3, atol=1e-9)
+    assert np.isclose(dwell.sum(), trajectory.t[-1])

@@ -462,9 +462,10 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         the target (the target is lowered by the difference): never over-grinding as the simulator
         measures it then costs a little depth.  Measured by ``bench_feed.py`` on an optimised
         (varying) feed: the kernel is within 0.01-0.26 µm of the trajectory integrated at every
-        sample, but :func:`swath.simulate.simulate_removal` groups a fixed count of trajectory
-        samples per integration pose, which at a varying feed lumps 6-17 mm of travel into one pose
-        and moves single samples by up to +27 % of the target; ``simulate=`` corrects for that.
+        sample.  :func:`swath.simulate.simulate_removal` used to lump 6-17 mm of a fast stretch
+        (a fixed count of samples), then 0.6 s of a slow one (a fixed travel), into one pose, and
+        moved single samples by up to +27 % of the target; it now bounds both.  ``simulate=``
+        corrects for what remains.
     trajectory : Trajectory, optional
         ``toolpath`` timed at any feed: the kernel then uses its contact poses (see
         :func:`build_kernel`); recommended on scans.

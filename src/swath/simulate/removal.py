@@ -307,7 +307,7 @@ def _integration_poses(trajectory, max_travel: float) -> tuple[np.ndarray, np.nd
     # Bucket width: a whole number of the typical step, and a half-step offset, so that at a constant
     # feed every group holds the same number of samples (uneven groups alias against the samples).
     typical = float(np.median(advance[inner])) if inner.any() else max_travel
-    width = max(1, int(max_travel / max(typical, 1e-12))) * typical
+    width = max(1, int(max_travel / max(typical, 1e-12) + 1e-9)) * typical     # 3 mm / 1 mm is 3, not 2.999
     bucket = np.floor((travel + 0.5 * typical) / width).astype(np.int64)
     group = np.cumsum(np.concatenate([[True], (run_id[1:] != run_id[:-1]) | (bucket[1:] != bucket[:-1])])) - 1
     sums = np.bincount(group, weights=dwell[idx])
