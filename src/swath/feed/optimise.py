@@ -497,7 +497,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         (kernel / simulated removal there, less ``simulate_margin`` of the target) and the
         programme solved and timed again, at most ``simulate_rounds`` times (logged; figures in
         ``metrics["simulated_rounds"]``).  Caps are only ever tightened, never below what the
-        fastest feed removes.
+        fastest feed removes; when no cap changes the loop stops with a warning (the target is
+        below what the fastest feed the limits allow removes there).
     simulate_rounds : int
         Most simulate / re-solve rounds (default 3).
     simulate_margin : float
@@ -622,8 +623,17 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             excess = max(float(np.max(ratio[counted], initial=1.0)) - 1.0, excess)
             tightened = limit / (1.0 + excess) - simulate_margin * target_s
             tightened[bad] = np.minimum(tightened[bad], limit[bad] / ratio[bad] - simulate_margin * target_s[bad])
-            cap = np.maximum(np.minimum(cap, tightened), np.minimum(fastest, cap))
+            new_cap = np.maximum(np.minimum(cap, tightened), np.minimum(fastest, cap))
             sim_rounds[-1]["held_back_ratio"] = excess
+            if np.array_equal(new_cap, cap):
+                # nothing left to tighten (the samples over are at the fastest feed already): another
+                # round would solve, time and simulate the same programme again
+                log.warning("feed optimisation: %d samples are simulated over the target + tolerance by up to "
+                            "%.3g um and their caps cannot be tightened (the fastest feed the limits allow "
+                            "removes that much); raise the target or the tolerance, or the feed limit", len(bad),
+                            float(over[bad].max()) / _DEPTH_UNIT)
+                break
+            cap = new_cap
             lp_target = np.minimum(target_s, cap)
             t2 = time.perf_counter()
             dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, **solve_kw)
