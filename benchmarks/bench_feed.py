@@ -76,16 +76,21 @@ blade                          3.38    -14.28 / -14.15    0.98 / 0.26        0.2
 snp_part_scan                  1.08    0.23 / 0.22        0.23 / 0.20        0.27 / 0.24
 noether_wavy_mesh_with_hole    1.10    0.17 / 0.20        0.49 / 0.36        0.34 / 0.31
 bezier_dac_scan                2.50    2.22 / 1.71        -0.18 / -0.19      2.48 / 2.67
-crs_part_5                     (not finished in this session)
+crs_part_5                     0.99    -2.55 / -2.55      0.02 / -0.04       -2.98 / -3.19
+noether_raw_mesh               0.41    0.12 / 0.08        0.17 / 0.09        0.13 / 0.09
+bezier_complex_shape           1.14    0.38 / 0.44        0.43 / 0.35        0.40 / 0.29
+bezier_dac_cad                 0.28    0.03 / 0.00        0.16 / 0.07        0.08 / 0.05
 =============================  ======  =================  =================  =================
 
 All within the tolerance as the simulator measures it.  bezier_dac_scan's ripple+feed row is within by
 0.02 µm and its every-sample integration is 0.17 µm over: the remaining grouping error at the fast
-feed (3 mm, 60 ms groups) on samples at the patch edge.  On that scan's optimised trajectory the
-simulator reads 2.45 / 2.40 / 2.15 µm over at ``INTEGRATION_STEP`` 1 / 0.5 / 0.25 (0.25: every sample),
+feed (3 mm, 60 ms groups) on samples at the patch edge.  On that scan's feed row optimised to
+D = 22.11 µm the simulator reads 2.45 / 2.40 / 2.15 µm over at ``INTEGRATION_STEP`` 1 / 0.5 / 0.25 (0.25: every sample),
 18k / 37k / 68k poses, in about the same wall time there.  D rose from the kernel bound on
-bezier_dac_scan (23.42 -> 24.99 µm), plate (2.20 -> 2.28) and panel (2.52 -> 2.53).  The constant-feed
-row's over-removal is negative on every part (at most -0.18 µm).
+bezier_dac_scan (23.42 -> 24.99 µm), crs_part_5 (9.75 -> 9.94), bezier_dac_cad (2.75 -> 2.80), plate
+(2.20 -> 2.28), noether_raw_mesh (4.04 -> 4.06) and panel (2.52 -> 2.53).  Peak memory 1.9 GB
+(crs_part_5).  The constant-feed row's over-removal is negative on every part (at most -0.18 µm).
+The loop's early stop (no cap left to tighten) came after this run: same figures, less ``opt_s``.
 
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [plate panel blade crs_part_5.stl ...]``; the feed
 optimisation's time and peak memory alone: ``... bench_feed.py --solve crs_part_5.stl``.
