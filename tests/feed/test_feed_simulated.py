@@ -79,3 +79,25 @@ def test_simulated_depth_maps_to_the_nearest_kernel_sample(curved):
     np.testing.assert_allclose(_simulated_on_kernel(sim, k.samples), depth + 5e-7)
     same = SimpleNamespace(surface=k.samples, depth=depth)
     assert _simulated_on_kernel(same, k.samples) is depth
+
+
+def test_loop_stops_when_no_cap_can_be_tightened(curved, caplog):
+    """A 'simulator' that reads one sample over the tolerance whatever the feed (as where the limits
+    hold the tool slower than the target allows): the loop stops once its caps stop changing, with
+    a warning, instead of solving the same programme for every remaining round."""
+    surface, tp, k, D, _ = curved
+    tol = 0.1 * D
+    inside = np.flatnonzero(interior_mask(k.samples, TOOL.pad_radius))
+    j = inside[len(inside) // 2]
+
+    def simulate(traj):
+        depth = k.removal(trajectory_node_dwell(traj, k.nodes, tp))
+        depth[j] = D + 2 * tol
+        return SimpleNamespace(surface=k.samples, depth=depth)
+
+    with caplog.at_level("WARNING", logger="swath.feed.optimise"):
+        res = optimise_feed(tp, TOOL, CONS, target=D, tolerance=tol, kernel=k, simulate=simulate, simulate_rounds=5)
+    rounds = res.metrics["simulated_rounds"]
+    assert len(rounds) < 6
+    assert rounds[-1]["samples_over"] == 1
+    assert "cannot be tightened" in caplog.text

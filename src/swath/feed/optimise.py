@@ -462,9 +462,10 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         the target (the target is lowered by the difference): never over-grinding as the simulator
         measures it then costs a little depth.  Measured by ``bench_feed.py`` on an optimised
         (varying) feed: the kernel is within 0.01-0.26 µm of the trajectory integrated at every
-        sample, but :func:`swath.simulate.simulate_removal` groups a fixed count of trajectory
-        samples per integration pose, which at a varying feed lumps 6-17 mm of travel into one pose
-        and moves single samples by up to +27 % of the target; ``simulate=`` corrects for that.
+        sample.  :func:`swath.simulate.simulate_removal` used to lump 6-17 mm of a fast stretch
+        (a fixed count of samples), then 0.6 s of a slow one (a fixed travel), into one pose, and
+        moved single samples by up to +27 % of the target; it now bounds both.  ``simulate=``
+        corrects for what remains.
     trajectory : Trajectory, optional
         ``toolpath`` timed at any feed: the kernel then uses its contact poses (see
         :func:`build_kernel`); recommended on scans.
@@ -496,7 +497,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         (kernel / simulated removal there, less ``simulate_margin`` of the target) and the
         programme solved and timed again, at most ``simulate_rounds`` times (logged; figures in
         ``metrics["simulated_rounds"]``).  Caps are only ever tightened, never below what the
-        fastest feed removes.
+        fastest feed removes; when no cap changes the loop stops with a warning (the target is
+        below what the fastest feed the limits allow removes there).
     simulate_rounds : int
         Most simulate / re-solve rounds (default 3).
     simulate_margin : float
@@ -621,8 +623,17 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             excess = max(float(np.max(ratio[counted], initial=1.0)) - 1.0, excess)
             tightened = limit / (1.0 + excess) - simulate_margin * target_s
             tightened[bad] = np.minimum(tightened[bad], limit[bad] / ratio[bad] - simulate_margin * target_s[bad])
-            cap = np.maximum(np.minimum(cap, tightened), np.minimum(fastest, cap))
+            new_cap = np.maximum(np.minimum(cap, tightened), np.minimum(fastest, cap))
             sim_rounds[-1]["held_back_ratio"] = excess
+            if np.array_equal(new_cap, cap):
+                # nothing left to tighten (the samples over are at the fastest feed already): another
+                # round would solve, time and simulate the same programme again
+                log.warning("feed optimisation: %d samples are simulated over the target + tolerance by up to "
+                            "%.3g um and their caps cannot be tightened (the fastest feed the limits allow "
+                            "removes that much); raise the target or the tolerance, or the feed limit", len(bad),
+                            float(over[bad].max()) / _DEPTH_UNIT)
+                break
+            cap = new_cap
             lp_target = np.minimum(target_s, cap)
             t2 = time.perf_counter()
             dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, **solve_kw)
