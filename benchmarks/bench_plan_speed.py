@@ -26,46 +26,60 @@ Wall times suffer from other load on the machine; CPU times (``*_cpu_s``: the pa
 its finished worker processes) less, and the ``*_cpu`` ratios are the ones to compare when the
 load average is above the CPU count.
 
-Last run (commit f5104cc, 2 CPUs, loaded machine: load average 7.9 before, 6.9 after, from other
-jobs; default workers = 2).  CPU times inflate under such load (the previous session's quiet-machine
-figures, e.g. uniform e2e crs_part_5 42.6 s, are below this run's 49.3 s for code that is faster),
-so compare ratios, and speed-ups only between runs minutes apart.
+Last run (commit b435a7f, 2 CPUs, load average 1.55 before, 2.82 after, from
+other jobs; default workers = 2).  CPU times inflate under load, so compare ratios, and speed-ups
+only between runs minutes apart (the A/B figures below).
 
 | part | raster CPU s | x noether | ratio_cpu to trimesh | slice / trimesh | uniform/raster e2e CPU (wall) |
 |---|---|---|---|---|---|
-| panel_18k | 0.48 | 2.1 (0.23 s) | 100 | 3.8 | 14.2 (13.0) |
-| panel_80k | 0.56 | 0.84 (0.67 s) | 37 | 5.1 | 12.9 (9.3) |
-| panel_500k | 2.11 | 0.47 (4.5 s) | 19 | 6.6 | 6.8 (5.5) |
-| snp_part_scan | 0.39 | | 124 | 2.7 | 5.24 (4.32) |
-| noether_raw_mesh | 0.94 | | 43 | 2.8 | 9.40 (5.03) |
-| bezier_dac_cad | 0.18 | | 132 | 3.1 | 4.38 (4.32) |
-| bezier_dac_scan | 1.17 | | 23 | 2.8 | 7.78 (7.82) |
-| noether_wavy_mesh_with_hole | 0.11 | | 97 | 2.8 | 3.54 (3.52) |
-| bezier_complex_shape | 0.61 | | 197 | 1.8 | 7.66 (7.55) |
-| crs_part_5 | 3.20 | | 412 | 1.7 | 5.87 (5.81) |
+| panel_18k | 0.43 | 1.9 (0.23 s) | 96 | 4.2 | 10.8 (12.6) |
+| panel_80k | 0.44 | 0.65 (0.67 s) | 30 | 4.7 | 16.2 (16.5) |
+| panel_500k | 2.25 | 0.50 (4.5 s) | 17 | 5.3 | 7.0 (6.8) |
+| snp_part_scan | 0.33 | | 108 | 2.7 | 6.71 (6.33) |
+| noether_raw_mesh | 0.91 | | 41 | 2.8 | 11.5 (17.4) |
+| bezier_dac_cad | 0.16 | | 128 | 3.4 | 4.63 (5.20) |
+| bezier_dac_scan | 1.20 | | 23 | 3.0 | 8.66 (6.32) |
+| noether_wavy_mesh_with_hole | 0.11 | | 107 | 3.3 | 3.38 (3.16) |
+| bezier_complex_shape | 0.61 | | 195 | 1.8 | 8.26 (8.30) |
+| crs_part_5 | 3.45 | | 465 | 1.8 | 6.65 (6.45) |
 
-The 18k panel stays at the 2x line: 0.48 s here; in a process of its own on the same loaded machine
-0.43 s for the first plan after the warm-up and 0.37 s for a second one on a fresh copy of the panel
-(nothing memoised; the difference is not in imports or compiled kernels).  Uniform meets 3x raster
-on no mesh.
+The uniform/raster ratios move between runs by more than this session's changes could explain
+(e.g. panel_80k 12.9 -> 16.2, bezier_dac_scan 7.8 -> 8.7, with uniform only faster in serial A/B):
+load and uniform's fixed costs (numba compilation in the workers, heat solves) dominate them.  Uniform meets 3x
+raster on no mesh.
 
-Uniform, serial (workers=1, the job's cycle-time cost, toppra imported beforehand), the code before
-this session (9e5d4f4) against now, minutes apart: snp_part_scan 5.93 -> 5.50 s CPU, noether_raw_mesh
-21.59 -> 19.71 s CPU, noether_wavy 2.01 -> 1.88 s; the same plans (pass count, contact length to
-1e-12 and all six candidate costs equal).  From: the contact widths visiting only the rays that can
-hold a query's extremes (widths_across, 2.0 -> 0.5 s on noether), the frontier in one compiled pass,
-and, with workers, the kernels and the cost's imports (toppra, ~0.3 s CPU) loaded once before the
-fork instead of once per worker.
+This session (same plans, bit for bit; A/B minutes apart on the same machine):
 
-Where uniform's time goes (serial cProfile, this code): snp_part_scan 79 heat-method solves
-(generations + 1 per candidate) 2.9 s and the solver's set-up 0.6 s of 8.4 s wall; the cycle-time
-cost 2.5 s (toppra link timing 1.6 s); noether_raw_mesh 142 solves and a 3.8 s set-up; on
-bezier_dac_scan the cost's link routing (order.routing._clear -> Surface.closest_points, 2076 calls,
-2.4 s) and the width model's contact patches (contact.model.local_patch, 3.4 s of the 4.6 s set-up).
-The heat solver is built once per working mesh, in the parent before the workers fork (they inherit
-the factorisation); potpourri3d holds the GIL while it factorises and solves one source set per
-call, and each generation's sources are the previous generation's coverage frontier, so the solves
-of a candidate cannot be batched; a different solver would change the distances and the plans.
+* ``Surface.subdivided(method="halving")`` no longer calls trimesh: :func:`swath.surface.subdivide.
+  halve_long_edges` gives trimesh 5.2's ``subdivide_to_size`` mesh (vertices and faces, same order,
+  same bits; pinned in tests/surface/test_halving.py) at 0.6x its time (18k panel at R/8: 50 against
+  73 ms; at 2.5 mm 0.22 against 0.35 s, best of 5).  The 18k panel's raster plan, three fresh panels
+  per process, three processes each: before 0.38-0.50 s CPU (first plan) and 0.34-0.35 s (third), after
+  0.34-0.44 s and 0.31-0.32 s, i.e. 1.35-1.9x noether's 0.23 s (11 passes, same spacing).
+* ``AirGuard._clear`` (order/routing.py) settles a route's samples by their nearest vertex first: a
+  vertex nearer than the limit means not clear, a nearest vertex farther than the limit plus the
+  longest edge means clear, and only the samples in between go to the closest-point search (far
+  from the part that search is the slow one, ~10 us per point on bezier_dac_scan, with no per-call
+  overhead to save by batching).  bezier_dac_scan uniform plan, serial cProfile: the routes 1.64 ->
+  0.53 s, the whole ``make_plan`` 22.2 -> 20.8 s CPU, 87 passes both.
+
+Not changed (no exact form found in the time): the contact model's ``local_patch`` (3.4 s of the
+width model's set-up on bezier_dac_scan): its Newton loop's ``ρ⁴`` is numpy's SIMD ``pow`` on this
+CPU (AVX-512), which neither ``r*r*r*r`` nor numba's or libm's ``pow`` reproduces bit for bit, and
+the row sums are numpy's pairwise sums; sharing the squares and the contact mask between volume and
+area gave no measurable gain.  The pad-scale curvature fit (einsum normal equations + batched
+solve) likewise has no faster form with the same bits; toppra link timing lives in trajectory/.
+
+Earlier findings (still valid): uniform, serial (workers=1, the job's cycle-time cost, toppra
+imported beforehand), 9e5d4f4 -> f5104cc: snp_part_scan 5.93 -> 5.50 s CPU, noether_raw_mesh
+21.59 -> 19.71 s CPU, noether_wavy 2.01 -> 1.88 s.  Where uniform's time goes (serial cProfile):
+snp_part_scan 79 heat-method solves 2.9 s and the solver's set-up 0.6 s of 8.4 s wall; the
+cycle-time cost 2.5 s (toppra link timing 1.6 s); noether_raw_mesh 142 solves and a 3.8 s set-up;
+bezier_dac_scan 106 solves 7.2 s, the width model's contact patches (local_patch) 3.5 s, toppra
+link timing 1.7 s.  The heat solver is built once per working mesh, in the parent before the
+workers fork; potpourri3d holds the GIL while it factorises and solves one source set per call,
+and each generation's sources are the previous generation's coverage frontier, so the solves of a
+candidate cannot be batched; a different solver would change the distances and the plans.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import InputError
 from . import geometry, topology
 from .curvature import PrincipalCurvature, principal_curvatures
-from .subdivide import split_long_edges
+from .subdivide import halve_long_edges, split_long_edges
 
 #: The methods of :meth:`Surface.subdivided`.
 SUBDIVISION_METHODS = ("long_edges", "halving")
@@ -238,7 +238,8 @@ class Surface:
             (:func:`swath.surface.subdivide.split_long_edges`), so long slivers are cut across, not
             also along, and each edge ends in equal pieces just under ``max_edge``; the vertices of
             this surface are kept, first and in order.  ``"halving"``: the earlier 1-to-4 split of
-            every face with a long edge (``trimesh.remesh.subdivide_to_size``), up to about twice as
+            every face with a long edge (:func:`swath.surface.subdivide.halve_long_edges`, the same
+            mesh as ``trimesh.remesh.subdivide_to_size``), up to about twice as
             many vertices per direction; kept for results that must not change.
 
         Returns
@@ -251,9 +252,7 @@ class Surface:
         if self.edge_lengths.max() <= max_edge:
             return self
         if method == "halving":
-            import trimesh
-
-            v, f = trimesh.remesh.subdivide_to_size(self.vertices, self.faces, max_edge=max_edge, max_iter=20)
+            v, f = halve_long_edges(self.vertices, self.faces, max_edge)
         else:
             v, f = split_long_edges(self.vertices, self.faces, max_edge)
         return Surface(v, f, name=self.name, normal_smoothing=self.normal_smoothing,
