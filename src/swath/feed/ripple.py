@@ -87,4 +87,17 @@ def ripple_spacing(tool: Tool, *, max_length_ratio: float = 1.5, min_length_rati
     return best if best[1] <= cov[k] else (float(grid[k]), float(cov[k]))
 
 
-__all__ = ["cross_profile", "ripple_cov", "ripple_spacing"]
+def ripple_overlap(tool: Tool, *, max_length_ratio: float = 1.5) -> float:
+    """The swath overlap (fraction of the swath width) that puts neighbouring passes at the
+    least-ripple spacing: ``1 − d* / (2R)``, ``d*`` from :func:`ripple_spacing`.
+
+    For planners that space passes by overlap of the local swath width (the uniform planner's
+    ``overlap``): on a plane the width is ``2R`` and the spacing is ``d*``; where curvature narrows
+    the swath the spacing shrinks with it, keeping the ratio ``d / w`` the ripple analysis chose.
+    Orbital pad: about 0.16; rotary pad: about 0.06 (``max_length_ratio`` 1.5).
+    """
+    d, _ = ripple_spacing(tool, max_length_ratio=max_length_ratio)
+    return float(1.0 - d / (2.0 * tool.pad_radius))
+
+
+__all__ = ["cross_profile", "ripple_cov", "ripple_overlap", "ripple_spacing"]
