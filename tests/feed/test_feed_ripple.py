@@ -8,7 +8,15 @@ from scipy.special import j1
 
 from swath.contact import Tool
 from swath.errors import InputError
-from swath.feed.ripple import cross_profile, lattice_cov, ripple_cov, ripple_overlap, ripple_spacing
+from swath.feed.ripple import (
+    cross_profile,
+    lattice_cov,
+    ripple_cov,
+    ripple_overlap,
+    ripple_spacing,
+    weave_length_factor,
+    weave_ripple_cov,
+)
 
 ORBITAL = Tool(pad_radius=0.02, force=20.0)
 ROTARY = Tool(pad_radius=0.02, force=20.0, motion="rotary")
@@ -148,3 +156,32 @@ def test_lattice_cov_refuses_bad_input():
         lattice_cov(ORBITAL, [0.0, 1.0], [1.0], 1.0)
     with pytest.raises(InputError, match="weights"):
         lattice_cov(ORBITAL, [0.0], [-1.0], 1.0)
+
+
+def test_weave_without_amplitude_is_the_straight_ripple():
+    for tool, d in ((ORBITAL, 1.68 * R), (ORBITAL, 2.0 * R), (ROTARY, 1.88 * R)):
+        assert weave_ripple_cov(tool, d, amplitude=0.0, wavelength=3 * R) == pytest.approx(ripple_cov(tool, d), rel=0.01)
+
+
+def test_weave_length_factor():
+    """No amplitude: 1; slope s = 2πA/λ small: 1 + s²/4; large: the mean of |s cos| = 2s/π."""
+    assert weave_length_factor(0.0, 1.0) == pytest.approx(1.0)
+    assert weave_length_factor(0.01, 1.0) == pytest.approx(1 + (2 * math.pi * 0.01) ** 2 / 4, rel=1e-6)
+    assert weave_length_factor(100.0, 1.0) == pytest.approx(2 * 2 * math.pi * 100 / math.pi, rel=1e-3)
+
+
+def test_best_weave_found_within_the_length_bound_is_still_over_five_percent():
+    """The search's best orbital weave within 1.5 L*: 5.45 %, the path exactly at the bound; a
+    longer wavelength (slower turning) loses most of the gain, a larger amplitude breaks the bound."""
+    d, A, lam = 1.65 * R, 0.172 * R, 1.024 * R
+    assert 2 * R * weave_length_factor(A, lam) / d == pytest.approx(1.5, abs=2e-3)
+    cov = weave_ripple_cov(ORBITAL, d, amplitude=A, wavelength=lam, phase=0.017)
+    assert cov == pytest.approx(0.0545, abs=5e-4)
+    assert cov < ripple_spacing(ORBITAL)[1] - 0.03
+    assert weave_ripple_cov(ORBITAL, d, amplitude=A, wavelength=4 * lam, phase=0.017) > 0.085
+    assert 2 * R * weave_length_factor(1.2 * A, lam) / d > 1.5
+
+
+def test_weave_refuses_bad_input():
+    with pytest.raises(InputError, match="amplitude"):
+        weave_ripple_cov(ORBITAL, 1.6 * R, amplitude=-1e-3, wavelength=R)
