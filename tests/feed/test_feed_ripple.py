@@ -185,3 +185,28 @@ def test_best_weave_found_within_the_length_bound_is_still_over_five_percent():
 def test_weave_refuses_bad_input():
     with pytest.raises(InputError, match="amplitude"):
         weave_ripple_cov(ORBITAL, 1.6 * R, amplitude=-1e-3, wavelength=R)
+
+
+def test_uniform_planner_at_the_ripple_overlap_from_a_job(tmp_path):
+    """``optimise_spacing = "ripple"`` with the uniform planner sets its overlap to 1 - d*/(2R): on
+    the flat plate the inner passes lie the least-ripple spacing apart."""
+    from swath.cli.settings import settings_from_mapping
+    from swath.cli.stages import spacing_plan
+    from swath.examples import example_part
+    from swath.plan import get_planner
+
+    job = {"part": "example:plate", "out": str(tmp_path / "o"), "planner": "uniform", "optimise_spacing": "ripple",
+           "direction": "0deg"}
+    settings = settings_from_mapping(job)
+    with pytest.raises(InputError, match="drop --overlap"):
+        settings_from_mapping({**job, "overlap": "20%"})
+    with pytest.raises(InputError, match="raster planner"):
+        settings_from_mapping({**job, "planner": "equidistant"})
+    tool = settings.tool()
+    path = spacing_plan(example_part("plate"), tool, get_planner("uniform"), settings, {"direction": 0.0, "workers": 1})
+    assert path.metadata["overlap_fraction"] == pytest.approx(ripple_overlap(tool), rel=1e-12)
+    cross = np.cross(np.asarray(path.metadata["feed_direction"]), [0.0, 0.0, 1.0])
+    centres = np.sort([np.median(p.points @ cross) for p in path.passes if p.kind != "touch_up"])
+    steps = np.diff(centres)[1:-1]                       # the outer passes are pulled in to the edges
+    assert steps.size >= 1
+    np.testing.assert_allclose(steps, ripple_spacing(tool)[0], rtol=0.03)
