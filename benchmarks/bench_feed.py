@@ -7,7 +7,11 @@ For every part (built-in blade, panel, plate and every shared mesh found):
 3. ``space``  — raster planes placed by Wang's greedy pattern search (:func:`swath.feed.spacing.greedy_offsets`)
    in the same direction, then the feed optimised;
 4. ``ripple+feed`` — the raster at the analytic least-ripple spacing (:func:`swath.feed.ripple_spacing`,
-   contact length within 1.5 L* on a plane), then the feed optimised.
+   contact length within 1.5 L* on a plane), then the feed optimised;
+5. ``uniform+feed``, ``rot ripple+feed`` — the uniform planner at the least-ripple overlap and a
+   rotary pad at its least-ripple spacing, then the feed optimised (:func:`ripple_rows`).
+   ``cov_across`` / ``cov_along`` split the simulated interior CoV into the part across the passes
+   (spacing ripple, swath width) and the rest (pass ends, fragments, feed bounds) (:func:`_across_along`).
 
 Breakdown columns (where the residual comes from):
 
