@@ -210,3 +210,20 @@ def test_uniform_planner_at_the_ripple_overlap_from_a_job(tmp_path):
     steps = np.diff(centres)[1:-1]                       # the outer passes are pulled in to the edges
     assert steps.size >= 1
     np.testing.assert_allclose(steps, ripple_spacing(tool)[0], rtol=0.03)
+
+
+def test_two_crossed_layers_within_the_length_bound_leave_untouched_cells():
+    """Two crossed layers within 1.5 L* need 2 x 2R/d <= 1.5, d >= 8R/3: each layer leaves strips
+    d - 2R wide, the cells where both layers' strips cross ((d - 2R)/d)² = 1/16 of the area are
+    never touched, and a zero on a fraction f of the area alone is a CoV of sqrt(f / (1 - f))."""
+    n, d = 320, 8 * R / 3
+    x = np.arange(n) / n * d
+    X, Y = np.meshgrid(np.minimum(x, d - x), np.minimum(x, d - x), indexing="ij")
+    disc = (X**2 + Y**2 <= R**2).astype(float)
+    dwell = np.zeros((n, n))
+    dwell[:, 0] += 1.0                                  # layer 1: one pass per period along x
+    dwell[0, :] += 1.0                                  # layer 2: crossed, along y
+    removal = np.real(np.fft.ifft2(np.fft.fft2(dwell) * np.fft.fft2(disc)))
+    untouched = np.mean(removal < 1e-9 * removal.max())
+    assert untouched == pytest.approx(1 / 16, abs=0.01)
+    assert removal.std() / removal.mean() > math.sqrt(untouched / (1 - untouched)) > 0.25

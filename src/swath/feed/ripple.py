@@ -28,8 +28,9 @@ their mean, exactly as with equal feeds — and the mean of ``r̄`` is ``p̂(0) 
 other harmonics (``m / (N d)``, ``m`` not a multiple of ``N``) only add variance (Parseval).  So
 ``CoV(r) >= ripple_cov(d)`` whatever the feed, and the least CoV of equally spaced passes within
 ``L <= 1.5 L*`` (``d >= 4R/3``) is ``ripple_spacing``'s: 9.2 % at ``d = 1.68 R`` (orbital), 7.5 % at
-``d = 1.88 R`` (rotary, ``Tool(motion="rotary")``).  A tilted pad changes ``p`` itself and is not
-covered by this argument.
+``d = 1.88 R`` (rotary, ``Tool(motion="rotary")``).  Two crossed layers within ``1.5 L*`` need
+``d >= 8R/3`` per layer, and the cells where both layers' gaps cross (1/16 of the area) stay
+untouched (CoV > 25 %).  A tilted pad changes ``p`` itself and is not covered by this argument.
 
 Unequal spacing is outside (b): :func:`lattice_cov` measures any periodic pattern of offsets and
 dwell weights.  A numerical search (2-8 passes per period, offsets and weights free, mean spacing
