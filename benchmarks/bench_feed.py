@@ -189,6 +189,13 @@ def ripple_rows(surface, tool, cons, base, D, measure, least_depth) -> None:
       (:func:`swath.feed.ripple_overlap`), so its spacing is ``d*/(2R)`` of the local width;
     * ``rot ripple+feed`` — a rotary pad (``Tool(motion="rotary")``, otherwise the same) at its own
       least-ripple spacing (floor 7.5 % against the orbital 9.2 %), at its own least depth.
+
+    Last run (``--simulate-loop``, interior CoV, L / L*): uniform+feed plate 0.104 / 1.27, panel
+    0.125 / 1.28, blade 0.190 / 1.27, noether_raw_mesh 0.212 / 1.36, bezier_dac_scan 0.352 / 1.49;
+    rot ripple+feed 0.15-0.52 everywhere: the simulated rotary pad stays far above its analytic 7.5 %
+    (plate at constant feed: across-pass 0.099, along 0.079), not understood.  No row of any plan
+    meets 10 % within 1.5 L* on a shared mesh; the across/along split shows why: on the curved parts
+    the variation along the passes (0.10-0.39) is as large as the ripple across them.
     """
     from swath.feed import build_kernel, optimise_feed, ripple_overlap, ripple_spacing
     from swath.plan import raster
