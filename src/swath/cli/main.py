@@ -100,7 +100,7 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                                              "(default 10 %% of the target depth)")
     e.add_argument("--optimise-spacing",
                    help="raster pass spacing for even removal: ripple (the spacing whose summed pad "
-                        "cross-profiles are flattest, path within 1.5x the coverage bound), greedy (Wang's pattern "
+                        "cross-profiles are flattest, path within 1.5x the coverage bound; with --planner uniform its overlap), greedy (Wang's pattern "
                         "search, pass by pass, against the target) or joint (equal spacing and feed together)")
     e.add_argument("--feed-simulate-check", action=argparse.BooleanOptionalAction, default=None,
                    help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "

@@ -370,9 +370,15 @@ def check_settings(settings: JobSettings) -> None:
     if (settings.target_depth or settings.target_map or settings.depth_tolerance) and not settings.optimise_feed:
         raise InputError("--target-depth, --target-map and --depth-tolerance apply with --optimise-feed; add it")
     if settings.optimise_spacing:
-        if settings.planner != "raster" or settings.segment == "auto" or settings.spacing is not None:
+        uniform_ripple = settings.planner == "uniform" and settings.optimise_spacing == "ripple"
+        if uniform_ripple and settings.overlap is not None:
+            raise InputError("--optimise-spacing ripple sets the uniform planner's overlap itself (the least-ripple "
+                             "spacing over the swath width): drop --overlap, or drop --optimise-spacing")
+        if (settings.planner != "raster" and not uniform_ripple) or settings.segment == "auto" \
+                or settings.spacing is not None:
             raise InputError(f"--optimise-spacing {settings.optimise_spacing} places raster passes itself: use it "
-                             "with the raster planner, without --spacing and without --segment auto")
+                             "with the raster planner (ripple also with uniform), without --spacing and without "
+                             "--segment auto")
         if settings.optimise_spacing in ("greedy", "joint") and not settings.optimise_feed:
             raise InputError(f"--optimise-spacing {settings.optimise_spacing} scores spacings against the target "
                              "depth: add --optimise-feed and --target-depth or --target-map (or use "

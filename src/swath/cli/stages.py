@@ -121,13 +121,20 @@ def job_target(settings):
 def spacing_plan(surface, tool, planner, settings, arguments: dict):
     """Raster passes placed by ``settings.optimise_spacing``: ``ripple`` plans the raster at the
     spacing whose summed pad cross-profiles are flattest with the path within 1.5x the coverage
-    bound (:func:`swath.feed.ripple_spacing`); ``greedy`` and ``joint`` place the planes against the
+    bound (:func:`swath.feed.ripple_spacing`), or the uniform planner at the overlap that gives that
+    spacing over the local swath width (:func:`swath.feed.ripple_overlap`); ``greedy`` and ``joint`` place the planes against the
     job's target depth (:func:`swath.feed.greedy_offsets`, :func:`swath.feed.joint_spacing`) in the
     raster's direction (its automatic choice when none is given).  The feed stage then optimises
     the feed along these passes."""
-    from ..feed import greedy_offsets, joint_spacing, ripple_spacing
+    from ..feed import greedy_offsets, joint_spacing, ripple_overlap, ripple_spacing
 
     method = settings.optimise_spacing
+    if method == "ripple" and settings.planner == "uniform":
+        # the uniform planner spaces passes by overlap of the local swath width: keep d / w at the
+        # ratio the ripple analysis chose (on a plane w = 2R and the spacing is ripple_spacing's)
+        overlap = ripple_overlap(tool)
+        log.info("ripple overlap %.3f of the swath width", overlap)
+        return planner(surface, tool, **{**arguments, "overlap": overlap})
     if method == "ripple":
         spacing, cov = ripple_spacing(tool)
         log.info("ripple spacing %.1f mm (pad cross-profile ripple CoV %.3f on a plane)", spacing * 1e3, cov)

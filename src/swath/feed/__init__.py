@@ -23,11 +23,12 @@ stage may not import the simulator, so the job hands it in.
 
 from .kernel import DwellNodes, RemovalKernel, build_kernel, dwell_nodes, interior_mask, trajectory_node_dwell
 from .optimise import FeedResult, node_speed_caps, optimise_feed, removal_stats
-from .ripple import cross_profile, ripple_cov, ripple_spacing
+from .ripple import cross_profile, ripple_cov, ripple_overlap, ripple_spacing
 from .spacing import SpacingResult, greedy_offsets, joint_spacing, raster_at_offsets
 from .targets import TargetMap, excess_target, read_target_map, uniform_target, write_target_map
 
 __all__ = ["DwellNodes", "FeedResult", "RemovalKernel", "SpacingResult", "TargetMap", "build_kernel", "cross_profile",
            "dwell_nodes", "excess_target", "greedy_offsets", "interior_mask", "joint_spacing", "node_speed_caps",
-           "optimise_feed", "raster_at_offsets", "read_target_map", "removal_stats", "ripple_cov", "ripple_spacing",
+           "optimise_feed", "raster_at_offsets", "read_target_map", "removal_stats", "ripple_cov", "ripple_overlap",
+           "ripple_spacing",
            "trajectory_node_dwell", "uniform_target", "write_target_map"]

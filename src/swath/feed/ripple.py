@@ -16,6 +16,28 @@ among those whose contact length stays within a given multiple of the coverage l
 On a flat orbital pad the ripple is 28 % at ``d = 2R``, least near ``d = 1.7 R`` (9 %; the first
 Fourier harmonic of the semicircle, ``2 J₁(2πR/d) / (2πR/d)``, vanishes at ``d = 1.64 R``) and
 below 5 % only for ``d <= 0.9 R`` (``L >= 2.2 L*``).
+
+Why no feed can remove the ripple (straight passes on a plane, ``d`` apart, pass ``j`` with any
+dwell per unit length ``g_j(x) >= 0`` along it).  The removal is
+``r(x, y) = Σ_j ∫ g_j(s) P(x − s, y − j d) ds`` with ``P`` the pad's footprint rate, so its mean
+along the passes is ``r̄(y) = Σ_j ḡ_j p(y − j d)``, ``p`` the cross profile and ``ḡ_j`` the pass's
+mean dwell.  (a) By the law of total variance ``Var r >= Var r̄``: variation along the passes
+only adds.  (b) Over ``N`` passes (period ``N d``) the Fourier coefficients of ``r̄`` at the
+harmonics ``m / d`` of the spacing are ``p̂(m/d) · mean(ḡ) / d`` — the weights enter only through
+their mean, exactly as with equal feeds — and the mean of ``r̄`` is ``p̂(0) · mean(ḡ) / d``; the
+other harmonics (``m / (N d)``, ``m`` not a multiple of ``N``) only add variance (Parseval).  So
+``CoV(r) >= ripple_cov(d)`` whatever the feed, and the least CoV of equally spaced passes within
+``L <= 1.5 L*`` (``d >= 4R/3``) is ``ripple_spacing``'s: 9.2 % at ``d = 1.68 R`` (orbital), 7.5 % at
+``d = 1.88 R`` (rotary, ``Tool(motion="rotary")``).  Two crossed layers within ``1.5 L*`` need
+``d >= 8R/3`` per layer, and the cells where both layers' gaps cross (1/16 of the area) stay
+untouched (CoV > 25 %).  A tilted pad changes ``p`` itself and is not covered by this argument.
+
+Unequal spacing is outside (b): :func:`lattice_cov` measures any periodic pattern of offsets and
+dwell weights.  A numerical search (2-8 passes per period, offsets and weights free, mean spacing
+``>= 4R/3``) found at best 8.2 % for the orbital pad (passes ``5/3 R`` apart with every fourth
+split into two half-weight passes 0.31 R apart): better than 9.2 %, still far from 5 %.
+A sideways weave along each pass (:func:`weave_ripple_cov`) got to 5.4 % at exactly ``1.5 L*``, with
+a wavelength of about ``R`` that turns the tool far faster than the angular-speed limit allows.
 """
 
 from __future__ import annotations
@@ -57,6 +79,90 @@ def ripple_cov(tool: Tool, spacing: float, *, n: int = 512) -> float:
     return float(total.std() / total.mean())
 
 
+def lattice_cov(tool: Tool, offsets, weights, period: float, *, n: int = 1024) -> float:
+    """Coefficient of variation of the summed cross-profiles of passes at ``offsets`` (m, ``(N,)``)
+    across the feed, each with relative dwell ``weights`` (``(N,)``, >= 0: the pass's mean dwell per
+    unit length), the pattern repeated every ``period`` (m) — over one period, ``n`` points.
+
+    ``ripple_cov(tool, d)`` is ``lattice_cov(tool, [0], [1], d)``.  With ``N`` equally spaced passes
+    and any weights the CoV is never below ``ripple_cov(tool, period / N)`` (module docstring).
+    """
+    y0 = np.asarray(offsets, float).reshape(-1)
+    w = np.asarray(weights, float).reshape(-1)
+    P = float(period)
+    if not (np.isfinite(P) and P > 0):
+        raise InputError(f"period must be a positive length in m, got {period!r}")
+    if y0.size == 0 or y0.shape != w.shape or not np.all(np.isfinite(y0)):
+        raise InputError(f"need one finite offset (m) per weight, got {y0.size} offsets and {w.size} weights")
+    if not (np.all(np.isfinite(w)) and np.all(w >= 0) and w.sum() > 0):
+        raise InputError(f"weights must be finite, >= 0 and not all 0, got {w.tolist()!r}")
+    R = tool.pad_radius
+    y = (np.arange(n) + 0.5) / n * P
+    images = np.arange(-int(np.ceil(R / P)) - 1, int(np.ceil(R / P)) + 2) * P
+    rel = (y[:, None, None] - y0[None, :, None] - images[None, None, :]).ravel()
+    total = (cross_profile(tool, rel).reshape(n, y0.size, -1).sum(axis=2) * w[None, :]).sum(axis=1)
+    return float(total.std() / total.mean())
+
+
+_RADIAL_NODES, _RADIAL_WEIGHTS = np.polynomial.legendre.leggauss(256)
+
+
+def _footprint_transform(tool: Tool, k) -> np.ndarray:
+    """The pad's footprint rate on a plane, Fourier-transformed at wavenumbers ``k`` (rad/m) and
+    divided by its value at 0 (the footprint is round, so the transform is radial: a Hankel
+    transform of ``relative_speed(r)`` over the disc)."""
+    from scipy.special import j0
+
+    R = tool.pad_radius
+    r = 0.5 * R * (_RADIAL_NODES + 1.0)
+    w = 0.5 * R * _RADIAL_WEIGHTS * r * tool.relative_speed(r)
+    kk = np.asarray(k, float)
+    return (j0(kk.reshape(-1, 1) * r[None, :]) @ w).reshape(kk.shape) / w.sum()
+
+
+def weave_length_factor(amplitude: float, wavelength: float) -> float:
+    """Path length per unit advance of a sinusoidal weave ``y = amplitude · sin(2π x / wavelength)``
+    (both m): the factor a weave puts on the contact length."""
+    t = (np.arange(2048) + 0.5) / 2048
+    slope = 2 * np.pi * amplitude / wavelength * np.cos(2 * np.pi * t)
+    return float(np.mean(np.sqrt(1.0 + slope**2)))
+
+
+def weave_ripple_cov(tool: Tool, spacing: float, *, amplitude: float, wavelength: float, phase: float = 0.0,
+                     harmonics: int = 40) -> float:
+    """Coefficient of variation over the plane of the removal of parallel passes ``spacing`` (m)
+    apart, each weaving sideways as ``amplitude · sin(2π x / wavelength)`` (m, m), pass ``j`` shifted
+    along by ``j · phase`` wavelengths, all at the same dwell per unit advance.
+
+    The passes form a lattice; the removal's Fourier coefficient at
+    ``(n / wavelength, (m + n · phase) / spacing)`` is the footprint's transform there (relative to 0)
+    times ``J_n(2π (m + n · phase) amplitude / spacing)``, and the CoV is the root sum of their
+    squares (``|m|, |n| <= harmonics``).  ``amplitude = 0`` gives :func:`ripple_cov`.
+
+    A weave spreads each harmonic ``m / spacing`` of the straight passes into side bands
+    ``Σ_n J_n² = 1`` at higher wavenumbers, where the footprint transmits less, but only where the
+    wavelength is short against the pad (about ``R``); its length factor
+    (:func:`weave_length_factor`) multiplies ``L / L*``.  The best a search found for the orbital pad
+    within ``L <= 1.5 L*`` (sixty Nelder-Mead starts over spacing, amplitude, wavelength and phase)
+    is 5.4 %, at ``d = 1.65 R``, ``amplitude = 0.17 R``, ``wavelength = 1.02 R`` — and there the
+    travel direction swings ±47° every half ``R``: at 50 mm/s with a 38 mm pad the tool turns about
+    its axis at up to 8.5 rad/s, far above a 1 rad/s limit.
+    """
+    from scipy.special import jv
+
+    d, A, lam = float(spacing), float(amplitude), float(wavelength)
+    if not (np.isfinite(d) and d > 0 and np.isfinite(lam) and lam > 0 and np.isfinite(A) and A >= 0):
+        raise InputError(f"need a positive spacing and wavelength and an amplitude >= 0 (m), got spacing={spacing!r}, "
+                         f"wavelength={wavelength!r}, amplitude={amplitude!r}")
+    m = np.arange(-harmonics, harmonics + 1)[:, None]
+    n = np.arange(-harmonics, harmonics + 1)[None, :]
+    ky = 2 * np.pi * (m + n * float(phase)) / d
+    kx = 2 * np.pi * n / lam + 0.0 * ky
+    coef = _footprint_transform(tool, np.hypot(kx, ky)) * jv(n, ky * A)
+    coef[harmonics, harmonics] = 0.0                              # the mean
+    return float(np.sqrt(np.sum(coef**2)))
+
+
 def ripple_spacing(tool: Tool, *, max_length_ratio: float = 1.5, min_length_ratio: float = 1.0,
                    steps: int = 61) -> tuple[float, float]:
     """The pass spacing (m) with the least ripple whose contact length ``2R / d`` lies within
@@ -87,4 +193,18 @@ def ripple_spacing(tool: Tool, *, max_length_ratio: float = 1.5, min_length_rati
     return best if best[1] <= cov[k] else (float(grid[k]), float(cov[k]))
 
 
-__all__ = ["cross_profile", "ripple_cov", "ripple_spacing"]
+def ripple_overlap(tool: Tool, *, max_length_ratio: float = 1.5) -> float:
+    """The swath overlap (fraction of the swath width) that puts neighbouring passes at the
+    least-ripple spacing: ``1 − d* / (2R)``, ``d*`` from :func:`ripple_spacing`.
+
+    For planners that space passes by overlap of the local swath width (the uniform planner's
+    ``overlap``): on a plane the width is ``2R`` and the spacing is ``d*``; where curvature narrows
+    the swath the spacing shrinks with it, keeping the ratio ``d / w`` the ripple analysis chose.
+    Orbital pad: about 0.16; rotary pad: about 0.06 (``max_length_ratio`` 1.5).
+    """
+    d, _ = ripple_spacing(tool, max_length_ratio=max_length_ratio)
+    return float(1.0 - d / (2.0 * tool.pad_radius))
+
+
+__all__ = ["cross_profile", "lattice_cov", "ripple_cov", "ripple_overlap", "ripple_spacing", "weave_length_factor",
+           "weave_ripple_cov"]
