@@ -165,3 +165,19 @@ def test_an_unexpected_failure_leaves_its_traceback(tmp_path, monkeypatch):
         ("0000-raster", "failed", "RuntimeError: solver diverged")]
     trace = (tmp_path / "boom" / "errors" / "0000-raster.txt").read_text(encoding="utf-8")
     assert "Traceback" in trace and "second line" in trace
+
+
+def test_ray_sweeps_start_the_longest_jobs_first(tmp_path):
+    from swath.cli.batch import expected_job_work
+
+    (tmp_path / "big.stl").write_bytes(b"\0" * 3_000_000)
+    (tmp_path / "small.stl").write_bytes(b"\0" * 1_000)
+    sweep = load_sweep(write_sweep(tmp_path, "out", grid='[grid]\npart = ["small.stl", "big.stl"]\n'
+                                                      'planner = ["raster", "uniform"]\n'))
+    work = {(j.values["part"], j.values["planner"]): expected_job_work(j, sweep.base_dir) for j in sweep.jobs}
+    assert work[("big.stl", "uniform")] == pytest.approx(3.0 * 4.0)
+    assert work[("big.stl", "raster")] == pytest.approx(4.0)
+    assert work[("small.stl", "uniform")] == pytest.approx(3.0 * 1.001)
+    assert work[("small.stl", "raster")] == pytest.approx(1.001)
+    missing = load_sweep(write_sweep(tmp_path, "out2", grid='[grid]\npart = ["nowhere.stl"]\n'))
+    assert expected_job_work(missing.jobs[0], missing.base_dir) == pytest.approx(1.0)

@@ -106,6 +106,25 @@ class Sweep:
     jobs: tuple
 
 
+#: Relative planning work per planner (uniform plans six candidate directions and times each one).
+PLANNER_WORK = {"uniform": 3.0}
+
+
+def expected_job_work(job: BatchJob, base_dir) -> float:
+    """A rough, unitless guess of a job's run time, for scheduling only (never for results): the
+    planner's weight (:data:`PLANNER_WORK`, 1 for planners not listed) times the part file's size in
+    MB plus one (built-in ``example:`` parts count as empty files).  The sweep runs longest first."""
+    part = str(job.values.get("part", ""))
+    size_mb = 0.0
+    if not part.startswith("example:"):
+        path = Path(part) if Path(part).is_absolute() else Path(base_dir) / part
+        try:
+            size_mb = path.stat().st_size / 1e6
+        except OSError:          # a missing file fails in its own job, with its own message
+            size_mb = 0.0
+    return PLANNER_WORK.get(str(job.values.get("planner", "")), 1.0) * (1.0 + size_mb)
+
+
 def load_sweep(path) -> Sweep:
     """Read and validate a sweep file (see the module docstring); refuses bad input with InputError."""
     from .settings import read_toml
@@ -254,6 +273,8 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, address: str | None =
         else:
             from .batch_ray import run_on_ray
 
+            # Longest first (LPT): the last jobs to start are short, so workers finish together.
+            todo.sort(key=lambda job: expected_job_work(job, sweep.base_dir), reverse=True)
             for row in run_on_ray(todo, str(sweep.base_dir), workers=workers,
                                   address=address or os.environ.get("RAY_ADDRESS") or None):
                 rows.append(row)
