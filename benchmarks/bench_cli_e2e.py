@@ -14,6 +14,15 @@ children included), the ratio uniform / raster of both, and the load average bef
 
     PYTHONPATH=src python benchmarks/bench_cli_e2e.py [--repeat 2] [snp_part_scan.ply example:plate ...]
 
+This session's run (``--repeat 2``, quiet machine, load 0.5 before and 1.3 after; wall s, raster /
+uniform, ratio; CPU ratio in brackets): snp_part_scan 2.90 / 5.65, 1.95 (2.43); noether_raw_mesh
+4.43 / 14.95, **3.38** (4.63); bezier_dac_cad 2.34 / 3.81, 1.63 (1.95); bezier_dac_scan 5.41 / 14.32, 2.65
+(3.40); noether_wavy 2.14 / 3.17, 1.49 (1.71); bezier_complex_shape 3.17 / 9.19, 2.90 (3.90); crs_part_5
+7.56 / 26.51, **3.51** (5.32); built-in plate 1.25, panel 1.97, blade 1.87.  Within 3x on five of the
+seven shared meshes; noether_raw_mesh and crs_part_5 miss.  There the uniform plan is 80 % of the wall
+time, and 55 % of the plan's serial CPU is potpourri3d's heat-method distance (142 solves of 60 ms on
+noether_raw_mesh, one per generation of each of six candidates; they depend on each other).
+
 The stage times ``load_s``, ``plan_s`` (plan and order), ``trajectory_s`` and ``simulate_s`` come from the
 job's own ``metrics.json``, of the run with the least wall time; the rest of the wall time is the
 interpreter, imports, the report and the files.
