@@ -43,3 +43,14 @@ def grooved_plate(width: float = 0.3, depth: float = 5e-3, sigma: float = 0.01, 
     X, Y = np.meshgrid(xs, xs, indexing="ij")
     Z = -depth * np.exp(-Y ** 2 / (2 * sigma ** 2))
     return Surface(np.stack([X, Y, Z], -1).reshape(-1, 3), grid_faces(n, n), name="grooved plate")
+
+
+def sliver_plate(size_x: float = 0.4, size_y: float = 0.3, strip: float = 1.5e-3) -> Surface:
+    """A flat plate in z = 0 (m) meshed as strips ``strip`` wide, each two triangles ``size_x`` long:
+    slivers, which a per-triangle sample lattice gives one row of samples each."""
+    ys = np.arange(0.0, size_y + 1e-12, strip)
+    n = len(ys)
+    v = np.concatenate([np.stack([np.zeros(n), ys, np.zeros(n)], 1), np.stack([np.full(n, size_x), ys, np.zeros(n)], 1)])
+    i = np.arange(n - 1)
+    faces = np.concatenate([np.stack([i, n + i, n + i + 1], 1), np.stack([i, n + i + 1, i + 1], 1)])
+    return Surface(v, faces, name="slivers")

@@ -1,22 +1,12 @@
 """The memory guard counts lattice removal samples exactly (cli.guard.estimate_bytes)."""
 
-import numpy as np
 import pytest
 
+from shapes import sliver_plate
 from swath.cli.guard import BASE_BYTES, BYTES_PER_FACE, BYTES_PER_SAMPLE, estimate_bytes
 from swath.cli.settings import settings_from_mapping
 from swath.simulate.removal import MAX_REMOVAL_SAMPLES, samples_for_area
 from swath.simulate.samples import count_removal_samples, removal_samples
-from swath.surface import Surface
-
-
-def sliver_plate(size_x=0.4, size_y=0.3, strip=1.5e-3):
-    ys = np.arange(0.0, size_y + 1e-12, strip)
-    n = len(ys)
-    v = np.concatenate([np.stack([np.zeros(n), ys, np.zeros(n)], 1), np.stack([np.full(n, size_x), ys, np.zeros(n)], 1)])
-    i = np.arange(n - 1)
-    faces = np.concatenate([np.stack([i, n + i, n + i + 1], 1), np.stack([i, n + i + 1, i + 1], 1)])
-    return Surface(v, faces, name="slivers")
 
 
 def settings(tmp_path, **keys):

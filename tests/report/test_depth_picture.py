@@ -4,12 +4,12 @@ face drawn, neighbours joined, the depth interpolated from the samples (report.p
 import numpy as np
 import pytest
 
+import shapes
 from swath.contact import Tool
 from swath.plan import Pass, ToolPath
 from swath.report.html import display_mesh, figure_3d
 from swath.report.plots import depth_mesh, part_display_mesh, removal_map_figure
 from swath.simulate import simulate_removal
-from swath.surface import Surface
 from swath.surface.geometry import face_normals_and_areas
 from swath.trajectory import FeedLimit, time_path
 
@@ -17,14 +17,9 @@ SIZE_X, SIZE_Y, FEED = 0.4, 0.3, 0.05
 
 
 def sliver_plate(strip=1.5e-3):
-    """A flat plate in z = 0 meshed as strips ``strip`` wide, each two triangles ``SIZE_X`` long (the
-    lattice gives each one row of samples, which drew no display triangle before)."""
-    ys = np.arange(0.0, SIZE_Y + 1e-12, strip)
-    n = len(ys)
-    v = np.concatenate([np.stack([np.zeros(n), ys, np.zeros(n)], 1), np.stack([np.full(n, SIZE_X), ys, np.zeros(n)], 1)])
-    i = np.arange(n - 1)
-    faces = np.concatenate([np.stack([i, n + i, n + i + 1], 1), np.stack([i, n + i + 1, i + 1], 1)])
-    return Surface(v, faces, name="slivers")
+    """The shared sliver plate at this file's size (the lattice gives each strip one row of samples,
+    which drew no display triangle before)."""
+    return shapes.sliver_plate(SIZE_X, SIZE_Y, strip)
 
 
 @pytest.fixture(scope="module")

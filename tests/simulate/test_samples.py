@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import swath.simulate.removal as removal_module
-from shapes import sphere_cap
+from shapes import sliver_plate, sphere_cap
 from swath.contact import Tool
 from swath.errors import InputError
 from swath.examples import flat_plate
@@ -14,16 +14,6 @@ from swath.simulate import simulate_removal
 from swath.simulate.samples import count_removal_samples, removal_samples
 from swath.surface import Surface
 from swath.trajectory import FeedLimit, time_path
-
-
-def sliver_plate(size_x=0.4, size_y=0.3, strip=1.5e-3):
-    """A flat plate in z = 0 meshed as strips ``strip`` wide, each two triangles ``size_x`` long."""
-    ys = np.arange(0.0, size_y + 1e-12, strip)
-    n = len(ys)
-    v = np.concatenate([np.stack([np.zeros(n), ys, np.zeros(n)], 1), np.stack([np.full(n, size_x), ys, np.zeros(n)], 1)])
-    i = np.arange(n - 1)
-    faces = np.concatenate([np.stack([i, n + i, n + i + 1], 1), np.stack([i, n + i + 1, i + 1], 1)])
-    return Surface(v, faces, name="slivers")
 
 
 def test_a_sliver_gets_one_row_of_samples_at_the_spacing():
