@@ -159,7 +159,7 @@ def test_accel_sweep_makes_a_sharp_cap_feasible():
 def test_thin_rows_keeps_each_cells_peak_when_scored(plate):
     """With a score, the row kept in each grid cell is the cell's highest-scoring sample; the
     weights (cell areas) add up to the region's area either way."""
-    from swath.feed.optimise import thin_rows
+    from swath.feed.dwell_lp import thin_rows
 
     region = np.ones(len(plate.vertices), bool)
     score = np.random.default_rng(3).random(len(plate.vertices))
