@@ -26,6 +26,7 @@ import scipy.sparse as sp
 from ..contact import Tool, mesh_contact
 from ..contact.tool import sample_spacing_for
 from ..errors import InputError
+from ..surface import Surface
 from ..trajectory.geometry import arc_length
 
 log = logging.getLogger(__name__)
@@ -88,7 +89,7 @@ class RemovalKernel:
     """
 
     matrix: sp.csc_matrix
-    samples: object
+    samples: Surface
     nodes: DwellNodes
     toolpath: object
     tool: Tool
