@@ -215,3 +215,41 @@ def fill_passes(check: CoverageCheck, patches, slicer, feed, cross, pad_radius: 
                     <= 2 * pad_radius:
                 out.append((pts[a:b], nrm[a:b], off))
     return out
+
+
+#: At most this many rounds of fill passes (each round fills the gaps the previous ones left).
+FILL_ROUNDS = 3
+
+
+def fill_rounds(check: CoverageCheck, passes, fills_for, *, rounds: int = FILL_ROUNDS) -> tuple[list, int]:
+    """Add fill passes until the plan leaves no gap patch, a round adds nothing or ``rounds`` are done.
+
+    Parameters
+    ----------
+    check : CoverageCheck
+    passes : sequence of Pass
+        The plan so far (not modified).
+    fills_for : callable
+        ``fills_for(patches, passes) -> list of Pass``: the fill passes for this round's gap
+        ``patches`` (:meth:`CoverageCheck.gap_patches`) given the plan so far.
+    rounds : int
+
+    Returns
+    -------
+    passes : list of Pass
+        ``passes`` followed by every round's fill passes.
+    added : int
+    """
+    passes = list(passes)
+    added = 0
+    for _ in range(rounds):
+        patches = check.gap_patches(passes)
+        if not patches:
+            break
+        new = fills_for(patches, passes)
+        if not new:
+            break
+        passes += new
+        added += len(new)
+    return passes, added
+

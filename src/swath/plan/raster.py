@@ -282,27 +282,22 @@ def plane_offsets(heights: np.ndarray, spacing: float) -> tuple[np.ndarray, floa
     return offsets, margin
 
 
-
-
-#: At most this many rounds of fill passes.
-FILL_ROUNDS = 3
-
-
 def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacing):
     """Add fill passes where the plan leaves the surface untouched; returns the passes (sorted by
     piece, level and position along the feed), how many were added and the predicted gap share."""
     from .common import slice_passes
-    from .gaps import CoverageCheck, fill_passes
+    from .gaps import CoverageCheck, fill_passes, fill_rounds
 
     check = CoverageCheck(surface, tool, feed)
     piece_of_vertex = np.full(len(surface.vertices), -1)
     for k, faces in enumerate(pieces):
         piece_of_vertex[surface.faces[faces].ravel()] = k
-    added = 0
-    for _ in range(FILL_ROUNDS):
-        patches = check.gap_patches(passes)
-        if not patches:
-            break
+
+    def fills_for(patches, passes):
+        # each pass's mean position across the feed, and its piece: the fill takes the level of the
+        # nearest pass of its own piece
+        across = np.array([float(np.mean(p.points @ cross)) for p in passes])
+        piece = np.array([p.region for p in passes])
         new = []
         for idx in patches:
             nearest = surface.kdtree.query(check.points[idx[len(idx) // 2]])[1]
@@ -314,12 +309,10 @@ def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacin
                 return slice_passes(surface, faces, cross, offset, feed, point_spacing, edges=edges)
 
             for pts, nrm, off in fill_passes(check, [idx], slicer, feed, cross, tool.pad_radius):
-                level = int(np.argmin([abs(off - float(np.mean(p.points @ cross))) if p.region == k else np.inf
-                                       for p in passes]))
+                level = int(np.argmin(np.where(piece == k, np.abs(off - across), np.inf)))
                 new.append(Pass(pts, nrm, level=passes[level].level, region=k, kind="touch_up"))
-        if not new:
-            break
-        passes = passes + new
-        added += len(new)
+        return new
+
+    passes, added = fill_rounds(check, passes, fills_for)
     passes.sort(key=lambda p: (p.region, p.level, float(p.points[0] @ feed)))
     return passes, added, check.gap_fraction(passes)

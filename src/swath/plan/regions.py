@@ -12,12 +12,10 @@ from scipy.spatial import cKDTree
 from ..core import Pass, ToolPath
 from ..errors import InfeasibleError, InputError
 from .common import slice_passes
-from .gaps import CoverageCheck, fill_passes
+from .gaps import CoverageCheck, fill_passes, fill_rounds
 
 log = logging.getLogger("swath.plan")
 
-#: At most this many rounds of whole-part fill passes.
-FILL_ROUNDS = 3
 #: Share of the pad's predicted contact chord the whole-part fill counts as covered.  The chord model
 #: is optimistic where the part is concave across the pass (the foot of the hub's rim: the pressed
 #: pad bridges it): on the hub, raster per region with the fill judged at the full chord left 2.0 %
@@ -160,22 +158,16 @@ def fill_whole_surface(surface, tool, passes, regions, feed, cross, *, point_spa
     def slicer(offset):
         return slice_passes(surface, all_faces, cross, offset, feed, point_spacing)
 
-    passes = list(passes)
-    added = 0
-    for _ in range(FILL_ROUNDS):
-        patches = check.gap_patches(passes)
-        if not patches:
-            break
+    def fills_for(patches, passes):
         new = []
         for pts, nrm, off in fill_passes(check, patches, slicer, feed, cross, tool.pad_radius):
             region = int(owner[owner_tree.query(pts[len(pts) // 2])[1]])
             same = [p for p in passes if p.region == region] or passes
             level = min(same, key=lambda p: abs(off - float(np.mean(p.points @ cross)))).level
             new.append(Pass(pts, nrm, level=level, region=region, kind="touch_up"))
-        if not new:
-            break
-        passes += new
-        added += len(new)
+        return new
+
+    passes, added = fill_rounds(check, passes, fills_for)
     gap = check.gap_fraction(passes)
     log.info("whole-part fill: %d passes, %.2f %% of the area left untouched", added, 100 * gap)
     return passes, added, gap
