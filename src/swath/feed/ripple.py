@@ -72,11 +72,7 @@ def ripple_cov(tool: Tool, spacing: float, *, n: int = 512) -> float:
     d = float(spacing)
     if not (np.isfinite(d) and d > 0):
         raise InputError(f"spacing must be a positive length in m, got {spacing!r}")
-    R = tool.pad_radius
-    y = (np.arange(n) + 0.5) / n * d
-    images = np.arange(-int(np.ceil(R / d)) - 1, int(np.ceil(R / d)) + 2)
-    total = cross_profile(tool, (y[:, None] - images[None, :] * d).ravel()).reshape(n, -1).sum(axis=1)
-    return float(total.std() / total.mean())
+    return lattice_cov(tool, [0.0], [1.0], d, n=n)
 
 
 def lattice_cov(tool: Tool, offsets, weights, period: float, *, n: int = 1024) -> float:
@@ -84,7 +80,7 @@ def lattice_cov(tool: Tool, offsets, weights, period: float, *, n: int = 1024) -
     across the feed, each with relative dwell ``weights`` (``(N,)``, >= 0: the pass's mean dwell per
     unit length), the pattern repeated every ``period`` (m) — over one period, ``n`` points.
 
-    ``ripple_cov(tool, d)`` is ``lattice_cov(tool, [0], [1], d)``.  With ``N`` equally spaced passes
+    :func:`ripple_cov` is ``lattice_cov(tool, [0], [1], d)``.  With ``N`` equally spaced passes
     and any weights the CoV is never below ``ripple_cov(tool, period / N)`` (module docstring).
     """
     y0 = np.asarray(offsets, float).reshape(-1)
