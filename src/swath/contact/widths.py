@@ -276,7 +276,6 @@ def _widths_across_near(rows, psi, phi, rho_in, rho_out, phi0, spacing, ray_boun
     A non-finite ``psi`` or a row with a ray through the centre (``rho_in < 0``) takes the full loop.
     """
     n = len(phi)
-    half = len(ray_bound)
     out = np.empty(len(rows))
     for i in range(len(rows)):
         r = rows[i]
@@ -292,32 +291,35 @@ def _widths_across_near(rows, psi, phi, rho_in, rho_out, phi0, spacing, ray_boun
         if not (row_ok and np.isfinite(p)):
             out[i] = _width_all_rays(r, p, phi, rho_in, rho_out)
             continue
-        hi = -np.inf
-        j0 = int(np.floor((p - phi0) / spacing + 0.5))
-        for k in range(half):
-            if max(m * ray_bound[k], 0.0) < hi:
-                break
-            for side in range(2):
-                j = ((j0 + k if side == 0 else j0 - k) % n + n) % n
-                if rho_out[r, j] > rho_in[r, j]:
-                    proj = np.cos(phi[j] - p)
-                    a = rho_out[r, j] * proj if proj >= 0 else rho_in[r, j] * proj
-                    if a > hi:
-                        hi = a
-        lo = np.inf
-        j1 = int(np.floor((p + np.pi - phi0) / spacing + 0.5))
-        for k in range(half):
-            if max(m * ray_bound[k], 0.0) < -lo:
-                break
-            for side in range(2):
-                j = ((j1 + k if side == 0 else j1 - k) % n + n) % n
-                if rho_out[r, j] > rho_in[r, j]:
-                    proj = np.cos(phi[j] - p)
-                    b = rho_in[r, j] * proj if proj >= 0 else rho_out[r, j] * proj
-                    if b < lo:
-                        lo = b
+        hi = _reach_near(r, p, p, False, phi, rho_in, rho_out, phi0, spacing, ray_bound, m)
+        lo = -_reach_near(r, p, p + np.pi, True, phi, rho_in, rho_out, phi0, spacing, ray_bound, m)
         out[i] = hi - lo if (np.isfinite(hi) and np.isfinite(lo)) else 0.0
     return out
+
+
+@jit()
+def _reach_near(r, p, start, behind, phi, rho_in, rho_out, phi0, spacing, ray_bound, m):   # pragma: no cover - compiled
+    """How far patch row ``r`` reaches across angle ``p``: ahead (the largest ``a`` of
+    :func:`_width_all_rays`), or with ``behind`` the largest ``-b``; rays searched outward from the
+    one nearest ``start`` until ``m · ray_bound[k]`` (``m`` the row's longest ray) is below the
+    reach found (see :func:`_widths_across_near`).  ``-inf`` when no ray has contact."""
+    n = len(phi)
+    best = -np.inf
+    j0 = int(np.floor((start - phi0) / spacing + 0.5))
+    for k in range(len(ray_bound)):
+        if max(m * ray_bound[k], 0.0) < best:
+            break
+        for side in range(2):
+            j = ((j0 + k if side == 0 else j0 - k) % n + n) % n
+            if rho_out[r, j] > rho_in[r, j]:
+                proj = np.cos(phi[j] - p)
+                if behind:
+                    v = -(rho_in[r, j] * proj if proj >= 0 else rho_out[r, j] * proj)
+                else:
+                    v = rho_out[r, j] * proj if proj >= 0 else rho_in[r, j] * proj
+                if v > best:
+                    best = v
+    return best
 
 
 def patch_rows(patch: LocalPatch, inverse: np.ndarray, fn, chunk: int = 20000) -> np.ndarray:
