@@ -10,7 +10,7 @@ from swath.examples import doubly_curved_panel, flat_plate
 from swath.plan import gaps
 from swath.plan.gaps import within_reach
 from swath.plan.slicing import level_sets
-from swath.plan.uniform import _band_widths
+from swath.plan.uniform_layout import _band_widths
 from swath.plan.uniform_model import _Context, _vertex_gradient_directions
 
 TOOL = Tool()

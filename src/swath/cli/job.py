@@ -11,7 +11,7 @@ import json
 import logging
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import InputError
 from .settings import JobSettings, load_job_toml, settings_from_mapping  # noqa: F401  (the job's inputs)
@@ -104,6 +104,9 @@ class CycleTimeCost:
     constraints: tuple
     links: LinkSettings | None
     order: str | None = None
+    #: The cost reads the passes and the order metadata only (the uniform planner then ranks
+    #: candidate directions that lay the same passes once).
+    passes_only: ClassVar[bool] = True
 
     def prepare(self) -> None:
         """Import what :meth:`__call__` needs (the order and trajectory stages, toppra) now: a planner

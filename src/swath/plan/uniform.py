@@ -34,19 +34,17 @@ import logging
 import math
 import multiprocessing
 import pickle
-import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
 
 from ..core import ToolPath
+from ..core.beside import can_fork
 from ..core.cpus import usable_cpus
 from ..errors import InfeasibleError, InputError
-from ..surface.geometry import normalize
 from .common import feed_and_cross
-from .slicing import level_sets, resample, slice_mesh
+from .uniform_layout import _layout, _seed_curves, _toolpath
 from .uniform_model import _Context
-from .uniform_passes import _area, _finished, _insert_near, _on_surface_pass, _touch_up, _touched_by
 
 log = logging.getLogger("swath.plan")
 
@@ -98,7 +96,9 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         ``cost(toolpath) -> (value, description)`` ranking candidate directions (lower is better),
         e.g. the predicted cycle time under the very limits and links the job's trajectory will
         use (:func:`swath.cli.job.cycle_time_cost` builds one).  Default: contact length plus the
-        straight-line air distance between consecutive passes in zig-zag order, m.
+        straight-line air distance between consecutive passes in zig-zag order, m.  A cost whose
+        ``passes_only`` attribute is true reads only the passes and the order hint, not the rest of
+        the metadata, so directions that lay the same passes are ranked once.
     work_spacing : float, optional
         Edge length (m) the surface is subdivided to for the distance fields (default from the part
         size, between R/12 and R/4, coarsened if the mesh would exceed about
@@ -142,13 +142,14 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
 
     if direction is None or (isinstance(direction, str) and direction == "auto"):
         # The working mesh is built here only when the candidates are planned here.
-        return _auto(functools.cache(lambda: _Context(*context_args[:3], max_turn_curvature=context_args[3])),
+        return _auto(functools.cache(lambda: _Context(*context_args[:3], max_turn_curvature=context_args[3],
+                                                      beside=workers != 1)),
                      overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
                      cost=cost or length_cost, progress=progress, workers=workers, context_args=context_args)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
-    ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3])
+    ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1)
     if isinstance(direction, (int, float)) and math.isfinite(direction):
         return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
@@ -166,179 +167,6 @@ def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length
     return _toolpath(ctx.surface, layout, point_spacing=point_spacing, rule=rule, extra_meta=extra_meta)
 
 
-def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes) -> dict:
-    """The passes of :func:`_plan` as working-mesh polylines, before they are resampled on the
-    surface (the point spacing plays no part in where they lie): a small picklable record."""
-    t0 = time.perf_counter()
-    W, tool = ctx.work, ctx.tool
-    R = tool.pad_radius
-    if isinstance(angle, np.ndarray):
-        feed_dir, cross = feed_and_cross(ctx.surface, direction=angle)
-        a0 = ctx.surface.principal_axes[1][0]
-        angle = math.atan2(float(np.cross(a0, feed_dir) @ np.cross(feed_dir, cross)), float(a0 @ feed_dir))
-    else:
-        feed_dir, cross = feed_and_cross(ctx.surface, angle=angle)
-    step = min(2e-3, 0.5 * ctx.work_spacing)
-
-    generations = []          # each: list of pass points (k, 3)
-    notes: list[str] = []     # what the kept plan must warn about
-    covered = np.zeros(len(W.vertices), bool)
-    current = _seed_curves(ctx, seed, cross, step)
-    reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
-    if isinstance(seed, str) and seed == "middle":
-        first = (_finished(ctx, current, step, min_pass_length)
-                 or _finished(ctx, current, step, min_pass_length, cut=False))
-        if not first:
-            raise InfeasibleError("the middle slice of the surface is shorter than min_pass_length")
-        generations.append(first)
-        for pts in first:
-            covered |= ctx.touched(pts)
-        sources = None
-    else:
-        sources = np.vstack(current)
-
-    for _ in range(max_passes):
-        # Distance from what is covered so far (or from the seed before the first pass).
-        src = ctx.nearest_vertices(sources) if sources is not None else ctx.frontier(covered)
-        if len(src) == 0:
-            break
-        d = ctx.distance(src)
-        if sources is None:
-            d[covered] = 0.0
-        left = (d > 0) & ~covered
-        if _area(W, left) <= 1e-4 * W.area:
-            break
-        band = np.flatnonzero((d <= 2.5 * R) & left)
-        w_here = _band_widths(ctx, d, band, reach)
-        g = d - reach * w_here
-        pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
-        if not pieces:
-            # The far boundary is nearer than a full step: pull the last pass in so its ribbon
-            # reaches the boundary.
-            w_here = _band_widths(ctx, d, band, reach, everywhere=True)
-            d_far = float(np.max(d[left]))
-            w_left = float(np.median(w_here[left]))
-            level = max(d_far - reach * w_left, 0.5 * d_far)
-            pieces = level_sets(W.vertices, W.faces, d - level, [0.0], edges=ctx.edges)
-        new = _finished(ctx, pieces, step, min_pass_length)
-        gained = _touched_by(ctx, new)
-        if not (gained & ~covered).any():
-            # Cutting at sharp turns left nothing that reaches new area (a short seed stretch gives a
-            # first level set curled round it; a pocket's level set is a small loop): a pass that
-            # makes the tool slow down beats none.
-            whole = _finished(ctx, pieces, step, min_pass_length, cut=False)
-            gained_whole = _touched_by(ctx, whole)
-            log.debug("uniform generation %d: cut pieces gain nothing; whole pieces gain %.4f m2",
-                      len(generations), _area(W, gained_whole & ~covered))
-            new, gained = whole, gained_whole
-        log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
-                  len(pieces), len(new), _area(W, left))
-        if not (gained & ~covered).any():
-            notes.append("uniform: a pass generation covered nothing new, so the planner stopped there")
-            log.info("%s", notes[-1])
-            break
-        generations.append(new)
-        covered |= gained
-        sources = None
-    else:
-        notes.append(f"uniform: stopped after max_passes={max_passes} generations")
-        log.info("%s", notes[-1])
-
-    passes_pts = [p for gen in generations for p in gen]
-    generation_of = {id(p): g for g, gen in enumerate(generations) for p in gen}
-    if not passes_pts:
-        raise InfeasibleError("uniform found no pass: the surface is narrower than the shortest allowed pass "
-                              f"({min_pass_length * 1e3:.1f} mm) in every direction tried")
-    covered, touch_ups = _touch_up(ctx, passes_pts, covered, step, min_pass_length)
-    merged = _insert_near(passes_pts, touch_ups)
-    touch_up_index = [i for i, q in enumerate(merged) if any(q is t for t in touch_ups)]
-    # Coverage the planner itself predicts (pad-touched area of the working mesh, with the sink
-    # capped as in _Context.touched); the simulator's figure is the one to trust.
-    covered_pred = float(W.vertex_areas[covered].sum() / W.area)
-    if covered_pred < 0.995:
-        notes.append(f"uniform: {100 * (1 - covered_pred):.1f} % of {ctx.surface.name or 'the part'} is predicted to "
-                     "stay untouched (regions no pass reaches); lower the overlap's step or segment the part")
-    return dict(angle=float(angle), feed_dir=feed_dir, polylines=merged,
-                levels=[generation_of.get(id(p), -1) for p in merged], touch_up_index=touch_up_index,
-                covered_pred=covered_pred, notes=notes, n_generations=len(generations), n_touch_ups=len(touch_ups),
-                overlap=float(overlap), seed=seed if isinstance(seed, str) else "polyline",
-                min_pass_length=float(min_pass_length), work_spacing=ctx.work_spacing,
-                seconds=time.perf_counter() - t0)
-
-
-def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *,
-                 everywhere: bool = False, directions=None) -> np.ndarray:
-    """Swath widths ``w_here`` ``(n,)`` (m) across the passes that follow the level sets of the
-    distance field ``d`` ``(n,)`` (m): ``2R`` off the ``band`` vertices, the local contact model's
-    width on them.
-
-    Only the zero level set of ``g = d - reach * w_here`` is extracted, and it reads ``g`` only on
-    the faces it cuts (a face is cut where some corner has ``g < 0`` and some not).  Each band
-    vertex's width lies between bounds over all directions (:attr:`WidthModel.min_width`,
-    :attr:`WidthModel.max_width`), so where ``d`` is beyond ``reach`` times them the sign of ``g``
-    is known without the width.  The widths are computed first where the sign is not known, then on
-    every band vertex of a face the signs show is cut; the others get a bound of the right side
-    (``g`` keeps its sign).  The level set is then the same, bit for bit, as with every width
-    computed.  ``everywhere=True`` (or ``reach <= 0``) computes every band width.
-    ``directions()``, if given, returns ``ctx.gradient_directions(d)`` ``(n, 3)``; otherwise the
-    directions are computed at the vertices that need them only.
-    """
-    W = ctx.work
-    w_here = np.full(len(W.vertices), 2 * ctx.tool.pad_radius)
-    if len(band) == 0:
-        return w_here
-
-    def exact(idx):
-        if len(idx):
-            gdir = directions()[idx] if directions is not None else ctx.gradient_directions(d, idx)
-            w_here[idx] = ctx.widths.across(idx, np.cross(W.normals[idx], gdir))
-
-    if everywhere or not reach > 0:
-        exact(band)
-        return w_here
-    high = ctx.widths.max_width[band]
-    low = ctx.widths.min_width[band] * (1.0 - 1e-6)
-    positive = d[band] - reach * (high * (1.0 + 1e-9)) > 0.0         # g > 0 whatever the width
-    negative = d[band] - reach * low < 0.0                           # g < 0 whatever the width
-    unknown = ~(positive | negative)                                 # (NaN bounds land here)
-    w_here[band[positive]] = high[positive]
-    w_here[band[negative]] = low[negative]
-    exact(band[unknown])
-    below = d - reach * w_here < 0.0                                 # now the sign of g everywhere
-    F = W.faces
-    b0, b1, b2 = below[F[:, 0]], below[F[:, 1]], below[F[:, 2]]
-    cut = (b0 | b1 | b2) & ~(b0 & b1 & b2)
-    on_cut_face = np.zeros(len(W.vertices), bool)
-    on_cut_face[F[cut].ravel()] = True
-    known = ~unknown
-    exact(band[known & on_cut_face[band]])
-    return w_here
-
-
-def _toolpath(surface, layout: dict, *, point_spacing, rule, extra_meta=None) -> ToolPath:
-    """The :func:`_layout` passes resampled ``point_spacing`` (m) apart on the surface, as a ToolPath."""
-    t0 = time.perf_counter()
-    touch_up_index = layout["touch_up_index"]
-    passes = [_on_surface_pass(surface, p, point_spacing, level=level,
-                               kind="touch_up" if i in touch_up_index else "pass")
-              for i, (p, level) in enumerate(zip(layout["polylines"], layout["levels"]))]
-    angle = layout["angle"]
-    meta = dict(overlap_fraction=layout["overlap"], direction_rad=angle, direction_rule=rule,
-                predicted_coverage_fraction=layout["covered_pred"],
-                feed_direction=layout["feed_dir"].tolist(), seed=layout["seed"],
-                n_passes=len(passes), n_generations=layout["n_generations"], n_touch_up_passes=layout["n_touch_ups"],
-                touch_up_passes=list(touch_up_index), order_hint="zigzag", warnings=list(layout["notes"]),
-                work_spacing_m=layout["work_spacing"],
-                point_spacing_m=float(point_spacing), min_pass_length_m=layout["min_pass_length"],
-                plan_time_s=layout["seconds"] + time.perf_counter() - t0)
-    if extra_meta:
-        meta.update(extra_meta)
-    log.info("uniform %s: direction %.0f deg, %d passes in %d generations, %.2f m, %.1f s", surface.name,
-             math.degrees(angle), len(passes), layout["n_generations"], sum(p.length for p in passes),
-             meta["plan_time_s"])
-    return ToolPath(surface, passes, "uniform", meta)
-
-
 def length_cost(toolpath) -> tuple[float, str]:
     """Contact length plus the straight air distance between passes run zig-zag (each from the end
     nearer the previous end), m: the default ranking of candidate directions."""
@@ -352,6 +180,11 @@ def length_cost(toolpath) -> tuple[float, str]:
         else:
             end = last
     return float(total), "contact + straight air length (m)"
+
+
+#: :func:`length_cost` reads the passes only (not the tool path's metadata): candidates with the
+#: same passes have the same cost (see :func:`_candidate_group`).
+length_cost.passes_only = True  # type: ignore[attr-defined]
 
 
 def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None, workers=None,
@@ -368,20 +201,28 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
                  "after another (give a module-level function or a record with __call__)")
         n_workers = 1
     say("planning (uniform): trying pass directions", 0, len(angles) + 1)
-    if n_workers > 1 and context_args is not None:
-        rows = _candidates_in_workers(context_args, angles, options, cost, n_workers, say,
-                                      make_context=make_context)
+    in_workers = n_workers > 1 and context_args is not None
+    if in_workers and not can_fork():
+        groups = [[a] for a in angles]      # the working mesh is built in each spawned worker, not here
+    else:
+        groups = _same_seed_groups(make_context(), angles, seed)
+    if in_workers:
+        rows_of = _candidates_in_workers(context_args, groups, options, cost, min(n_workers, len(groups)), say,
+                                         make_context=make_context)
     else:
         from threadpoolctl import threadpool_limits
 
-        rows = []
+        rows_of, done = [], 0
         # One BLAS thread, as in the worker processes: the planner's matrix products are thin
         # ((n, 3) @ (3,)), where a second BLAS thread only synchronises (a plane slice of a 170k-vertex
         # working mesh took 12 ms with two threads and 0.1 ms with one on a loaded machine).
         with threadpool_limits(limits=1, user_api="blas"):
-            for k, a in enumerate(angles):
-                rows.append(_candidate(make_context(), a, options, cost))
-                say("planning (uniform): trying pass directions", k + 1, len(angles) + 1)
+            for group in groups:
+                rows_of.append(_candidate_group(make_context(), group, options, cost))
+                done += len(group)
+                say("planning (uniform): trying pass directions", done, len(angles) + 1)
+    row_at = {a: row for group, rows in zip(groups, rows_of) for a, row in zip(group, rows)}
+    rows = [row_at[a] for a in angles]
     results, layouts, what = [], {}, ""
     for a, row in zip(angles, rows):
         if isinstance(row, str):
@@ -406,6 +247,48 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
                      extra_meta={"candidates": candidates})
 
 
+def _same_seed_groups(ctx, angles: list[float], seed) -> list[list[float]]:
+    """``angles`` grouped by their seed curves: angles whose seeds are equal bit for bit.
+
+    A direction enters :func:`_layout` only through its seed curve (which stretch of the boundary,
+    or which middle slice; a given polyline is the same for every direction); after that every
+    pass follows the distance field from the passes before.  Angles with the same seed therefore
+    lay the same passes, and their layout is computed once (on crs_part_5, 60 and 90 degrees pick
+    the same boundary stretch, as do 120 and 150).  An angle whose seed cannot be made is a group
+    of its own (its layout reports why).
+    """
+    step = min(2e-3, 0.5 * ctx.work_spacing)
+    groups: dict = {}
+    for a in angles:
+        _, cross = feed_and_cross(ctx.surface, angle=a)
+        try:
+            curves = _seed_curves(ctx, seed, cross, step)
+        except InfeasibleError:
+            groups[("no seed", a)] = [a]
+            continue
+        key = tuple((c.shape, np.ascontiguousarray(c, float).tobytes()) for c in curves)
+        groups.setdefault(key, []).append(a)
+    return list(groups.values())
+
+
+def _candidate_group(ctx, group: list[float], options: dict, cost) -> list:
+    """:func:`_candidate` of every angle in ``group`` (angles with the same seed curves): the layout
+    is made once, then resampled and ranked with each angle's own direction recorded."""
+    first = _candidate(ctx, group[0], options, cost)
+    rows = [first]
+    for a in group[1:]:
+        if isinstance(first, str):
+            rows.append(first)
+            continue
+        layout = dict(first[4], angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0])
+        if getattr(cost, "passes_only", False):
+            # the same passes in the same order: a cost that reads nothing else ranks them the same
+            rows.append((*first[:4], layout))
+        else:
+            rows.append(_ranked(ctx.surface, layout, options["point_spacing"], cost))
+    return rows
+
+
 def _candidate(ctx, angle: float, options: dict, cost):
     """Plan one candidate direction and rank it: ``(contact length m, cost, cost description,
     predicted coverage fraction, layout)``, or the reason (str) when the direction is infeasible."""
@@ -415,7 +298,12 @@ def _candidate(ctx, angle: float, options: dict, cost):
         layout = _layout(ctx, angle, **options)
     except InfeasibleError as exc:
         return str(exc)
-    tp = _toolpath(ctx.surface, layout, point_spacing=point_spacing, rule="candidate")
+    return _ranked(ctx.surface, layout, point_spacing, cost)
+
+
+def _ranked(surface, layout: dict, point_spacing: float, cost):
+    """``layout`` resampled at ``point_spacing`` (m) and ranked: the row of :func:`_candidate`."""
+    tp = _toolpath(surface, layout, point_spacing=point_spacing, rule="candidate")
     value, what = cost(tp)
     return tp.contact_length, float(value), what, tp.metadata["predicted_coverage_fraction"], layout
 
@@ -428,8 +316,9 @@ def _pickles(obj) -> bool:
     return True
 
 
-def _candidates_in_workers(context_args, angles, options, cost, n_workers, say, *, make_context=None) -> list:
-    """:func:`_candidate` of every angle in ``n_workers`` worker processes, in the order of ``angles``.
+def _candidates_in_workers(context_args, groups, options, cost, n_workers, say, *, make_context=None) -> list:
+    """:func:`_candidate_group` of every group of angles in ``n_workers`` worker processes, in the
+    order of ``groups``.
 
     Where the platform forks safely (Linux) and ``make_context`` is given, the working mesh is built
     once here and the workers are forked from this process: they inherit it and the imported
@@ -439,18 +328,18 @@ def _candidates_in_workers(context_args, angles, options, cost, n_workers, say, 
     oversubscribe the cores, and the plans are the same as planned here one after another.
     """
     global _WORKER_CONTEXT
-    if make_context is not None and _can_fork():
+    if make_context is not None and can_fork():
         _WORKER_CONTEXT = make_context()
         _warm_before_fork(_WORKER_CONTEXT, cost)
         try:
-            return _run_pool(multiprocessing.get_context("fork"), None, angles, options, cost, n_workers, say)
+            return _run_pool(multiprocessing.get_context("fork"), None, groups, options, cost, n_workers, say)
         finally:
             _WORKER_CONTEXT = None
     # The part's own derived arrays the working mesh reads (curvature, smooth normals, KD-tree) are
     # computed here, as in a serial run, and travel with the pickled surface.
     surface = context_args[0]
     _ = surface.curvature, surface.normals, surface.kdtree
-    return _run_pool(multiprocessing.get_context("spawn"), context_args, angles, options, cost, n_workers, say)
+    return _run_pool(multiprocessing.get_context("spawn"), context_args, groups, options, cost, n_workers, say)
 
 
 def _warm_before_fork(ctx: _Context, cost) -> None:
@@ -464,21 +353,14 @@ def _warm_before_fork(ctx: _Context, cost) -> None:
         prepare()
 
 
-def _can_fork() -> bool:
-    """Whether worker processes may be forked: Linux (fork is unsafe on macOS and absent on Windows)."""
-    import sys
-
-    return sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
-
-
-def _run_pool(mp_context, context_args, angles, options, cost, n_workers, say) -> list:
-    done = 0
+def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -> list:
+    done, total = 0, sum(len(g) for g in groups)
     with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp_context, initializer=_worker_init,
                              initargs=(context_args,)) as pool:
-        futures = [pool.submit(_worker_candidate, a, options, cost) for a in angles]
-        for _ in as_completed(futures):
-            done += 1
-            say("planning (uniform): trying pass directions", done, len(angles) + 1)
+        futures = {pool.submit(_worker_candidate_group, g, options, cost): len(g) for g in groups}
+        for f in as_completed(futures):
+            done += futures[f]
+            say("planning (uniform): trying pass directions", done, total + 1)
         return [f.result() for f in futures]
 
 
@@ -500,77 +382,16 @@ def _worker_init(context_args) -> None:
     if context_args is None:        # forked: the working mesh came with the process
         return
     surface, tool, work_spacing, max_turn_curvature = context_args
-    _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature)
+    _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature, beside=False)
 
 
-def _worker_candidate(angle: float, options: dict, cost):
-    return _candidate(_WORKER_CONTEXT, angle, options, cost)
+def _worker_candidate_group(group: list[float], options: dict, cost) -> list:
+    return _candidate_group(_WORKER_CONTEXT, group, options, cost)
 
 
 # ----------------------------------------------------------------------------------------------
 # pieces
 # ----------------------------------------------------------------------------------------------
-def _seed_curves(ctx, seed, cross, step) -> list[np.ndarray]:
-    """Seed polylines (each (k, 3), on the working mesh)."""
-    W = ctx.work
-    if isinstance(seed, str):
-        h = W.vertices @ cross
-        if seed == "boundary":
-            if not W.boundary_loops:
-                raise InfeasibleError("the surface has no boundary to seed from; use seed='middle'")
-            return [_boundary_seed(W, np.cross(cross, _mean_normal(W)), h, ctx.tool.pad_radius)]
-        if seed == "middle":
-            mid = 0.5 * (h.min() + h.max())
-            lines = slice_mesh(W.vertices, W.faces, cross, [mid])
-            return [resample(pl, step).points for pl in lines]
-        raise InputError(f"seed must be 'boundary', 'middle' or a (k, 3) polyline, got {seed!r}")
-    pts = np.asarray(seed, float)
-    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2 or not np.isfinite(pts).all():
-        raise InputError(f"a seed polyline must be a finite (k>=2, 3) array of points in metres, got {pts.shape}")
-    closest, dist, _ = W.closest_points(pts)
-    if dist.max() > ctx.tool.pad_radius:
-        raise InputError(f"the seed polyline lies up to {dist.max() * 1e3:.1f} mm off the surface; "
-                         "give points on the surface")
-    return [closest]
-
-
-def _mean_normal(W) -> np.ndarray:
-    return normalize((W.face_normals * W.face_areas[:, None]).sum(axis=0)[None])[0]
-
-
-def _boundary_seed(W, feed, h, R) -> np.ndarray:
-    """The stretch of boundary on the low side across the feed that runs along the feed.
-
-    Starting from the boundary vertex lowest in ``h`` (the coordinate across the feed), the loop is
-    followed both ways while its tangent (smoothed over about R/2) stays within 50 degrees of the
-    feed direction: the whole straight edge of a panel, the trailing edge of a blade, and only the
-    near-parallel part of a ragged scan edge.
-    """
-    loops = W.boundary_loops
-    k = int(np.argmin([h[l].min() for l in loops]))
-    loop = loops[k]
-    pts = W.vertices[loop]
-    seg = np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=1)
-    span = max(3, int(np.ceil(0.5 * R / max(np.median(seg), 1e-9))))
-    tangent = normalize(np.roll(pts, -span, axis=0) - np.roll(pts, span, axis=0))
-    local = normalize(np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0))
-    # Both the smoothed and the local tangent must run along the feed: smoothing alone would
-    # carry the run a little way round a corner.
-    cos50 = np.cos(np.radians(50.0))
-    along = (np.abs(tangent @ feed) >= cos50) & (np.abs(local @ feed) >= cos50)
-    n = len(loop)
-    start = int(np.argmin(h[loop]))
-    lo = hi = start
-    while along[(lo - 1) % n] and (hi - lo) < n - 1:
-        lo -= 1
-    while along[(hi + 1) % n] and (hi - lo) < n - 1:
-        hi += 1
-    run = [(i % n) for i in range(lo, hi + 1)]
-    return pts[run] if len(run) >= 2 else pts[[start, (start + 1) % n]]
-
-
-
-
 def _per_piece(surface, tool, pieces, options) -> ToolPath:
     """Plan every connected piece with :func:`uniform` and join them (``Pass.region`` = piece)."""
     passes, metas, covered = [], [], 0.0
@@ -586,4 +407,4 @@ def _per_piece(surface, tool, pieces, options) -> ToolPath:
                 touch_up_passes=[i for i, p in enumerate(passes) if p.kind == "touch_up"],
                 n_touch_up_passes=sum(p.kind == "touch_up" for p in passes))
     log.info("uniform %s: %d pieces planned one by one, %d passes", surface.name, len(pieces), len(passes))
-    return ToolPath(surface, passes, "uniform", meta)
+    return ToolPath(surface, tuple(passes), "uniform", meta)

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..contact.kernels import default_cell, sample_grid, touched_samples
 from ..contact.widths import unique_patches, widths_across
+from ..core.beside import Beside
 from ..surface.cells import jit
 from ..surface.curvature import PrincipalCurvature
 from ..surface.geodesic import FaceGradient
@@ -60,10 +61,23 @@ class WidthModel:
         return widths_across(self.patch, self.inverse[idx], psi)
 
 
+def _normals_and_widths(surface, W, tool) -> tuple[np.ndarray, WidthModel]:
+    """The smooth normals ``(n, 3)`` of the working mesh ``W`` and its :class:`WidthModel`, with
+    curvature from the part's own vertices (the nearest one to each working vertex): vertices
+    added on flat facets by the subdivision would read the faceting, not the surface."""
+    nearest = surface.kdtree.query(W.vertices)[1]
+    c = surface.curvature
+    widths = WidthModel(PrincipalCurvature(c.k1[nearest], c.k2[nearest], c.d1[nearest], c.d2[nearest]), W.normals, tool)
+    return W.normals, widths
+
+
 class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
-    def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf):
+    def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf, *, beside: bool = True):
+        """``beside``: build the width model in a forked child process while the distance solver is
+        built here (:class:`swath.core.beside.Beside`; the same arrays either way), where forking
+        is possible and two CPUs are free."""
         import potpourri3d as pp3d
 
         t0 = time.perf_counter()
@@ -86,20 +100,22 @@ class _Context:
             self.work = self.work.sub_surface(np.arange(len(self.work.faces)))
         self.work_spacing = float(work_spacing)
         W = self.work
+        # The two slow halves of the set-up need nothing from each other: the distance solver's
+        # factorisation (C++, holding the GIL) is built here while a forked child builds the
+        # working mesh's smooth normals and the width model (numpy).  The part's curvature, which
+        # both the child and later stages read, is computed first so this process keeps it.
+        _ = surface.curvature, surface.kdtree
+        beside_work = Beside(_normals_and_widths, surface, W, tool, allowed=beside)
         self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
-        # Curvature from the part's own vertices (nearest one to each working vertex): vertices added
-        # on flat facets by the subdivision would read the faceting, not the surface.
-        nearest = surface.kdtree.query(W.vertices)[1]
-        c = surface.curvature
-        self.widths = WidthModel(PrincipalCurvature(c.k1[nearest], c.k2[nearest], c.d1[nearest], c.d2[nearest]),
-                                 W.normals, tool)
-        self.tree = W.kdtree
         self.edges = mesh_edges(np.asarray(W.faces, np.int64))
+        self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
+        normals, self.widths = beside_work.result()
+        W.adopt(normals=normals)
+        self.tree = W.kdtree
         # Pad queries on a cell grid of the working vertices, built once (compiled contact model,
         # float64), relative to the part's centre.
         self._origin = 0.5 * (W.vertices.min(axis=0) + W.vertices.max(axis=0))
         self._grid = sample_grid(W.vertices - self._origin, W.normals, W.vertex_areas, cell=default_cell(tool))
-        self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
         log.info("uniform: working mesh %d vertices (edges <= %.1f mm), set up in %.2f s", len(W.vertices),
                  1e3 * self.work_spacing, time.perf_counter() - t0)
 

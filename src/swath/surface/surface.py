@@ -70,6 +70,21 @@ class Surface:
         if not self.area > 0:
             raise InputError("the mesh has no area (all triangles are degenerate)")
 
+    def adopt(self, **derived) -> None:
+        """Take derived values computed elsewhere for this very mesh (by a helper process forked
+        from this one, :class:`swath.core.beside.Beside`) instead of computing them again here.
+
+        Each keyword names one of the cached per-vertex or per-face properties (``normals``,
+        ``curvature``, ...); a value already computed here is kept.  Only values computed from this
+        surface's own vertices and faces (as the property would) may be given.
+        """
+        for name, value in derived.items():
+            if not isinstance(getattr(type(self), name, None), cached_property):
+                raise TypeError(f"Surface.{name} is not a derived (cached) property")
+            if isinstance(value, np.ndarray):
+                value = _ro(value)          # as the property itself returns it
+            self.__dict__.setdefault(name, value)
+
     def __getstate__(self) -> dict:
         # The closest-point tree is a libigl object that cannot be pickled; it is rebuilt on use.
         state = dict(self.__dict__)

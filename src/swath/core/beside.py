@@ -1,0 +1,82 @@
+"""Run one function in a forked child process while this process goes on with other work.
+
+Used where a set-up has two independent halves and one of them cannot leave this process (the
+uniform planner's heat-method solver lives in C++ and is built here; its width model is plain
+arrays and is built beside it).  The child is forked, so it starts at once with everything this
+process has loaded, and only the result travels back (pickled through a pipe).
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import sys
+from collections.abc import Callable
+from typing import Any
+
+from .cpus import usable_cpus
+
+log = logging.getLogger(__name__)
+
+
+def can_fork() -> bool:
+    """Whether child processes may be forked here: Linux (fork is unsafe on macOS and absent on Windows)."""
+    return sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+
+
+class Beside:
+    """``fn(*args)`` computed in a forked child from now on; :meth:`result` waits for it.
+
+    Where forking is not possible or wanted (``allowed=False``, fewer than 2 usable CPUs, not
+    Linux), nothing starts now and :meth:`result` calls ``fn(*args)`` here.  If the child dies
+    without answering (killed, out of memory), :meth:`result` also computes it here, so the
+    answer is the same either way; an exception ``fn`` raises in the child is raised again here.
+
+    ``fn`` must be deterministic and must not change state this process relies on: the child's
+    changes (caches filled, attributes set) stay in the child.
+    """
+
+    def __init__(self, fn: Callable[..., Any], *args: Any, allowed: bool = True):
+        self._fn, self._args = fn, args
+        self._process = self._conn = None
+        if allowed and usable_cpus() >= 2 and can_fork():
+            ctx = multiprocessing.get_context("fork")
+            self._conn, child_end = ctx.Pipe(duplex=False)
+            self._process = ctx.Process(target=_serve, args=(fn, args, child_end), daemon=True)
+            self._process.start()
+            child_end.close()
+
+    def result(self) -> Any:
+        """The value of ``fn(*args)``."""
+        if self._process is None:
+            return self._fn(*self._args)
+        process, conn, self._process = self._process, self._conn, None
+        assert conn is not None
+        try:
+            kind, value = conn.recv()
+        except (EOFError, OSError):
+            kind, value = "lost", None
+        finally:
+            conn.close()
+            process.join()
+        if kind == "ok":
+            return value
+        if kind == "raised":
+            raise value
+        log.warning("a helper process ended without an answer (exit code %s); computing here instead",
+                    process.exitcode)
+        return self._fn(*self._args)
+
+
+def _serve(fn, args, conn) -> None:     # pragma: no cover - runs in the child
+    try:
+        answer = ("ok", fn(*args))
+    except BaseException as exc:  # noqa: BLE001 - handed back to the parent as it is
+        answer = ("raised", exc)
+    try:
+        conn.send(answer)
+    except Exception as exc:  # noqa: BLE001 - e.g. an exception that does not pickle
+        conn.send(("raised", RuntimeError(f"{type(answer[1]).__name__}: {answer[1]} (in a helper process; "
+                                          f"its answer did not pickle: {exc})")))
+    finally:
+        conn.close()

@@ -1,0 +1,70 @@
+"""swath.core.beside: a function computed in a forked child gives the answer computed here."""
+
+import os
+
+import numpy as np
+import pytest
+
+from swath.core import beside
+from swath.core.beside import Beside
+from swath.surface import Surface
+
+PARENT = os.getpid()
+
+
+def _child_pid_and_sum(values):
+    return os.getpid(), float(np.sum(values))
+
+
+def _raises(message):
+    raise ValueError(message)
+
+
+def _dies_in_a_child(value):
+    if os.getpid() != PARENT:
+        os._exit(3)             # the child ends without answering
+    return value * 2
+
+
+@pytest.fixture
+def two_cpus(monkeypatch):
+    monkeypatch.setattr(beside, "usable_cpus", lambda: 2)
+    if not beside.can_fork():
+        pytest.skip("forking is only used on Linux")
+
+
+def test_the_answer_comes_from_a_child_and_equals_the_one_computed_here(two_cpus):
+    values = np.linspace(0.0, 1.0, 1001)
+    pid, total = Beside(_child_pid_and_sum, values).result()
+    assert pid != PARENT
+    assert total == _child_pid_and_sum(values)[1] == pytest.approx(500.5)
+
+
+def test_not_allowed_or_one_cpu_computes_here(monkeypatch):
+    pid, _ = Beside(_child_pid_and_sum, np.ones(3), allowed=False).result()
+    assert pid == PARENT
+    monkeypatch.setattr(beside, "usable_cpus", lambda: 1)
+    pid, total = Beside(_child_pid_and_sum, np.ones(3)).result()
+    assert (pid, total) == (PARENT, 3.0)
+
+
+def test_an_exception_in_the_child_is_raised_here(two_cpus):
+    work = Beside(_raises, "the width model failed")
+    with pytest.raises(ValueError, match="the width model failed"):
+        work.result()
+
+
+def test_a_child_that_dies_without_answering_is_replaced_by_computing_here(two_cpus, caplog):
+    assert Beside(_dies_in_a_child, 21).result() == 42
+    assert "exit code 3" in caplog.text
+
+
+def test_surface_adopts_cached_values_and_refuses_other_names():
+    plate = Surface(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]]), np.array([[0, 1, 2]]))
+    given = np.tile([0.0, 0.0, 1.0], (3, 1))
+    plate.adopt(normals=given)
+    assert plate.normals is given and not plate.normals.flags.writeable
+    plate.adopt(normals=np.zeros((3, 3)))          # a value already there is kept
+    assert plate.normals is given
+    with pytest.raises(TypeError, match="not a derived"):
+        plate.adopt(vertices=np.zeros((3, 3)))

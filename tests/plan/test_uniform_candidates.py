@@ -1,0 +1,60 @@
+"""The uniform planner's candidate directions: angles with the same seed are laid once, and the
+set-up built beside a forked child is the one built here, bit for bit."""
+
+import importlib
+
+import numpy as np
+import pytest
+
+from swath.contact import Tool
+from swath.examples import blade
+
+U = importlib.import_module("swath.plan.uniform")
+ANGLES = [float(a) for a in U.AUTO_DIRECTIONS]
+OPTIONS = dict(overlap=0.1, seed="boundary", point_spacing=2e-3, min_pass_length=0.25 * Tool().pad_radius,
+               max_passes=500)
+
+
+@pytest.fixture(scope="module")
+def blade_context():
+    return U._Context(blade(), Tool(), None, max_turn_curvature=100.0)
+
+
+def _plain_cost(toolpath):
+    """A cost without ``passes_only``: it might read the metadata, so it is called for every angle."""
+    return U.length_cost(toolpath)[0] + toolpath.metadata["direction_rad"], "length + angle"
+
+
+def test_the_blade_seeds_120_and_150_degrees_from_the_same_boundary_stretch(blade_context):
+    groups = U._same_seed_groups(blade_context, ANGLES, "boundary")
+    assert [[round(np.degrees(a)) for a in g] for g in groups] == [[0], [30], [60], [90], [120, 150]]
+    # a given polyline seeds every direction the same way: one group
+    seed = blade_context.work.vertices[blade_context.work.boundary_loops[0][:20]]
+    assert len(U._same_seed_groups(blade_context, ANGLES, seed)) == 1
+
+
+@pytest.mark.parametrize("cost", [U.length_cost, _plain_cost])
+def test_a_group_ranks_each_angle_as_planning_it_alone_would(blade_context, cost):
+    a, b = ANGLES[4], ANGLES[5]
+    grouped = U._candidate_group(blade_context, [a, b], OPTIONS, cost)
+    alone = [U._candidate(blade_context, x, OPTIONS, cost) for x in (a, b)]
+    for g, s, angle in zip(grouped, alone, (a, b)):
+        assert g[:4] == s[:4]                                   # length, cost, description, coverage
+        assert g[4]["angle"] == s[4]["angle"] == angle
+        np.testing.assert_array_equal(g[4]["feed_dir"], s[4]["feed_dir"])
+        assert len(g[4]["polylines"]) == len(s[4]["polylines"])
+        for p, q in zip(g[4]["polylines"], s[4]["polylines"]):
+            np.testing.assert_array_equal(p, q)
+    if cost is _plain_cost:
+        assert grouped[0][1] != grouped[1][1]                  # the angle entered this cost
+
+
+def test_the_set_up_built_beside_a_child_equals_the_one_built_here(blade_context):
+    here = U._Context(blade(), Tool(), None, max_turn_curvature=100.0, beside=False)
+    there = blade_context
+    np.testing.assert_array_equal(here.work.normals, there.work.normals)
+    for name in ("max_width", "min_width", "inverse"):
+        np.testing.assert_array_equal(getattr(here.widths, name), getattr(there.widths, name))
+    np.testing.assert_array_equal(here.widths.patch.rho_out, there.widths.patch.rho_out)
+    np.testing.assert_array_equal(here.widths.curvature.k1, there.widths.curvature.k1)
+    np.testing.assert_array_equal(here._grid.normals, there._grid.normals)   # built from the child's normals
