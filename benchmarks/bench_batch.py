@@ -10,15 +10,16 @@ sweep), the speed-up over the mean serial run, the sum of the jobs' own wall and
 the load average before and after, since the cores are shared.  Checks that every run gives the
 same table (all columns but times).
 
-This session's runs (2 vCPUs, quiet machine, load 0.5-1.3; Ray sweeps now start the longest jobs
-first): the default sweep (jobs of 0.8-2.2 s) 16.1 / 15.7 s serial against 10.4 s on 2 workers
-(**1.53x**, 1.28x with Ray's 2.0 s start-up); the same with ``OMP_NUM_THREADS=1`` for the serial runs
-too, 1.56x; ``--parts snp_part_scan.ply bezier_dac_cad.ply`` 19.6 / 18.6 s against 12.2 s (1.57x).
-Two jobs side by side each run 11-15 % slower than alone (``sum_job_s`` 18.1 against 16.1 s), and
-each worker's first job pays the imports: together they cap the speed-up near 1.6x here, short of
-the issue's 1.7x on jobs this short (last session measured 1.99x on the default sweep; not
-reproduced).  Longer jobs amortise both: ``--parts crs_part_5.stl bezier_dac_scan.ply`` (jobs of 2-27 s)
-75.2 / 73.9 s serial against 42.4 s on 2 workers, **1.76x** (1.64x with Ray's 3.1 s start-up).
+Runs on 2 vCPUs, quiet machine (load 0.8-1.1).  The local Ray's workers now find swath through the
+``PYTHONPATH`` they inherit (:func:`swath.cli.batch_ray.start_local_ray`), not a ``runtime_env``, so they
+are running when ``ray.init`` returns instead of being started by the first task (0.12 s against
+0.66 s to the first task's start).  The default sweep (jobs of 0.8-2.2 s): 17.3 / 16.5 s serial
+against 10.4 s on 2 workers, **1.62x** (1.35x with Ray's 2.1 s start-up; last session, with the
+runtime_env, 1.53x).  ``--parts crs_part_5.stl bezier_dac_scan.ply --order 1 2`` (jobs of 2-22 s):
+76.4 s serial against 43.9 s, **1.74x** (1.63x with Ray's 3.1 s start-up).
+What caps it: two jobs side by side each run 12-14 % slower than alone (``sum_job_s`` 19.3 against
+16.9 s, 86.8 against 76.4 s), each worker's first job pays the imports, and a serial uniform job is
+itself not serial: it plans its candidate directions on both CPUs (a Ray task gets one).
 
 On a machine shared through sessions (Linux autogroup scheduling: ``/proc/self/autogroup``; the
 local Ray's workers join the session of the process that starts them), a busy machine gives the
@@ -82,10 +83,10 @@ def main():
             if workers > 1:
                 import ray
 
-                from swath.cli.batch_ray import local_ray_options
+                from swath.cli.batch_ray import start_local_ray
 
                 t0 = time.perf_counter()
-                ray.init(**local_ray_options(workers))
+                start_local_ray(workers)
                 startup = time.perf_counter() - t0
             t0 = time.perf_counter()
             result = run_sweep(sweep, workers=workers, resume=False)

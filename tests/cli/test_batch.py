@@ -181,3 +181,20 @@ def test_ray_sweeps_start_the_longest_jobs_first(tmp_path):
     assert work[("small.stl", "raster")] == pytest.approx(1.001)
     missing = load_sweep(write_sweep(tmp_path, "out2", grid='[grid]\npart = ["nowhere.stl"]\n'))
     assert expected_job_work(missing.jobs[0], missing.base_dir) == pytest.approx(1.0)
+
+
+def test_local_ray_workers_find_this_swath_and_the_environment_is_restored(monkeypatch):
+    ray = pytest.importorskip("ray")
+    import swath
+    from swath.cli import batch_ray
+
+    seen = {}
+    monkeypatch.setattr(ray, "init", lambda **kw: seen.update(kw, path=os.environ.get("PYTHONPATH")))
+    monkeypatch.setenv("PYTHONPATH", "/elsewhere")
+    batch_ray.start_local_ray(2)
+    src = str(Path(swath.__file__).resolve().parent.parent)
+    # set while Ray starts its processes (the workers inherit it), this swath first; no runtime_env,
+    # whose workers Ray would start only when the first task arrives
+    assert seen["path"] == os.pathsep.join([src, "/elsewhere"])
+    assert seen["num_cpus"] == 2 and "runtime_env" not in seen
+    assert os.environ["PYTHONPATH"] == "/elsewhere"

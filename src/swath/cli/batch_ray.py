@@ -50,7 +50,7 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
             # Ship this swath to the cluster's workers, so that they run the driver's version.
             ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
         else:
-            ray.init(**local_ray_options(workers or os.cpu_count() or 1))
+            start_local_ray(workers or os.cpu_count() or 1)
         started = True
     limit = workers or (len(jobs) if address else (os.cpu_count() or 1))
     remote = ray.remote(num_cpus=1, max_retries=0)(_task)
@@ -90,12 +90,34 @@ def _error_line(exc: Exception) -> str:
 
 def local_ray_options(n_cpus: int) -> dict:
     """``ray.init`` keywords of the local Ray of a sweep: ``n_cpus`` CPUs, no dashboard, worker logs
-    kept out of the terminal, and workers importing the same swath as this process."""
-    src = str(Path(_package_dir()).parent)
-    path = os.pathsep.join(p for p in (src, os.environ.get("PYTHONPATH")) if p)
+    kept out of the terminal (see :func:`start_local_ray` for how its workers find swath)."""
     # address "local": a new Ray of our own, even if `ray start` left one running on this machine.
     return {"address": "local", "num_cpus": n_cpus, "include_dashboard": False, "log_to_driver": False,
-            "configure_logging": False, "runtime_env": {"env_vars": {"PYTHONPATH": path}}}
+            "configure_logging": False}
+
+
+def start_local_ray(n_cpus: int) -> None:
+    """Start the local Ray of a sweep (:func:`local_ray_options`), its workers importing the same swath
+    as this process.
+
+    The workers inherit ``PYTHONPATH`` from the Ray processes ``ray.init`` starts here, so it is set
+    (this swath's folder first) for the time of the call only.  Not through a ``runtime_env``: Ray
+    starts the workers of a runtime environment only when the first task arrives, about half a
+    second into the sweep, where the plain environment's workers are already running once
+    ``ray.init`` returns.
+    """
+    import ray
+
+    src = str(Path(_package_dir()).parent)
+    before = os.environ.get("PYTHONPATH")
+    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (src, before) if p)
+    try:
+        ray.init(**local_ray_options(n_cpus))
+    finally:
+        if before is None:
+            os.environ.pop("PYTHONPATH", None)
+        else:
+            os.environ["PYTHONPATH"] = before
 
 
 def _settings_columns(job) -> dict:
