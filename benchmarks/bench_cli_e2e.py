@@ -14,14 +14,17 @@ children included), the ratio uniform / raster of both, and the load average bef
 
     PYTHONPATH=src python benchmarks/bench_cli_e2e.py [--repeat 2] [snp_part_scan.ply example:plate ...]
 
-This session's run (``--repeat 2``, quiet machine, load 0.5 before and 1.3 after; wall s, raster /
-uniform, ratio; CPU ratio in brackets): snp_part_scan 2.90 / 5.65, 1.95 (2.43); noether_raw_mesh
-4.43 / 14.95, **3.38** (4.63); bezier_dac_cad 2.34 / 3.81, 1.63 (1.95); bezier_dac_scan 5.41 / 14.32, 2.65
-(3.40); noether_wavy 2.14 / 3.17, 1.49 (1.71); bezier_complex_shape 3.17 / 9.19, 2.90 (3.90); crs_part_5
-7.56 / 26.51, **3.51** (5.32); built-in plate 1.25, panel 1.97, blade 1.87.  Within 3x on five of the
-seven shared meshes; noether_raw_mesh and crs_part_5 miss.  There the uniform plan is 80 % of the wall
-time, and 55 % of the plan's serial CPU is potpourri3d's heat-method distance (142 solves of 60 ms on
-noether_raw_mesh, one per generation of each of six candidates; they depend on each other).
+This session's run (``--repeat 2``, quiet machine, load 0.7 before and 1.2 after; wall s, raster /
+uniform, ratio; CPU ratio in brackets): snp_part_scan 3.12 / 5.88, 1.88 (2.42); noether_raw_mesh
+4.58 / 14.17, **3.09** (4.66); bezier_dac_cad 2.61 / 3.89, 1.49 (1.70); bezier_dac_scan 5.53 / 14.53, 2.63
+(3.48); noether_wavy 2.13 / 3.05, 1.43 (1.67); bezier_complex_shape 3.37 / 9.14, 2.71 (3.73); crs_part_5
+7.57 / 21.31, 2.82 (4.07; last session 3.51); built-in plate 1.22, panel 1.90, blade 1.85.  Within 3x on six
+of the seven shared meshes; noether_raw_mesh misses by 3 % (3.38 last session).  What changed: directions
+whose seed curves are equal are laid once (crs_part_5: 60/90 and 120/150 degrees, four layouts
+instead of six), and the width model is built in a forked child while the distance solver is
+factorised (set-up 3.7 -> 2.5 s on noether_raw_mesh).  There 55 % of the plan's serial CPU is still
+potpourri3d's heat-method distance (142 solves of 63 ms, one per generation of each candidate; they
+depend on each other), and the six candidates of 2.1-3.4 s leave one worker idle about a second at the end.
 
 The stage times ``load_s``, ``plan_s`` (plan and order), ``trajectory_s`` and ``simulate_s`` come from the
 job's own ``metrics.json``, of the run with the least wall time; the rest of the wall time is the

@@ -251,7 +251,16 @@ def ripple_rows(surface, tool, cons, base, D, measure, least_depth) -> None:
     Last run (``--simulate-loop``, interior CoV, L / L*): uniform+feed plate 0.104 / 1.27, panel
     0.125 / 1.28, blade 0.190 / 1.27, noether_raw_mesh 0.212 / 1.36, bezier_dac_scan 0.352 / 1.49;
     rot ripple+feed 0.15-0.52 everywhere: the simulated rotary pad stays far above its analytic 7.5 %
-    (plate at constant feed: across-pass 0.099, along 0.079), not understood.  No row of any plan
+    (plate at constant feed: across-pass 0.099, along 0.079).  Why, found on the plate at constant
+    feed (1 mm lattice, depth averaged along each line parallel to the passes): in the middle of the
+    plate the simulation follows the analytic sum of single-pass profiles within 3 %, but the outer
+    passes lie close to the edge (rotary: 6.5 mm in, the pad half off the part), the force then
+    presses on a smaller contact, and the band just inside the interior margin gets 1.4x the mean
+    (y = 38 mm: 1.41 simulated against 0.90 from the infinite-plate profile; orbital 1.12 against
+    0.98).  The feed kernel sees it too (22.1 um there against 20.9 simulated, 13 mid-plate), but
+    the outer passes already run at the feed limit, so at this target the optimiser cannot even it
+    out; with the target raised to the edge band's depth (23.2 um) its predicted CoV was still 0.19,
+    not yet understood.  No row of any plan
     meets 10 % within 1.5 L* on a shared mesh; the across/along split shows why: on the curved parts
     the variation along the passes (0.10-0.39) is as large as the ripple across them.
     """
