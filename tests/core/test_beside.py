@@ -35,7 +35,9 @@ def two_cpus(monkeypatch):
 
 def test_the_answer_comes_from_a_child_and_equals_the_one_computed_here(two_cpus):
     values = np.linspace(0.0, 1.0, 1001)
-    pid, total = Beside(_child_pid_and_sum, values).result()
+    work = Beside(_child_pid_and_sum, values)
+    pid, total = work.result()
+    assert work.result() == (pid, total)           # asked again: the same answer, not a second run
     assert pid != PARENT
     assert total == _child_pid_and_sum(values)[1] == pytest.approx(500.5)
 

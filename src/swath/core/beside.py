@@ -47,7 +47,12 @@ class Beside:
             child_end.close()
 
     def result(self) -> Any:
-        """The value of ``fn(*args)``."""
+        """The value of ``fn(*args)`` (computed once: later calls return the same object)."""
+        if not hasattr(self, "_answer"):
+            self._answer = self._wait()
+        return self._answer
+
+    def _wait(self) -> Any:
         if self._process is None:
             return self._fn(*self._args)
         process, conn, self._process = self._process, self._conn, None

@@ -75,9 +75,9 @@ class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
     def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf, *, beside: bool = True):
-        """``beside``: build the width model in a forked child process while the distance solver is
-        built here (:class:`swath.core.beside.Beside`; the same arrays either way), where forking
-        is possible and two CPUs are free."""
+        """``beside``: build the working mesh's smooth normals and the width model in a forked child
+        process while the distance solver is built here (:class:`swath.core.beside.Beside`; the same
+        arrays either way), where forking is possible and two CPUs are free."""
         import potpourri3d as pp3d
 
         t0 = time.perf_counter()
