@@ -42,6 +42,31 @@ def test_the_answer_comes_from_a_child_and_equals_the_one_computed_here(two_cpus
     assert total == _child_pid_and_sum(values)[1] == pytest.approx(500.5)
 
 
+def _large_answer(n):
+    rng = np.random.default_rng(7)
+    return {"widths": rng.random((n, 3)), "index": np.arange(n, dtype=np.int64), "strided": np.arange(10.0)[::3],
+            "loops": [np.arange(5), np.arange(3)], "name": "widths"}
+
+
+def test_a_large_answer_travels_through_a_mapped_file_that_is_then_removed(two_cpus, monkeypatch, tmp_path):
+    monkeypatch.setattr(beside, "_shared_dir", lambda: str(tmp_path))
+    kinds, received = [], beside._received
+    monkeypatch.setattr(beside, "_received", lambda message: kinds.append(message[0]) or received(message))
+    expected = _large_answer(100_000)                  # 3.2 MB of arrays: over FILE_BYTES
+    got = Beside(_large_answer, 100_000).result()
+    assert kinds == ["file"]
+    assert got.keys() == expected.keys() and got["name"] == "widths"
+    for key in ("widths", "index", "strided"):
+        assert got[key].dtype == expected[key].dtype and np.array_equal(got[key], expected[key])
+    assert all(np.array_equal(a, b) for a, b in zip(got["loops"], expected["loops"]))
+    assert got["widths"].ctypes.data % 64 == 0            # aligned in the file
+    got["widths"][0, 0] = -1.0                            # writable, copy-on-write
+    assert list(tmp_path.iterdir()) == []                 # the hand-over file is gone
+    kinds.clear()
+    assert Beside(_large_answer, 10).result()["index"].tolist() == list(range(10))
+    assert kinds == ["ok"]                                # a small answer comes through the pipe
+
+
 def test_not_allowed_or_one_cpu_computes_here(monkeypatch):
     pid, _ = Beside(_child_pid_and_sum, np.ones(3), allowed=False).result()
     assert pid == PARENT

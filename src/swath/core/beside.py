@@ -3,20 +3,32 @@
 Used where a set-up has two independent halves and one of them cannot leave this process (the
 uniform planner's heat-method solver lives in C++ and is built here; its width model is plain
 arrays and is built beside it).  The child is forked, so it starts at once with everything this
-process has loaded, and only the result travels back (pickled through a pipe).
+process has loaded, and only the result travels back: pickled, with its large arrays written to
+a memory-backed file (``/dev/shm``) that this process maps instead of reading them through a pipe
+(a 100 MB width model arrives in milliseconds, not 0.18 s).
 """
 
 from __future__ import annotations
 
 import logging
+import mmap
 import multiprocessing
+import os
+import pickle
 import sys
+import tempfile
 from collections.abc import Callable
 from typing import Any
 
 from .cpus import usable_cpus
 
 log = logging.getLogger(__name__)
+
+#: Answers whose arrays (pickle-5 out-of-band buffers) add up to at least this many bytes travel
+#: through a memory-backed file; smaller ones through the pipe.
+FILE_BYTES = 1 << 20
+#: Buffers start at multiples of this in the file, so the arrays mapped from it are aligned.
+_ALIGN = 64
 
 
 def can_fork() -> bool:
@@ -58,7 +70,7 @@ class Beside:
         process, conn, self._process = self._process, self._conn, None
         assert conn is not None
         try:
-            kind, value = conn.recv()
+            kind, value = _received(conn.recv())
         except (EOFError, OSError):
             kind, value = "lost", None
         finally:
@@ -73,15 +85,59 @@ class Beside:
         return self._fn(*self._args)
 
 
+def _shared_dir() -> str | None:
+    """A memory-backed folder for hand-over files, or None (the default temporary folder is then
+    used, which may be a disk)."""
+    return "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
+
+
 def _serve(fn, args, conn) -> None:     # pragma: no cover - runs in the child
     try:
         answer = ("ok", fn(*args))
     except BaseException as exc:  # noqa: BLE001 - handed back to the parent as it is
         answer = ("raised", exc)
     try:
-        conn.send(answer)
+        conn.send(_packed(answer))
     except Exception as exc:  # noqa: BLE001 - e.g. an exception that does not pickle
         conn.send(("raised", RuntimeError(f"{type(answer[1]).__name__}: {answer[1]} (in a helper process; "
                                           f"its answer did not pickle: {exc})")))
     finally:
         conn.close()
+
+
+def _packed(answer: tuple) -> tuple:
+    """``answer`` as it goes through the pipe: itself when small, else ``("file", pickle bytes, path,
+    [(offset, length), ...])`` with the pickle's out-of-band buffers (the arrays' memory) written to
+    the file at ``path`` (a hand-over file the receiver maps and deletes)."""
+    buffers: list[pickle.PickleBuffer] = []
+    data = pickle.dumps(answer, protocol=5, buffer_callback=buffers.append)
+    if sum(b.raw().nbytes for b in buffers) < FILE_BYTES:
+        return answer
+    fd, path = tempfile.mkstemp(prefix="swath-beside-", dir=_shared_dir())
+    try:
+        spans = []
+        with os.fdopen(fd, "wb") as f:
+            for b in buffers:
+                raw = b.raw()
+                f.write(b"\0" * (-f.tell() % _ALIGN))
+                spans.append((f.tell(), raw.nbytes))
+                f.write(raw)
+    except BaseException:
+        os.unlink(path)
+        raise
+    return ("file", data, path, spans)
+
+
+def _received(message: tuple) -> tuple:
+    """The ``(kind, value)`` answer from what :func:`_packed` sent.  A hand-over file is mapped
+    copy-on-write (the arrays are writable, changes stay in this process) and deleted at once."""
+    if message[0] != "file":
+        return message
+    _, data, path, spans = message
+    try:
+        with open(path, "rb") as f:
+            memory = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_COPY)
+    finally:
+        os.unlink(path)
+    view = memoryview(memory)
+    return pickle.loads(data, buffers=[view[o:o + n] for o, n in spans])

@@ -71,6 +71,17 @@ def _normals_and_widths(surface, W, tool) -> tuple[np.ndarray, WidthModel]:
     return W.normals, widths
 
 
+def _beside_solver(surface, W, tool) -> dict:
+    """Everything the set-up needs that the distance solver does not: the part's smooth normals
+    and curvature, the working mesh's smooth normals and boundary loops, and the width model.
+    Run beside the solver's factorisation (:class:`_Context`); the values are exactly those the
+    cached properties compute here.  Returns ``{"part": {...}, "work": {...}, "widths": WidthModel}``,
+    the first two keyed by :class:`swath.surface.Surface` property names (for ``Surface.adopt``)."""
+    normals, widths = _normals_and_widths(surface, W, tool)
+    return {"part": {"normals": surface.normals, "curvature": surface.curvature},
+            "work": {"normals": normals, "boundary_loops": W.boundary_loops}, "widths": widths}
+
+
 class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
@@ -102,15 +113,16 @@ class _Context:
         W = self.work
         # The two slow halves of the set-up need nothing from each other: the distance solver's
         # factorisation (C++, holding the GIL) is built here while a forked child builds the
-        # working mesh's smooth normals and the width model (numpy).  The part's curvature, which
-        # both the child and later stages read, is computed first so this process keeps it.
-        _ = surface.curvature, surface.kdtree
-        beside_work = Beside(_normals_and_widths, surface, W, tool, allowed=beside)
+        # part's normals and curvature, the working mesh's normals and boundary loops and the
+        # width model (numpy); this process adopts them, so later stages find them computed.
+        beside_work = Beside(_beside_solver, surface, W, tool, allowed=beside)
         self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
         self.edges = mesh_edges(np.asarray(W.faces, np.int64))
         self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
-        normals, self.widths = beside_work.result()
-        W.adopt(normals=normals)
+        built = beside_work.result()
+        surface.adopt(**built["part"])
+        W.adopt(**built["work"])
+        self.widths = built["widths"]
         self.tree = W.kdtree
         # Pad queries on a cell grid of the working vertices, built once (compiled contact model,
         # float64), relative to the part's centre.
