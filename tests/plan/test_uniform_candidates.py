@@ -58,3 +58,49 @@ def test_the_set_up_built_beside_a_child_equals_the_one_built_here(blade_context
     np.testing.assert_array_equal(here.widths.patch.rho_out, there.widths.patch.rho_out)
     np.testing.assert_array_equal(here.widths.curvature.k1, there.widths.curvature.k1)
     np.testing.assert_array_equal(here._grid.normals, there._grid.normals)   # built from the child's normals
+    # the part's own normals and curvature and the working mesh's boundary came from the child too
+    np.testing.assert_array_equal(here.surface.normals, there.surface.normals)
+    for name in ("k1", "k2", "d1", "d2"):
+        np.testing.assert_array_equal(getattr(here.surface.curvature, name), getattr(there.surface.curvature, name))
+    assert len(here.work.boundary_loops) == len(there.work.boundary_loops) >= 1
+    for a, b in zip(here.work.boundary_loops, there.work.boundary_loops):
+        np.testing.assert_array_equal(a, b)
+
+
+class _InlinePool:
+    """A stand-in for ProcessPoolExecutor that runs each task when it is submitted and records the
+    order of submission."""
+
+    submitted: list = []
+
+    def __init__(self, *args, **kwargs):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def submit(self, fn, *args):
+        from concurrent.futures import Future
+
+        type(self).submitted.append(fn.__name__)
+        future: Future = Future()
+        future.set_result(fn(*args))
+        return future
+
+
+def test_the_pool_queues_every_layout_before_any_ranking_and_gives_the_serial_rows(blade_context, monkeypatch):
+    monkeypatch.setattr(U, "ProcessPoolExecutor", _InlinePool)
+    monkeypatch.setattr(U, "_WORKER_CONTEXT", blade_context)
+    _InlinePool.submitted = []
+    groups = [[ANGLES[0]], [ANGLES[4], ANGLES[5]], [ANGLES[2]]]
+    pooled = U._run_pool(None, None, groups, OPTIONS, U.length_cost, 2, lambda *a: None)
+    # the short ranking tasks go last, where they fill the gaps the long layouts leave
+    assert _InlinePool.submitted == ["_worker_layout"] * 3 + ["_worker_group_rows"] * 3
+    serial = [U._candidate_group(blade_context, g, OPTIONS, U.length_cost) for g in groups]
+    assert [len(r) for r in pooled] == [1, 2, 1]
+    for rows_p, rows_s in zip(pooled, serial):
+        for p, q in zip(rows_p, rows_s):
+            assert p[:4] == q[:4] and p[4]["angle"] == q[4]["angle"]

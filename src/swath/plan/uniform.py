@@ -34,7 +34,7 @@ import logging
 import math
 import multiprocessing
 import pickle
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 import numpy as np
 
@@ -274,31 +274,36 @@ def _same_seed_groups(ctx, angles: list[float], seed) -> list[list[float]]:
 def _candidate_group(ctx, group: list[float], options: dict, cost) -> list:
     """:func:`_candidate` of every angle in ``group`` (angles with the same seed curves): the layout
     is made once, then resampled and ranked with each angle's own direction recorded."""
-    first = _candidate(ctx, group[0], options, cost)
-    rows = [first]
-    for a in group[1:]:
-        if isinstance(first, str):
-            rows.append(first)
-            continue
-        layout = dict(first[4], angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0])
-        if getattr(cost, "passes_only", False):
-            # the same passes in the same order: a cost that reads nothing else ranks them the same
-            rows.append((*first[:4], layout))
-        else:
-            rows.append(_ranked(ctx.surface, layout, options["point_spacing"], cost))
-    return rows
+    return _group_rows(ctx, group, _first_layout(ctx, group[0], options), options, cost)
 
 
 def _candidate(ctx, angle: float, options: dict, cost):
     """Plan one candidate direction and rank it: ``(contact length m, cost, cost description,
     predicted coverage fraction, layout)``, or the reason (str) when the direction is infeasible."""
-    options = dict(options)
-    point_spacing = options.pop("point_spacing")
+    return _candidate_group(ctx, [angle], options, cost)[0]
+
+
+def _first_layout(ctx, angle: float, options: dict) -> dict | str:
+    """The layout of direction ``angle`` (rad), or the reason (str) it is infeasible."""
     try:
-        layout = _layout(ctx, angle, **options)
+        return _layout(ctx, angle, **{k: v for k, v in options.items() if k != "point_spacing"})
     except InfeasibleError as exc:
         return str(exc)
-    return _ranked(ctx.surface, layout, point_spacing, cost)
+
+
+def _group_rows(ctx, group: list[float], layout: dict | str, options: dict, cost) -> list:
+    """The rows of :func:`_candidate_group` from the group's layout (that of ``group[0]``)."""
+    if isinstance(layout, str):
+        return [layout] * len(group)
+    rows = [_ranked(ctx.surface, layout, options["point_spacing"], cost)]
+    for a in group[1:]:
+        other = dict(layout, angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0])
+        if getattr(cost, "passes_only", False):
+            # the same passes in the same order: a cost that reads nothing else ranks them the same
+            rows.append((*rows[0][:4], other))
+        else:
+            rows.append(_ranked(ctx.surface, other, options["point_spacing"], cost))
+    return rows
 
 
 def _ranked(surface, layout: dict, point_spacing: float, cost):
@@ -354,14 +359,32 @@ def _warm_before_fork(ctx: _Context, cost) -> None:
 
 
 def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -> list:
+    """The rows of every group, planned in ``n_workers`` processes as two kinds of task: each
+    group's layout (the heat-method generations, most of the work), then, as each layout comes
+    back, its ranking (resampling and the cost: ordering and timing the passes).  Every layout is
+    queued before any ranking, so the short ranking tasks fill the workers' last gaps instead of
+    one worker sitting idle while the other finishes the longest layout (candidates' times are
+    not known in advance).  The same functions as :func:`_candidate_group`, so the same rows."""
     done, total = 0, sum(len(g) for g in groups)
+    rows_of: list = [None] * len(groups)
     with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp_context, initializer=_worker_init,
                              initargs=(context_args,)) as pool:
-        futures = {pool.submit(_worker_candidate_group, g, options, cost): len(g) for g in groups}
-        for f in as_completed(futures):
-            done += futures[f]
-            say("planning (uniform): trying pass directions", done, total + 1)
-        return [f.result() for f in futures]
+        layout_of = {pool.submit(_worker_layout, g[0], options): i for i, g in enumerate(groups)}
+        rows_task: dict = {}
+        pending = set(layout_of)
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in finished:
+                if f in layout_of:
+                    i = layout_of[f]
+                    task = pool.submit(_worker_group_rows, groups[i], f.result(), options, cost)
+                    rows_task[task] = i
+                    pending.add(task)
+                else:
+                    rows_of[rows_task[f]] = f.result()
+                    done += len(groups[rows_task[f]])
+                    say("planning (uniform): trying pass directions", done, total + 1)
+    return rows_of
 
 
 #: The working mesh of a worker process (built once by :func:`_worker_init`).
@@ -385,8 +408,12 @@ def _worker_init(context_args) -> None:
     _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature, beside=False)
 
 
-def _worker_candidate_group(group: list[float], options: dict, cost) -> list:
-    return _candidate_group(_WORKER_CONTEXT, group, options, cost)
+def _worker_layout(angle: float, options: dict) -> dict | str:
+    return _first_layout(_WORKER_CONTEXT, angle, options)
+
+
+def _worker_group_rows(group: list[float], layout: dict | str, options: dict, cost) -> list:
+    return _group_rows(_WORKER_CONTEXT, group, layout, options, cost)
 
 
 # ----------------------------------------------------------------------------------------------
