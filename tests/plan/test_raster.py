@@ -169,6 +169,83 @@ def test_plane_offsets_centre_the_planes():
     assert off == pytest.approx([2.005]) and margin == pytest.approx(0.005)
 
 
+def test_plane_offsets_edge_margin_moves_the_outer_planes_in():
+    heights = np.array([0.0, 0.3])
+    d = 0.0718                                                   # 5 planes, 6.4 mm left at each end
+    off0, m0 = plane_offsets(heights, d)
+    assert len(off0) == 5 and m0 == pytest.approx(0.0064)
+    off, m = plane_offsets(heights, d, edge_margin=0.02)
+    assert len(off) == 5 and m == pytest.approx(0.02)
+    assert off == pytest.approx(0.02 + np.arange(5) * 0.065)      # (0.3 - 2 * 0.02) / 4 apart
+    # capped where the planes are spread evenly: the middles of 5 strips of 60 mm
+    for em in (0.03, 0.05, math.inf):
+        off, m = plane_offsets(heights, d, edge_margin=em)
+        assert m == pytest.approx(0.03) and off == pytest.approx([0.03, 0.09, 0.15, 0.21, 0.27])
+    # a margin already at least edge_margin, or a single plane, is left as it was
+    off, m = plane_offsets(heights, d, edge_margin=0.005)
+    assert m == pytest.approx(m0) and off == pytest.approx(off0)
+    off, m = plane_offsets(np.array([2.0, 2.01]), 0.3, edge_margin=1.0)
+    assert off == pytest.approx([2.005]) and m == pytest.approx(0.005)
+
+
+def test_raster_edge_margin_keeps_the_passes_and_the_coverage():
+    """The rotary pad at its least-ripple spacing on the flat plate: the outer passes 6.5 mm from
+    the edge (the pad more than half off); edge_margin = R/2 moves them in, the same five passes
+    spread evenly between, still covering the plate; a bad edge_margin is refused."""
+    import dataclasses
+
+    from swath.feed import ripple_spacing
+
+    s = flat_plate()                                        # 0.4 x 0.3 m
+    rot = dataclasses.replace(TOOL, motion="rotary")
+    d = ripple_spacing(rot)[0]
+    base = plan_raster(s, rot, spacing=d, direction=0.0)
+    inset = plan_raster(s, rot, spacing=d, direction=0.0, edge_margin=R / 2)
+    ys = lambda tp: sorted(float(p.points[0, 1]) for p in tp.passes)   # noqa: E731
+    assert base.metadata["margin_m"] == pytest.approx((0.3 - 4 * d) / 2) and ys(base)[0] == pytest.approx(0.00646, abs=1e-5)
+    assert base.metadata["edge_margin_m"] is None and base.metadata["plane_spacing_m"] == pytest.approx([d])
+    assert len(inset.passes) == len(base.passes) == 5
+    assert inset.contact_length == pytest.approx(base.contact_length, rel=1e-9)
+    step = (0.3 - R) / 4
+    assert ys(inset) == pytest.approx(R / 2 + np.arange(5) * step, abs=1e-9)
+    m = inset.metadata
+    assert m["margin_m"] == pytest.approx(R / 2) and m["edge_margin_m"] == R / 2
+    assert m["plane_spacing_m"] == pytest.approx([step]) and step < d
+    assert m["n_fill_passes"] == 0 and m["predicted_gap_fraction"] == 0.0
+    even = plan_raster(s, rot, spacing=d, direction=0.0, edge_margin=math.inf)
+    assert ys(even) == pytest.approx([0.03, 0.09, 0.15, 0.21, 0.27], abs=1e-9)
+    for bad in (-1e-3, float("nan")):
+        with pytest.raises(InputError, match="edge_margin"):
+            plan_raster(s, rot, spacing=d, edge_margin=bad)
+
+
+def test_raster_edge_margin_evens_the_default_orbital_raster_on_the_panel():
+    """The panel's default raster leaves 0.37 R at the edges with planes 1.95 R apart; spread evenly
+    (edge_margin = inf) the same six planes lie 1.75 R apart, nearer the orbital pad's least-ripple
+    spacing: the simulated removal at constant feed evens out (CoV over the samples at least R in
+    0.267 -> 0.124) at the same contact length and coverage."""
+    from swath.feed import interior_mask
+    from swath.simulate.removal import simulate_removal
+    from swath.trajectory import FeedLimit, time_path
+
+    s = doubly_curved_panel()
+    rows = []
+    for em in (None, math.inf):
+        tp = plan_raster(s, TOOL, direction=0.0, edge_margin=em)
+        rm = simulate_removal(time_path(tp, [FeedLimit(0.05)]), s, TOOL)
+        inner = interior_mask(rm.surface, R)
+        a, z = rm.surface.vertex_areas[inner], rm.depth[inner]
+        mean = np.average(z, weights=a)
+        rows.append((len(tp.passes), tp.contact_length, np.sqrt(np.average((z - mean) ** 2, weights=a)) / mean,
+                     rm.metrics["coverage_fraction"], tp.metadata))
+    (n0, l0, cov0, c0, m0), (n1, l1, cov1, c1, m1) = rows
+    assert n0 == n1 == 6 and l1 == pytest.approx(l0, rel=1e-3)
+    assert m0["plane_spacing_m"][0] / R == pytest.approx(1.95, abs=0.01)
+    assert m1["plane_spacing_m"][0] / R == pytest.approx(1.75, abs=0.01)
+    assert cov0 == pytest.approx(0.267, abs=0.01) and cov1 == pytest.approx(0.124, abs=0.01)
+    assert c1 >= c0 == pytest.approx(1.0) and m1["predicted_gap_fraction"] <= m0["predicted_gap_fraction"] + 1e-4
+
+
 def test_planes_exactly_through_grid_vertices():
     # Binary-exact grid, planes on every other grid line: crossings at vertices, along edges.
     cell = 1.0 / 64.0
