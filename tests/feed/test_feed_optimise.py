@@ -173,3 +173,34 @@ def test_thin_rows_keeps_each_cells_peak_when_scored(plate):
     for r in peaks[:50]:
         same = np.flatnonzero((key == key[r]).all(axis=1))
         assert score[r] == score[same].max()
+
+
+def test_a_sample_at_its_cap_holds_every_pass_over_it_at_the_feed_limit(plate):
+    """Pass A and pass B 1.25 R apart (B's centre line out of A's reach).  On a line between them
+    (0.875 R from A, 0.375 R from B) the target leaves no room above what both passes remove at the
+    feed limit; B's own centre line asks for twice what B removes there.  Slowing B anywhere would
+    over-grind the line between, so B stays at the feed limit and its centre line gets half its
+    target (the flat plate's rotary benchmark: the overhanging outer pass and the next pass's rim),
+    and the metrics say so.  Without the line in the region B runs at half the limit."""
+    y_a, y_b, y_line = 0.07, 0.095, 0.0875
+    tp = ToolPath(plate, [_line(0.02, 0.22, y_a), _line(0.22, 0.02, y_b)], "test")
+    k = build_kernel(tp, TOOL)
+    x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
+    inside = (x >= 0.02 + R) & (x <= 0.22 - R)
+    line, b_row = inside & (np.abs(y - y_line) < 1e-6), inside & (np.abs(y - y_b) < 1e-6)
+    fastest = k.removal(k.dwell_at_speed(V_MAX))
+    f = float(np.mean(fastest[b_row]))
+    tol = 0.05 * f
+    target = np.where(line, fastest - tol, 2 * f)
+    kw = dict(target=target, tolerance=tol, kernel=k, model_error=0.0, cap_margin=0.0, timing_rounds=0)
+    held = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], region=line | b_row, **kw)
+    free = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], region=b_row, **kw)
+    mid_b = (k.nodes.pass_index == 1) & (np.abs(k.nodes.s_mid - 0.1) < 0.06)
+    np.testing.assert_allclose(held.speed[mid_b], V_MAX, rtol=1e-3)
+    assert np.mean(held.predicted[b_row]) / (2 * f) == pytest.approx(0.5, abs=0.01)
+    assert held.metrics["samples_at_cap"] >= line.sum() * 0.95
+    assert held.metrics["nodes_held_by_cap_fraction"] > 0.8
+    # (node by node the feed may alternate: only sums over the pad's length reach a sample)
+    assert 1 / np.mean(1 / free.speed[mid_b]) == pytest.approx(V_MAX / 2, rel=0.02)
+    assert np.mean(free.predicted[b_row]) / (2 * f) == pytest.approx(1.0, abs=0.01)
+    assert free.metrics["nodes_held_by_cap_fraction"] == 0.0
