@@ -203,17 +203,18 @@ def test_raster_edge_margin_keeps_the_passes_and_the_coverage():
     inset = plan_raster(s, rot, spacing=d, direction=0.0, edge_margin=R / 2)
     ys = lambda tp: sorted(float(p.points[0, 1]) for p in tp.passes)   # noqa: E731
     assert base.metadata["margin_m"] == pytest.approx((0.3 - 4 * d) / 2) and ys(base)[0] == pytest.approx(0.00646, abs=1e-5)
-    assert base.metadata["edge_margin_m"] is None and base.metadata["plane_spacing_m"] == pytest.approx([d])
+    assert base.metadata["edge_rule"].startswith("spacing kept") and base.metadata["plane_spacing_m"] == pytest.approx([d])
     assert len(inset.passes) == len(base.passes) == 5
     assert inset.contact_length == pytest.approx(base.contact_length, rel=1e-9)
     step = (0.3 - R) / 4
     assert ys(inset) == pytest.approx(R / 2 + np.arange(5) * step, abs=1e-9)
     m = inset.metadata
-    assert m["margin_m"] == pytest.approx(R / 2) and m["edge_margin_m"] == R / 2
+    assert m["margin_m"] == pytest.approx(R / 2) and m["edge_rule"] == "outer planes at least 19.05 mm in"
     assert m["plane_spacing_m"] == pytest.approx([step]) and step < d
     assert m["n_fill_passes"] == 0 and m["predicted_gap_fraction"] == 0.0
     even = plan_raster(s, rot, spacing=d, direction=0.0, edge_margin=math.inf)
     assert ys(even) == pytest.approx([0.03, 0.09, 0.15, 0.21, 0.27], abs=1e-9)
+    assert even.metadata["edge_rule"] == "planes spread evenly"
     for bad in (-1e-3, float("nan")):
         with pytest.raises(InputError, match="edge_margin"):
             plan_raster(s, rot, spacing=d, edge_margin=bad)

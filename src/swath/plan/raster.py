@@ -100,7 +100,8 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         interpolated barycentrically in the face holding each point.
         ``metadata``: spacing_m, angle_rad, feed_direction, cross_direction, n_planes, n_passes,
         dropped_fragments, dropped_length_m, point_spacing_m, min_pass_length_m, margin_m (the
-        largest margin of any piece), spacing_rule, edge_margin_m, plane_spacing_m (per piece,
+        largest margin of any piece), spacing_rule, edge_rule (how ``edge_margin`` placed the
+        outer planes), plane_spacing_m (per piece,
         the mean distance between its planes, below spacing_m where ``edge_margin`` moved them),
         and for the default spacing predicted_gap_fraction.
 
@@ -220,7 +221,9 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
         cross_direction=cross.tolist(), n_planes=int(n_planes), n_pieces=len(pieces), n_passes=len(passes),
         n_fill_passes=n_fill, dropped_fragments=dropped, dropped_length_m=dropped_length,
         point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length), margin_m=float(margin),
-        spacing_rule=rule, edge_margin_m=None if edge_margin is None else float(edge_margin),
+        spacing_rule=rule, edge_rule=("spacing kept, margin what is left" if edge_margin is None else
+                                      "planes spread evenly" if math.isinf(edge_margin) else
+                                      f"outer planes at least {1e3 * edge_margin:.4g} mm in"),
         plane_spacing_m=plane_spacing,
     )
     if gap is not None:
