@@ -265,18 +265,21 @@ def ripple_rows(surface, tool, cons, base, D, measure, least_depth) -> None:
     15.7 + 8.6 = 24.3 um at the feed limit (the rotary plan's own least depth), and the programme's
     cap is that removal itself (the hold-back ``max(0.5 tol, 0.1 D)`` takes the whole 10 %
     tolerance).  Slowing pass 1 anywhere raises the band, so passes 1 and 3 stay at the feed limit
-    (median 50 mm/s) and the plate under them at 13-16 um (``metrics``: 248 samples at the cap, 74 %
-    of the nodes at the fastest feed and reaching one, i.e. passes 0, 1, 3 and 4); slowed enough to bring it to 23.2 um
-    (x1.58 dwell) they would put 29.3 um on the band, over 23.2 + 10 %.  Not the slowest feed (no
+    (median 50 mm/s) and the plate under them at 13-16 um (``metrics``: 248 samples at the cap,
+    74 % of the nodes at the fastest feed and reaching one: passes 0, 1, 3 and 4); slowed enough to
+    bring it to 23.2 um (x1.58 dwell) they would put 29.3 um on the band, over 23.2 + 10 %.  Not the
+    slowest feed (no
     node at it; the same at 1 mm/s), the acceleration limit or the objective (minimax 0.141):
     without the band in the region the CoV is 0.086.  Above the band the passes come free: D 26 /
     28 / 30 um, predicted CoV 0.121 / 0.093 / 0.090, contact 50.5 / 54.4 / 57.8 s.  Moving the
     outer planes in (``raster(edge_margin=...)``) evens the band but moves the planes off the
     least-ripple spacing (R/2: simulated CoV 0.215 optimised, spread evenly 0.285, against 0.140);
-    moving them *out*, 4 mm from the edge instead of 6.5 (outer gap 1.95 R, the inner ones at
-    1.88 R, :func:`swath.feed.spacing.raster_at_offsets`), gave 0.101 at constant feed and 0.102
-    optimised at D = 20.5 um (2 mm: 0.146; the pad is then 90 % off the part, a regime the contact
-    model has not been checked in).  No row of any plan
+    moving them *out* (the inner ones kept 1.88 R apart, :func:`swath.feed.spacing.raster_at_offsets`)
+    helps: outer planes 3 / 4 / 4.5 / 5 / 5.5 / 6.5 mm from the edge, simulated CoV optimised 0.117 /
+    0.102 / 0.097 / 0.090 / 0.114 / 0.136 (constant feed 0.114 / 0.101 / 0.099 / 0.103 / 0.107 /
+    0.126), D 19.5-22.9 um against 25.4.  So sharp an optimum, with the pad 87 % off the part, rests
+    on the contact model's pressure under a far-overhanging pad, which has not been checked against
+    a real one; the raster does not offer it.  No row of any plan
     meets 10 % within 1.5 L* on a shared mesh; the across/along split shows why: on the curved parts
     the variation along the passes (0.10-0.39) is as large as the ripple across them.
     """
