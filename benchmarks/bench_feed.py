@@ -268,9 +268,8 @@ def ripple_rows(surface, tool, cons, base, D, measure, least_depth) -> None:
     (median 50 mm/s) and the plate under them at 13-16 um (``metrics``: 248 samples at the cap,
     74 % of the nodes at the fastest feed and reaching one: passes 0, 1, 3 and 4); slowed enough to
     bring it to 23.2 um (x1.58 dwell) they would put 29.3 um on the band, over 23.2 + 10 %.  Not the
-    slowest feed (no
-    node at it; the same at 1 mm/s), the acceleration limit or the objective (minimax 0.141):
-    without the band in the region the CoV is 0.086.  Above the band the passes come free: D 26 /
+    slowest feed (no node at it; the same at 1 mm/s), the acceleration limit or the objective
+    (minimax 0.141): without the band in the region the CoV is 0.086.  Above the band the passes come free: D 26 /
     28 / 30 um, predicted CoV 0.121 / 0.093 / 0.090, contact 50.5 / 54.4 / 57.8 s.  Moving the
     outer planes in (``raster(edge_margin=...)``) evens the band but moves the planes off the
     least-ripple spacing (R/2: simulated CoV 0.215 optimised, spread evenly 0.285, against 0.140);
