@@ -141,6 +141,7 @@ def _simulated_on_kernel(removal, samples) -> np.ndarray:
     np.maximum.at(out, nearest, depth)
     return out
 
+
 def _binding(kernel: RemovalKernel, dwell: np.ndarray, t_min: np.ndarray, predicted: np.ndarray, cap: np.ndarray,
              region: np.ndarray, tolerance: float) -> dict:
     """What holds the feed up: region samples whose predicted removal (m, ``(S,)``) is at the
