@@ -14,17 +14,21 @@ children included), the ratio uniform / raster of both, and the load average bef
 
     PYTHONPATH=src python benchmarks/bench_cli_e2e.py [--repeat 2] [snp_part_scan.ply example:plate ...]
 
-This session's run (``--repeat 2``, quiet machine, load 0.7 before and 1.2 after; wall s, raster /
-uniform, ratio; CPU ratio in brackets): snp_part_scan 3.12 / 5.88, 1.88 (2.42); noether_raw_mesh
-4.58 / 14.17, **3.09** (4.66); bezier_dac_cad 2.61 / 3.89, 1.49 (1.70); bezier_dac_scan 5.53 / 14.53, 2.63
-(3.48); noether_wavy 2.13 / 3.05, 1.43 (1.67); bezier_complex_shape 3.37 / 9.14, 2.71 (3.73); crs_part_5
-7.57 / 21.31, 2.82 (4.07; last session 3.51); built-in plate 1.22, panel 1.90, blade 1.85.  Within 3x on six
-of the seven shared meshes; noether_raw_mesh misses by 3 % (3.38 last session).  What changed: directions
-whose seed curves are equal are laid once (crs_part_5: 60/90 and 120/150 degrees, four layouts
-instead of six), and the width model is built in a forked child while the distance solver is
-factorised (set-up 3.7 -> 2.5 s on noether_raw_mesh).  There 55 % of the plan's serial CPU is still
-potpourri3d's heat-method distance (142 solves of 63 ms, one per generation of each candidate; they
-depend on each other), and the six candidates of 2.1-3.4 s leave one worker idle about a second at the end.
+This session's run (``--repeat 2``, load 1.2 before and 1.6 after; wall s, raster / uniform, ratio;
+CPU ratio in brackets): snp_part_scan 3.03 / 5.69, 1.88 (2.53); noether_raw_mesh 4.47 / 13.25, **2.97**
+(4.73; 3.09 last session); bezier_dac_cad 2.46 / 3.58, 1.45 (1.78); bezier_dac_scan 5.62 / 13.85, 2.47
+(3.31); noether_wavy 2.32 / 3.48, 1.50 (1.79); bezier_complex_shape 3.67 / 9.52, 2.59 (3.66); crs_part_5
+7.91 / 22.19, 2.81 (4.08); built-in plate 1.20, panel 1.81, blade 1.76.  Within 3x on all seven shared
+meshes, noether_raw_mesh by 1 %.  What changed since the last run (plans identical bit for bit):
+the part's normals and curvature and the working mesh's boundary loops are built in the forked
+child beside the distance solver too, and the child's 100 MB answer comes back through a mapped
+``/dev/shm`` file (0.18 s -> 3 ms); in the worker pool every candidate's layout is queued before
+any ranking, so the short rankings fill the gaps the long layouts leave (noether_raw_mesh: the pool
+phase 8.2 -> 7.6 s for 15 s of candidate CPU).  What remains there is potpourri3d's heat-method
+distance (57 % of a candidate: 18 dependent solves of 63 ms) and the ranking's link timing.
+Earlier sessions: directions whose seed curves are equal are laid once (crs_part_5: 60/90 and
+120/150 degrees, four layouts instead of six); the width model is built in the child while the
+distance solver is factorised.
 
 The stage times ``load_s``, ``plan_s`` (plan and order), ``trajectory_s`` and ``simulate_s`` come from the
 job's own ``metrics.json``, of the run with the least wall time; the rest of the wall time is the
