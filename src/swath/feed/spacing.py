@@ -65,7 +65,7 @@ def raster_at_offsets(surface, tool, offsets, *, angle: float = 0.0, direction=N
     passes = plane_passes(kept, feed, surface.face_normals, point_spacing)
     meta = {"offsets_m": offsets.tolist(), "cross_direction": cross.tolist(), "feed_direction": feed.tolist(),
             "angle_rad": float(angle), "n_passes": len(passes), "point_spacing_m": float(point_spacing)}
-    return snake(ToolPath(surface, passes, planner, meta))
+    return snake(ToolPath(surface, tuple(passes), planner, meta))
 
 
 @dataclass(frozen=True, eq=False)

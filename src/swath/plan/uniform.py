@@ -34,7 +34,7 @@ import logging
 import math
 import multiprocessing
 import pickle
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 
 import numpy as np
 
@@ -371,7 +371,7 @@ def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -
                              initargs=(context_args,)) as pool:
         layout_of = {pool.submit(_worker_layout, g[0], options): i for i, g in enumerate(groups)}
         rows_task: dict = {}
-        pending = set(layout_of)
+        pending: set[Future] = set(layout_of)
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for f in finished:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -27,7 +28,10 @@ from ..contact.tool import sample_spacing_for
 from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
 from ..core.cpus import usable_cpus
 from ..errors import InputError
-from .samples import lattice_columns, lattice_count, removal_samples
+from .samples import RemovalSamples, lattice_columns, lattice_count, removal_samples
+
+if TYPE_CHECKING:
+    from ..surface import Surface
 
 log = logging.getLogger(__name__)
 
@@ -55,7 +59,7 @@ class RemovalMap:
         (see :func:`plan_metrics`).
     """
 
-    surface: object
+    surface: RemovalSamples | Surface
     depth: np.ndarray
     metrics: dict = field(default_factory=dict)
 
@@ -372,7 +376,7 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         std = float(np.sqrt(np.average((d[cov] - mean) ** 2, weights=w)))
         order = np.argsort(d[cov])
         cdf = np.cumsum(w[order]) / w.sum()
-        pct = lambda q: float(d[cov][order][min(np.searchsorted(cdf, q), len(order) - 1)])
+        pct = lambda q: float(d[cov][order][min(int(np.searchsorted(cdf, q)), len(order) - 1)])
         median = pct(0.5)
         effective = float(a[d >= 0.1 * median].sum()) / total if median > 0 else 0.0
         p5, p95 = pct(0.05), pct(0.95)
