@@ -116,6 +116,25 @@ def test_uniform_candidates_in_worker_processes_give_the_serial_plan():
     assert local.metadata["candidates"] == serial.metadata["candidates"]
 
 
+def test_uniform_candidates_in_spawned_workers_give_the_serial_plan(monkeypatch):
+    """Where processes cannot be forked (macOS, Windows) the workers are spawned and each builds
+    the working mesh itself; the layout and ranking tasks still give the serial plan."""
+    import importlib
+
+    from swath.plan.uniform import uniform
+
+    U = importlib.import_module("swath.plan.uniform")
+    monkeypatch.setattr(U, "can_fork", lambda: False)
+    surface = doubly_curved_panel(size_x=0.2, size_y=0.15, spacing=8e-3)
+    options = dict(work_spacing=TOOL.pad_radius / 4)
+    serial = uniform(surface, TOOL, workers=1, **options)
+    spawned = uniform(surface, TOOL, workers=2, **options)
+    assert spawned.metadata["candidates"] == serial.metadata["candidates"]
+    assert len(spawned.passes) == len(serial.passes) >= 2
+    for a, b in zip(spawned.passes, serial.passes):
+        np.testing.assert_array_equal(a.points, b.points)
+
+
 def test_uniform_refuses_a_bad_worker_count():
     from swath.errors import InputError
     from swath.plan.uniform import uniform
