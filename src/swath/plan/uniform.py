@@ -323,7 +323,7 @@ def _pickles(obj) -> bool:
 
 def _candidates_in_workers(context_args, groups, options, cost, n_workers, say, *, make_context=None) -> list:
     """:func:`_candidate_group` of every group of angles in ``n_workers`` worker processes, in the
-    order of ``groups``.
+    order of ``groups`` (each group's layout and its ranking are separate tasks: :func:`_run_pool`).
 
     Where the platform forks safely (Linux) and ``make_context`` is given, the working mesh is built
     once here and the workers are forked from this process: they inherit it and the imported
