@@ -10,6 +10,8 @@ For every part (built-in blade, panel, plate and every shared mesh found):
    contact length within 1.5 L* on a plane), then the feed optimised;
 5. ``uniform+feed``, ``rot ripple+feed`` — the uniform planner at the least-ripple overlap and a
    rotary pad at its least-ripple spacing, then the feed optimised (:func:`ripple_rows`).
+6. ``edge+feed`` — the default raster with its planes spread evenly over each piece
+   (``raster(edge_margin=math.inf)``), the feed optimised to the plan's own least depth (:func:`edge_row`).
    ``cov_across`` / ``cov_along`` split the simulated interior CoV into the part across the passes
    (spacing ripple, swath width) and the rest (pass ends, fragments, feed bounds) (:func:`_across_along`).
 
@@ -332,7 +334,33 @@ def edge_row(surface, tool, cons, angle, measure, least_depth, sim) -> None:
     x1.15 / x1.3, cycle s): bezier_dac_cad 0.097 / 0.097 / 0.097 (66.7 / 73.9 / 81.2 s), plate
     0.258 / 0.253 / 0.252 (44.0 / 49.5 / 54.9), panel 0.125 / 0.124 / 0.124 (93.6 / 103.9 / 114.4),
     noether_raw_mesh 0.147 / 0.141 / 0.138 (1002 / 1027 / 1059 s): +11 % / +22 % cycle time for at
-    most 0.009.
+    most 0.009.  bezier_dac_cad at the other rows' D (2.80 um, x1.53): 0.097, cycle 92.8 s.
+
+    Last run (``--simulate-loop``; interior CoV (across / along), L / L*, over-removal / tolerance
+    in um, cycle s):
+
+    ================  ======================  ===========  ===========  =========
+    part              edge+feed               L / L*       over / tol   cycle s
+    ================  ======================  ===========  ===========  =========
+    bezier_dac_cad    0.097 (0.087 / 0.043)   1.07         0.07 / 0.18  66.7
+    noether_raw_mesh  0.147 (0.108 / 0.099)   1.49         0.13 / 0.32  1002
+    plate             0.258 (0.250 / 0.064)   1.02         0.07 / 0.21  44.0
+    panel             0.125 (0.118 / 0.041)   1.14         0.05 / 0.20  93.6
+    ================  ======================  ===========  ===========  =========
+
+    bezier_dac_cad meets issue 12's 10 % within 1.5 L* (6 planes 1.90 R apart against 1.99 R with
+    the outer ones hanging off; space+feed 0.116, feed 0.187).  The plate gains nothing: its 4
+    planes are already 2.0 R apart, the spread leaves the ripple.  Searched on noether_raw_mesh
+    (spacing default 1.32 R / 1.50 R / least-ripple 1.68 R / 1.9 R, ``edge_margin`` None / R/2 /
+    inf, the raster turned 45 / -45 / 90 deg, the greedy spacing with ``length_weight`` 0.01-0.1 or
+    a least step of R-1.3 R, targets x1.0-1.35): within 1.5 L* the best is 0.126 (greedy,
+    ``length_weight`` 0.06, 1.41 R, target x1.35, 1.34 L*; across 0.086, along 0.092) and no plan's
+    along-pass part falls below 0.09 there; it does only at closer planes (greedy 1.13-1.15 R:
+    0.079-0.093, along 0.057-0.061, at 1.62-1.65 L*).  The cap binds (feed row, kernel: 268 of the
+    region's 18399 samples at target + tolerance - holdback, 18 % of the nodes held at their fastest
+    by it, 10094 samples under 0.9 D, the region's mean 0.85 D).  Its cycle time is 3x the constant feed's because a third of the nodes touch
+    no region sample and the programme leaves them at the slowest feed (73 % of the dwell); a
+    slowest feed of 3 % instead of 10 % changes no CoV and takes the cycle to 2441 s.
     """
     from swath.feed import build_kernel, optimise_feed
     from swath.plan import raster
