@@ -12,8 +12,9 @@ For every part (built-in blade, panel, plate and every shared mesh found):
    rotary pad at its least-ripple spacing, then the feed optimised (:func:`ripple_rows`).
 6. ``edge+feed`` — the default raster with its planes spread evenly over each piece
    (``raster(edge_margin=math.inf)``), the feed optimised to the plan's own least depth (:func:`edge_row`).
-   ``cov_across`` / ``cov_along`` split the simulated interior CoV into the part across the passes
-   (spacing ripple, swath width) and the rest (pass ends, fragments, feed bounds) (:func:`_across_along`).
+
+``cov_across`` / ``cov_along`` split the simulated interior CoV into the part across the passes
+(spacing ripple, swath width) and the rest (pass ends, fragments, feed bounds) (:func:`_across_along`).
 
 Breakdown columns (where the residual comes from):
 
