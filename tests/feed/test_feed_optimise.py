@@ -204,3 +204,25 @@ def test_a_sample_at_its_cap_holds_every_pass_over_it_at_the_feed_limit(plate):
     assert 1 / np.mean(1 / free.speed[mid_b]) == pytest.approx(V_MAX / 2, rel=0.02)
     assert np.mean(free.predicted[b_row]) / (2 * f) == pytest.approx(1.0, abs=0.01)
     assert free.metrics["nodes_held_by_cap_fraction"] == 0.0
+
+
+@pytest.mark.parametrize("mode, objective", [("match", "l1"), ("match", "minimax"), ("max_removal", "l1")])
+def test_nodes_over_no_optimised_sample_run_at_the_fastest_feed(plate, mode, objective):
+    """One pass x 0.02..0.22 m; only its centre line at x 0.04..0.10 m is optimised.  The nodes more
+    than a pad radius past x = 0.10 m touch no optimised sample: they run at the feed limit (the
+    cost on dwell breaks the tie), while the matched stretch keeps the feed the target asks for."""
+    tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
+    k = build_kernel(tp, TOOL)
+    x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
+    region = (np.abs(y - 0.1) < 1e-6) & (x >= 0.04) & (x <= 0.10)
+    D = 8e-6
+    kw = dict(target=D, tolerance=0.05 * D, kernel=k, region=region, model_error=0.0, mode=mode, objective=objective)
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], **kw)
+    untied = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], time_weight=0.0, **kw)
+    s = k.nodes.s_mid                                          # from x = 0.02
+    free = s > 0.10 + R - 0.02 + 5e-3
+    matched = (s > 0.03) & (s < 0.07)
+    np.testing.assert_allclose(res.speed[free], V_MAX, rtol=1e-6)
+    np.testing.assert_allclose(np.median(res.speed[matched]), np.median(untied.speed[matched]), rtol=0.01)
+    assert res.metrics["removal_cov"] == pytest.approx(untied.metrics["removal_cov"], abs=1e-3)
+    assert res.metrics["contact_time_s"] < untied.metrics["contact_time_s"] - 1.0

@@ -60,8 +60,15 @@ def _accel_rows(nodes, a_t: float, p_ref: float):
 def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: np.ndarray,
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
                 a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
-                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6):
+                smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6,
+                time_weight: float = 1e-3):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
+
+    ``time_weight``: a cost on every second of dwell, as a fraction of what a second of a typical
+    node is worth to the objective, so that among dwells that match the target (nearly) equally
+    well the shorter wins: nodes over no optimised sample run at the fastest feed instead of
+    wherever the solver leaves them (on noether_raw_mesh a third of the nodes, at the slowest feed,
+    tripled the cycle time).
 
     When the region has more than ``max_rows`` samples the programme sees a thinned set
     (:func:`thin_rows`); samples left out that the solution over-grinds are added as cap rows and the
@@ -88,7 +95,8 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     for _ in range(max(1, max_rounds)):
         dwell, status = _solve(kernel, target, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
                                mode=mode, objective=objective, a_t=a_t, v_max=v_max, time_limit=time_limit,
-                               smoothing=smoothing, method=method, max_rows=max_rows, cap_rows=full[extra])
+                               smoothing=smoothing, method=method, max_rows=max_rows, cap_rows=full[extra],
+                               time_weight=time_weight)
         over = K_full @ dwell - cap
         bad = np.flatnonzero(over > tiny)
         if len(bad) == 0:
@@ -108,7 +116,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
 
 def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, t_min: np.ndarray,
            t_max: np.ndarray, region: np.ndarray, mode: str, objective: str, a_t, v_max, time_limit: float,
-           smoothing: float, method, max_rows: int, cap_rows: np.ndarray):
+           smoothing: float, method, max_rows: int, cap_rows: np.ndarray, time_weight: float = 0.0):
     """One solve of the programme on the thinned region rows plus the extra ``cap_rows``: ``(dwell, status)``.
 
     Raises
@@ -165,6 +173,12 @@ def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, 
     col_weight = np.asarray(w @ A).ravel() * nodes.length          # objective change per unit pace
     lam = smoothing * float(np.mean(col_weight)) * p_ref if n else 0.0
     log.debug("smoothing weight %g (column weight %g, p_ref %g)", lam, float(np.mean(col_weight)), p_ref)
+    # The cost of a second of dwell: time_weight times what a second of a typical node (one over
+    # some optimised sample) is worth to the area-weighted removal (the same in every objective, so
+    # it weighs against the smoothing cost alike).
+    touching = col_weight > 0
+    per_second = float(np.mean(col_weight[touching] / nodes.length[touching])) if touching.any() else 0.0
+    eps = np.full(n, time_weight * per_second)
     IE = sp.identity(E, format="csr")
     S_rows = sp.vstack([sp.hstack([Dm, -IE]), sp.hstack([-Dm, -IE])])   # on [t, g]
     opts = {"time_limit": time_limit, "presolve": True}
@@ -175,7 +189,7 @@ def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, 
     t_bounds = np.stack([t_min, t_max], axis=1)
     g_bounds = np.tile([0.0, np.inf], (E, 1))
     if mode == "max_removal":
-        c = np.concatenate([-(w @ A), np.full(E, lam)])
+        c = np.concatenate([-(w @ A) + eps, np.full(E, lam)])
         A_ub = sp.vstack([pad(A, 0), pad(G, 0), S_rows]).tocsc()
         b_ub = np.concatenate([u, h, np.zeros(2 * E)])
         res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=np.concatenate([t_bounds, g_bounds]), method=method,
@@ -184,7 +198,7 @@ def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, 
         # A t - e+ + e- = d, 0 <= e+ <= tol, e- >= 0; minimise w (e+ + e-)
         I = sp.identity(m, format="csr")
         A_eq = sp.hstack([A, sp.csr_matrix((m, E)), -I, I]).tocsc()
-        c = np.concatenate([np.zeros(n), np.full(E, lam), w, w])
+        c = np.concatenate([eps, np.full(E, lam), w, w])
         A_ub = sp.vstack([pad(G, 2 * m), sp.hstack([S_rows, sp.csr_matrix((2 * E, 2 * m))])]).tocsc()
         b_ub = np.concatenate([h, np.zeros(2 * E)])
         tol_um = tolerance[rows] / _DEPTH_UNIT
@@ -198,7 +212,7 @@ def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, 
                           pad(G, 1), sp.hstack([S_rows, sp.csr_matrix((2 * E, 1))])]).tocsc()
         b_ub = np.concatenate([-d, u, h, np.zeros(2 * E)])
         zscale = float(np.mean(col_weight)) * p_ref if n else 1.0
-        c = np.concatenate([np.zeros(n), np.full(E, lam), [zscale]])
+        c = np.concatenate([eps, np.full(E, lam), [zscale]])
         bounds = np.concatenate([t_bounds, g_bounds, [[0.0, np.inf]]])
         res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method=method, options=opts)
     if res.x is None and res.status == 4 and method == "highs-ipm":

@@ -197,8 +197,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   objective: str = "l1", v_min: float | None = None, boundary_margin: float | None = None,
                   kernel: RemovalKernel | None = None, node_spacing: float | None = None,
                   sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
-                  region: np.ndarray | None = None, smoothing: float = 2e-2, cap_margin: float = 0.5,
-                  model_error: float = 0.10,
+                  region: np.ndarray | None = None, smoothing: float = 2e-2, time_weight: float = 1e-3,
+                  cap_margin: float = 0.5, model_error: float = 0.10,
                   max_rows: int = 5000, timing_rounds: int = 5, ratio_tolerance: float = 0.01, trajectory=None,
                   simulate=None, simulate_rounds: int = 3, simulate_margin: float = 0.02,
                   progress=None) -> FeedResult:
@@ -270,6 +270,11 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     smoothing : float
         Weight of the cost on pace changes between neighbouring nodes, relative to the objective
         (ties between dwell distributions with the same removal go to the smoother one).
+    time_weight : float
+        Cost of a second of dwell, as a fraction of what a second of a typical node is worth to the
+        objective (:func:`.dwell_lp.solve_dwell`): ties go to the shorter cycle, and nodes over no
+        optimised sample (near the boundary, over holes) run at the fastest feed.  0 leaves them
+        wherever the solver puts them.
     time_limit : float
         HiGHS time limit, s.
     simulate : callable, optional
@@ -358,7 +363,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     lp_target = np.minimum(target_s, cap)
     solve_kw = dict(t_min=t_min, t_max=t_max, region=region, mode=mode, objective=objective,
                     a_t=None if tl is None else tl.a_t, v_max=v_max, time_limit=time_limit, smoothing=smoothing,
-                    max_rows=max_rows)
+                    max_rows=max_rows, time_weight=time_weight)
     dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, **solve_kw)
     t_solve = time.perf_counter() - t1
     if progress is not None:
