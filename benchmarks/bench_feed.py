@@ -113,7 +113,7 @@ edge+feed 3.50 µm against 2.50 / 2.55 (the kernel predicts 1.6 µm under and ev
 2.8 / 2.7 µm over: the scan's kernel contact model, not the feed; without the dwell cost the same rows
 read 2.48 and 3.86), and the uniform+feed rows of crs_part_5 (6.88 against 2.45) and snp_part_scan,
 whose target is the kernel bound only.  Peak memory 1.99 GB (crs_part_5), its optimisation 84-123 s
-with the simulator loop (``--solve`` alone: under 60 s).
+with the simulator loop (``--solve`` alone: 45.8 s in all, 787 MB).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [plate panel blade crs_part_5.stl ...]``; the feed
 optimisation's time and peak memory alone: ``... bench_feed.py --solve crs_part_5.stl``.
