@@ -17,6 +17,12 @@ are running when ``ray.init`` returns instead of being started by the first task
 against 10.4 s on 2 workers, **1.62x** (1.35x with Ray's 2.1 s start-up; last session, with the
 runtime_env, 1.53x).  ``--parts crs_part_5.stl bezier_dac_scan.ply --order 1 2`` (jobs of 2-22 s):
 76.4 s serial against 43.9 s, **1.74x** (1.63x with Ray's 3.1 s start-up).
+Session 9 (``--order 1 2 1 2``, quiet machine, load 0.9-1.3): serial 16.8 / 17.3 s against 10.6 / 10.5 s on 2
+workers, **1.61x / 1.62x** (1.25x / 1.36x with Ray's 3.1 / 2.0 s start-up); the long sweep 80.0 s against
+46.1 s, **1.73x** (1.66x with start-up).  The Ray jobs' own times add up to 19.4 s against 16.8 s serially:
+the four uniform jobs take 1.9-2.9 s on their one CPU where serially they plan on both (1.2-2.5 s), and each
+worker pays the imports (1.2 s) once; so even a perfectly balanced pair of workers would end at 9.7 s,
+1.73x, on this sweep, and the last jobs' uneven ends cost the other 0.9 s.
 What caps it: two jobs side by side each run 12-14 % slower than alone (``sum_job_s`` 19.3 against
 16.9 s, 86.8 against 76.4 s), each worker's first job pays the imports, and a serial uniform job is
 itself not serial: it plans its candidate directions on both CPUs (a Ray task gets one).
