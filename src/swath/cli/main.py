@@ -104,7 +104,7 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                         "search, pass by pass, against the target) or joint (equal spacing and feed together)")
     e.add_argument("--feed-simulate-check", action=argparse.BooleanOptionalAction, default=None,
                    help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "
-                        "simulator finds more than the target plus the tolerance (up to 3 rounds; default on)")
+                        "simulator finds more than the target plus the tolerance (up to 6 rounds; default on)")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
     r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120")
     r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")

@@ -16,8 +16,8 @@ Proposed CLI flags / job keys (wired by the CLI, not here): ``--optimise-feed [m
 ``--depth-tolerance 2um``, ``--min-feed 5mm/s``, ``--optimise-spacing ripple|greedy|joint`` (raster only).
 The job then calls ``optimise_feed(toolpath, tool, constraints, target=..., tolerance=...,
 simulate=lambda traj: simulate_removal(traj, surface, tool))`` and passes ``constraints + [result.profile]``
-to :func:`swath.trajectory.time_path`.  ``simulate`` (job key ``feed_simulate_rounds``, default 3; 0 turns
-it off) makes the over-removal cap hold as :func:`swath.simulate.simulate_removal` measures it: the feed
+to :func:`swath.trajectory.time_path`.  ``simulate`` (job key ``feed_simulate_check``, default true; up to
+``simulate_rounds`` = 6 rounds) makes the over-removal cap hold as :func:`swath.simulate.simulate_removal` measures it: the feed
 stage may not import the simulator, so the job hands it in.
 """
 
