@@ -113,8 +113,8 @@ against 40 s.  Over-removal within the tolerance on every row but: bezier_dac_sc
 where the kernel reads 18.15 (1.55x), so the cap the simulator asks for lies below what the kernel
 thinks the fastest feed removes and the loop cannot tighten it (the scan's kernel contact model, not
 the feed); its edge+feed row read 3.50 µm with three simulated rounds and 1.76 µm (within 2.55) with
-the default six (35 -> 14 -> 5 -> 1 -> 0 samples over in rounds 1-5) -- and the uniform+feed rows of crs_part_5 (6.88 against 2.45) and snp_part_scan,
-whose target is the kernel bound only.  Peak memory 1.99 GB (crs_part_5), its optimisation 84-123 s
+the default six (35 -> 14 -> 5 -> 1 -> 0 samples over in rounds 1-5) -- and crs_part_5's uniform+feed
+row (6.88 µm against 2.45), whose target is the kernel bound only.  Peak memory 1.99 GB (crs_part_5), its optimisation 84-123 s
 with the simulator loop (``--solve`` alone: 45.8 s in all, 787 MB).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [plate panel blade crs_part_5.stl ...]``; the feed
