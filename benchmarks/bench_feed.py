@@ -99,7 +99,8 @@ bezier_dac_scan (23.42 -> 24.99 µm), crs_part_5 (9.75 -> 9.94), bezier_dac_cad 
 (crs_part_5).  The constant-feed row's over-removal is negative on every part (at most -0.18 µm).
 The loop's early stop (no cap left to tighten) came after this run: same figures, less ``opt_s``.
 
-Session 9 run (``--simulate-loop``, every part, quiet machine; the optimiser now puts a small cost on
+Session 9 run (``--simulate-loop``, every part with three simulated rounds, bezier_dac_scan again with the
+default six; quiet machine; the optimiser now puts a small cost on
 dwell, ``time_weight``, so stretches over no optimised sample run at the fastest feed): interior CoV
 (L / L*) of the best row within 1.5 L* — plate 0.099 ripple+feed (1.27), panel 0.110 space+feed (1.32),
 blade 0.190 uniform+feed (1.27), **bezier_dac_cad 0.097 edge+feed (1.07), the one shared mesh within
