@@ -105,8 +105,8 @@ dwell, ``time_weight``, so stretches over no optimised sample run at the fastest
 (L / L*) of the best row within 1.5 L* — plate 0.099 ripple+feed (1.27), panel 0.110 space+feed (1.32),
 blade 0.190 uniform+feed (1.27), **bezier_dac_cad 0.097 edge+feed (1.07), the one shared mesh within
 10 %**, noether_raw_mesh 0.138 feed (1.49; space+feed 0.087 at 1.65), bezier_complex_shape 0.333 feed
-(1.50), noether_wavy 0.471 feed (1.43), uniform+feed 0.212-0.459 elsewhere; bezier_dac_scan, snp_part_scan
-and crs_part_5 have no row within 1.5 L* but uniform+feed (0.357, 0.424, 0.310).  Cycle time of the
+(1.50), noether_wavy 0.471 feed (1.43), crs_part_5 0.282 space+feed (1.19); bezier_dac_scan and
+snp_part_scan have no row within 1.5 L* but uniform+feed (0.357, 0.424).  Cycle time of the
 optimised feed against constant feed: noether_raw_mesh feed 441 s against 328 s (it was 984 s before
 the dwell cost), edge+feed 404 s; bezier_dac_cad 91 / 67 s (feed / edge+feed) against 62 s; plate 47 s
 against 40 s.  Over-removal within the tolerance on every row but: bezier_dac_scan ripple+feed 3.13 µm against 2.50
@@ -115,7 +115,8 @@ where the kernel reads 18.15 (1.55x), so the cap the simulator asks for lies bel
 thinks the fastest feed removes and the loop cannot tighten it (the scan's kernel contact model, not
 the feed); its edge+feed row read 3.50 µm with three simulated rounds and 1.76 µm (within 2.55) with
 the default six (35 -> 14 -> 5 -> 1 -> 0 samples over in rounds 1-5) -- and crs_part_5's uniform+feed
-row (6.88 µm against 2.45), whose target is the kernel bound only.  Peak memory 1.99 GB (crs_part_5), its optimisation 84-123 s
+row (7.03 µm against 2.45), whose target was the kernel bound only; with the simulator's bound too, as
+every other row (the rule now), it reads 1.58 µm against 2.97 (D 29.75 µm, CoV 0.305 at 1.26 L*).  Peak memory 1.99 GB (crs_part_5), its optimisation 84-123 s
 with the simulator loop (``--solve`` alone: 45.8 s in all, 787 MB).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [plate panel blade crs_part_5.stl ...]``; the feed
@@ -321,7 +322,8 @@ def ripple_rows(surface, tool, cons, base, D, measure, least_depth) -> None:
     else:
         t_plan = time.perf_counter() - t0
         k_u = build_kernel(up, tool, trajectory=time_path(up, cons))
-        D_u = max(D, least_depth(k_u))
+        # as every other row: no lower than the simulator's depth of the plan at the feed limit
+        D_u = max(D, least_depth(k_u), _least_depth_simulated(up, surface, tool, cons))
         if SIMULATE_LOOP:
             from swath.simulate.removal import simulate_removal
 
