@@ -67,6 +67,43 @@ def test_a_large_answer_travels_through_a_mapped_file_that_is_then_removed(two_c
     assert kinds == ["ok"]                                # a small answer comes through the pipe
 
 
+def test_a_large_answer_comes_through_the_pipe_when_no_file_can_be_written(two_cpus, monkeypatch, tmp_path):
+    # e.g. a container's /dev/shm too small for the arrays: the write fails, the pipe carries them
+    monkeypatch.setattr(beside, "_shared_dir", lambda: str(tmp_path / "missing"))
+    kinds, received = [], beside._received
+    monkeypatch.setattr(beside, "_received", lambda message: kinds.append(message[0]) or received(message))
+    got = Beside(_large_answer, 100_000).result()
+    assert kinds == ["ok"]
+    np.testing.assert_array_equal(got["widths"], _large_answer(100_000)["widths"])
+    # the folder is there but fills up while writing: the partial file is removed, the pipe carries them
+    monkeypatch.setattr(beside, "_shared_dir", lambda: str(tmp_path))
+    real_fdopen = os.fdopen
+
+    class _Full:
+        def __init__(self, fd, mode):
+            self._f = real_fdopen(fd, mode)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self._f.close()
+
+        def tell(self):
+            return self._f.tell()
+
+        def write(self, data):
+            if len(data) > 1000:
+                raise OSError(28, "No space left on device")
+            return self._f.write(data)
+
+    monkeypatch.setattr(beside.os, "fdopen", _Full)
+    kinds.clear()
+    got = Beside(_large_answer, 100_000).result()
+    assert kinds == ["ok"] and list(tmp_path.iterdir()) == []
+    np.testing.assert_array_equal(got["index"], np.arange(100_000))
+
+
 def test_not_allowed_or_one_cpu_computes_here(monkeypatch):
     pid, _ = Beside(_child_pid_and_sum, np.ones(3), allowed=False).result()
     assert pid == PARENT

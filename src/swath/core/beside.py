@@ -113,7 +113,10 @@ def _packed(answer: tuple) -> tuple:
     data = pickle.dumps(answer, protocol=5, buffer_callback=buffers.append)
     if sum(b.raw().nbytes for b in buffers) < FILE_BYTES:
         return answer
-    fd, path = tempfile.mkstemp(prefix="swath-beside-", dir=_shared_dir())
+    try:
+        fd, path = tempfile.mkstemp(prefix="swath-beside-", dir=_shared_dir())
+    except OSError:
+        return answer
     try:
         spans = []
         with os.fdopen(fd, "wb") as f:
@@ -122,6 +125,10 @@ def _packed(answer: tuple) -> tuple:
                 f.write(b"\0" * (-f.tell() % _ALIGN))
                 spans.append((f.tell(), raw.nbytes))
                 f.write(raw)
+    except OSError:
+        # a full or small /dev/shm (containers often have 64 MB): through the pipe after all
+        os.unlink(path)
+        return answer
     except BaseException:
         os.unlink(path)
         raise
