@@ -5,27 +5,22 @@
 The sweep: example:plate and example:panel x raster, uniform, equidistant x 10 N, 20 N (default
 3-inch pad, 50 mm/s, angle 0), run serially, then on a local Ray with 2 workers, then serially
 again (``--order``), so drift of the machine's load shows.  Prints wall time and jobs per minute
-of each run, the Ray ones with and without start-up (timed apart: Ray is started before the
-sweep), the speed-up over the mean serial run, the sum of the jobs' own wall and CPU times, and
+of each run with and without its start-up (timed apart, before the sweep), the speed-up over the mean serial run, the sum of the jobs' own wall and CPU times, and
 the load average before and after, since the cores are shared.  Checks that every run gives the
 same table (all columns but times).
 
-Runs on 2 vCPUs, quiet machine (load 0.8-1.1).  The local Ray's workers now find swath through the
-``PYTHONPATH`` they inherit (:func:`swath.cli.batch_ray.start_local_ray`), not a ``runtime_env``, so they
-are running when ``ray.init`` returns instead of being started by the first task (0.12 s against
-0.66 s to the first task's start).  The default sweep (jobs of 0.8-2.2 s): 17.3 / 16.5 s serial
-against 10.4 s on 2 workers, **1.62x** (1.35x with Ray's 2.1 s start-up; last session, with the
-runtime_env, 1.53x).  ``--parts crs_part_5.stl bezier_dac_scan.ply --order 1 2`` (jobs of 2-22 s):
-76.4 s serial against 43.9 s, **1.74x** (1.63x with Ray's 3.1 s start-up).
-Session 9 (``--order 1 2 1 2``, quiet machine, load 0.9-1.3): serial 16.8 / 17.3 s against 10.6 / 10.5 s on 2
-workers, **1.61x / 1.62x** (1.25x / 1.36x with Ray's 3.1 / 2.0 s start-up); the long sweep 80.0 s against
-46.1 s, **1.73x** (1.66x with start-up).  The Ray jobs' own times add up to 19.4 s against 16.8 s serially:
-the four uniform jobs take 1.9-2.9 s on their one CPU where serially they plan on both (1.2-2.5 s), and each
-worker pays the imports (1.2 s) once; so even a perfectly balanced pair of workers would end at 9.7 s,
-1.73x, on this sweep, and the last jobs' uneven ends cost the other 0.9 s.
-What caps it: two jobs side by side each run 12-14 % slower than alone (``sum_job_s`` 19.3 against
-16.9 s, 86.8 against 76.4 s), each worker's first job pays the imports, and a serial uniform job is
-itself not serial: it plans its candidate directions on both CPUs (a Ray task gets one).
+Each run is timed after its warm-up (``startup_s``): a Ray run after Ray's start and a small job on
+each worker (:func:`swath.cli.batch.warm_up`, which ``swath batch`` runs too), a serial run after the
+same small job in this process; ``speedup_with_startup`` counts both start-ups.
+Session 10 (2 vCPUs, load 0.8-1.1, ``--order 1 2 1 2``): serial 14.5 / 15.1 s against 7.5 / 7.6 s on 2
+workers, **1.97x / 1.95x** (1.35x / 1.32x with the start-ups: 1.1-1.8 s serial, 4.5 s Ray).  The
+long sweep ``--parts crs_part_5.stl bezier_dac_scan.ply --order 1 2`` (jobs of 2-20 s): 73.1 s
+against 41.6 s, **1.76x** (1.58x with start-ups).  Before the warm-up (session 9) the short sweep
+gave 1.61x: each worker's first job paid its imports and first calls (1.4 s), and the mean serial
+time counted one cold run of two; the jobs are also shorter (16.8 → 14.5 s serially) since the
+report's removal map is no longer measured triangle by triangle.  On the long sweep two jobs side by side each run about 12 %
+slower than alone (``sum_job_s`` 83.0 against 73.1 s), and a serial uniform job plans its candidate
+directions on both CPUs where a Ray task gets one.
 
 On a machine shared through sessions (Linux autogroup scheduling: ``/proc/self/autogroup``; the
 local Ray's workers join the session of the process that starts them), a busy machine gives the
@@ -85,15 +80,18 @@ def main():
                                          parts=json.dumps(parts)), encoding="utf-8")
             sweep = load_sweep(path)
             load_before = os.getloadavg()[0]
-            startup = 0.0
+            t0 = time.perf_counter()
             if workers > 1:
                 import ray
 
                 from swath.cli.batch_ray import start_local_ray
 
-                t0 = time.perf_counter()
-                start_local_ray(workers)
-                startup = time.perf_counter() - t0
+                start_local_ray(workers)                      # and the warm-up on each worker
+            else:
+                from swath.cli.batch import warm_up
+
+                warm_up()                                     # the same warm-up, in this process
+            startup = time.perf_counter() - t0
             t0 = time.perf_counter()
             result = run_sweep(sweep, workers=workers, resume=False)
             wall = time.perf_counter() - t0
@@ -108,17 +106,21 @@ def main():
                          "load_before": load_before, "load_after": os.getloadavg()[0]})
             tables[run] = table(sweep.out / "results.csv")
             print(f"  {workers} worker(s): {wall:.1f} s{' failed: ' + ', '.join(failed) if failed else ''}", flush=True)
-        serial = sum(r["wall_s"] for r in rows if r["workers"] == 1) / max(sum(r["workers"] == 1 for r in rows), 1)
+        serial = [r for r in rows if r["workers"] == 1]
+        wall = sum(r["wall_s"] for r in serial) / max(len(serial), 1)
+        cold = sum(r["wall_s"] + r["startup_s"] for r in serial) / max(len(serial), 1)
         for row in rows:
-            row["speedup"] = serial / row["wall_s"]
-            row["speedup_with_startup"] = serial / (row["wall_s"] + row["startup_s"])
+            row["speedup"] = wall / row["wall_s"]
+            row["speedup_with_startup"] = cold / (row["wall_s"] + row["startup_s"])
         same = all(t == tables[0] for t in tables.values())
     print(f"\nbatch throughput on {os.cpu_count()} CPUs (load average: 1-min, shared machine)")
     print_table(rows, [("workers", "d"), ("jobs", "d"), ("failed", "d"), ("startup_s", ".1f"), ("wall_s", ".1f"),
                        ("sum_job_s", ".1f"), ("sum_cpu_s", ".1f"), ("jobs_per_min", ".1f"), ("speedup", ".2f"),
                        ("jobs_per_min_with_startup", ".1f"), ("speedup_with_startup", ".2f"),
                        ("load_before", ".2f"), ("load_after", ".2f")])
-    print("speedup: against the mean serial wall time; sum_cpu_s: CPU time the jobs got (a loaded machine gives "
+    print("speedup: against the mean serial wall time, each run after its warm-up (startup_s: Ray's start and "
+          "a warm-up job on each worker, or the same warm-up in this process for a serial run); "
+          "speedup_with_startup: both with their start-up; sum_cpu_s: CPU time the jobs got (a loaded machine gives "
           "parallel jobs less of it)")
     print(f"same results table in every run (wall times aside): {same}")
 

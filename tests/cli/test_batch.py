@@ -191,10 +191,71 @@ def test_local_ray_workers_find_this_swath_and_the_environment_is_restored(monke
     seen = {}
     monkeypatch.setattr(ray, "init", lambda **kw: seen.update(kw, path=os.environ.get("PYTHONPATH")))
     monkeypatch.setenv("PYTHONPATH", "/elsewhere")
-    batch_ray.start_local_ray(2)
+    batch_ray.start_local_ray(2, warm=False)
     src = str(Path(swath.__file__).resolve().parent.parent)
     # set while Ray starts its processes (the workers inherit it), this swath first; no runtime_env,
     # whose workers Ray would start only when the first task arrives
     assert seen["path"] == os.pathsep.join([src, "/elsewhere"])
     assert seen["num_cpus"] == 2 and "runtime_env" not in seen
     assert os.environ["PYTHONPATH"] == "/elsewhere"
+
+
+def test_warm_up_runs_a_real_job_and_leaves_nothing(monkeypatch, tmp_path):
+    import tempfile
+
+    from swath.cli import batch
+    from swath.errors import SwathError
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    assert batch.warm_up() > 0.0
+    assert list(tmp_path.iterdir()) == []                 # the scratch folder is gone
+    import swath.cli.job
+
+    monkeypatch.setattr(swath.cli.job, "run_job", lambda settings, **kw: 1 / 0)
+    with pytest.raises(SwathError, match="warm-up job failed.*ZeroDivisionError"):
+        batch.warm_up()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_failed_warm_up_is_logged_and_the_sweep_goes_on(monkeypatch, caplog):
+    ray = pytest.importorskip("ray")
+    from swath.cli import batch_ray
+
+    class Remote:
+        def remote(self):
+            return object()
+
+    monkeypatch.setattr(ray, "remote", lambda **kw: lambda fn: Remote())
+    monkeypatch.setattr(ray, "get", lambda refs: (_ for _ in ()).throw(RuntimeError("worker died")))
+    with caplog.at_level("WARNING"):
+        assert batch_ray.warm_workers(2) == []
+    assert "warming the Ray workers up failed" in caplog.text and "worker died" in caplog.text
+
+
+def test_local_ray_jobs_run_on_the_warmed_workers():
+    ray = pytest.importorskip("ray")
+    from swath.cli import batch_ray
+
+    env = os.environ.pop("RAY_ADDRESS", None)
+    try:
+        batch_ray.start_local_ray(2, warm=False)
+        try:
+            warmed = batch_ray.warm_workers(2)
+            assert len(set(warmed)) == 2                  # one warm-up on each worker
+
+            @ray.remote(num_cpus=1)
+            def probe():
+                import sys
+                import time
+
+                time.sleep(0.5)                           # both probes in flight at once
+                return os.getpid(), {"swath.cli.job", "swath.report", "toppra"} <= set(sys.modules)
+
+            seen = ray.get([probe.remote() for _ in range(2)])
+        finally:
+            ray.shutdown()
+    finally:
+        if env is not None:
+            os.environ["RAY_ADDRESS"] = env
+    assert {pid for pid, _ in seen} == set(warmed)
+    assert all(loaded for _, loaded in seen)

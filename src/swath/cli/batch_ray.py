@@ -25,6 +25,13 @@ def _task(job_id: str, values: dict, base_dir: str) -> dict:
     return run_batch_job(job_id, values, base_dir)
 
 
+def _warm_task() -> int:
+    from .batch import warm_up
+
+    warm_up()
+    return os.getpid()
+
+
 def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None):
     """Yield one row per job of ``jobs`` (BatchJob) as each finishes, in finishing order.
 
@@ -96,9 +103,12 @@ def local_ray_options(n_cpus: int) -> dict:
             "configure_logging": False}
 
 
-def start_local_ray(n_cpus: int) -> None:
+def start_local_ray(n_cpus: int, *, warm: bool = True) -> None:
     """Start the local Ray of a sweep (:func:`local_ray_options`), its workers importing the same swath
-    as this process.
+    as this process, and (``warm``) run :func:`swath.cli.batch.warm_up` on each of its ``n_cpus``
+    workers at once, so that every job's ``job_s`` is its own time and not partly its worker's
+    imports.  A warm-up that fails is logged and the sweep goes on: each job then reports its own
+    failure.
 
     The workers inherit ``PYTHONPATH`` from the Ray processes ``ray.init`` starts here, so it is set
     (this swath's folder first) for the time of the call only.  Not through a ``runtime_env``: Ray
@@ -118,6 +128,21 @@ def start_local_ray(n_cpus: int) -> None:
             os.environ.pop("PYTHONPATH", None)
         else:
             os.environ["PYTHONPATH"] = before
+    if warm:
+        warm_workers(n_cpus)
+
+
+def warm_workers(n: int) -> list[int]:
+    """Run the warm-up on ``n`` one-CPU tasks at the same time (so on ``n`` different workers, each
+    then kept by Ray for the sweep's tasks); return their process ids ([] if the warm-up failed)."""
+    import ray
+
+    remote = ray.remote(num_cpus=1, max_retries=0)(_warm_task)
+    try:
+        return list(ray.get([remote.remote() for _ in range(n)]))
+    except Exception as exc:  # noqa: BLE001 -- the jobs will report it, each in its own row
+        log.warning("warming the Ray workers up failed (%s); the jobs go on", _error_line(exc))
+        return []
 
 
 def _settings_columns(job) -> dict:
