@@ -7,7 +7,7 @@ import pytest
 
 from swath.contact import Tool
 from swath.core import Pass, ToolPath
-from swath.errors import InfeasibleError
+from swath.errors import InfeasibleError, InputError
 from swath.examples import flat_plate
 from swath.feed import build_kernel, optimise_feed, trajectory_node_dwell
 from swath.simulate.removal import simulate_removal
@@ -226,3 +226,57 @@ def test_nodes_over_no_optimised_sample_run_at_the_fastest_feed(plate, mode, obj
     np.testing.assert_allclose(np.median(res.speed[matched]), np.median(untied.speed[matched]), rtol=0.01)
     assert res.metrics["removal_cov"] == pytest.approx(untied.metrics["removal_cov"], abs=1e-3)
     assert res.metrics["contact_time_s"] < untied.metrics["contact_time_s"] - 1.0
+
+
+def test_kernel_poses_follow_a_fast_turning_tool_axis(plate, monkeypatch):
+    """Where the tool axis swings fast (a scan's noisy normals), the pressure under the pad's rim
+    changes within a millimetre; the kernel's poses are then closer than the distance step, so the
+    kernel matches a reference integrated every 10 um."""
+    import swath.feed.kernel as kernel
+
+    x = np.arange(0.04, 0.2 + 1e-9, 0.1e-3)
+    tilt = np.radians(8.0) * np.sin(2 * np.pi * x / 3e-3)      # +-8 degrees every 3 mm: 17 degrees/mm
+    points = np.stack([x, np.full_like(x, 0.1), np.zeros_like(x)], axis=1)
+    normals = np.stack([np.zeros_like(x), np.sin(tilt), np.cos(tilt)], axis=1)
+    tp = ToolPath(plate, [Pass(points, normals)], "wobble")
+    ref = build_kernel(tp, TOOL, pose_step=1e-5)
+    dwell = ref.nodes.length / 0.02
+
+    def worst_error():
+        k = build_kernel(tp, TOOL, samples=ref.samples)       # default pose step: 1.25 mm here
+        want, got = ref.removal(dwell), k.removal(dwell)
+        on = want > 0.2 * want.max()
+        return float(np.max(np.abs(got[on] - want[on]) / want[on]))
+
+    assert worst_error() < 0.02
+    monkeypatch.setattr(kernel, "MAX_POSE_TURN", np.inf)        # poses by distance only
+    assert worst_error() > 0.2
+
+
+def test_timed_spread_reproduces_the_simulator_where_the_feed_steps(plate, monkeypatch):
+    """Node feeds alternating 5 and 50 mm/s: the timing changes speed inside the nodes, so spreading
+    each node's dwell evenly along it misses single samples by over 15 %; shared as the trajectory
+    spends it (``respread``), the kernel matches the simulator integrated every 0.1 mm."""
+    import swath.simulate.removal as removal
+    from swath.feed.optimise import dwell_to_profile
+
+    tp = ToolPath(plate, [_line(0.04, 0.2, 0.1)], "steps")
+    nodes = build_kernel(tp, TOOL).nodes
+    speed = np.where(np.arange(len(nodes)) % 2 == 0, 0.005, 0.05)
+    cons = [FeedLimit(0.05), TangentialAccelLimit(0.5)]
+    traj = time_path(tp, cons + [dwell_to_profile(tp, nodes, nodes.length / speed)])
+    monkeypatch.setattr(removal, "INTEGRATION_STEP", 0.04)
+    sim = simulate_removal(traj, plate, TOOL).depth
+    even = build_kernel(tp, TOOL, trajectory=traj, pose_step=2e-5)     # poses fine enough to leave the spread
+    timed = even.respread(traj)
+    assert timed.spread == "timed" and timed.nodes is even.nodes and timed.matrix.shape == even.matrix.shape
+    dwell = trajectory_node_dwell(traj, nodes, tp)
+    on = sim > 0.2 * sim.max()
+
+    def worst(k):
+        return float(np.max(np.abs(k.removal(dwell)[on] - sim[on]) / sim[on]))
+
+    assert worst(timed) < 0.04
+    assert worst(even) > 0.15
+    with pytest.raises(InputError, match="give trajectory="):
+        build_kernel(tp, TOOL, spread="timed")

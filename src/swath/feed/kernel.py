@@ -86,6 +86,10 @@ class RemovalKernel:
     nodes : DwellNodes
     toolpath : ToolPath
     tool : Tool
+    pose_step : float
+        Spacing of the contact poses within a node, m (see :func:`build_kernel`).
+    spread : str
+        How a node's dwell is shared among its poses: ``"even"`` or ``"timed"`` (see :func:`build_kernel`).
     """
 
     matrix: sp.csc_matrix
@@ -93,6 +97,15 @@ class RemovalKernel:
     nodes: DwellNodes
     toolpath: object
     tool: Tool
+    pose_step: float = 0.0
+    spread: str = "even"
+
+    def respread(self, trajectory, *, progress=None) -> RemovalKernel:
+        """This kernel (same nodes, samples and poses) with each node's dwell shared among its poses
+        as ``trajectory`` shares it: ``trajectory`` is this tool path timed with the feed being
+        planned (see ``spread="timed"`` in :func:`build_kernel`)."""
+        return build_kernel(self.toolpath, self.tool, nodes=self.nodes, samples=self.samples,
+                            pose_step=self.pose_step, trajectory=trajectory, spread="timed", progress=progress)
 
     def removal(self, dwell: np.ndarray) -> np.ndarray:
         """Depth ``(S,)`` (m) removed by dwell times ``(n,)`` (s)."""
@@ -130,10 +143,10 @@ def _interp_polyline(s: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.nd
 
 
 def _pass_geometry(toolpath, trajectory):
-    """Per pass: arc length ``(k,)`` (m, on the pass polyline's scale), positions ``(k, 3)`` and tool
-    z-axes ``(k, 3)`` to interpolate poses from: the pass polyline and minus its normals, or the
-    timed trajectory's in-contact samples of that pass (travelled distance scaled to the pass length,
-    as :func:`trajectory_node_dwell` reads it)."""
+    """Per pass: arc length ``(k,)`` (m, on the pass polyline's scale), positions ``(k, 3)``, tool
+    z-axes ``(k, 3)`` and times ``(k,)`` (s, or None) to interpolate poses from: the pass polyline
+    and minus its normals (no times), or the timed trajectory's in-contact samples of that pass
+    (travelled distance scaled to the pass length, as :func:`trajectory_node_dwell` reads it)."""
     out = []
     tz = None if trajectory is None else trajectory.tool_z()
     for k, p in enumerate(toolpath.passes):
@@ -142,20 +155,40 @@ def _pass_geometry(toolpath, trajectory):
             if len(sel) >= 2:
                 s = arc_length(trajectory.position[sel])
                 s = s * (p.length / s[-1]) if s[-1] > 0 else s
-                out.append((s, trajectory.position[sel], tz[sel]))
+                out.append((s, trajectory.position[sel], tz[sel], trajectory.t[sel]))
                 continue
-        out.append((arc_length(p.points), p.points, -p.normals))
+        out.append((arc_length(p.points), p.points, -p.normals, None))
     return out
 
 
-def _sub_poses(toolpath, nodes: DwellNodes, step: float, trajectory=None):
-    """Poses spread evenly through every node (about ``step`` apart): positions, tool z-axes, the
-    node of each pose and its weight (1 / poses in the node)."""
+#: Largest turn of the tool axis between two poses of a node, rad (1 degree).  Where a scan's noisy
+#: normals swing the axis fast (tens of degrees per mm, so the angular-speed limit crawls there), the
+#: pressure at the patch rim changes from one millimetre to the next by a factor of several: poses
+#: only a distance step apart there missed 12 % of a rim sample's removal on bezier_dac_scan.
+MAX_POSE_TURN = np.radians(1.0)
+
+
+def _turn_along(s: np.ndarray, zaxes: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Cumulative turn (rad) of the unit axes ``zaxes (k, 3)`` along ``s (k,)``, read at ``at``."""
+    z = zaxes / np.maximum(np.linalg.norm(zaxes, axis=1, keepdims=True), 1e-300)
+    cos = np.clip(np.einsum("ij,ij->i", z[:-1], z[1:]), -1.0, 1.0)
+    turn = np.concatenate([[0.0], np.cumsum(np.arccos(cos))])
+    keep = np.concatenate([[True], np.diff(s) > 0])
+    return np.interp(at, s[keep], turn[keep])
+
+
+def _sub_poses(toolpath, nodes: DwellNodes, step: float, trajectory=None, *, timed: bool = False):
+    """Poses spread evenly through every node: about ``step`` apart, and closer where the tool axis
+    turns more than :data:`MAX_POSE_TURN` in a step.  Returns positions, tool z-axes, the node of
+    each pose and its weight: its share of the node's dwell, 1 / poses in the node (the dwell spread
+    evenly along it), or with ``timed`` the share of the node's time ``trajectory`` spends in the
+    pose's stretch of the node (even where the trajectory spends none there)."""
     pos, axes, node, weight = [], [], [], []
-    for k, (s, points, zaxes) in enumerate(_pass_geometry(toolpath, trajectory)):
+    for k, (s, points, zaxes, times) in enumerate(_pass_geometry(toolpath, trajectory)):
         a, b = nodes.pass_start[k], nodes.pass_start[k + 1]
         length = nodes.length[a:b]
-        m = np.maximum(np.ceil(length / step - 1e-9).astype(int), 1)
+        turn = np.diff(_turn_along(s, zaxes, np.append(nodes.s_start[a:b], nodes.s_end[b - 1])))
+        m = np.maximum(np.ceil(np.maximum(length / step, turn / MAX_POSE_TURN) - 1e-9).astype(int), 1)
         nid = np.repeat(np.arange(a, b), m)
         local = np.arange(len(nid)) - np.repeat(np.cumsum(m) - m, m)
         at = nodes.s_start[nid] + (local + 0.5) / m[nid - a] * nodes.length[nid]
@@ -163,7 +196,14 @@ def _sub_poses(toolpath, nodes: DwellNodes, step: float, trajectory=None):
         z = _interp_polyline(s, zaxes, at)
         axes.append(z / np.maximum(np.linalg.norm(z, axis=1, keepdims=True), 1e-300))
         node.append(nid)
-        weight.append(1.0 / m[nid - a])
+        share = 1.0 / m[nid - a]
+        if timed and times is not None:
+            keep = np.concatenate([[True], np.diff(s) > 0])
+            lo = nodes.s_start[nid] + local / m[nid - a] * nodes.length[nid]
+            dt = np.diff(np.interp(np.stack([lo, lo + share * nodes.length[nid]]), s[keep], times[keep]), axis=0)[0]
+            total = np.bincount(nid - a, weights=dt, minlength=b - a)[nid - a]
+            share = np.where(total > 0, dt / np.where(total > 0, total, 1.0), share)
+        weight.append(share)
     return np.vstack(pos), np.vstack(axes), np.concatenate(node), np.concatenate(weight)
 
 
@@ -183,8 +223,8 @@ def kernel_sample_spacing(surface, tool: Tool, *, max_samples: int = MAX_KERNEL_
 
 
 def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sample_spacing: float | None = None,
-                 pose_step: float | None = None, samples=None, trajectory=None, chunk: int = 2000,
-                 progress=None) -> RemovalKernel:
+                 pose_step: float | None = None, samples=None, trajectory=None, spread: str = "even",
+                 nodes: DwellNodes | None = None, chunk: int = 2000, progress=None) -> RemovalKernel:
     """Build the removal kernel of ``toolpath`` on its surface.
 
     Parameters
@@ -201,7 +241,8 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
         simulator's, coarser on parts that would need more than :data:`MAX_KERNEL_SAMPLES`).
     pose_step : float, optional
         Spacing of the contact poses averaged within a node, m (default: half the sample spacing,
-        which halves the ripple a pose grid leaves on single samples).
+        which halves the ripple a pose grid leaves on single samples); closer where the tool axis
+        turns more than :data:`MAX_POSE_TURN` in a step.
     samples : Surface, optional
         The sampled surface to use (``toolpath.surface.subdivided(sample_spacing)``), when the
         caller already has it (saves the subdivision and its KD-tree when many kernels are built).
@@ -210,6 +251,16 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
         samples (the positions and tool axes the robot will use, after the timing stage's projection
         and normal smoothing) instead of the pass polylines.  On noisy scans this keeps the kernel
         and :func:`swath.simulate.simulate_removal` of the final trajectory on the same poses.
+    spread : {"even", "timed"}
+        How a node's dwell is shared among its poses.  ``"even"``: evenly along the node (a
+        constant feed through it).  ``"timed"``: as ``trajectory`` (required) spends its time in the
+        node; give the tool path timed with the feed being planned.  Where the feed steps between
+        nodes (5 to 50 mm/s on a scan's crawl zones), the timing changes speed within the last
+        millimetre of a node, and a sample at the patch rim can lose 25 % more than the even spread
+        predicts; :meth:`RemovalKernel.respread` rebuilds a kernel this way.
+    nodes : DwellNodes, optional
+        Use these nodes (of this tool path) instead of cutting new ones (``node_spacing`` is then
+        ignored).
     chunk : int
         Poses per vectorised batch (memory about ``chunk ×`` samples under the pad pairs).
     progress : callable, optional
@@ -229,15 +280,20 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
         spacing = kernel_sample_spacing(toolpath.surface, tool)
     if not (np.isfinite(spacing) and spacing > 0):
         raise InputError(f"sample spacing must be a positive length in m, got {sample_spacing!r}")
-    if node_spacing is None:
-        node_spacing = max(default_node_spacing(tool), toolpath.contact_length / MAX_KERNEL_NODES)
-    nodes = dwell_nodes(toolpath, node_spacing=node_spacing)
+    if spread not in ("even", "timed"):
+        raise InputError(f"spread must be 'even' or 'timed', got {spread!r}")
+    if spread == "timed" and trajectory is None:
+        raise InputError("spread='timed' shares each node's dwell as a timed trajectory does; give trajectory=")
+    if nodes is None:
+        if node_spacing is None:
+            node_spacing = max(default_node_spacing(tool), toolpath.contact_length / MAX_KERNEL_NODES)
+        nodes = dwell_nodes(toolpath, node_spacing=node_spacing)
     step = 0.5 * spacing if pose_step is None else float(pose_step)
     if samples is None:
         samples = toolpath.surface.subdivided(spacing)
     pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
     tree = samples.kdtree
-    position, axes, node, weight = _sub_poses(toolpath, nodes, step, trajectory)
+    position, axes, node, weight = _sub_poses(toolpath, nodes, step, trajectory, timed=spread == "timed")
     S, n = len(pts), len(nodes)
     blocks = []
     for lo in range(0, len(position), chunk):
@@ -252,7 +308,7 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     matrix = sum(blocks[1:], blocks[0]).tocsc() if blocks else sp.csc_matrix((S, n))
     matrix.sum_duplicates()
     log.info("removal kernel: %d samples x %d nodes, %d non-zeros (%d poses)", S, n, matrix.nnz, len(position))
-    return RemovalKernel(matrix, samples, nodes, toolpath, tool)
+    return RemovalKernel(matrix, samples, nodes, toolpath, tool, step, spread)
 
 
 def trajectory_node_dwell(trajectory, nodes: DwellNodes, toolpath) -> np.ndarray:
