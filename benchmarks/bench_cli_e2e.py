@@ -14,7 +14,16 @@ children included), the ratio uniform / raster of both, and the load average bef
 
     PYTHONPATH=src python benchmarks/bench_cli_e2e.py [--repeat 2] [snp_part_scan.ply example:plate ...]
 
-This session's run (``--repeat 2``, load 1.2 before and 1.6 after; wall s, raster / uniform, ratio;
+Session 10 (``--repeat 2``, load 0.8 before and 1.4 after; wall s raster / uniform, ratio, CPU ratio in
+brackets): snp_part_scan 2.83 / 5.32, 1.88 (2.52); noether_raw_mesh 3.78 / 12.83, **3.40** (5.28);
+bezier_dac_cad 2.33 / 3.36, 1.44 (1.78); bezier_dac_scan 4.85 / 12.69, 2.61 (3.52); noether_wavy 2.05 /
+2.98, 1.46 (1.77); bezier_complex_shape 3.24 / 8.58, 2.65 (3.71); crs_part_5 7.11 / 20.75, 2.92 (4.25);
+built-in plate 1.36, panel 1.68, blade 1.90.  Within 3x on six of the seven shared meshes.  The plans are
+those of session 9; what changed is the report: the removal map's triangles are no longer measured one
+by one for the figure's layout, which took 0.2-0.8 s off every run, raster's included (noether_raw_mesh
+raster 4.47 -> 3.78 s, uniform 13.25 -> 12.83 s), so the ratio rose where uniform's plan dominates.
+
+Session 9 (``--repeat 2``, load 1.2 before and 1.6 after; wall s, raster / uniform, ratio;
 CPU ratio in brackets): snp_part_scan 3.03 / 5.69, 1.88 (2.53); noether_raw_mesh 4.47 / 13.25, **2.97**
 (4.73; 3.09 last session); bezier_dac_cad 2.46 / 3.58, 1.45 (1.78); bezier_dac_scan 5.62 / 13.85, 2.47
 (3.31); noether_wavy 2.32 / 3.48, 1.50 (1.79); bezier_complex_shape 3.67 / 9.52, 2.59 (3.66); crs_part_5
