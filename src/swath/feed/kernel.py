@@ -182,7 +182,7 @@ def _sub_poses(toolpath, nodes: DwellNodes, step: float, trajectory=None, *, tim
     turns more than :data:`MAX_POSE_TURN` in a step.  Returns positions, tool z-axes, the node of
     each pose and its weight: its share of the node's dwell, 1 / poses in the node (the dwell spread
     evenly along it), or with ``timed`` the share of the node's time ``trajectory`` spends in the
-    pose's stretch of the node (even where the trajectory spends none there)."""
+    pose's stretch of the node (evenly in a node where it spends no time)."""
     pos, axes, node, weight = [], [], [], []
     for k, (s, points, zaxes, times) in enumerate(_pass_geometry(toolpath, trajectory)):
         a, b = nodes.pass_start[k], nodes.pass_start[k + 1]
