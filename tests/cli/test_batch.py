@@ -259,3 +259,21 @@ def test_local_ray_jobs_run_on_the_warmed_workers():
             os.environ["RAY_ADDRESS"] = env
     assert {pid for pid, _ in seen} == set(warmed)
     assert all(loaded for _, loaded in seen)
+
+
+@pytest.mark.parametrize("n_jobs, warm", [(2, False), (3, True)])
+def test_local_ray_is_warmed_only_when_a_worker_runs_two_jobs(monkeypatch, n_jobs, warm):
+    ray = pytest.importorskip("ray")
+    from swath.cli import batch_ray
+
+    seen = {}
+
+    def start(n_cpus, *, warm=True):
+        seen.update(n_cpus=n_cpus, warm=warm)
+        raise KeyboardInterrupt                       # stop before any task is sent
+
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(batch_ray, "start_local_ray", start)
+    with pytest.raises(KeyboardInterrupt):
+        list(batch_ray.run_on_ray([object()] * n_jobs, ".", workers=2, address=None))
+    assert seen == {"n_cpus": 2, "warm": warm}

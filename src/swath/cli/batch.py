@@ -39,9 +39,9 @@ Running
 -------
 ``--workers 1`` runs the jobs one after another in this process (Ray is not imported).  More
 workers run them as Ray tasks: on a local Ray started for the sweep (``--workers`` CPUs, default
-all), or on an existing cluster when ``--address`` or ``RAY_ADDRESS`` is given.  A local Ray's
-workers first run a small job each (:func:`warm_up`), so that every job's ``job_s`` is its own time
-and not its worker's imports.  On a cluster
+all), or on an existing cluster when ``--address`` or ``RAY_ADDRESS`` is given.  When a local Ray's
+workers will run more than one job each, they first run a small job each (:func:`warm_up`), so that
+every job's ``job_s`` is its own time and not its worker's imports.  On a cluster
 this process's swath package is shipped to the workers (Ray ``py_modules``), so they run the
 same code; its dependencies must be installed on every node, and the part files and ``out``
 must be on a file system every node sees.

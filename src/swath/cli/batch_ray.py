@@ -57,7 +57,10 @@ def run_on_ray(jobs, base_dir: str, *, workers: int | None, address: str | None)
             # Ship this swath to the cluster's workers, so that they run the driver's version.
             ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
         else:
-            start_local_ray(workers or os.cpu_count() or 1)
+            # Warm the workers only when some will run a second job: with one job each, every job
+            # pays the same start-up anyway, and the warm-up job would only add its own time.
+            n_cpus = workers or os.cpu_count() or 1
+            start_local_ray(n_cpus, warm=len(jobs) > n_cpus)
         started = True
     limit = workers or (len(jobs) if address else (os.cpu_count() or 1))
     remote = ray.remote(num_cpus=1, max_retries=0)(_task)
