@@ -27,6 +27,12 @@ def test_a_quoted_boolean_is_refused(key):
     ({"planner_options": {"spacing": "abc"}}, "planner_options.spacing"),
     ({"planner_options": {"spcing": "20mm"}}, "the raster planner does not take 'spcing'"),
     ({"planner_options": "x"}, "planner_options must be a table"),
+    ({"planner": "uniform", "planner_options": {"work_spacing": 2}}, "planner_options.work_spacing = 2 has no unit"),
+    ({"planner": "uniform", "planner_options": {"max_passes": "many"}}, "planner_options.max_passes must be a whole"),
+    ({"planner": "uniform", "planner_options": {"workers": 0}}, "planner_options.workers must be a whole number >= 1"),
+    ({"planner": "uniform", "planner_options": {"cost": "time"}}, "planner_options.cost cannot be set from a job"),
+    ({"planner": "equidistant", "planner_options": {"distance": "exact"}}, "planner_options.distance must be one of"),
+    ({"planner_options": {"fill_gaps": "no"}}, "planner_options.fill_gaps must be true or false"),
     ({"colour": "red"}, "unknown job setting 'colour'"),
 ])
 def test_bad_values_name_their_key(values, fragment):
@@ -195,3 +201,18 @@ def test_removal_sampling_and_feed_check_flags_reach_the_job_settings(tmp_path):
         == "mesh"
     with pytest.raises(InputError, match="removal_sampling"):
         settings_from_mapping({"part": "example:plate", "out": out, "removal_sampling": "grid"})
+
+
+def test_planner_options_take_units_and_reach_the_planner():
+    """A length planner option given with a unit arrives in metres (it used to reach the planner
+    as text and fail deep inside it with a traceback)."""
+    from swath.cli.job import planner_arguments
+
+    settings = settings_from_mapping({**BASE, "planner": "uniform",
+                                      "planner_options": {"work_spacing": "2.5mm", "max_passes": 40}})
+    args = planner_arguments(settings)
+    assert args["work_spacing"] == pytest.approx(2.5e-3) and args["max_passes"] == 40
+    raster = planner_arguments(settings_from_mapping({**BASE, "planner_options": {"edge_margin": "0.5 cm"}}))
+    assert raster["edge_margin"] == pytest.approx(5e-3)
+    spread = planner_arguments(settings_from_mapping({**BASE, "planner_options": {"edge_margin": float("inf")}}))
+    assert spread["edge_margin"] == float("inf")

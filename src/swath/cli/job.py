@@ -145,12 +145,19 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
         planners that do.
     """
     from ..plan import planner_options, planners_taking
-    from .settings import SCHEMA, parse_value
+    from .settings import PLANNER_OPTION_SCHEMA, SCHEMA, parse_value
 
     takes = planner_options(settings.planner)
     given = {"spacing": settings.spacing, "direction": settings.direction, "overlap": settings.overlap}
-    own = {k: (parse_value(f"planner_options.{k}", v, SCHEMA[k]) if k in SCHEMA else v)
-           for k, v in settings.planner_options.items()}
+    own = {}
+    for k, v in settings.planner_options.items():
+        spec = SCHEMA.get(k) or PLANNER_OPTION_SCHEMA.get(k)
+        if spec is None and k in takes:
+            # a library-only option (the job's cost and progress, a direction vector): no text form
+            raise InputError(f"planner_options.{k} cannot be set from a job; the options a job may give the "
+                             f"{settings.planner} planner: "
+                             f"{', '.join(sorted(o for o in takes if o in SCHEMA or o in PLANNER_OPTION_SCHEMA))}")
+        own[k] = parse_value(f"planner_options.{k}", v, spec) if spec is not None else v
     for key, value in {**given, **own}.items():
         if value is not None and key not in takes:
             others = planners_taking(key)

@@ -168,13 +168,15 @@ class Key:
     """What one settings key holds.
 
     kind : a quantity kind of :func:`swath.units.parse_quantity`, or ``"bool"``, ``"str"``,
-        ``"path"``, ``"table"``, ``"list"``, ``"offset"``.
+        ``"path"``, ``"table"``, ``"list"``, ``"offset"``, ``"count"`` (a whole number).
     choices : allowed strings (``"str"`` keys).
     lo, hi : allowed range in SI (inclusive), None for open.
     bare_max : a number given without a unit must not exceed this (SI); catches ``feed = 50``.
     hint : the unit the user likely meant, for that message.
     off : the key may be turned off with ``none``/``off``.
     auto : the key may be ``auto`` (None).
+    positive : the value must be > 0.
+    infinite : the value may be ``inf`` (a TOML float or the text), returned as ``math.inf``.
     """
 
     kind: str
@@ -186,6 +188,7 @@ class Key:
     off: bool = False
     auto: bool = False
     positive: bool = False
+    infinite: bool = False
 
 
 def _planners() -> tuple:
@@ -239,6 +242,17 @@ SCHEMA: dict[str, Key] = {
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
 }
 
+#: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job
+#: sets ``cost`` and ``progress`` itself; ``cross_direction`` is for the library only.
+PLANNER_OPTION_SCHEMA: dict[str, Key] = {
+    "min_pass_length": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 10mm"),
+    "edge_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 5mm", infinite=True),
+    "work_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 2mm"),
+    "max_edge": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
+    "max_passes": Key("count", positive=True), "workers": Key("count", positive=True),
+    "fill_gaps": Key("bool"), "distance": Key("str", choices=("fmm", "heat")), "seed": Key("str"),
+}
+
 #: Other spellings of keys.
 ALIASES = {"angle": "direction", "program": "programs"}
 
@@ -266,6 +280,11 @@ def parse_value(key: str, value, spec: Key):
         if spec.choices and value not in spec.choices:
             raise InputError(f"{key} must be one of {', '.join(spec.choices)}, got {value!r}")
         return value
+    if spec.kind == "count":
+        if not (isinstance(value, int) and not isinstance(value, bool)) or (spec.positive and value < 1):
+            raise InputError(f"{key} must be a whole number{' >= 1' if spec.positive else ''} (unquoted), "
+                             f"got {value!r}")
+        return int(value)
     if spec.kind == "table":
         if not isinstance(value, dict):
             raise InputError(f"{key} must be a table ([{key}] in TOML), got {type(value).__name__}")
@@ -292,6 +311,8 @@ def parse_value(key: str, value, spec: Key):
         return None
     if spec.off and text.lower() in OFF_WORDS:
         return None
+    if spec.infinite and text.lower() in ("inf", "+inf", "infinity"):
+        return math.inf
     try:
         si = parse_quantity(value, spec.kind, default_unit="deg" if spec.kind == "angle" else None)
     except InputError as exc:
