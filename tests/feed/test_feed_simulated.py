@@ -95,9 +95,43 @@ def test_loop_stops_when_no_cap_can_be_tightened(curved, caplog):
         depth[j] = D + 2 * tol
         return SimpleNamespace(surface=k.samples, depth=depth)
 
-    with caplog.at_level("WARNING", logger="swath.feed.optimise"):
-        res = optimise_feed(tp, TOOL, CONS, target=D, tolerance=tol, kernel=k, simulate=simulate, simulate_rounds=5)
+    with caplog.at_level("INFO", logger="swath.feed.optimise"):
+        res = optimise_feed(tp, TOOL, CONS, target=D, tolerance=tol, kernel=k, simulate=simulate, simulate_rounds=5,
+                            trim_rounds=3)
     rounds = res.metrics["simulated_rounds"]
-    assert len(rounds) < 6
-    assert rounds[-1]["samples_over"] == 1
+    solves = [r for r in rounds if r["kind"] == "solve"]
+    assert len(solves) < 6
     assert "cannot be tightened" in caplog.text
+    # then the trim rounds speed up the nodes over it while they can, and say that it is still over
+    assert all(r["kind"] == "trim" for r in rounds[len(solves):]) and len(rounds) <= len(solves) + 3
+    assert rounds[-1]["samples_over"] == 1
+    assert any(r.levelname == "WARNING" and ("still simulated over" in r.message or "as fast as" in r.message)
+               for r in caplog.records)
+
+
+def test_trim_rounds_only_ever_speed_up(curved):
+    """A 'simulator' that reads 1.15 times the kernel in a band across the panel, with no re-solve
+    round: the trim rounds alone bring every sample within the tolerance, and no sample anywhere
+    gets more removal than without them (the commanded feed only rises)."""
+    surface, tp, k, D, _ = curved
+    tol = 0.1 * D
+    y = k.samples.vertices[:, 1]
+    band = np.abs(y - np.median(y)) < 0.02
+
+    def simulate(traj):
+        depth = k.removal(trajectory_node_dwell(traj, k.nodes, tp))
+        return SimpleNamespace(surface=k.samples, depth=np.where(band, 1.15 * depth, depth))
+
+    kw = dict(target=D, tolerance=tol, kernel=k, simulate=simulate, simulate_rounds=0)
+    untrimmed = optimise_feed(tp, TOOL, CONS, trim_rounds=0, **kw)
+    before = simulate(time_path(tp, CONS + [untrimmed.profile])).depth
+    assert (before - D)[untrimmed.region].max() > tol                 # over without the trim
+    res = optimise_feed(tp, TOOL, CONS, trim_rounds=8, **kw)
+    after = simulate(time_path(tp, CONS + [res.profile])).depth
+    assert (after - D)[res.region].max() <= tol
+    assert np.all(after <= before * (1 + 1e-9) + 1e-15)
+    rounds = res.metrics["simulated_rounds"]
+    assert rounds[0]["kind"] == "solve" and rounds[-1] == {**rounds[-1], "kind": "trim", "samples_over": 0}
+    assert res.metrics["simulated_max_over_target_m"] == pytest.approx((after - D)[res.region].max(), rel=1e-9)
+    # the reported feeds are the trimmed ones: faster where the band was over, the same elsewhere
+    assert np.all(res.speed >= untrimmed.speed * (1 - 1e-9)) and np.any(res.speed > 1.01 * untrimmed.speed)

@@ -70,8 +70,9 @@ class FeedResult:
         ``removal_cov``, ``removal_mean_m``, ``target_mean_m``, ``max_over_removal_m``,
         ``max_under_removal_m``, ``residual_rms_m``, ``contact_time_s``, ``fastest_contact_time_s``,
         what binds (:func:`_binding`): ``samples_at_cap``, ``nodes_at_fastest_fraction``,
-        ``nodes_held_by_cap_fraction``, and with ``simulate=``: ``simulated_rounds`` (per round ``max_over_target_m``, ``samples_over``,
-        ``held_back_ratio``), ``simulated_max_over_target_m``, ``simulate_time_s`` (``solve_time_s``
+        ``nodes_held_by_cap_fraction``, and with ``simulate=``: ``simulated_rounds`` (per round ``kind``
+        ``"solve"`` or ``"trim"``, ``max_over_target_m``, ``samples_over``, ``held_back_ratio`` or
+        ``nodes_sped_up``), ``simulated_max_over_target_m``, ``simulate_time_s`` (``solve_time_s``
         then includes the re-solves), ...
     """
 
@@ -109,7 +110,8 @@ def _time_dwell(toolpath, nodes, dwell: np.ndarray, *, cons: list, v_min: float,
                 rounds: int, ratio_tolerance: float):
     """The feed profile that makes :func:`swath.trajectory.time_path` spend ``dwell`` (s) in each node:
     the node feeds, corrected by the timed-to-planned dwell ratio for at most ``rounds`` rounds.
-    Returns ``(profile, timed_ratio or None, last timed trajectory or None)``."""
+    Returns ``(profile, timed_ratio or None, last timed trajectory or None, command)`` with
+    ``command`` ``(n,)`` the node feeds (m/s) the profile holds."""
     command = nodes.length / dwell
     profile = dwell_to_profile(toolpath, nodes, dwell)
     timed_ratio, traj = None, None
@@ -124,7 +126,76 @@ def _time_dwell(toolpath, nodes, dwell: np.ndarray, *, cons: list, v_min: float,
         command = np.clip(command * timed_ratio, v_min, v_max)      # time_path applies the real caps itself
         profile = dwell_to_profile(toolpath, nodes, nodes.length / command)
         traj = None
-    return profile, timed_ratio, traj
+    return profile, timed_ratio, traj, command
+
+
+def _trim_over(kernel: RemovalKernel, toolpath, traj, command: np.ndarray, fastest: np.ndarray, bad: np.ndarray,
+               worst: np.ndarray,
+               limit: np.ndarray, target: np.ndarray, region: np.ndarray, simulate, sim_rounds: list, *,
+               rounds: int, margin: float, timing: dict, progress=None):
+    """Speed up the nodes over simulated over-removal until it is within the limit.
+
+    ``bad`` ``(b,)`` are region samples whose simulated depth ``worst`` ``(S,)`` (m), of the timed
+    trajectory ``traj``, is over ``limit`` ``(S,)`` (m).  Each must lose the fraction
+    ``1 − (limit − margin·target) / worst`` of its removal; the nodes already at their ``fastest``
+    feed ``(n,)`` (m/s: the caps the limits set) cannot give any, so the others' share (the kernel
+    on the timed dwell) must shrink by more.  Every node that reaches a bad sample has its commanded
+    feed ``command`` ``(n,)`` (m/s) divided by the smallest such ratio among the bad samples it
+    reaches, up to ``fastest``; the profile is timed and simulated again, at most ``rounds`` times.  Commands only rise, and the timing's speed is
+    the least of the caps and the commands after its acceleration sweeps, so it rises or stays
+    everywhere: no sample gets more dwell.  Each round is appended to ``sim_rounds``
+    (``kind="trim"``).
+
+    Returns ``(profile, trajectory, command, trimmed)``; ``trimmed`` is False (and the profile
+    None) when no command could rise.
+    """
+    from ..trajectory import time_path
+
+    nodes = kernel.nodes
+    csr = kernel.matrix.tocsr()
+    profile, trimmed = None, False
+    for k in range(max(0, int(rounds))):
+        keep = np.clip((limit[bad] - margin * target[bad]) / np.maximum(worst[bad], 1e-300), 0.0, 1.0)
+        sub = csr[bad]
+        timed = trajectory_node_dwell(traj, nodes, toolpath)
+        free = command < fastest * (1 - 1e-9)
+        whole = sub @ timed
+        movable = sub @ np.where(free, timed, 0.0)
+        # the movable share r_m of the removal r must become r·keep − (r − r_m)
+        ratio = np.clip((keep * whole - (whole - movable)) / np.maximum(movable, 1e-300), 1e-3, 1.0)
+        factor = np.ones(len(command))
+        rows = np.repeat(np.arange(len(bad)), np.diff(sub.indptr))
+        np.minimum.at(factor, sub.indices, ratio[rows])
+        new = np.minimum(command / factor, np.maximum(fastest, command))
+        rose = new > command * (1 + 1e-9)
+        if not rose.any():
+            log.warning("feed optimisation: %d samples are simulated over the target + tolerance by up to %.3g um "
+                        "and every node over them runs as fast as the limits allow; raise the target, the "
+                        "tolerance or the feed limit", len(bad), float((worst[bad] - limit[bad]).max()) / _DEPTH_UNIT)
+            break
+        command, trimmed = new, True
+        profile = dwell_to_profile(toolpath, nodes, nodes.length / command)
+        traj = time_path(toolpath, timing["cons"] + [profile], heading_scale=timing["heading_scale"])
+        if progress is not None:
+            progress("simulate", k, rounds)
+        t0 = time.perf_counter()
+        worst = _simulated_on_kernel(simulate(traj), kernel.samples)
+        bad = np.flatnonzero(region & (worst > limit))
+        sim_rounds.append({"kind": "trim", "max_over_target_m": float(np.max(worst[region] - target[region],
+                                                                               initial=0.0)),
+                           "samples_over": int(len(bad)), "nodes_sped_up": int(np.sum(rose)),
+                           "simulate_time_s": time.perf_counter() - t0})
+        log.info("feed optimisation, trim round %d: %d nodes sped up; largest simulated removal over the target "
+                 "%.3g um, %d samples over", k, sim_rounds[-1]["nodes_sped_up"],
+                 sim_rounds[-1]["max_over_target_m"] / _DEPTH_UNIT, len(bad))
+        if len(bad) == 0:
+            break
+    else:
+        if len(bad) and rounds > 0:
+            log.warning("feed optimisation: after %d trim rounds %d samples are still simulated over the target + "
+                        "tolerance by up to %.3g um; raise trim_rounds, the tolerance or the target", rounds, len(bad),
+                        float((worst[bad] - limit[bad]).max()) / _DEPTH_UNIT)
+    return profile, traj, command, trimmed
 
 
 def _simulated_on_kernel(removal, samples) -> np.ndarray:
@@ -201,7 +272,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   cap_margin: float = 0.5, model_error: float = 0.10,
                   max_rows: int = 5000, timing_rounds: int = 5, ratio_tolerance: float = 0.01, trajectory=None,
                   simulate=None, simulate_rounds: int = 6, simulate_margin: float = 0.02,
-                  progress=None) -> FeedResult:
+                  trim_rounds: int = 8, progress=None) -> FeedResult:
     """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
 
     Parameters
@@ -286,8 +357,10 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         (kernel / simulated removal there, less ``simulate_margin`` of the target) and the
         programme solved and timed again, at most ``simulate_rounds`` times (logged; figures in
         ``metrics["simulated_rounds"]``).  Caps are only ever tightened, never below what the
-        fastest feed removes; when no cap changes the loop stops with a warning (the target is
-        below what the fastest feed the limits allow removes there).
+        fastest feed removes.  When samples are still over after those rounds, or no cap changes,
+        the trim rounds (``trim_rounds``) speed up the nodes over them; what is still over after
+        those is logged as a warning (the target is below what the fastest feed the limits allow
+        removes there).
     simulate_rounds : int
         Most simulate / re-solve rounds (default 6; a round runs only while a sample is over).  On
         bezier_dac_scan (raster with ``edge_margin=inf``) the simulator reads up to 28 % more than
@@ -296,6 +369,14 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     simulate_margin : float
         Extra fraction of the target taken off a tightened cap (the simulator's pose grouping moves
         with the feed, so the measured ratio shifts a little from round to round).
+    trim_rounds : int
+        With ``simulate=``: when samples are still simulated over ``target + tolerance`` after the
+        re-solve rounds (or their caps cannot be tightened), at most this many rounds that only ever
+        raise the commanded feed of the nodes over those samples, by the ratio they are over, and
+        simulate again (:func:`_trim_over`; default 8).  A faster command never slows the timed
+        trajectory anywhere, so no sample removes more than before: the over-removal falls until it
+        is within the tolerance or the nodes run as fast as the limits allow (then a warning).
+        Re-solving instead moves the feed steps, and with them the simulator's excess.
     progress : callable, optional
         ``progress(stage, done, total)`` with ``stage`` in ``"kernel"``, ``"solve"``, ``"simulate"``.
 
@@ -373,9 +454,10 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         progress("solve", 1, 1)
     timing = dict(cons=list(cons.values()), v_min=v_min, v_max=v_max, heading_scale=heading_scale,
                   rounds=timing_rounds, ratio_tolerance=ratio_tolerance)
-    profile, timed_ratio, traj = _time_dwell(toolpath, nodes, dwell, **timing)
-    sim_rounds = []
+    profile, timed_ratio, traj, command = _time_dwell(toolpath, nodes, dwell, **timing)
+    sim_rounds: list[dict] = []
     t_simulate = 0.0
+    bad = np.zeros(0, np.int64)
     if simulate is not None:
         limit = target_s + tolerance
         excess = 0.0
@@ -392,7 +474,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             over = worst - limit
             timed_pred = kernel.removal(trajectory_node_dwell(traj, nodes, toolpath))
             bad = np.flatnonzero(region & (over > 0))
-            sim_rounds.append({"max_over_target_m": float(np.max(worst[region] - target_s[region], initial=0.0)),
+            sim_rounds.append({"kind": "solve",
+                               "max_over_target_m": float(np.max(worst[region] - target_s[region], initial=0.0)),
                                "samples_over": int(len(bad))})
             log.info("feed optimisation, simulated round %d: largest simulated removal over the target %.3g um "
                      "(tolerance %.3g um), %d samples over", rnd, sim_rounds[-1]["max_over_target_m"] / _DEPTH_UNIT,
@@ -400,10 +483,9 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             if len(bad) == 0:
                 break
             if rnd == simulate_rounds:
-                log.warning("feed optimisation: after %d simulated rounds %d samples are still simulated over the "
-                            "target + tolerance by up to %.3g um (%d of them at the fastest feed already); raise "
-                            "simulate_rounds, the tolerance or the target", simulate_rounds, len(bad),
-                            float(over[bad].max()) / _DEPTH_UNIT, int(np.sum(fastest[bad] >= cap[bad] * (1 - 1e-9))))
+                log.info("feed optimisation: after %d simulated rounds %d samples are still simulated over the "
+                         "target + tolerance by up to %.3g um; speeding up the nodes over them",
+                         simulate_rounds, len(bad), float(over[bad].max()) / _DEPTH_UNIT)
                 break
             # The simulator removes worst / timed_pred of what the kernel predicts.  Where it measured
             # over the limit, cap the kernel at limit · (kernel / simulated) less a margin; everywhere,
@@ -420,17 +502,26 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             if np.array_equal(new_cap, cap):
                 # nothing left to tighten (the samples over are at the fastest feed already): another
                 # round would solve, time and simulate the same programme again
-                log.warning("feed optimisation: %d samples are simulated over the target + tolerance by up to "
-                            "%.3g um and their caps cannot be tightened (the fastest feed the limits allow "
-                            "removes that much); raise the target or the tolerance, or the feed limit", len(bad),
-                            float(over[bad].max()) / _DEPTH_UNIT)
+                log.info("feed optimisation: %d samples are simulated over the target + tolerance by up to "
+                         "%.3g um and the programme's caps cannot be tightened; speeding up the nodes over them",
+                         len(bad), float(over[bad].max()) / _DEPTH_UNIT)
                 break
             cap = new_cap
             lp_target = np.minimum(target_s, cap)
             t2 = time.perf_counter()
             dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, **solve_kw)
             t_solve += time.perf_counter() - t2
-            profile, timed_ratio, traj = _time_dwell(toolpath, nodes, dwell, **timing)
+            profile, timed_ratio, traj, command = _time_dwell(toolpath, nodes, dwell, **timing)
+        if len(bad):
+            trimmed_profile, trimmed_traj, trimmed_command, trimmed = _trim_over(
+                kernel, toolpath, traj, command, caps, bad, worst, limit, target_s, region, simulate,
+                sim_rounds, rounds=trim_rounds, margin=simulate_margin, timing=timing, progress=progress)
+            t_simulate += sum(r.get("simulate_time_s", 0.0) for r in sim_rounds if r.get("kind") == "trim")
+            if trimmed:
+                # the planned dwell shrinks by the factor the command rose (the timing correction's
+                # command / dwell relation is kept)
+                dwell = dwell * (command / trimmed_command)
+                profile, traj, command = trimmed_profile, trimmed_traj, trimmed_command
     speed = nodes.length / dwell
     predicted = kernel.removal(dwell)
     metrics = {"status": status, "mode": mode, "objective": objective, "kernel_time_s": t_kernel,
