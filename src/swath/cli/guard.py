@@ -63,13 +63,17 @@ def check_budget(surface, settings) -> dict:
         from ..io.checks import likely_unit
         from ..units import length_unit_factor
 
+        example = str(settings.part).startswith("example:")       # its units are known
         in_file = size / length_unit_factor(settings.units)
-        guess = likely_unit(in_file, exclude=settings.units)
-        hint = (f"; read in {guess} it would be {in_file * length_unit_factor(guess):.3g} m across (--units {guess})"
-                if guess else "")
+        guess = None if example else likely_unit(in_file, exclude=settings.units)
+        if guess and in_file * length_unit_factor(guess) < 2 * settings.pad_radius:
+            guess = None          # a unit that leaves it smaller than the pad is no explanation
+        names = {"m": "metres", "mm": "millimetres", "cm": "centimetres", "in": "inches"}
+        hint = (f"; read in {names.get(guess, guess)} it would be {in_file * length_unit_factor(guess):.3g} m across "
+                f"(--units {guess}); or" if guess else ";")
         raise InfeasibleError(f"{surface.name or 'the part'} is {size * 1e3:.1f} mm across, smaller than the pad "
-                              f"({2e3 * settings.pad_radius:.1f} mm){hint}; or choose a smaller --pad-radius, or "
-                              "pass --force-units")
+                              f"({2e3 * settings.pad_radius:.1f} mm){hint} choose a smaller --pad-radius"
+                              + ("" if example else ", or pass --force-units"))
     est = estimate_bytes(surface, settings)
     budget = settings.memory_budget or DEFAULT_SHARE * machine_memory()
     log.info("estimated peak memory %.2f GB (budget %.2f GB), %d removal samples", est["bytes"] / 1e9, budget / 1e9,
