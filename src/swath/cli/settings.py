@@ -324,7 +324,9 @@ def parse_value(key: str, value, spec: Key):
     if spec.positive and not si > 0:
         raise InputError(f"{key} must be positive, got {value!r}")
     if spec.lo is not None and si < spec.lo or spec.hi is not None and si > spec.hi:
-        raise InputError(f"{key} = {value!r} is out of range [{spec.lo}, {spec.hi}] (SI units)")
+        bounds = (f"[{spec.lo:g}, {spec.hi:g}]" if spec.lo is not None and spec.hi is not None else
+                  f"at most {spec.hi:g}" if spec.hi is not None else f"at least {spec.lo:g}")
+        raise InputError(f"{key} = {value!r} is out of range: {bounds} (SI units)")
     return si
 
 
