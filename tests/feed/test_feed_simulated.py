@@ -135,3 +135,27 @@ def test_trim_rounds_only_ever_speed_up(curved):
     assert res.metrics["simulated_max_over_target_m"] == pytest.approx((after - D)[res.region].max(), rel=1e-9)
     # the reported feeds are the trimmed ones: faster where the band was over, the same elsewhere
     assert np.all(res.speed >= untrimmed.speed * (1 - 1e-9)) and np.any(res.speed > 1.01 * untrimmed.speed)
+
+
+def test_spread_check_trims_what_the_simulator_misses(curved):
+    """A 'simulator' that under-reads (0.9 times the kernel) finds nothing over, while the programme's
+    cap sits at target + tolerance (no hold-back): the timed-spread kernel then reads samples over
+    the tolerance, and the spread check trims them; without it they stay over."""
+    from swath.feed.optimise import _timed_spread_removal
+
+    surface, tp, k, D, _ = curved
+    tol = 0.1 * D
+
+    def simulate(traj):
+        return SimpleNamespace(surface=k.samples, depth=0.9 * k.removal(trajectory_node_dwell(traj, k.nodes, tp)))
+
+    kw = dict(target=D, tolerance=tol, kernel=k, simulate=simulate, cap_margin=0.0, model_error=0.0)
+    unchecked = optimise_feed(tp, TOOL, CONS, spread_check=False, **kw)
+    spread_before = _timed_spread_removal(k, time_path(tp, CONS + [unchecked.profile]))
+    assert (spread_before - D)[unchecked.region].max() > tol
+    res = optimise_feed(tp, TOOL, CONS, spread_check=True, **kw)
+    rounds = res.metrics["simulated_rounds"]
+    assert rounds[0]["samples_over"] == 0 and rounds[0]["spread_samples_over"] > 0
+    assert rounds[-1]["kind"] == "trim" and rounds[-1]["samples_over"] == 0
+    spread_after = _timed_spread_removal(k, time_path(tp, CONS + [res.profile]))
+    assert (spread_after - D)[res.region].max() <= tol
