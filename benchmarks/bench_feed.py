@@ -144,6 +144,17 @@ bezier_dac_scan's edge+feed; interior CoV as in session 9 within 0.003 (best wit
 only at 1.65 L* (0.424 uniform+feed within), noether_wavy 0.471, bezier_complex_shape 0.333,
 crs_part_5 0.282); peak memory 1.99 GB (crs_part_5); crs_part_5 ``--solve`` 42.0 s, 786 MB.
 
+Session 11 (``--simulate-loop``): after the re-solve rounds the optimiser reads each sample's depth
+also from the kernel spread as the timed trajectory spreads each node's dwell (``spread_check``),
+and where that or the simulated depth is over, trim rounds only ever raise the commanded feed of the
+nodes over it (``trim_rounds``).  bezier_dac_scan, over-removal simulated / integrated at every
+sample (``over_um`` / ``over_fine_um``) against 2.50 µm (2.55 edge+feed): feed 1.99 / 2.46 (was
+2.42 / 3.07), space+feed 1.85 / 1.67, ripple+feed 1.89 / 2.49, edge+feed 1.65 / 1.60 (was 3.16 /
+2.71), uniform+feed 2.47 / 2.13 of 5.21: every row within on both readings; the feed row's CoV
+0.184 (0.183), cycle 1309 s (1310).  The other nine parts: every row within the tolerance on both
+readings, CoV and cycle time as in session 10 (no trim was needed there); crs_part_5's rows took
+71-121 s with the loop, peak memory 2.04 GB (1.99: the spread check's kernel).
+
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [plate panel blade crs_part_5.stl ...]``; the feed
 optimisation's time and peak memory alone: ``... bench_feed.py --solve crs_part_5.stl``.
 """
