@@ -66,7 +66,8 @@ def parse_quantity(text: str | float | int, kind: str, *, default_unit: str | No
     else:
         match = _NUMBER.match(str(text))
         if not match:
-            raise InputError(f"expected a {kind} such as {_example(kind)}, got {text!r}")
+            article = "an" if kind[:1] in "aeiou" else "a"
+            raise InputError(f"expected {article} {kind} such as {_example(kind)}, got {text!r}")
         value, unit = float(match.group(1)), match.group(2)
     if not math.isfinite(value):
         raise InputError(f"expected a finite {kind}, got {text!r}")

@@ -159,3 +159,22 @@ def test_a_pad_larger_than_the_part_suggests_only_what_can_explain_it(tmp_path, 
     err = capsys.readouterr().err
     assert "smaller than the pad" in err and "inches" not in err and "--force-units" in err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+@pytest.mark.parametrize("argv,fragment", [
+    (["plan", "example:plate", "--side", "+q"], "side: expected a tool side such as '+z'"),
+    (["plan", "example:plate", "--side", "0,0,0"], "side: the tool side '0,0,0' is a zero vector"),
+    (["plan", "example:plate", "--direction", "north"], "direction: expected an angle such as"),
+    (["fit", "example:plate"], "swath fit reads the scan from a file"),
+    (["fit", "scan.xyz", "--side", "up"], "--side: expected a tool side"),
+    (["register", "example:plate", "scan.ply"], "swath register reads the CAD from a file"),
+    (["register", "cad.stl", "example:plate"], "swath register reads the scan from a file"),
+])
+def test_malformed_side_and_built_in_parts_where_files_are_read_are_refused_first(tmp_path, capsys, argv, fragment):
+    """Refused before any file is read or written: a tool side that is no direction (it used to
+    pass unchecked on an open part), and a built-in part given to a command that reads files."""
+    out = tmp_path / "out"
+    assert main(["-q", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0]
+    assert not out.exists()

@@ -318,10 +318,29 @@ def main(argv=None) -> int:
         return 130
 
 
+def _no_example(path, command: str, what: str) -> None:
+    """Refuse a built-in part where ``command`` reads ``what`` from a file; say where they work."""
+    if str(path).startswith("example:"):
+        raise InputError(f"swath {command} reads {what}; built-in parts such as {path} are for `swath plan` and "
+                         "`swath demo`")
+
+
+def _check_side(side) -> None:
+    if side is not None:
+        from ..io.mesh import parse_side
+
+        try:
+            parse_side(side)                       # refused before any work
+        except InputError as exc:
+            raise InputError(f"--side: {exc}") from None
+
+
 def _fit_settings_from_args(args):
     from ..units import length_unit_factor, parse_quantity
     from .fitjob import FitSettings
 
+    _no_example(args.scan, "fit", "the scan from a file (a point cloud PLY, XYZ or PCD, or a mesh)")
+    _check_side(args.side)
     length_unit_factor(args.units)                 # refuses an unknown unit by name
     spacing = None
     if args.spacing is not None:
@@ -337,6 +356,9 @@ def _register_settings_from_args(args):
     from ..units import length_unit_factor
     from .registerjob import RegisterSettings
 
+    _no_example(args.cad, "register", "the CAD from a file (STL, PLY, OBJ or a patch.json)")
+    _no_example(args.scan, "register", "the scan from a file (a point cloud PLY, XYZ or PCD, or a mesh)")
+    _check_side(args.side)
     for unit in (args.units, args.scan_units):
         if unit is not None:
             length_unit_factor(unit)

@@ -382,6 +382,13 @@ def check_settings(settings: JobSettings) -> None:
     settings.constraints()
     settings.links()
     planner_arguments(settings)
+    if settings.side is not None:
+        from ..io.mesh import parse_side
+
+        try:
+            parse_side(settings.side)               # a malformed side is refused even where it is not needed
+        except InputError as exc:
+            raise InputError(f"side: {exc}") from None
     if settings.fit and str(settings.part).lower().endswith(".json"):
         raise InputError(f"{Path(settings.part).name} is already a fitted patch; drop --fit to plan on it")
     if settings.robot or settings.programs or settings.place:
