@@ -169,10 +169,16 @@ def test_a_pad_larger_than_the_part_suggests_only_what_can_explain_it(tmp_path, 
     (["fit", "scan.xyz", "--side", "up"], "--side: expected a tool side"),
     (["register", "example:plate", "scan.ply"], "swath register reads the CAD from a file"),
     (["register", "cad.stl", "example:plate"], "swath register reads the scan from a file"),
+    (["plan", "example:plate", "--tool-mass", "2kg"], "--tool-mass applies with --force-control"),
+    (["plan", "example:plate", "--tool-tilt", "30deg", "--no-gravity-compensation"],
+     "--tool-tilt, --no-gravity-compensation apply with --force-control"),
+    (["plan", "example:plate", "--grit", "P120"], "--grit picks a grit from a calibration file"),
+    (["plan", "."], "is a directory; give the path of a mesh file"),
 ])
-def test_malformed_side_and_built_in_parts_where_files_are_read_are_refused_first(tmp_path, capsys, argv, fragment):
+def test_inputs_that_cannot_apply_are_refused_first(tmp_path, capsys, argv, fragment):
     """Refused before any file is read or written: a tool side that is no direction (it used to
-    pass unchecked on an open part), and a built-in part given to a command that reads files."""
+    pass unchecked on an open part), a built-in part given to a command that reads files, options
+    that only apply with another (they used to be ignored), and a directory given as the part."""
     out = tmp_path / "out"
     assert main(["-q", *argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -102,8 +102,8 @@ REFUSED = {
                             r"shape\.ply is not a PLY file"),
     "ply text named stl": ("shape.stl", lambda p: _ply(p, *grid()), r"shape\.stl is not an STL file"),
     "obj text named ply": ("shape2.ply", lambda p: (p.write_text(obj_text(*grid())), p)[1], r"shape2\.ply is not a PLY"),
-    "directory": ("folder.stl", _dir, r"folder\.stl is not a file; give the path of a mesh file"),
-    "directory no extension": ("folder", _dir, r"folder: unsupported mesh file type '\(no extension\)'"),
+    "directory": ("folder.stl", _dir, r"folder\.stl is a directory; give the path of a mesh file"),
+    "directory no extension": ("folder", _dir, r"folder is a directory; give the path of a mesh file"),
     "missing": ("missing.ply", lambda p: p, r"missing\.ply: no such file"),
 }
 

@@ -413,6 +413,16 @@ def check_settings(settings: JobSettings) -> None:
             raise InputError(f"--optimise-spacing {settings.optimise_spacing} scores spacings against the target "
                              "depth: add --optimise-feed and --target-depth or --target-map (or use "
                              "--optimise-spacing ripple, which needs no target)")
+    if not settings.force_control:
+        given = [flag for flag, on in (("--part-offset", settings.part_offset is not None),
+                                       ("--tool-mass", settings.tool_mass != 0.0),
+                                       ("--tool-tilt", settings.tool_tilt != 0.0),
+                                       ("--no-gravity-compensation", not settings.gravity_compensation)) if on]
+        if given:
+            raise InputError(f"{', '.join(given)} appl{'ies' if len(given) == 1 else 'y'} with --force-control (the "
+                             "force-controlled run it simulates); add --force-control")
+    if settings.grit is not None and not settings.calibration:
+        raise InputError("--grit picks a grit from a calibration file: add --calibration FILE (from `swath calibrate`)")
     if settings.target_map and settings.target_depth:
         raise InputError("give either target_depth (a uniform depth) or target_map (a depth per vertex), not both")
 

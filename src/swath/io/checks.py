@@ -29,6 +29,8 @@ def check_file(path: Path, extensions, what: str) -> str:
         For an unsupported extension, a missing path, a directory or an empty file.
     """
     ext = path.suffix.lower()
+    if path.is_dir():
+        raise InputError(f"{path} is a directory; give the path of a {what} file ({', '.join(extensions)}) in it")
     if ext not in extensions:
         raise InputError(f"{path.name}: unsupported {what} file type {ext or '(no extension)'!r}; "
                          f"use one of {', '.join(extensions)}")
