@@ -174,11 +174,14 @@ def test_a_pad_larger_than_the_part_suggests_only_what_can_explain_it(tmp_path, 
      "--tool-tilt, --no-gravity-compensation apply with --force-control"),
     (["plan", "example:plate", "--grit", "P120"], "--grit picks a grit from a calibration file"),
     (["plan", "."], "is a directory; give the path of a mesh file"),
+    (["plan", "example:plate", "--robot", "ur3e", "--base", "5m,0,0,0,0,0", "--program", "urscript"],
+     "none of the"),
 ])
 def test_inputs_that_cannot_apply_are_refused_first(tmp_path, capsys, argv, fragment):
     """Refused before any file is read or written: a tool side that is no direction (it used to
     pass unchecked on an open part), a built-in part given to a command that reads files, options
-    that only apply with another (they used to be ignored), and a directory given as the part."""
+    that only apply with another (they used to be ignored), a directory given as the part, and a
+    robot cell where no pose is reachable (found after planning; still nothing is written)."""
     out = tmp_path / "out"
     assert main(["-q", *argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

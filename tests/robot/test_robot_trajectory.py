@@ -68,6 +68,16 @@ def test_unreachable_stretch_is_reported_with_pass_and_position(plate_trajectory
         solve_trajectory(tr, get_robot("ur10e"), far, strict=True)
 
 
+def test_a_cell_where_no_pose_is_reachable_is_refused_even_when_not_strict(plate_trajectory):
+    """Nothing to program (the program writers used to fail on an empty pose list): the error names
+    the robot, how far the nearest pose is against its reach, and what to change."""
+    tr = plate_trajectory
+    away = Cell.from_text("5,0,0,0,0,0")               # the plate 5 m from a UR3e's base
+    with pytest.raises(UnreachableError, match=r"none of the \d+ poses is reachable for ur3e .* nearest lies "
+                                               r"5\.\d\d m from the robot base, its reach is about 0\.\d\d m.*--place"):
+        solve_trajectory(tr, get_robot("ur3e"), away)
+
+
 def test_branch_switches_only_on_links():
     # 3 branches; pass A (samples 2..5) only on branch 0, pass B (8..11) only on branch 2
     feasible = np.zeros((12, 3), bool)

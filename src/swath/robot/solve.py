@@ -318,7 +318,15 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
     if stretches:
         msg = (f"{int(bad.sum())} of {n} poses are unreachable for {model.name} in this cell; first: "
                + "; ".join(s.describe() for s in stretches[:3])
-               + ". Move the part (--base, or --place auto) or choose a larger robot.")
+               + ". Move the part (--base, or --place) or choose a larger robot.")
+        if not ok.any():
+            # nothing to program: refused whether strict or not
+            p_base = trajectory.position @ cell.base2part[:3, :3].T + cell.base2part[:3, 3]
+            near = float(np.linalg.norm(p_base, axis=1).min())
+            raise UnreachableError(f"none of the {n} poses is reachable for {model.name} in this cell (the nearest "
+                                   f"lies {near:.2f} m from the robot base, its reach is about {model.reach:.2f} m); "
+                                   "first: " + stretches[0].describe()
+                                   + ". Move the part (--base, or --place) or choose a larger robot.")
         if strict:
             raise UnreachableError(msg)
         log.warning(msg)

@@ -4,7 +4,7 @@ CLI flags / job keys the stage reads (the lead wires them; see :func:`robot_opti
 
 ``--robot ur10e`` (a name from :data:`swath.robot.ROBOTS`), ``--base "x,y,z,rx,ry,rz"`` (part placement
 in the robot base frame; mm/m and deg/rad suffixes, bare numbers m and deg), ``--tcp "x,y,z,rx,ry,rz"``
-(TCP in the flange frame), ``--program urscript,rapid,krl,ros,csv``, ``--place auto`` (search the
+(TCP in the flange frame), ``--program urscript,rapid,krl,ros,csv``, ``--place`` (search the
 placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fail on any unreachable pose).
 """
 
