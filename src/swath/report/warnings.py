@@ -13,6 +13,12 @@ MIN_COVERAGE = 0.99
 #: Contact time spent below this fraction of the feed is worth a warning above WARN_SLOW_SHARE.
 SLOW_FRACTION = 0.5
 WARN_SLOW_SHARE = 0.05
+#: An optimised feed whose predicted mean removal is below this fraction of the target's mean warns.
+MIN_TARGET_SHARE = 0.9
+
+
+def _depth(x: float) -> str:
+    return f"{1e3 * x:.3g} mm" if x >= 1e-3 else f"{1e6 * x:.3g} um"
 
 
 def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad_radius: float) -> list[str]:
@@ -25,7 +31,8 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
         The kept plan (its ``metadata["warnings"]`` are included).
     trajectory : Trajectory
     metrics : dict
-        The job's metrics (``coverage_fraction``, ``efficiency``, ...).
+        The job's metrics (``coverage_fraction``, ``efficiency``, ..., and with an optimised feed
+        ``feed_target_mean_m``, ``feed_removal_mean_m``, ``feed_v_min_m_per_s``).
     feed : float
         The commanded feed, m/s.
     pad_radius : float
@@ -44,12 +51,21 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
     if eff is not None and np.isfinite(eff) and eff > 1.0 + 1e-9:
         out.append(f"efficiency {eff:.3f} is above 1, which no plan can reach: the coverage lower bound counts area "
                    "the passes never cover; read it with coverage_fraction")
+    optimised = metrics.get("feed_target_mean_m") is not None
+    got, want = metrics.get("feed_removal_mean_m"), metrics.get("feed_target_mean_m")
+    if optimised and got is not None and np.isfinite(got) and want and got < MIN_TARGET_SHARE * want:
+        slowest = metrics.get("feed_v_min_m_per_s")
+        at = f" even with the feed down to {1e3 * slowest:.0f} mm/s where needed" if slowest else ""
+        out.append(f"the optimised feed removes {_depth(got)} on average, {100 * got / want:.2g} % of the "
+                   f"target {_depth(want)}{at}: the plan cannot remove that much in one run; lower the target, "
+                   "raise the force, plan the passes closer, or run the job more than once")
     if trajectory is not None and len(trajectory) > 1:
         dt = np.diff(trajectory.t)
         both = trajectory.contact[1:] & trajectory.contact[:-1]
         slow = both & (0.5 * (trajectory.feed[1:] + trajectory.feed[:-1]) < SLOW_FRACTION * feed)
         total = float(dt[both].sum())
-        if total > 0 and dt[slow].sum() / total > WARN_SLOW_SHARE:
+        # an optimised feed slows down on purpose: the limits' share of it is not known here
+        if not optimised and total > 0 and dt[slow].sum() / total > WARN_SLOW_SHARE:
             out.append(f"the speed limits hold the tool below half the feed for {100 * dt[slow].sum() / total:.0f} % "
                        "of the contact time: it dwells there and removes more; relax the limits (--max-angular, "
                        "--max-centripetal, --max-accel) or choose another direction")
