@@ -57,8 +57,9 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
         slowest = metrics.get("feed_v_min_m_per_s")
         at = f" even with the feed down to {1e3 * slowest:.0f} mm/s where needed" if slowest else ""
         out.append(f"the optimised feed removes {_depth(got)} on average, {100 * got / want:.2g} % of the "
-                   f"target {_depth(want)}{at}: the plan cannot remove that much in one run; lower the target, "
-                   "raise the force, plan the passes closer, or run the job more than once")
+                   f"target {_depth(want)}{at}: the slowest feed, or the tolerance where the removal is highest, holds it "
+                   "back; lower the target or raise the tolerance, raise the force, plan the passes closer, or run "
+                   "the job more than once")
     if trajectory is not None and len(trajectory) > 1:
         dt = np.diff(trajectory.t)
         both = trajectory.contact[1:] & trajectory.contact[:-1]
