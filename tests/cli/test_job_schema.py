@@ -36,7 +36,9 @@ def test_a_quoted_boolean_is_refused(key):
     ({"planner": "uniform", "planner_options": {"cost": "time"}}, "planner_options.cost cannot be set from a job"),
     ({"planner": "equidistant", "planner_options": {"distance": "exact"}}, "planner_options.distance must be one of"),
     ({"planner_options": {"fill_gaps": "no"}}, "planner_options.fill_gaps must be true or false"),
-    ({"colour": "red"}, "unknown job setting 'colour'"),
+    ({"colour": "red"}, "unknown job setting 'colour'; known settings"),
+    ({"planer": "raster"}, "unknown job setting 'planer'; did you mean 'planner'?"),
+    ({"planner": "uniform", "planner_options": {"work_spacng": "2mm"}}, "did you mean 'work_spacing'?"),
 ])
 def test_bad_values_name_their_key(values, fragment):
     with pytest.raises(InputError, match=re.escape(fragment)):

@@ -7,6 +7,7 @@ atomically: it appears complete, or not at all.
 
 from __future__ import annotations
 
+import difflib
 import json
 import logging
 import time
@@ -161,6 +162,9 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     for key, value in {**given, **own}.items():
         if value is not None and key not in takes:
             others = planners_taking(key)
+            close = difflib.get_close_matches(key, sorted(takes - {"progress", "cost"}), n=1)
+            if close and not others:
+                raise InputError(f"the {settings.planner} planner does not take {key!r}; did you mean {close[0]!r}?")
             raise InputError(f"the {settings.planner} planner does not take {key!r}"
                              + (f"; planners that do: {', '.join(others)}" if others else
                                 f"; it takes: {', '.join(sorted(takes - {'progress', 'cost'}))}"))

@@ -8,6 +8,7 @@ and names the key in every refusal.
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from dataclasses import dataclass, field
@@ -348,7 +349,9 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
         name = ALIASES.get(name, name)
         spec = SCHEMA.get(name)
         if spec is None:
-            raise InputError(f"unknown job setting {key!r}; known settings: {', '.join(sorted(SCHEMA))}")
+            close = difflib.get_close_matches(name, list(SCHEMA) + list(ALIASES), n=1)
+            hint = f"did you mean {ALIASES.get(close[0], close[0])!r}? " if close else ""
+            raise InputError(f"unknown job setting {key!r}; {hint}known settings: {', '.join(sorted(SCHEMA))}")
         kwargs[name] = parse_value(str(key), value, spec)
     if not kwargs.get("part") or not kwargs.get("out"):
         raise InputError("a job needs 'part' (a mesh file or example:NAME) and 'out' (the output directory)")
