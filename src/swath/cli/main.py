@@ -325,22 +325,13 @@ def _no_example(path, command: str, what: str) -> None:
                          "`swath demo`")
 
 
-def _check_side(side) -> None:
-    if side is not None:
-        from ..io.mesh import parse_side
-
-        try:
-            parse_side(side)                       # refused before any work
-        except InputError as exc:
-            raise InputError(f"--side: {exc}") from None
-
-
 def _fit_settings_from_args(args):
     from ..units import length_unit_factor, parse_quantity
     from .fitjob import FitSettings
+    from .settings import check_side
 
     _no_example(args.scan, "fit", "the scan from a file (a point cloud PLY, XYZ or PCD, or a mesh)")
-    _check_side(args.side)
+    check_side(args.side, "--side")
     length_unit_factor(args.units)                 # refuses an unknown unit by name
     spacing = None
     if args.spacing is not None:
@@ -355,10 +346,11 @@ def _fit_settings_from_args(args):
 def _register_settings_from_args(args):
     from ..units import length_unit_factor
     from .registerjob import RegisterSettings
+    from .settings import check_side
 
     _no_example(args.cad, "register", "the CAD from a file (STL, PLY, OBJ or a patch.json)")
     _no_example(args.scan, "register", "the scan from a file (a point cloud PLY, XYZ or PCD, or a mesh)")
-    _check_side(args.side)
+    check_side(args.side, "--side")
     for unit in (args.units, args.scan_units):
         if unit is not None:
             length_unit_factor(unit)

@@ -376,6 +376,17 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
     return settings
 
 
+def check_side(side, key: str) -> None:
+    """Refuse a tool side (``--side``) that is no direction, naming ``key``; None passes."""
+    if side is not None:
+        from ..io.mesh import parse_side
+
+        try:
+            parse_side(side)
+        except InputError as exc:
+            raise InputError(f"{key}: {exc}") from None
+
+
 def check_settings(settings: JobSettings) -> None:
     """Refuse settings that cannot work together, before any work: the tool, the limits, the links,
     the planner's options."""
@@ -385,13 +396,7 @@ def check_settings(settings: JobSettings) -> None:
     settings.constraints()
     settings.links()
     planner_arguments(settings)
-    if settings.side is not None:
-        from ..io.mesh import parse_side
-
-        try:
-            parse_side(settings.side)               # a malformed side is refused even where it is not needed
-        except InputError as exc:
-            raise InputError(f"side: {exc}") from None
+    check_side(settings.side, "side")                # refused even where the part turns out open
     if settings.fit and str(settings.part).lower().endswith(".json"):
         raise InputError(f"{Path(settings.part).name} is already a fitted patch; drop --fit to plan on it")
     if settings.robot or settings.programs or settings.place:
