@@ -158,6 +158,7 @@ def test_a_pad_larger_than_the_part_suggests_only_what_can_explain_it(tmp_path, 
     assert main(["-q", "plan", str(mesh), "--units", "m", "--out", str(tmp_path / "b"), "--pad-radius", "500mm"]) == 2
     err = capsys.readouterr().err
     assert "smaller than the pad" in err and "inches" not in err and "--force-units" in err
+    assert "--units in" not in err and "--units" not in err.split("smaller than the pad")[1].split("--force")[0]
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 

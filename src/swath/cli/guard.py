@@ -68,9 +68,8 @@ def check_budget(surface, settings) -> dict:
         guess = None if example else likely_unit(in_file, exclude=settings.units)
         if guess and in_file * length_unit_factor(guess) < 2 * settings.pad_radius:
             guess = None          # a unit that leaves it smaller than the pad is no explanation
-        names = {"m": "metres", "mm": "millimetres", "cm": "centimetres", "in": "inches"}
-        hint = (f"; read in {names.get(guess, guess)} it would be {in_file * length_unit_factor(guess):.3g} m across "
-                f"(--units {guess}); or" if guess else ";")
+        hint = (f"; read with --units {guess} it would be {in_file * length_unit_factor(guess):.3g} m across; or"
+                if guess else ";")
         raise InfeasibleError(f"{surface.name or 'the part'} is {size * 1e3:.1f} mm across, smaller than the pad "
                               f"({2e3 * settings.pad_radius:.1f} mm){hint} choose a smaller --pad-radius"
                               + ("" if example else ", or pass --force-units"))

@@ -51,9 +51,9 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
     if eff is not None and np.isfinite(eff) and eff > 1.0 + 1e-9:
         out.append(f"efficiency {eff:.3f} is above 1, which no plan can reach: the coverage lower bound counts area "
                    "the passes never cover; read it with coverage_fraction")
-    optimised = metrics.get("feed_target_mean_m") is not None
     got, want = metrics.get("feed_removal_mean_m"), metrics.get("feed_target_mean_m")
-    if optimised and got is not None and np.isfinite(got) and want and got < MIN_TARGET_SHARE * want:
+    optimised = want is not None
+    if want is not None and got is not None and np.isfinite(got) and want > 0 and got < MIN_TARGET_SHARE * want:
         slowest = metrics.get("feed_v_min_m_per_s")
         at = f" even with the feed down to {1e3 * slowest:.0f} mm/s where needed" if slowest else ""
         out.append(f"the optimised feed removes {_depth(got)} on average, {100 * got / want:.2g} % of the "
