@@ -176,6 +176,7 @@ FEED = 0.05          # m/s
 TOL_FRACTION = 0.10
 CAP_MARGIN = 0.5     # optimise_feed defaults: the programme's cap is target + tolerance - holdback,
 MODEL_ERROR = 0.10   # holdback = max(CAP_MARGIN * tolerance, MODEL_ERROR * target) (kernel vs simulator)
+DEPRESSION = None     # --depression 3mm: the pad's depression on flat (m); None: the Tool default (1 mm)
 SIMULATE_LOOP = False  # --simulate-loop: optimise_feed(simulate=...) corrects the caps by the simulator
 EDGE_TARGET = 1.0    # edge+feed: its target over its own least depth (1.15 / 1.3 measured: see edge_row)
 
@@ -450,7 +451,7 @@ def run_one(name: str) -> list[dict]:
     from swath.trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit, time_path
 
     surface = _load(name)
-    tool = Tool()
+    tool = Tool(depression=DEPRESSION)
     cons = [FeedLimit(FEED), CentripetalLimit(2.0), AngularSpeedLimit(1.0), TangentialAccelLimit(1.0)]
     t0 = time.perf_counter()
     base = raster(surface, tool)
@@ -541,14 +542,22 @@ COLUMNS = [("part", ""), ("run", ""), ("passes", "d"), ("spacing_R", ".2f"), ("r
 
 
 def main(argv):
-    global SIMULATE_LOOP
+    global SIMULATE_LOOP, DEPRESSION
     if "-h" in argv or "--help" in argv:
-        print("usage: bench_feed.py [--simulate-loop] [part ...]   parts: plate panel blade or shared mesh file names "
+        print("usage: bench_feed.py [--simulate-loop] [--depression 3mm] [part ...]   parts: plate panel blade or shared mesh file names "
               "(default all); bench_feed.py --solve part: the feed optimisation's time and memory only")
         return
     if "--simulate-loop" in argv:
         SIMULATE_LOOP = True
         argv = [a for a in argv if a != "--simulate-loop"]
+    passed = []
+    if "--depression" in argv:
+        i = argv.index("--depression")
+        from swath.units import parse_quantity
+
+        DEPRESSION = parse_quantity(argv[i + 1], "length")
+        passed = argv[i:i + 2]
+        argv = argv[:i] + argv[i + 2:]
     if len(argv) >= 2 and argv[0] == "--one":
         print("ROWS " + json.dumps(run_one(argv[1])))
         return
@@ -558,7 +567,7 @@ def main(argv):
     names = argv or ["plate", "panel", "blade", *[f for f in SHARED_MESH_UNITS if (SHARED_MESHES / f).exists()]]
     rows = []
     for name in names:
-        proc = subprocess.run([sys.executable, __file__, "--one", name] + (["--simulate-loop"] if SIMULATE_LOOP else []),
+        proc = subprocess.run([sys.executable, __file__, "--one", name, *passed] + (["--simulate-loop"] if SIMULATE_LOOP else []),
                               capture_output=True, text=True,
                               cwd=REPO, timeout=3600)
         line = next((l for l in proc.stdout.splitlines() if l.startswith("ROWS ")), None)

@@ -39,7 +39,7 @@ from swath.trajectory.geometry import (
     resample_uniform,
     shape_tensors,
 )
-from swath.trajectory.links import time_link
+from swath.trajectory.links import clear_link_cache, time_link
 
 TOL = 1.01          # "not above a limit by more than 1 %"
 
@@ -455,6 +455,7 @@ def test_link_falls_back_to_trapezoid_with_a_warning(monkeypatch, caplog):
         raise ValueError("degenerate")
 
     monkeypatch.setattr(toppra.algorithm, "TOPPRA", broken)
+    clear_link_cache()                  # a link timed earlier with toppra would be handed back
     route = np.array([[0.0, 0, 0], [0.0, 0, 0.02], [0.1, 0.0, 0.02], [0.1, 0.0, 0.0]])
     q = np.array([1.0, 0, 0, 0])
     with caplog.at_level(logging.WARNING, logger="swath.trajectory.links"):
@@ -464,6 +465,7 @@ def test_link_falls_back_to_trapezoid_with_a_warning(monkeypatch, caplog):
     L = 0.14
     assert lp.duration == pytest.approx(L / 0.25 + 0.25 / 1.0)
     assert np.all(np.diff(lp.t) >= 0)
+    clear_link_cache()                  # nor may this one be handed to a later test
 
 
 # --- validation ---------------------------------------------------------------------------------------

@@ -39,9 +39,14 @@ class AirGuard:
         Lift off the surface before an air move, m; routes keep at least half of it from the surface.
     pad_radius : float
         The pad radius, m (default :data:`DEFAULT_PAD_RADIUS`): part of the reach-box margin.
+    memo : dict, optional
+        Where the routes found are remembered, keyed by their ends: give the same dict to every
+        guard of the same surface, clearance and pad radius to share them (it holds arrays only,
+        so it may outlive the guard).
     """
 
-    def __init__(self, surface, clearance: float, *, pad_radius: float = DEFAULT_PAD_RADIUS):
+    def __init__(self, surface, clearance: float, *, pad_radius: float = DEFAULT_PAD_RADIUS,
+                 memo: dict | None = None):
         if not (np.isfinite(pad_radius) and pad_radius >= 0):
             raise InputError(f"pad_radius must be a length >= 0 m, got {pad_radius!r}")
         self.surface = surface
@@ -57,6 +62,7 @@ class AirGuard:
             up = -up
         self.up = up
         self._max_edge = float(surface.edge_lengths.max())
+        self._routes: dict[tuple, np.ndarray] = {} if memo is None else memo
 
     def _clear(self, route: np.ndarray) -> bool:
         seg = np.linalg.norm(np.diff(route, axis=0), axis=1)
@@ -88,7 +94,18 @@ class AirGuard:
         return max(float(np.min(t_hi)), 0.0)
 
     def route(self, p_end, n_end, p_start, n_start) -> np.ndarray:
-        """Waypoints from ``p_end`` (leaving along ``n_end``) to ``p_start`` (arriving along ``n_start``)."""
+        """Waypoints ``(r, 3)`` (m) from ``p_end`` (leaving along ``n_end``) to ``p_start`` (arriving
+        along ``n_start``).  Routes found before by this guard are remembered (the same ends give
+        the same route; re-timing a plan asks for every link again)."""
+        given = (p_end, n_end, p_start, n_start)
+        key = (np.ascontiguousarray(given, float).tobytes(), tuple(np.asarray(a).dtype.str for a in given))
+        known = self._routes.get(key)
+        if known is None:
+            known = self._routes[key] = self._route(*given)
+            known.setflags(write=False)
+        return known.copy()
+
+    def _route(self, p_end, n_end, p_start, n_start) -> np.ndarray:
         c = self.clearance
         up_a, up_b = p_end + c * n_end, p_start + c * n_start
         direct = np.array([p_end, up_a, up_b, p_start])

@@ -45,6 +45,7 @@ Approach, retract and air moves are rounded and timed with toppra (:mod:`.links`
 from __future__ import annotations
 
 import logging
+import weakref
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -69,6 +70,10 @@ from .orientation import make_continuous, quaternions_from_frames, tool_frames
 from .trajectory import Trajectory
 
 log = logging.getLogger(__name__)
+
+#: Air routes between pass ends found so far, per surface (while it lives) and clearance (m):
+#: re-timing a plan with another feed, as the feed optimisation does, asks for every link again.
+_ROUTES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 #: FORMATS.md: in-contact samples at most this far apart (m) ...
 MAX_CONTACT_STEP = 2e-3
@@ -130,7 +135,8 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
     omega_max = angular.omega_max if angular else None
     surface = toolpath.surface
     step = min(GRID_STEP, _MARGIN * feed * MAX_CONTACT_DT, _MARGIN * MAX_CONTACT_STEP)
-    guard = AirGuard(surface, links.clearance)
+    # routes between the same pass ends are found once per surface and clearance
+    guard = AirGuard(surface, links.clearance, memo=_ROUTES.setdefault(surface, {}).setdefault(links.clearance, {}))
 
     timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale)
              for i, p in enumerate(toolpath.passes)]
@@ -212,24 +218,50 @@ def _describe(c) -> dict:
     return d
 
 
-def _time_pass(index: int, p: Pass, surface, step: float, constraints: list, heading_scale: float) -> dict:
-    """Sample and time one contact pass (see the module notes)."""
+def _pass_geometry(p: Pass, surface, step: float, heading_scale: float) -> dict:
+    """What timing a pass needs that no speed limit changes: its grid (arc length ``s`` (n,) m on
+    the chords, points and unit normals (n, 3), fractional source index ``u`` (n,), step ``h`` m),
+    the tool's quaternions (n, 4), the chord of each step ``ds`` (n-1,) m and the tool's rotation
+    per metre on each step ``Omega`` (n-1, 3) rad/m and at each grid point ``rho_node`` (n,).
+    ``ds``, ``Omega`` and ``rho_node`` are absent for a pass of zero length.
+
+    Kept with the pass (while it lives) for the same surface, grid step and heading scale, read-only:
+    the feed optimisation times the same passes with a new feed profile up to a dozen times."""
+    known = _PASS_GEOMETRY.get(p)
+    if known is not None and known[0]() is surface and known[1] == (step, heading_scale):
+        return known[2]
     s, pts, nrm, u = _grid(p, surface, step)
     s, pts, nrm, u = _refine(s, pts, nrm, u, surface)
     h = float(s[1] - s[0]) if len(s) > 1 else 0.0
     frames = tool_frames(nrm, smoothed_directions(pts, max(h, 1e-12), heading_scale))
-    quat = quaternions_from_frames(frames)
+    g = {"s": s, "points": pts, "normals": nrm, "u": u, "h": h, "quaternion": quaternions_from_frames(frames)}
+    if h > 1e-12:
+        # The grid is uniform up to the projection of refined points; time with the true chords.
+        ds = np.maximum(np.linalg.norm(np.diff(pts, axis=0), axis=1), 1e-12)
+        g["ds"], g["s"] = ds, np.concatenate([[0.0], np.cumsum(ds)])
+        g["Omega"] = rotation_steps(frames) / ds[:, None]                       # (n−1, 3) rad/m
+        rho = np.linalg.norm(g["Omega"], axis=1)
+        g["rho_node"] = np.maximum(np.concatenate([[0.0], rho]), np.concatenate([rho, [0.0]]))
+    for v in g.values():
+        if isinstance(v, np.ndarray):
+            v.setflags(write=False)
+    _PASS_GEOMETRY[p] = (weakref.ref(surface), (step, heading_scale), g)
+    return g
+
+
+#: :func:`_pass_geometry` of each pass: ``(surface weakref, (step, heading_scale), geometry)``.
+_PASS_GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _time_pass(index: int, p: Pass, surface, step: float, constraints: list, heading_scale: float) -> dict:
+    """Sample and time one contact pass (see the module notes)."""
+    g = _pass_geometry(p, surface, step, heading_scale)
+    s, pts, nrm, u, h, quat = g["s"], g["points"], g["normals"], g["u"], g["h"], g["quaternion"]
     if h <= 1e-12:                                   # a pass of zero length: touch and go
         k = len(pts)
         return {"position": pts, "quaternion": quat, "speed": np.zeros(k), "omega": np.zeros((k, 3)),
                 "t": np.zeros(k), "normal_start": nrm[0], "normal_end": nrm[-1]}
-    # The grid is uniform up to the projection of refined points; time with the true chords.
-    ds = np.maximum(np.linalg.norm(np.diff(pts, axis=0), axis=1), 1e-12)
-    s = np.concatenate([[0.0], np.cumsum(ds)])
-    Omega = rotation_steps(frames) / ds[:, None]                            # (n−1, 3) rad/m
-    rho = np.linalg.norm(Omega, axis=1)
-
-    rho_node = np.maximum(np.concatenate([[0.0], rho]), np.concatenate([rho, [0.0]]))
+    ds, Omega, rho_node = g["ds"], g["Omega"], g["rho_node"]
     grid = PassGrid(index=index, s=s, points=pts, spacing=h, rotation_per_metre=rho_node, source_index=u)
     caps = np.full(len(s), np.inf)
     for c in constraints:
