@@ -252,6 +252,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..io.atomic import atomic_directory, check_output_dir
     from ..report import plan_warnings, write_report
     from ..simulate import simulate_removal
+    from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
     from . import stages
     from .guard import check_budget
@@ -304,6 +305,15 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
                                sampling=settings.removal_sampling, force=None if force is None else force.force,
                                progress=lambda d, n: say("simulating removal", d, n))
     timings["simulate_s"] = time.perf_counter() - t0
+    if worth_a_study(removal.metrics):
+        # Uneven removal: would a softer pad, running the same programme, have removed more evenly?
+        t0 = time.perf_counter()
+        say("comparing with a softer pad", 0, 1)
+        study = softer_pad_study(trajectory, surface, tool, removal, sampling=settings.removal_sampling,
+                                 force=None if force is None else force.force)
+        if study is not None:
+            extra_metrics.update({k: v for k, v in study.items() if k != "removal_cov"})
+        timings["pad_study_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)
     metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float))

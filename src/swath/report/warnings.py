@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..simulate.compliance import WARN_BELOW_SHARE
+
 #: Coverage below this fraction is worth a warning.
 MIN_COVERAGE = 0.99
 #: Contact time spent below this fraction of the feed is worth a warning above WARN_SLOW_SHARE.
@@ -60,6 +62,14 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
                    f"target {_depth(want)}{at}: the slowest feed, or the tolerance where the removal is highest, holds it "
                    "back; lower the target or raise the tolerance, raise the force, plan the passes closer, or run "
                    "the job more than once")
+    soft, cov = metrics.get("softer_pad_removal_cov"), metrics.get("removal_cov")
+    if soft is not None and cov is not None and np.isfinite(soft) and soft <= WARN_BELOW_SHARE * cov:
+        e, e_soft = metrics["pad_depression_m"], metrics["softer_pad_depression_m"]
+        out.append(f"removal CoV {cov:.2f}: the pad ({_depth(e)} compression on flat at the set force) is too stiff "
+                   f"to follow this surface's curvature and waviness; the same programme with a pad compressing "
+                   f"{_depth(e_soft)} would remove with CoV {soft:.2f} (simulated). Use a softer interface pad "
+                   f"(--depression {1e3 * e_soft:.3g}mm), or, if the waviness is scanner noise, plan on a smooth fit of "
+                   "the scan (swath fit)")
     if trajectory is not None and len(trajectory) > 1:
         dt = np.diff(trajectory.t)
         both = trajectory.contact[1:] & trajectory.contact[:-1]
