@@ -160,6 +160,12 @@ simulation of the same part its sample mesh (bit-identical trajectories, dwell a
 snp_part_scan and crs_part_5).  crs_part_5's feed optimisation with the simulator loop (the default raster,
 its least depth, ``optimise_feed(..., simulate=...)``), one run after the other on the same machine: 69.6 s
 before, 47.9 s now (within the issue's 60 s); HiGHS is 36 s of what is left (11 solves of the programme).
+Then each simulated re-solve starts with the samples the previous solve held at its cap
+(``solve_dwell(cap_rows=..., found=...)``) instead of finding them again over up to six solves.
+``--simulate-loop`` on crs_part_5 and bezier_dac_scan (the two at a time, as in session 11): every row's
+CoV and over-removal as in session 11 (one exception: bezier_dac_scan's rotary row, 9.03 -> 8.22 µm of
+32.35), ``opt_s`` crs_part_5 71-121 -> 54-110 s, bezier_dac_scan 15-87 -> 11-75 s (edge+feed 79.5 ->
+48.7 s); crs_part_5's peak memory 2.04 -> 2.20 GB (the kept sample mesh and pass grids).
 
 Pad compliance (``--depression``, without ``--simulate-loop``, so ``over_um`` is not the job's figure):
 the interior CoV the best row reaches within 1.5 L* with a pad that compresses 1 mm (the default, session 11),

@@ -280,3 +280,30 @@ def test_timed_spread_reproduces_the_simulator_where_the_feed_steps(plate, monke
     assert worst(even) > 0.15
     with pytest.raises(InputError, match="give trajectory="):
         build_kernel(tp, TOOL, spread="timed")
+
+
+def test_rows_held_at_the_cap_carry_over_to_a_later_solve(plate, monkeypatch):
+    """With the programme thinned to 300 samples, the first solve finds over-ground samples round by
+    round; given them back, a second solve of the same kernel with the same caps needs one round,
+    and every sample still keeps within the cap."""
+    import swath.feed.dwell_lp as lp
+
+    tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
+    k = build_kernel(tp, TOOL)
+    t_min = k.nodes.length / V_MAX
+    region = np.diff(k.matrix.tocsr().indptr) > 0
+    D = 1.1 * k.removal(t_min)[region].max()
+    target = np.full(k.matrix.shape[0], D)
+    solves = []
+    real = lp._solve
+    monkeypatch.setattr(lp, "_solve", lambda *a, **kw: solves.append(len(kw["cap_rows"])) or real(*a, **kw))
+    kw = dict(tolerance=0.05 * D, t_min=t_min, t_max=10 * t_min, region=region, max_rows=300)
+    found: dict = {}
+    first, _ = lp.solve_dwell(k, target, found=found, **kw)
+    rounds_first = len(solves)
+    assert rounds_first >= 2 and len(found["cap_rows"]) > 0
+    assert region[found["cap_rows"]].all()
+    solves.clear()
+    second, _ = lp.solve_dwell(k, target, cap_rows=found["cap_rows"], **kw)
+    assert len(solves) == 1 and solves[0] >= len(found["cap_rows"])
+    assert (k.removal(second)[region] - D).max() <= 0.05 * D * (1 + 1e-6)

@@ -61,7 +61,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
                 a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
                 smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6,
-                time_weight: float = 1e-3):
+                time_weight: float = 1e-3, cap_rows: np.ndarray | None = None, found: dict | None = None):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     ``time_weight``: a cost on every second of dwell, as a fraction of what a second of a typical
@@ -73,6 +73,11 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     When the region has more than ``max_rows`` samples the programme sees a thinned set
     (:func:`thin_rows`); samples left out that the solution over-grinds are added as cap rows and the
     programme is solved again (at most ``max_rounds`` times), so the cap holds at every region sample.
+    ``cap_rows`` (kernel sample indices) are held at the cap from the first solve on, and ``found``
+    (a dict), if given, receives under ``"cap_rows"`` every sample held at the cap in the last
+    solve: a later solve of the same kernel with other caps (the simulated rounds of
+    :func:`~swath.feed.optimise.optimise_feed`) given them back skips the rounds that would find
+    them again (crs_part_5: six solves of 5-8 s each per call).
 
     Raises
     ------
@@ -91,6 +96,10 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     if len(full) > max_rows:
         peaks, _ = thin_rows(kernel.samples, region, max_rows, score=kernel.removal(t_min))
         extra = np.searchsorted(full, peaks)
+        if cap_rows is not None and len(cap_rows):
+            given = np.asarray(cap_rows, dtype=int)
+            given = given[region[given]]                       # (outside the region: no cap)
+            extra = np.union1d(extra, np.searchsorted(full, given))
     status = ""
     for _ in range(max(1, max_rounds)):
         dwell, status = _solve(kernel, target, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
@@ -111,6 +120,8 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
         if over.max() > tiny:
             log.warning("feed optimisation: after %d rounds %d samples are still over the cap by up to %.3g um",
                         max_rounds, int(np.sum(over > tiny)), over.max() / _DEPTH_UNIT)
+    if found is not None:
+        found["cap_rows"] = full[extra]
     return dwell, status
 
 

@@ -468,7 +468,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     solve_kw = dict(t_min=t_min, t_max=t_max, region=region, mode=mode, objective=objective,
                     a_t=None if tl is None else tl.a_t, v_max=v_max, time_limit=time_limit, smoothing=smoothing,
                     max_rows=max_rows, time_weight=time_weight)
-    dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, **solve_kw)
+    held: dict = {}                 # the samples the programme held at its cap, for the re-solves
+    dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, found=held, **solve_kw)
     t_solve = time.perf_counter() - t1
     if progress is not None:
         progress("solve", 1, 1)
@@ -529,7 +530,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             cap = new_cap
             lp_target = np.minimum(target_s, cap)
             t2 = time.perf_counter()
-            dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, **solve_kw)
+            dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target,
+                                        cap_rows=held.get("cap_rows"), found=held, **solve_kw)
             t_solve += time.perf_counter() - t2
             profile, timed_ratio, traj, command = _time_dwell(toolpath, nodes, dwell, **timing)
         if spread_check:
