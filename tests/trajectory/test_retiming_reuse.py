@@ -5,7 +5,7 @@ everything is computed afresh."""
 import numpy as np
 import pytest
 
-import swath.simulate.removal as removal_module
+import swath.contact.widths as widths_module
 import swath.trajectory.timing as timing_module
 from swath.contact import Tool
 from swath.examples import doubly_curved_panel
@@ -21,9 +21,8 @@ CONS = [FeedLimit(0.05), CentripetalLimit(2.0), AngularSpeedLimit(1.0)]
 
 def _forget_everything():
     clear_link_cache()
-    timing_module._ROUTES.clear()
+    widths_module._MEMO.clear()          # air routes and removal samples, per surface
     timing_module._PASS_GEOMETRY.clear()
-    removal_module._SAMPLE_MESHES.clear()
 
 
 def _same(a, b):
@@ -94,7 +93,7 @@ def test_air_routes_are_remembered_per_shared_memo_and_handed_out_as_copies(plan
 
 
 def test_a_second_simulation_of_the_same_surface_reuses_its_samples(plan):
-    removal_module._SAMPLE_MESHES.clear()
+    widths_module._MEMO.clear()
     traj = time_path(plan, CONS)
     one = simulate_removal(traj, plan.surface, TOOL)
     two = simulate_removal(traj, plan.surface, TOOL)

@@ -312,7 +312,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         study = softer_pad_study(trajectory, surface, tool, removal, sampling=settings.removal_sampling,
                                  force=None if force is None else force.force)
         if study is not None:
-            extra_metrics.update({k: v for k, v in study.items() if k != "removal_cov"})
+            extra_metrics.update(study)
         timings["pad_study_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)

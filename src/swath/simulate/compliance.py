@@ -57,8 +57,8 @@ def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, fa
     Returns
     -------
     dict or None
-        ``pad_depression_m``, ``softer_pad_depression_m`` (m), ``removal_cov`` (the job's),
-        ``softer_pad_removal_cov`` and ``softer_pad_removal_mean_m`` (m); ``None`` when the pad
+        ``pad_depression_m``, ``softer_pad_depression_m`` (m), ``softer_pad_removal_cov`` and
+        ``softer_pad_removal_mean_m`` (m), the job's metric names; ``None`` when the pad
         cannot be made softer within the cap.
     """
     e = tool.flat_depression
@@ -69,7 +69,6 @@ def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, fa
     spacing = removal.metrics.get("removal_sample_spacing_m")
     other = simulate_removal(trajectory, surface, soft, sample_spacing=spacing, sampling=sampling, force=force)
     return {"pad_depression_m": float(e), "softer_pad_depression_m": float(e_soft),
-            "removal_cov": float(removal.metrics["removal_cov"]),
             "softer_pad_removal_cov": float(other.metrics["removal_cov"]),
             "softer_pad_removal_mean_m": float(other.metrics["removal_mean_m"])}
 

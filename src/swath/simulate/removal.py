@@ -16,7 +16,6 @@ samples), or, with ``engine="numpy"`` or without numba, on the vectorised pose-s
 from __future__ import annotations
 
 import logging
-import weakref
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -26,7 +25,7 @@ from scipy.spatial import cKDTree
 
 from ..contact import Tool, mesh_contact
 from ..contact.tool import sample_spacing_for
-from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples  # noqa: F401
+from ..contact.widths import coverage_lower_bound, lower_bound_density, pad_scale_samples, surface_memo  # noqa: F401
 from ..core.cpus import usable_cpus
 from ..errors import InputError
 from .samples import RemovalSamples, lattice_columns, lattice_count, removal_samples
@@ -213,21 +212,17 @@ def _mesh_samples(surface, spacing: float):
     """(Surface, spacing used, m): ``surface.subdivided(spacing)``, the spacing widened first by
     the area estimate and then by the real count until at most :data:`MAX_REMOVAL_SAMPLES`.
 
-    The last sample mesh made for each surface is kept while the surface lives (with the smooth
-    normals and areas it computed), and returned again for the same spacing: the feed
-    optimisation simulates the same part several times, and on crs_part_5 making the samples
-    took 2.6 s and their normals 1.6 s of each simulation.  Read-only, so sharing it is safe."""
-    known = _SAMPLE_MESHES.get(surface)
-    if known is not None and known[0] == spacing:
-        return known[1], known[2]
-    samples, used = _make_mesh_samples(surface, spacing)
-    if samples is not surface:          # (the surface itself needs no keeping, and must not be kept)
-        _SAMPLE_MESHES[surface] = (spacing, samples, used)
-    return samples, used
+    Kept per surface and spacing (:func:`swath.contact.widths.surface_memo`, with the smooth
+    normals and areas the samples compute): the feed optimisation simulates the same part several
+    times, and on crs_part_5 making the samples took 2.6 s and their normals 1.6 s of each
+    simulation.  Read-only, so sharing them is safe."""
+    def make():
+        samples, used = _make_mesh_samples(surface, spacing)
+        # the surface itself is not kept: a memo value holding its own key would never be freed
+        return (None if samples is surface else samples), used
 
-
-#: The last sample mesh of each surface (see :func:`_mesh_samples`): ``(spacing asked, samples, spacing used)``.
-_SAMPLE_MESHES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+    samples, used = surface_memo(surface, ("removal mesh samples", float(spacing)), make)
+    return (surface if samples is None else samples), used
 
 
 def _make_mesh_samples(surface, spacing: float):

@@ -50,6 +50,7 @@ import weakref
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from ..contact.widths import surface_memo
 from ..core import Pass, ToolPath
 from ..errors import InputError
 from ..order.routing import AirGuard
@@ -70,10 +71,6 @@ from .orientation import make_continuous, quaternions_from_frames, tool_frames
 from .trajectory import Trajectory
 
 log = logging.getLogger(__name__)
-
-#: Air routes between pass ends found so far, per surface (while it lives) and clearance (m):
-#: re-timing a plan with another feed, as the feed optimisation does, asks for every link again.
-_ROUTES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 #: FORMATS.md: in-contact samples at most this far apart (m) ...
 MAX_CONTACT_STEP = 2e-3
@@ -135,8 +132,9 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
     omega_max = angular.omega_max if angular else None
     surface = toolpath.surface
     step = min(GRID_STEP, _MARGIN * feed * MAX_CONTACT_DT, _MARGIN * MAX_CONTACT_STEP)
-    # routes between the same pass ends are found once per surface and clearance
-    guard = AirGuard(surface, links.clearance, memo=_ROUTES.setdefault(surface, {}).setdefault(links.clearance, {}))
+    # routes between the same pass ends are found once per surface and clearance (re-timing a plan
+    # with another feed, as the feed optimisation does, asks for every link again)
+    guard = AirGuard(surface, links.clearance, memo=surface_memo(surface, ("air routes", links.clearance), dict))
 
     timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale)
              for i, p in enumerate(toolpath.passes)]
