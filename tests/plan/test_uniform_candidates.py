@@ -65,6 +65,13 @@ def test_the_set_up_built_beside_a_child_equals_the_one_built_here(blade_context
     assert len(here.work.boundary_loops) == len(there.work.boundary_loops) >= 1
     for a, b in zip(here.work.boundary_loops, there.work.boundary_loops):
         np.testing.assert_array_equal(a, b)
+    # and so did the edges and the gradient operator, with its stacked corner bases
+    for a, b in zip(here.edges, there.edges, strict=True):          # (edges, face edges)
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(here.gradient.stacked_basis, there.gradient.stacked_basis)
+    np.testing.assert_array_equal(here.gradient.face_areas, there.gradient.face_areas)
+    d = there.distance(np.arange(5))
+    np.testing.assert_array_equal(here.gradient_directions(d), there.gradient_directions(d))
 
 
 class _InlinePool:

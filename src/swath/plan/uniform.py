@@ -44,7 +44,7 @@ from ..core.cpus import usable_cpus
 from ..errors import InfeasibleError, InputError
 from .common import feed_and_cross
 from .uniform_layout import _layout, _seed_curves, _toolpath
-from .uniform_model import _Context
+from .uniform_model import _Context, load_touch_kernel
 
 log = logging.getLogger("swath.plan")
 
@@ -141,12 +141,17 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
     context_args = (surface, tool, work_spacing, max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
 
     if direction is None or (isinstance(direction, str) and direction == "auto"):
-        # The working mesh is built here only when the candidates are planned here.
+        # The working mesh is built here only when the candidates are planned here.  While its
+        # child process finishes, this one loads what every candidate needs (the pad-touch kernel,
+        # the cost's imports), which forked workers then inherit.
+        cost = cost or length_cost
         return _auto(functools.cache(lambda: _Context(*context_args[:3], max_turn_curvature=context_args[3],
-                                                      beside=workers != 1)),
+                                                      beside=workers != 1,
+                                                      while_building=functools.partial(_prepare_candidates, tool,
+                                                                                       cost))),
                      overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
-                     cost=cost or length_cost, progress=progress, workers=workers, context_args=context_args)
+                     cost=cost, progress=progress, workers=workers, context_args=context_args)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
     ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1)
@@ -345,6 +350,15 @@ def _candidates_in_workers(context_args, groups, options, cost, n_workers, say, 
     surface = context_args[0]
     _ = surface.curvature, surface.normals, surface.kdtree
     return _run_pool(multiprocessing.get_context("spawn"), context_args, groups, options, cost, n_workers, say)
+
+
+def _prepare_candidates(tool, cost) -> None:
+    """What every candidate needs and the working mesh does not: the compiled pad-touch test
+    (:func:`load_touch_kernel`) and the cost's imports (its ``prepare()``, if it has one)."""
+    load_touch_kernel(tool)
+    prepare = getattr(cost, "prepare", None)
+    if callable(prepare):
+        prepare()
 
 
 def _warm_before_fork(ctx: _Context, cost) -> None:

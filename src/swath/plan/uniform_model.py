@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -22,6 +23,16 @@ log = logging.getLogger(__name__)
 
 #: About this many working-mesh vertices at most (the default working edge is coarsened to stay near it).
 MAX_WORK_VERTICES = 350_000
+
+
+def load_touch_kernel(tool) -> None:
+    """Load the compiled pad-touch test (:func:`swath.contact.kernels.touched_samples`) from
+    numba's cache now, with the argument types :meth:`_Context.touched_at` passes it, on a grid of
+    three samples: about 0.15 s the first candidate would otherwise spend, done while nothing else
+    needs this process (see ``while_building`` of :class:`_Context`).  Changes no state but numba's."""
+    pts = np.array([[0.0, 0.0, 0.0], [1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0]])
+    grid = sample_grid(pts, np.tile([0.0, 0.0, 1.0], (3, 1)), np.full(3, 1e-7), cell=default_cell(tool))
+    touched_samples(grid, np.zeros((1, 3)), np.array([[0.0, 0.0, -1.0]]), tool, max_sink=np.array([1e-3]))
 
 
 class WidthModel:
@@ -73,22 +84,31 @@ def _normals_and_widths(surface, W, tool) -> tuple[np.ndarray, WidthModel]:
 
 def _beside_solver(surface, W, tool) -> dict:
     """Everything the set-up needs that the distance solver does not: the part's smooth normals
-    and curvature, the working mesh's smooth normals and boundary loops, and the width model.
-    Run beside the solver's factorisation (:class:`_Context`); the values are exactly those the
-    cached properties compute here.  Returns ``{"part": {...}, "work": {...}, "widths": WidthModel}``,
-    the first two keyed by :class:`swath.surface.Surface` property names (for ``Surface.adopt``)."""
+    and curvature, the working mesh's smooth normals and boundary loops, the width model, the
+    mesh's edges and its gradient operator.  Run beside the solver's factorisation
+    (:class:`_Context`); the values are exactly those the cached properties compute here.
+    Returns ``{"part": {...}, "work": {...}, "widths": WidthModel, "edges": (edges, face edges)
+    of :func:`swath.surface.topology.mesh_edges`, "gradient": FaceGradient}``, the first two keyed by :class:`swath.surface.Surface` property
+    names (for ``Surface.adopt``)."""
     normals, widths = _normals_and_widths(surface, W, tool)
+    gradient = FaceGradient(W.vertices, W.faces)
+    _ = gradient.stacked_basis          # built once here, not in every worker's first candidate
     return {"part": {"normals": surface.normals, "curvature": surface.curvature},
-            "work": {"normals": normals, "boundary_loops": W.boundary_loops}, "widths": widths}
+            "work": {"normals": normals, "boundary_loops": W.boundary_loops}, "widths": widths,
+            "edges": mesh_edges(np.asarray(W.faces, np.int64)), "gradient": gradient}
 
 
 class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
-    def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf, *, beside: bool = True):
+    def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf, *, beside: bool = True,
+                 while_building: Callable[[], object] | None = None):
         """``beside``: build the working mesh's smooth normals and the width model in a forked child
         process while the distance solver is built here (:class:`swath.core.beside.Beside`; the same
-        arrays either way), where forking is possible and two CPUs are free."""
+        arrays either way), where forking is possible and two CPUs are free.  ``while_building()``,
+        if given, runs here after the distance solver is built and before the child's answer is
+        read: work that needs none of the context (imports, loading compiled kernels) fills the
+        time this process would otherwise wait for the child."""
         import potpourri3d as pp3d
 
         t0 = time.perf_counter()
@@ -113,16 +133,19 @@ class _Context:
         W = self.work
         # The two slow halves of the set-up need nothing from each other: the distance solver's
         # factorisation (C++, holding the GIL) is built here while a forked child builds the
-        # part's normals and curvature, the working mesh's normals and boundary loops and the
-        # width model (numpy); this process adopts them, so later stages find them computed.
+        # part's normals and curvature, the working mesh's normals and boundary loops, the width
+        # model, the edges and the gradient operator (numpy); this process adopts them, so later
+        # stages find them computed.
         beside_work = Beside(_beside_solver, surface, W, tool, allowed=beside)
         self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
-        self.edges = mesh_edges(np.asarray(W.faces, np.int64))
-        self.gradient = FaceGradient(W.vertices, W.faces)      # direction of the distance field
+        if while_building is not None:
+            while_building()
         built = beside_work.result()
         surface.adopt(**built["part"])
         W.adopt(**built["work"])
         self.widths = built["widths"]
+        self.edges = built["edges"]
+        self.gradient = built["gradient"]                     # direction of the distance field
         self.tree = W.kdtree
         # Pad queries on a cell grid of the working vertices, built once (compiled contact model,
         # float64), relative to the part's centre.
@@ -167,10 +190,14 @@ class _Context:
     def warm(self) -> None:
         """Load the compiled kernels every candidate direction calls (pad touch test, widths across a
         direction, vertex gradient directions) now, from numba's cache, with the argument types the
-        planner passes them.  Worker processes forked afterwards inherit them loaded, instead of each
-        loading them again on its first candidate (about 0.06 s of CPU per worker).  No state of the
-        context changes."""
+        planner passes them, and build the part's closest-point tree.  Worker processes forked
+        afterwards inherit them, instead of each loading and building them again on its first
+        candidate (about 0.06 s of CPU per worker for each).  No state of the context changes
+        (the tree is a cached property of the part)."""
         first = np.zeros(1, np.int64)
+        # the part's closest-point tree: every candidate's resampling on the surface queries it,
+        # and so does this process's resampling of the winner afterwards
+        _ = self.surface._closest_point_tree
         self.touched_at(self.work.vertices[:1])
         self.widths.across(first, np.asarray(self.widths.curvature.d1[:1], float))
         self.gradient_directions(np.zeros(len(self.work.vertices)), first)
