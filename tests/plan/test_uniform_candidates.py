@@ -111,3 +111,52 @@ def test_the_pool_queues_every_layout_before_any_ranking_and_gives_the_serial_ro
     for rows_p, rows_s in zip(pooled, serial):
         for p, q in zip(rows_p, rows_s):
             assert p[:4] == q[:4] and p[4]["angle"] == q[4]["angle"]
+
+
+def test_the_coverage_floor_is_within_0_2_percent_of_the_best_and_at_most_99_5_percent():
+    assert U.coverage_floor(0.999) == pytest.approx(0.995)
+    assert U.coverage_floor(0.99) == pytest.approx(0.988)
+    assert U._worth_ranking({"covered_pred": 0.996}, 0.999)
+    assert not U._worth_ranking({"covered_pred": 0.994}, 0.999)
+    assert U._worth_ranking("infeasible: no seed", 0.999)          # its reason is reported, not ranked
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_direction_that_covers_too_little_is_not_ranked_and_the_plan_is_unchanged(monkeypatch, workers):
+    import math
+
+    from swath.examples import doubly_curved_panel
+    from swath.plan.uniform import uniform
+
+    surface = doubly_curved_panel(size_x=0.25, size_y=0.2, spacing=8e-3)
+    options = dict(work_spacing=Tool().pad_radius / 5, workers=workers)
+    everything = uniform(surface, Tool(), **options)
+    assert round(math.degrees(everything.metadata["direction_rad"])) != 60
+    real = U._first_layout
+    ranked: list[float] = []
+
+    def thin_at_60(ctx, angle, opts):
+        layout = real(ctx, angle, opts)
+        return dict(layout, covered_pred=0.9) if math.isclose(angle, math.radians(60)) else layout
+
+    def counted(toolpath):                   # a lambda-like cost: does not pickle, so ranked here
+        ranked.append(toolpath.metadata["direction_rad"])
+        return U.length_cost(toolpath)
+
+    monkeypatch.setattr(U, "_first_layout", thin_at_60)
+    # forked workers inherit the patched layout; the picklable default cost ranks there
+    thin = uniform(surface, Tool(), **options)
+    by_angle = {round(c["direction_deg"]): c for c in thin.metadata["candidates"]}
+    assert by_angle[60]["cost"] is None and by_angle[60]["predicted_coverage_fraction"] == 0.9
+    before = {round(c["direction_deg"]): c for c in everything.metadata["candidates"]}
+    for deg in (0, 30, 90, 120, 150):
+        assert by_angle[deg] == before[deg]
+    assert by_angle[60]["length_m"] == before[60]["length_m"]
+    # 60 degrees did not win before, so the plan is the same, pass for pass
+    assert thin.metadata["direction_rad"] == everything.metadata["direction_rad"]
+    assert len(thin.passes) == len(everything.passes)
+    for a, b in zip(thin.passes, everything.passes):
+        np.testing.assert_array_equal(a.points, b.points)
+    # ranked here one after another: the thin direction's cost is never computed
+    uniform(surface, Tool(), work_spacing=Tool().pad_radius / 5, cost=counted)
+    assert ranked and all(not math.isclose(a, math.radians(60)) for a in ranked)

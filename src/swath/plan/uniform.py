@@ -205,7 +205,8 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         log.info("uniform: the cost function does not pickle, so the candidate directions are planned here, one "
                  "after another (give a module-level function or a record with __call__)")
         n_workers = 1
-    say("planning (uniform): trying pass directions", 0, len(angles) + 1)
+    # progress: two steps per direction (its layout, then its ranking) and one for the winner
+    say("planning (uniform): trying pass directions", 0, 2 * len(angles) + 1)
     in_workers = n_workers > 1 and context_args is not None
     if in_workers and not can_fork():
         groups = [[a] for a in angles]      # the working mesh is built in each spawned worker, not here
@@ -217,15 +218,20 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
     else:
         from threadpoolctl import threadpool_limits
 
-        rows_of, done = [], 0
+        rows_of, done, top = [], 0, -math.inf
         # One BLAS thread, as in the worker processes: the planner's matrix products are thin
         # ((n, 3) @ (3,)), where a second BLAS thread only synchronises (a plane slice of a 170k-vertex
         # working mesh took 12 ms with two threads and 0.1 ms with one on a loaded machine).
         with threadpool_limits(limits=1, user_api="blas"):
             for group in groups:
-                rows_of.append(_candidate_group(make_context(), group, options, cost))
+                ctx = make_context()
+                layout = _first_layout(ctx, group[0], options)
                 done += len(group)
-                say("planning (uniform): trying pass directions", done, len(angles) + 1)
+                say("planning (uniform): trying pass directions", done, 2 * len(angles) + 1)
+                top = max(top, _coverage_of(layout))
+                rows_of.append(_group_rows(ctx, group, layout, options, cost, rank=_worth_ranking(layout, top)))
+                done += len(group)
+                say("planning (uniform): trying pass directions", done, 2 * len(angles) + 1)
     row_at = {a: row for group, rows in zip(groups, rows_of) for a, row in zip(group, rows)}
     rows = [row_at[a] for a in angles]
     results, layouts, what = [], {}, ""
@@ -233,23 +239,33 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         if isinstance(row, str):
             log.info("uniform: direction %.0f deg infeasible: %s", math.degrees(a), row)
             continue
-        length, value, what, covered, layouts[a] = row
+        length, value, described, covered, layouts[a] = row
+        what = described or what
         results.append((a, length, value, covered))
-        log.info("uniform candidate %.0f deg: %.2f m in contact, cost %.4g (%s)", math.degrees(a), length, value, what)
     if not results:
         raise InfeasibleError("uniform found no feasible direction; check min_pass_length and the part size")
     # A direction must cover (a pad riding on the crests of waves narrower than itself leaves the
     # troughs untouched, so passes along the waves can miss area); among those that cover, the
-    # cheapest wins.
-    top = max(r[3] for r in results)
-    good = [r for r in results if r[3] >= min(0.995, top - 0.002)]
-    best = min(good, key=lambda r: r[2])
+    # cheapest wins.  Those that do not cover are not ranked (or their rank is not reported: which
+    # of them were ranked depends on the order the workers finished in).
+    floor = coverage_floor(max(r[3] for r in results))
+    results = [(a, L, c if cv >= floor else None, cv) for a, L, c, cv in results]
+    for a, L, c, cv in results:
+        log.info("uniform candidate %.0f deg: %.2f m in contact, predicted coverage %.2f %%, %s", math.degrees(a), L,
+                 100 * cv, f"cost {c:.4g} ({what})" if c is not None else "not ranked (covers too little)")
+    best = min((r for r in results if r[2] is not None), key=lambda r: r[2])
     candidates = [dict(direction_deg=math.degrees(a), length_m=L, cost=c, predicted_coverage_fraction=cv)
                   for a, L, c, cv in results]
     rule = (f"auto: lowest {what} among the directions whose predicted coverage is at least "
-            f"{100 * min(0.995, top - 0.002):.1f} %")
+            f"{100 * floor:.1f} %")
     return _toolpath(context_args[0], layouts[best[0]], point_spacing=point_spacing, rule=rule,
                      extra_meta={"candidates": candidates})
+
+
+def coverage_floor(top: float) -> float:
+    """The least predicted coverage fraction a candidate direction needs to be chosen, when the
+    best candidate's is ``top``: within 0.2 % of it, and never more than 99.5 % asked."""
+    return min(0.995, top - 0.002)
 
 
 def _same_seed_groups(ctx, angles: list[float], seed) -> list[list[float]]:
@@ -296,10 +312,30 @@ def _first_layout(ctx, angle: float, options: dict) -> dict | str:
         return str(exc)
 
 
-def _group_rows(ctx, group: list[float], layout: dict | str, options: dict, cost) -> list:
-    """The rows of :func:`_candidate_group` from the group's layout (that of ``group[0]``)."""
+def _coverage_of(layout: dict | str) -> float:
+    """A layout's predicted coverage fraction (-inf for an infeasible direction)."""
+    return -math.inf if isinstance(layout, str) else float(layout["covered_pred"])
+
+
+def _worth_ranking(layout: dict | str, top: float) -> bool:
+    """Whether ``layout`` can still be chosen when the best coverage seen so far is ``top``: the
+    floor (:func:`coverage_floor`) only rises as more candidates come in, so a layout below it
+    now is below it at the end, and its cost (the slow part of a candidate after its layout) is
+    never needed."""
+    return isinstance(layout, str) or _coverage_of(layout) >= coverage_floor(top)
+
+
+def _group_rows(ctx, group: list[float], layout: dict | str, options: dict, cost, rank: bool = True) -> list:
+    """The rows of :func:`_candidate_group` from the group's layout (that of ``group[0]``); with
+    ``rank=False`` the cost and its description are None (the passes are still resampled, for
+    the contact length the candidates report)."""
     if isinstance(layout, str):
         return [layout] * len(group)
+    if not rank:
+        tp = _toolpath(ctx.surface, layout, point_spacing=options["point_spacing"], rule="candidate")
+        return [(tp.contact_length, None, None, layout["covered_pred"],
+                 dict(layout, angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0]) if i else layout)
+                for i, a in enumerate(group)]
     rows = [_ranked(ctx.surface, layout, options["point_spacing"], cost)]
     for a in group[1:]:
         other = dict(layout, angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0])
@@ -374,30 +410,40 @@ def _warm_before_fork(ctx: _Context, cost) -> None:
 
 def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -> list:
     """The rows of every group, planned in ``n_workers`` processes as two kinds of task: each
-    group's layout (the heat-method generations, most of the work), then, as each layout comes
-    back, its ranking (resampling and the cost: ordering and timing the passes).  Every layout is
-    queued before any ranking, so the short ranking tasks fill the workers' last gaps instead of
-    one worker sitting idle while the other finishes the longest layout (candidates' times are
-    not known in advance).  The same functions as :func:`_candidate_group`, so the same rows."""
-    done, total = 0, sum(len(g) for g in groups)
+    group's layout (the heat-method generations, most of the work), then its ranking (resampling
+    and the cost: ordering and timing the passes).  Every layout is queued first; a ranking is
+    handed out only when a worker is free and no layout waits, so the short ranking tasks fill
+    the workers' last gaps instead of one worker sitting idle while the other finishes the
+    longest layout (candidates' times are not known in advance).  By then most layouts are
+    back, and one that covers less than they allow (:func:`_worth_ranking`) is only resampled,
+    not ranked.  The same functions as :func:`_candidate_group`, so the same plan.  Progress
+    counts a step per direction as its layout comes back and another as its ranking does
+    (``2 * directions + 1`` in all, the last for the winner)."""
+    done, total, top = 0, sum(len(g) for g in groups), -math.inf
     rows_of: list = [None] * len(groups)
     with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp_context, initializer=_worker_init,
                              initargs=(context_args,)) as pool:
         layout_of = {pool.submit(_worker_layout, g[0], options): i for i, g in enumerate(groups)}
         rows_task: dict = {}
         pending: set[Future] = set(layout_of)
-        while pending:
+        held: list = []                           # (group index, layout) waiting for a free worker
+        while pending or held:
+            while held and len(pending) < n_workers:
+                i, layout = held.pop(0)
+                task = pool.submit(_worker_group_rows, groups[i], layout, options, cost, _worth_ranking(layout, top))
+                rows_task[task] = i
+                pending.add(task)
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for f in finished:
                 if f in layout_of:
-                    i = layout_of[f]
-                    task = pool.submit(_worker_group_rows, groups[i], f.result(), options, cost)
-                    rows_task[task] = i
-                    pending.add(task)
+                    i, layout = layout_of[f], f.result()
+                    top = max(top, _coverage_of(layout))
+                    held.append((i, layout))
+                    done += len(groups[i])
                 else:
                     rows_of[rows_task[f]] = f.result()
                     done += len(groups[rows_task[f]])
-                    say("planning (uniform): trying pass directions", done, total + 1)
+                say("planning (uniform): trying pass directions", done, 2 * total + 1)
     return rows_of
 
 
@@ -426,8 +472,8 @@ def _worker_layout(angle: float, options: dict) -> dict | str:
     return _first_layout(_WORKER_CONTEXT, angle, options)
 
 
-def _worker_group_rows(group: list[float], layout: dict | str, options: dict, cost) -> list:
-    return _group_rows(_WORKER_CONTEXT, group, layout, options, cost)
+def _worker_group_rows(group: list[float], layout: dict | str, options: dict, cost, rank: bool = True) -> list:
+    return _group_rows(_WORKER_CONTEXT, group, layout, options, cost, rank)
 
 
 # ----------------------------------------------------------------------------------------------
