@@ -118,8 +118,10 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
     ToolPath
         ``metadata``: overlap_fraction, direction_rad, direction_rule, seed, n_passes, work_spacing_m,
         n_touch_up_passes and touch_up_passes (their indices in ``passes``; the passes also carry
-        ``kind="touch_up"``), candidates (per direction: length_m, cost) for automatic direction,
-        order_hint ``"zigzag"``.  Each pass's ``level`` is its generation.
+        ``kind="touch_up"``), candidates (per direction: direction_deg, length_m,
+        predicted_coverage_fraction and cost, None for a direction that covers less than
+        :func:`coverage_floor` asks and so cannot be chosen) for automatic direction, order_hint
+        ``"zigzag"``.  Each pass's ``level`` is its generation.
     """
     pieces = surface.face_pieces()
     if len(pieces) > 1:
