@@ -226,13 +226,10 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         # working mesh took 12 ms with two threads and 0.1 ms with one on a loaded machine).
         with threadpool_limits(limits=1, user_api="blas"):
             for group in groups:
-                ctx = make_context()
-                layout = _first_layout(ctx, group[0], options)
-                done += len(group)
-                say("planning (uniform): trying pass directions", done, 2 * len(angles) + 1)
-                top = max(top, _coverage_of(layout))
-                rows_of.append(_group_rows(ctx, group, layout, options, cost, rank=_worth_ranking(layout, top)))
-                done += len(group)
+                rows = _candidate_group(make_context(), group, options, cost, top)
+                rows_of.append(rows)
+                top = max([top] + [r[3] for r in rows if not isinstance(r, str)])
+                done += 2 * len(group)
                 say("planning (uniform): trying pass directions", done, 2 * len(angles) + 1)
     row_at = {a: row for group, rows in zip(groups, rows_of) for a, row in zip(group, rows)}
     rows = [row_at[a] for a in angles]
@@ -294,10 +291,12 @@ def _same_seed_groups(ctx, angles: list[float], seed) -> list[list[float]]:
     return list(groups.values())
 
 
-def _candidate_group(ctx, group: list[float], options: dict, cost) -> list:
+def _candidate_group(ctx, group: list[float], options: dict, cost, top: float = -math.inf) -> list:
     """:func:`_candidate` of every angle in ``group`` (angles with the same seed curves): the layout
-    is made once, then resampled and ranked with each angle's own direction recorded."""
-    return _group_rows(ctx, group, _first_layout(ctx, group[0], options), options, cost)
+    is made once, then resampled and ranked with each angle's own direction recorded, unless its
+    coverage is below the floor of the best coverage ``top`` seen before (:func:`_worth_ranking`)."""
+    layout = _first_layout(ctx, group[0], options)
+    return _group_rows(ctx, group, layout, options, cost, rank=_worth_ranking(layout, max(top, _coverage_of(layout))))
 
 
 def _candidate(ctx, angle: float, options: dict, cost):
