@@ -332,14 +332,16 @@ def _group_rows(ctx, group: list[float], layout: dict | str, options: dict, cost
     the contact length the candidates report)."""
     if isinstance(layout, str):
         return [layout] * len(group)
+    def as_angle(a):          # the group's layout recorded with angle ``a``'s own direction
+        return dict(layout, angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0])
+
     if not rank:
         tp = _toolpath(ctx.surface, layout, point_spacing=options["point_spacing"], rule="candidate")
-        return [(tp.contact_length, None, None, layout["covered_pred"],
-                 dict(layout, angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0]) if i else layout)
+        return [(tp.contact_length, None, None, layout["covered_pred"], as_angle(a) if i else layout)
                 for i, a in enumerate(group)]
     rows = [_ranked(ctx.surface, layout, options["point_spacing"], cost)]
     for a in group[1:]:
-        other = dict(layout, angle=float(a), feed_dir=feed_and_cross(ctx.surface, angle=a)[0])
+        other = as_angle(a)
         if getattr(cost, "passes_only", False):
             # the same passes in the same order: a cost that reads nothing else ranks them the same
             rows.append((*rows[0][:4], other))
@@ -400,13 +402,12 @@ def _prepare_candidates(tool, cost) -> None:
 
 def _warm_before_fork(ctx: _Context, cost) -> None:
     """Load here, once, what every forked worker would otherwise load on its first candidate: the
-    compiled kernels of the working mesh (:meth:`_Context.warm`) and whatever the cost function
-    imports (its ``prepare()``, if it has one: the job's cycle-time cost imports the trajectory
-    stage and toppra, about 0.3 s of CPU per worker)."""
+    compiled kernels of the working mesh (:meth:`_Context.warm`) and :func:`_prepare_candidates`
+    (the job's cycle-time cost imports the trajectory stage and toppra, about 0.3 s of CPU per
+    worker).  A context built by :func:`uniform` has done the latter while it was built; again
+    it costs nothing."""
     ctx.warm()
-    prepare = getattr(cost, "prepare", None)
-    if callable(prepare):
-        prepare()
+    _prepare_candidates(ctx.tool, cost)
 
 
 def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -> list:

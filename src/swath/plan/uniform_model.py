@@ -88,8 +88,8 @@ def _beside_solver(surface, W, tool) -> dict:
     mesh's edges and its gradient operator.  Run beside the solver's factorisation
     (:class:`_Context`); the values are exactly those the cached properties compute here.
     Returns ``{"part": {...}, "work": {...}, "widths": WidthModel, "edges": (edges, face edges)
-    of :func:`swath.surface.topology.mesh_edges`, "gradient": FaceGradient}``, the first two keyed by :class:`swath.surface.Surface` property
-    names (for ``Surface.adopt``)."""
+    of :func:`swath.surface.topology.mesh_edges`, "gradient": FaceGradient}``, the first two
+    keyed by :class:`swath.surface.Surface` property names (for ``Surface.adopt``)."""
     normals, widths = _normals_and_widths(surface, W, tool)
     gradient = FaceGradient(W.vertices, W.faces)
     _ = gradient.stacked_basis          # built once here, not in every worker's first candidate
