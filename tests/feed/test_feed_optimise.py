@@ -307,3 +307,58 @@ def test_rows_held_at_the_cap_carry_over_to_a_later_solve(plate, monkeypatch):
     second, _ = lp.solve_dwell(k, target, cap_rows=found["cap_rows"], **kw)
     assert len(solves) == 1 and solves[0] >= len(found["cap_rows"])
     assert (k.removal(second)[region] - D).max() <= 0.05 * D * (1 + 1e-6)
+
+
+def test_slack_stops_the_rounds_early_on_the_same_path(plate, monkeypatch):
+    """With a slack the rounds add the same cap rows as without, and stop at the first solve whose
+    largest excess over the cap is within the slack; that excess is the accepted one."""
+    import swath.feed.dwell_lp as lp
+
+    tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
+    k = build_kernel(tp, TOOL)
+    t_min = k.nodes.length / V_MAX
+    region = np.diff(k.matrix.tocsr().indptr) > 0
+    D = 1.1 * k.removal(t_min)[region].max()
+    target = np.full(k.matrix.shape[0], D)
+    tol = 0.05 * D
+    solves, excess = [], []
+    real = lp._solve
+
+    def counted(*a, **kw):
+        dwell, status = real(*a, **kw)
+        solves.append(len(kw["cap_rows"]))
+        excess.append(float((k.removal(dwell)[region] - (D + tol)).max()))
+        return dwell, status
+
+    monkeypatch.setattr(lp, "_solve", counted)
+    kw = dict(tolerance=tol, t_min=t_min, t_max=10 * t_min, region=region, max_rows=300)
+    exact, _ = lp.solve_dwell(k, target, **kw)
+    full_solves, full_excess = list(solves), list(excess)
+    assert len(full_solves) >= 3 and full_excess[-1] <= 1e-3 * tol
+    # a slack just above the second solve's excess: the rounds stop after it
+    slack = 1.01 * full_excess[1]
+    assert full_excess[0] > slack > 1e-3 * tol
+    solves.clear(), excess.clear()
+    early, _ = lp.solve_dwell(k, target, slack=slack, **kw)
+    assert solves == full_solves[:2]
+    assert (k.removal(early)[region] - (D + tol)).max() == pytest.approx(full_excess[1], rel=1e-9)
+    # as one value per sample: none on the samples the excess sits on -> no early stop
+    per_sample = np.full(len(target), slack)
+    per_sample[np.argmax(np.where(region, k.removal(early) - (D + tol), -np.inf))] = 0.0
+    solves.clear(), excess.clear()
+    lp.solve_dwell(k, target, slack=per_sample, **kw)
+    assert len(solves) > 2
+
+
+@pytest.mark.parametrize("bad", [dict(round_slack=1.0), dict(round_slack=-0.1), dict(cap_margin=1.0),
+                                 dict(model_error=-0.5)])
+def test_fractions_out_of_range_are_refused_by_name_before_the_kernel(plate, bad, monkeypatch):
+    import swath.feed.optimise as opt
+
+    def no_kernel(*a, **kw):
+        raise AssertionError("the kernel was built before the settings were checked")
+
+    monkeypatch.setattr(opt, "build_kernel", no_kernel)
+    tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
+    with pytest.raises(InputError, match=next(iter(bad))):
+        optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=1e-6, tolerance=1e-7, timing_rounds=0, **bad)

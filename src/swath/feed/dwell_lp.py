@@ -61,7 +61,8 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
                 a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
                 smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6,
-                time_weight: float = 1e-3, cap_rows: np.ndarray | None = None, found: dict | None = None):
+                time_weight: float = 1e-3, cap_rows: np.ndarray | None = None, found: dict | None = None,
+                slack=0.0):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     ``time_weight``: a cost on every second of dwell, as a fraction of what a second of a typical
@@ -79,6 +80,13 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     :func:`~swath.feed.optimise.optimise_feed`) given them back skips the rounds that would find
     them again (crs_part_5: six solves of 5-8 s each per call).
 
+    ``slack`` (m, a scalar or one per kernel sample ``(S,)``): the rounds stop once no thinned-out
+    sample is over its cap by more than this (never less than a thousandth of the largest
+    tolerance); while one is, every sample over by more than that thousandth is a candidate cap row.  The last rounds chase ever smaller excesses: on crs_part_5 at a 12 µm
+    target, 0.36, 0.11, 0.011 µm, a solve of 7-9 s each.  :func:`~swath.feed.optimise.optimise_feed`
+    gives a tenth of what it holds back under the stated tolerance, so the accepted excess stays
+    inside it.
+
     Raises
     ------
     InfeasibleError
@@ -90,6 +98,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     tolerance = np.broadcast_to(np.asarray(tolerance, float), target.shape)
     tiny = 1e-3 * max(float(tolerance.max(initial=0.0)), 1e-9)
     cap = target[full] + tolerance[full]
+    allowed = np.maximum(tiny, np.broadcast_to(np.asarray(slack, float), target.shape)[full])
     # cap rows from the start at each cell's peak of the fastest feed's removal: the ripple's peaks,
     # where the cap binds (the objective's thinned rows sit anywhere in their cells)
     extra = np.zeros(0, dtype=int)
@@ -107,9 +116,9 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
                                smoothing=smoothing, method=method, max_rows=max_rows, cap_rows=full[extra],
                                time_weight=time_weight)
         over = K_full @ dwell - cap
-        bad = np.flatnonzero(over > tiny)
-        if len(bad) == 0:
+        if (over <= allowed).all():
             break
+        bad = np.flatnonzero(over > tiny)
         worst = _worst_per_cell(kernel.samples.vertices[full[bad]], over[bad], kernel.samples.vertex_areas[full[bad]],
                                 max(1, max_rows // 4))
         log.info("feed optimisation: %d thinned-out samples over the cap by up to %.3g um; adding the worst %d",
@@ -117,9 +126,9 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
         extra = np.union1d(extra, bad[worst])
     else:
         over = K_full @ dwell - cap
-        if over.max() > tiny:
+        if (over > allowed).any():
             log.warning("feed optimisation: after %d rounds %d samples are still over the cap by up to %.3g um",
-                        max_rounds, int(np.sum(over > tiny)), over.max() / _DEPTH_UNIT)
+                        max_rounds, int(np.sum(over > allowed)), over.max() / _DEPTH_UNIT)
     if found is not None:
         found["cap_rows"] = full[extra]
     return dwell, status
