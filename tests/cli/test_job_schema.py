@@ -122,7 +122,12 @@ def test_feed_optimisation_runs_through_the_job_and_needs_a_target(tmp_path, cap
     assert main(["-q", "plan", "example:plate", "--optimise-feed", "--out", str(tmp_path / "x")]) == 2
     assert "needs a target" in capsys.readouterr().err
     out = tmp_path / "o"
-    assert main(["-q", "plan", "example:plate", "--optimise-feed", "--target-depth", "3um", "--out", str(out)]) == 0
+    assert main(["plan", "example:plate", "--optimise-feed", "--target-depth", "3um", "--out", str(out)]) == 0
+    # a line for the kernel, each HiGHS solve and each simulated check (a large part takes a minute)
+    err = capsys.readouterr().err
+    for line in ("optimising the feed: removal kernel", "optimising the feed: dwell programme, HiGHS solve 1",
+                 "optimising the feed: simulated check 1"):
+        assert line in err
     assert {"feed_along_passes.png", "depth_vs_target.png", "residual_histogram.png"} <= {p.name for p in out.iterdir()}
     m = json.loads((out / "metrics.json").read_text())["metrics"]
     assert any(k.startswith("feed_") for k in m)

@@ -284,7 +284,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.optimise_feed:
         t0 = time.perf_counter()
         say("optimising the feed (dwell) to the target depth", 0, 1)
-        trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory, surface)
+        trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory, surface, progress=say)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
     if settings.robot:

@@ -155,13 +155,15 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict):
     return result.toolpath
 
 
-def feed_stage(toolpath, tool, settings, trajectory, surface=None):
+def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None):
     """Optimise the feed along the passes to the job's target depth (Wang §2) and re-time the
     path with it; returns the new trajectory, the :class:`FeedResult` and its metrics.
 
     With ``settings.feed_simulate_check`` (and the ``surface`` the job simulates on), each optimised
     trajectory is run through the job's own removal simulation and the feed is tightened where the
-    simulator finds more than the target plus the tolerance."""
+    simulator finds more than the target plus the tolerance.  ``progress(stage, done, total)`` hears
+    about the kernel's batches, each HiGHS solve and each simulated check (a line for each: the
+    programme takes up to a minute on a large part)."""
     from ..feed import optimise_feed
     from ..simulate import simulate_removal
     from ..trajectory import time_path
@@ -173,8 +175,20 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None):
         def simulate(timed):
             return simulate_removal(timed, surface, tool, sample_spacing=settings.sample_spacing,
                                     sampling=settings.removal_sampling)
+    say = progress or (lambda stage, done, total: None)
+
+    def report(stage, done, total):
+        if stage == "kernel":
+            say("optimising the feed: removal kernel", done, total)
+        elif stage == "solve":
+            say(f"optimising the feed: dwell programme, HiGHS solve {done + 1}", 0, 1)
+        elif stage == "simulate":
+            say(f"optimising the feed: simulated check {done + 1}", 0, 1)
+        else:
+            say(f"optimising the feed: {stage}", done, total)
+
     result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory,
-                           simulate=simulate)
+                           simulate=simulate, progress=report)
     timed = time_path(toolpath, constraints + [result.profile], links=settings.links())
     metrics = {k if k.startswith("feed") else f"feed_{k}": v for k, v in result.metrics.items()
                if isinstance(v, (int, float, str, bool))}

@@ -62,7 +62,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
                 a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
                 smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6,
                 time_weight: float = 1e-3, cap_rows: np.ndarray | None = None, found: dict | None = None,
-                slack=0.0):
+                slack=0.0, on_solve=None):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     ``time_weight``: a cost on every second of dwell, as a fraction of what a second of a typical
@@ -111,6 +111,8 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
             extra = np.union1d(extra, np.searchsorted(full, given))
     status = ""
     for _ in range(max(1, max_rounds)):
+        if on_solve is not None:
+            on_solve()
         dwell, status = _solve(kernel, target, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
                                mode=mode, objective=objective, a_t=a_t, v_max=v_max, time_limit=time_limit,
                                smoothing=smoothing, method=method, max_rows=max_rows, cap_rows=full[extra],

@@ -296,6 +296,8 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     position, axes, node, weight = _sub_poses(toolpath, nodes, step, trajectory, timed=spread == "timed")
     S, n = len(pts), len(nodes)
     blocks = []
+    if progress is not None:
+        progress(0, len(position))
     for lo in range(0, len(position), chunk):
         hi = min(lo + chunk, len(position))
         mc = mesh_contact(pts, nrm, area, tree, position[lo:hi], axes[lo:hi], tool)

@@ -405,7 +405,9 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         is over (default True; one kernel build per check).  ``metrics["simulated_rounds"]`` then
         holds ``spread_max_over_target_m`` and ``spread_samples_over`` in the last solve round.
     progress : callable, optional
-        ``progress(stage, done, total)`` with ``stage`` in ``"kernel"``, ``"solve"``, ``"simulate"``.
+        ``progress(stage, done, total)`` with ``stage`` in ``"kernel"`` (batches of poses),
+        ``"solve"`` (before each HiGHS solve: ``done`` the solves before it, ``total`` 0 since their
+        number is not known in advance) and ``"simulate"`` (each simulated round).
 
     Returns
     -------
@@ -464,8 +466,14 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         if region.shape != touched.shape:
             raise InputError(f"region must be one bool per kernel sample ({len(touched)}), got shape {region.shape}")
         region = region & touched
-    if progress is not None:
-        progress("solve", 0, 1)
+    solves = 0
+
+    def on_solve():
+        nonlocal solves
+        if progress is not None:
+            progress("solve", solves, 0)
+        solves += 1
+
     t1 = time.perf_counter()
     mean_target = float(np.average(target_s[region], weights=kernel.samples.vertex_areas[region])) if region.any() else 0.0
     lp_tolerance = tolerance - max(cap_margin * tolerance, model_error * mean_target)
@@ -478,12 +486,10 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     slack = round_slack * np.maximum(target_s + tolerance - cap, 0.0)
     solve_kw = dict(t_min=t_min, t_max=t_max, region=region, mode=mode, objective=objective,
                     a_t=None if tl is None else tl.a_t, v_max=v_max, time_limit=time_limit, smoothing=smoothing,
-                    max_rows=max_rows, time_weight=time_weight, slack=slack)
+                    max_rows=max_rows, time_weight=time_weight, slack=slack, on_solve=on_solve)
     held: dict = {}                 # the samples the programme held at its cap, for the re-solves
     dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, found=held, **solve_kw)
     t_solve = time.perf_counter() - t1
-    if progress is not None:
-        progress("solve", 1, 1)
     timing = dict(cons=list(cons.values()), v_min=v_min, v_max=v_max, heading_scale=heading_scale,
                   rounds=timing_rounds, ratio_tolerance=ratio_tolerance)
     profile, timed_ratio, traj, command = _time_dwell(toolpath, nodes, dwell, **timing)
