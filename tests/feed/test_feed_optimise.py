@@ -282,18 +282,24 @@ def test_timed_spread_reproduces_the_simulator_where_the_feed_steps(plate, monke
         build_kernel(tp, TOOL, spread="timed")
 
 
+def _four_passes_just_above_the_fastest(plate):
+    """Four parallel passes on the plate and a uniform target 10 % above the most their fastest
+    feed removes: ``(kernel, t_min (n,) s, region (S,) bool, D m, target (S,) m)``."""
+    tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
+    k = build_kernel(tp, TOOL)
+    t_min = k.nodes.length / V_MAX
+    region = np.diff(k.matrix.tocsr().indptr) > 0
+    D = 1.1 * k.removal(t_min)[region].max()
+    return k, t_min, region, D, np.full(k.matrix.shape[0], D)
+
+
 def test_rows_held_at_the_cap_carry_over_to_a_later_solve(plate, monkeypatch):
     """With the programme thinned to 300 samples, the first solve finds over-ground samples round by
     round; given them back, a second solve of the same kernel with the same caps needs one round,
     and every sample still keeps within the cap."""
     import swath.feed.dwell_lp as lp
 
-    tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
-    k = build_kernel(tp, TOOL)
-    t_min = k.nodes.length / V_MAX
-    region = np.diff(k.matrix.tocsr().indptr) > 0
-    D = 1.1 * k.removal(t_min)[region].max()
-    target = np.full(k.matrix.shape[0], D)
+    k, t_min, region, D, target = _four_passes_just_above_the_fastest(plate)
     solves = []
     real = lp._solve
     monkeypatch.setattr(lp, "_solve", lambda *a, **kw: solves.append(len(kw["cap_rows"])) or real(*a, **kw))
@@ -314,12 +320,7 @@ def test_slack_stops_the_rounds_early_on_the_same_path(plate, monkeypatch):
     largest excess over the cap is within the slack; that excess is the accepted one."""
     import swath.feed.dwell_lp as lp
 
-    tp = ToolPath(plate, [_line(0.02, 0.22, y) for y in (0.06, 0.085, 0.11, 0.135)], "test")
-    k = build_kernel(tp, TOOL)
-    t_min = k.nodes.length / V_MAX
-    region = np.diff(k.matrix.tocsr().indptr) > 0
-    D = 1.1 * k.removal(t_min)[region].max()
-    target = np.full(k.matrix.shape[0], D)
+    k, t_min, region, D, target = _four_passes_just_above_the_fastest(plate)
     tol = 0.05 * D
     solves, excess = [], []
     real = lp._solve

@@ -126,11 +126,16 @@ def test_trim_rounds_only_ever_speed_up(curved):
     untrimmed = optimise_feed(tp, TOOL, CONS, trim_rounds=0, **kw)
     before = simulate(time_path(tp, CONS + [untrimmed.profile])).depth
     assert (before - D)[untrimmed.region].max() > tol                 # over without the trim
-    res = optimise_feed(tp, TOOL, CONS, trim_rounds=8, **kw)
+    heard = []
+    res = optimise_feed(tp, TOOL, CONS, trim_rounds=8, progress=lambda *a: heard.append(a), **kw)
     after = simulate(time_path(tp, CONS + [res.profile])).depth
     assert (after - D)[res.region].max() <= tol
     assert np.all(after <= before * (1 + 1e-9) + 1e-15)
     rounds = res.metrics["simulated_rounds"]
+    # progress: each HiGHS solve, the simulated round, then each trim round under its own name
+    stages = [a[0] for a in heard]
+    assert stages[0] == "solve" and stages.count("simulate") == 1
+    assert stages.count("trim") == sum(r["kind"] == "trim" for r in rounds) and stages[-1] == "trim"
     assert rounds[0]["kind"] == "solve" and rounds[-1] == {**rounds[-1], "kind": "trim", "samples_over": 0}
     assert res.metrics["simulated_max_over_target_m"] == pytest.approx((after - D)[res.region].max(), rel=1e-9)
     # the reported feeds are the trimmed ones: faster where the band was over, the same elsewhere

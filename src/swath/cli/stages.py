@@ -162,8 +162,8 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None
     With ``settings.feed_simulate_check`` (and the ``surface`` the job simulates on), each optimised
     trajectory is run through the job's own removal simulation and the feed is tightened where the
     simulator finds more than the target plus the tolerance.  ``progress(stage, done, total)`` hears
-    about the kernel's batches, each HiGHS solve and each simulated check (a line for each: the
-    programme takes up to a minute on a large part)."""
+    about the kernel's batches, each HiGHS solve, each simulated check and each trim round (a line
+    for each: the programme takes up to a minute on a large part)."""
     from ..feed import optimise_feed
     from ..simulate import simulate_removal
     from ..trajectory import time_path
@@ -184,6 +184,8 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None
             say(f"optimising the feed: dwell programme, HiGHS solve {done + 1}", 0, 1)
         elif stage == "simulate":
             say(f"optimising the feed: simulated check {done + 1}", 0, 1)
+        elif stage == "trim":
+            say(f"optimising the feed: speeding up where the simulation is over, round {done + 1}", 0, 1)
         else:
             say(f"optimising the feed: {stage}", done, total)
 

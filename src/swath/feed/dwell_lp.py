@@ -82,10 +82,10 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
 
     ``slack`` (m, a scalar or one per kernel sample ``(S,)``): the rounds stop once no thinned-out
     sample is over its cap by more than this (never less than a thousandth of the largest
-    tolerance); while one is, every sample over by more than that thousandth is a candidate cap row.  The last rounds chase ever smaller excesses: on crs_part_5 at a 12 µm
-    target, 0.36, 0.11, 0.011 µm, a solve of 7-9 s each.  :func:`~swath.feed.optimise.optimise_feed`
-    gives a tenth of what it holds back under the stated tolerance, so the accepted excess stays
-    inside it.
+    tolerance); while one is, every sample over by more than that thousandth is a candidate cap
+    row.  The last rounds chase ever smaller excesses: on crs_part_5 at a 12 µm target 0.36, 0.11
+    and 0.011 µm, a solve of 7-9 s each.  :func:`~swath.feed.optimise.optimise_feed` gives a tenth
+    of what it holds back under the stated tolerance, so the accepted excess stays inside it.
 
     Raises
     ------

@@ -178,7 +178,7 @@ def _trim_over(kernel: RemovalKernel, toolpath, traj, command: np.ndarray, faste
         profile = dwell_to_profile(toolpath, nodes, nodes.length / command)
         traj = time_path(toolpath, timing["cons"] + [profile], heading_scale=timing["heading_scale"])
         if progress is not None:
-            progress("simulate", k, rounds)
+            progress("trim", k, rounds)
         t0 = time.perf_counter()
         worst = _simulated_on_kernel(simulate(traj), kernel.samples)
         if spread_check:
@@ -407,7 +407,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     progress : callable, optional
         ``progress(stage, done, total)`` with ``stage`` in ``"kernel"`` (batches of poses),
         ``"solve"`` (before each HiGHS solve: ``done`` the solves before it, ``total`` 0 since their
-        number is not known in advance) and ``"simulate"`` (each simulated round).
+        number is not known in advance), ``"simulate"`` (each simulated round) and ``"trim"`` (each
+        trim round).
 
     Returns
     -------
