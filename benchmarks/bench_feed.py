@@ -197,7 +197,11 @@ thousandth of the tolerance).  Least depth (7.25 µm): solve 38.0 -> 31.0 s, CoV
 both times.  At a 12 µm target as a job might set it (``--target-depth 12um``): solve 67.7 -> 48.7 s (seven interior-point
 solves instead of ten), CoV 0.263 -> 0.262, the largest removal 4.75 µm under the target both times; peak
 memory 1.32 GB.  The job ``swath plan crs_part_5.stl --optimise-feed --target-depth 12um``: its
-``feed_solve_time_s`` 68.6 -> 48.7 s, the whole command 92.8 -> 72.3 s.
+``feed_solve_time_s`` 68.6 -> 48.7 s, the whole command 92.8 -> 72.3 s.  The full table with the new rounds
+(``--simulate-loop plate panel blade bezier_dac_scan.ply``): every row's simulated over-removal within its
+tolerance (bezier_dac_scan, over / tolerance in µm: feed 1.93 / 2.50, space+feed 1.98 / 2.50, ripple+feed 1.60 /
+2.50, edge+feed 1.90 / 2.55, uniform+feed 2.47 / 5.21, rotary 6.07 / 32.35); the best interior CoV within 1.5 L*
+as before (plate 0.099, panel 0.109, blade 0.190; bezier_dac_scan's feed row 0.184).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [--depression 3mm] [plate panel blade crs_part_5.stl ...]``; the feed
 optimisation's time and peak memory alone: ``... bench_feed.py [--simulate-loop] --solve crs_part_5.stl [--target-depth 12um]
