@@ -34,6 +34,9 @@ def test_plan_writes_trajectory_metrics_and_report(tmp_path):
     assert m["settings"]["spacing_m"] == pytest.approx(0.06)
     assert m["metrics"]["coverage_fraction"] > 0.99
     assert m["metrics"]["contact_length_m"] == pytest.approx(tr.contact_length, rel=1e-6)
+    # the summary gives the CoV inside the edge band too, as metrics.json holds it
+    inner = m["metrics"]["interior_removal_cov"]
+    assert f"removal CoV {m['metrics']['removal_cov']:.3f} ({inner:.3f} a pad radius in from the edges)" in r.stdout
 
 
 def test_bad_input_exits_2_with_one_line_and_no_output(tmp_path):

@@ -83,3 +83,30 @@ def test_a_trajectory_that_never_touches_the_part_gives_zero_coverage_not_an_err
     assert m["coverage_fraction"] == 0.0 and m["covered_area_m2"] == 0.0
     assert m["contact_length_m"] == 0.0 and m["n_passes"] == 0
     assert np.isnan(m["removal_cov"]) and np.isnan(m["removal_mean_m"])
+
+
+@pytest.mark.parametrize("spacing", [5e-3, 0.4])
+def test_interior_is_the_plate_shrunk_by_a_pad_radius_and_evener_than_the_whole(spacing):
+    """A plate sampled finely or made of two triangles only (the edge is then sampled along its
+    length, not at its four corners): the samples more than a pad radius from its edge cover the
+    inner rectangle (0.4 − 2R) x (0.3 − 2R).  A close raster that runs past the edges removes nearly
+    evenly there: the ripple of passes R/2 apart (0.038, :func:`swath.feed.ripple_cov`) and the
+    simulator's spacing of its poses along the passes (about 0.03) leave a CoV near 0.05, while the
+    whole part, with the band where the pad hangs over the edge, varies ten times more."""
+    tool = Tool()
+    R = tool.pad_radius
+    s = flat_plate(spacing=spacing)
+    ys = np.arange(-0.5 * R, 0.3 + 0.5 * R + 1e-9, 0.5 * R)         # step R/2: a ripple of a few %
+    ps = [one_pass(s, y, x0=-R, x1=0.4 + R) for y in ys]
+    tr = time_path(ToolPath(s, ps, "test"), [FeedLimit(0.05)])
+    rm = simulate_removal(tr, s, tool, sample_spacing=2e-3)
+    m = rm.metrics
+    inner = (0.4 - 2 * R) * (0.3 - 2 * R)
+    assert m["interior_area_m2"] == pytest.approx(inner, rel=0.03)
+    mask = rm.surface.farther_from_boundary(R)
+    v = rm.surface.vertices[mask]
+    assert v[:, 0].min() >= R - 1e-3 and v[:, 0].max() <= 0.4 - R + 1e-3 and v[:, 1].max() <= 0.3 - R + 1e-3
+    a, d = rm.surface.vertex_areas[mask], rm.depth[mask]
+    mean = np.average(d, weights=a)
+    assert m["interior_removal_cov"] == pytest.approx(np.sqrt(np.average((d - mean) ** 2, weights=a)) / mean, rel=1e-9)
+    assert 0.03 < m["interior_removal_cov"] < 0.06 and m["removal_cov"] > 0.3

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 import time
 
@@ -392,11 +393,14 @@ def _register_summary(settings, doc: dict) -> str:
 
 
 def _summary(settings, m: dict) -> str:
+    inner = m.get("interior_removal_cov")
+    # the CoV away from the edge band, where the pad hangs over (what --optimise-feed evens out)
+    inside = f" ({inner:.3f} a pad radius in from the edges)" if inner is not None and math.isfinite(inner) else ""
     return (
         f"wrote {settings.out}/trajectory.csv, metrics.json, report.html\n"
         f"  passes {m.get('n_passes')}, contact path {m['contact_length_m']:.3f} m, air {m['air_length_m']:.3f} m, "
         f"cycle time {m['cycle_time_s']:.1f} s\n"
-        f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f}, "
+        f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f}{inside}, "
         f"L* {m['coverage_lower_bound_m']:.3f} m, efficiency {m['efficiency']:.3f}"
     )
 

@@ -339,12 +339,5 @@ def trajectory_node_dwell(trajectory, nodes: DwellNodes, toolpath) -> np.ndarray
 
 def interior_mask(samples, margin: float) -> np.ndarray:
     """(S,) bool: samples farther than ``margin`` (m) from the surface's open boundary (all True
-    on a closed surface)."""
-    from scipy.spatial import cKDTree
-
-    loops = samples.boundary_loops
-    if not loops or margin <= 0:
-        return np.ones(len(samples.vertices), bool)
-    boundary = samples.vertices[np.unique(np.concatenate(loops))]
-    d, _ = cKDTree(boundary).query(samples.vertices, distance_upper_bound=margin)
-    return ~np.isfinite(d)
+    on a closed surface); :meth:`Surface.farther_from_boundary`."""
+    return samples.farther_from_boundary(margin)

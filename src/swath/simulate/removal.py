@@ -379,7 +379,11 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
     the fraction that received at least 10 % of the median depth); ``removal_cov`` the
     area-weighted coefficient of variation of depth over the touched area; ``efficiency`` is ``L*`` of
     the touched area (``covered_lower_bound_m``) over ``L_contact``, at most 1 for any plan up to the
-    sampling (``coverage_lower_bound_m`` is ``L*`` of the whole part).
+    sampling (``coverage_lower_bound_m`` is ``L*`` of the whole part).  ``interior_removal_cov`` is
+    the coefficient of variation over the samples more than a pad radius from the open boundary,
+    untouched ones included (``interior_area_m2``; the whole part when it is closed): the band at
+    the edge, where the pad hangs over, is left out, as issue 12's figure and the feed
+    optimisation's region leave it out.
     """
     a = removal.surface.vertex_areas
     d = removal.depth
@@ -399,6 +403,14 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
     else:
         # The trajectory never touched the part: no depth statistics (NaN), zero coverage.
         mean = std = median = effective = p5 = p95 = float("nan")
+    inner = removal.surface.farther_from_boundary(tool.pad_radius)
+    if inner.any() and len(d):
+        wi = a[inner]
+        mean_i = float(np.average(d[inner], weights=wi))
+        std_i = float(np.sqrt(np.average((d[inner] - mean_i) ** 2, weights=wi)))
+        cov_interior = std_i / mean_i if mean_i > 0 else float("nan")
+    else:
+        cov_interior = float("nan")
     L_contact = trajectory.contact_length
     # L* over the whole part, and over the part the plan touched: efficiency compares the path run
     # with the shortest that could have covered what it covered, so it cannot pass 1 by leaving
@@ -416,6 +428,8 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         "removal_mean_m": mean,
         "removal_std_m": std,
         "removal_cov": std / mean if mean and mean > 0 else float("nan"),
+        "interior_removal_cov": cov_interior,
+        "interior_area_m2": float(a[inner].sum()),
         "removal_p5_m": p5,
         "removal_median_m": median,
         "removal_p95_m": p95,

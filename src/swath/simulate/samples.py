@@ -38,6 +38,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..surface.geometry import face_normals_and_areas
+from ..surface.surface import farther_from_boundary
 
 #: A triangle is sampled by its corners while its covering radius is at most ``VERTEX_SLACK ·
 #: spacing / √2``: a mesh generated at the spacing (edges 2.003 mm for 2 mm on ``large_panel``)
@@ -227,6 +228,11 @@ class RemovalSamples:
     def face_areas(self) -> np.ndarray:
         """(k,) areas of the display faces, m² (they do not add up to the part's area)."""
         return self._face_normals_areas[1]
+
+    def farther_from_boundary(self, margin: float) -> np.ndarray:
+        """(n,) bool: samples farther than ``margin`` (m) from the part's open boundary, its edges
+        sampled at half the spacing (:func:`swath.surface.surface.farther_from_boundary`)."""
+        return farther_from_boundary(self.vertices, self.part, margin, step=0.5 * self.spacing)
 
     @property
     def principal_axes(self):

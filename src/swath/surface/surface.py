@@ -144,6 +144,11 @@ class Surface:
         """Closed boundary loops (vertex indices), longest first; empty for a closed surface."""
         return topology.boundary_loops(self.faces)
 
+    def farther_from_boundary(self, margin: float) -> np.ndarray:
+        """(n,) bool: vertices farther than ``margin`` (m) from the open boundary's vertices
+        (:func:`farther_from_boundary`)."""
+        return farther_from_boundary(self.vertices, self, margin)
+
     @cached_property
     def edge_lengths(self) -> np.ndarray:
         """(3m,) length of each face edge (shared edges appear twice), m."""
@@ -272,6 +277,29 @@ class Surface:
             v, f = split_long_edges(self.vertices, self.faces, max_edge)
         return Surface(v, f, name=self.name, normal_smoothing=self.normal_smoothing,
                        curvature_neighbours=self.curvature_neighbours)
+
+
+def farther_from_boundary(points: np.ndarray, surface: Surface, margin: float, step: float | None = None) -> np.ndarray:
+    """(k,) bool: ``points`` ``(k, 3)`` (m) farther than ``margin`` (m), in space, from the open
+    boundary of ``surface``: the part's inside, where a pad of radius ``margin`` never hangs over
+    the edge.  All True on a closed surface or for ``margin <= 0``.
+
+    The distance is to the boundary's vertices, or with ``step`` (m) to points no more than
+    ``step`` apart along its edges (for points on a finer sampling than the surface's own mesh).
+    """
+    from scipy.spatial import cKDTree
+
+    from .polyline import densify
+
+    loops = surface.boundary_loops
+    if not loops or margin <= 0:
+        return np.ones(len(points), bool)
+    if step is None:
+        boundary = surface.vertices[np.unique(np.concatenate(loops))]
+    else:
+        boundary = np.vstack([densify(surface.vertices[np.append(loop, loop[0])], step)[0] for loop in loops])
+    d, _ = cKDTree(boundary).query(points, distance_upper_bound=margin)
+    return ~np.isfinite(d)
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
