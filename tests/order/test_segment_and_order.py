@@ -270,3 +270,26 @@ def test_the_order_stage_routes_every_link_and_the_trajectory_follows_it():
 def test_segment_refuses_an_empty_angle_list():
     with pytest.raises(InputError, match="candidate angle"):
         segment(flat_plate(), angles=())
+
+
+def test_a_lift_under_an_overhang_tilts_out_from_under_it():
+    """A floor (z = 0) with a roof 15 mm above its right half, less than the 20 mm clearance.
+    Lifting straight up from a point 2 mm in under the roof's edge would end on the roof; the lift
+    tilts out (45° toward the open side) and its top keeps half the clearance from both.  Far from
+    the roof the lift is the straight one, as before."""
+    from swath.order.routing import AirGuard
+
+    floor, roof = flat_plate(size_x=0.2, size_y=0.1, spacing=0.01), flat_plate(size_x=0.1, size_y=0.1, spacing=0.01)
+    v = np.vstack([floor.vertices, roof.vertices + [0.1, 0.0, 0.015]])
+    surface = Surface(v, np.vstack([floor.faces, roof.faces + len(floor.vertices)]), name="overhang")
+    c, up = 0.02, np.array([0.0, 0.0, 1.0])
+    guard = AirGuard(surface, c, pad_radius=0.03)
+    p, q = np.array([0.102, 0.05, 0.0]), np.array([0.03, 0.05, 0.0])
+    route = guard.route(p, up, q, up)
+    top = route[1]
+    assert not np.allclose(top, p + c * up)
+    assert np.linalg.norm(top - p) == pytest.approx(c) and (top - p) @ up == pytest.approx(c * np.cos(np.pi / 4))
+    assert top[0] < p[0]                                       # out from under the roof
+    assert surface.closest_points(top[None])[1][0] >= 0.5 * c * 0.999
+    assert guard._clear(route[1:-1])
+    np.testing.assert_array_equal(route[-2], q + c * up)       # in the open: straight down as before

@@ -105,9 +105,41 @@ class AirGuard:
             known.setflags(write=False)
         return known.copy()
 
+    def _lift(self, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """Top ``(3,)`` (m) of the lift off (or the descent onto) the surface point ``p`` with unit
+        normal ``n``: ``clearance`` along ``n`` where that keeps clear of the part.  Where it runs
+        into the part (a pass ending against a fold or under an overhang of a scan: bezier_dac_scan
+        had lift tops 0.1-2 mm from the surface, so no route from them could be clear), the first
+        of ``n`` tilted toward the part's up direction, the up direction, ``n`` tilted away from the
+        part's centre and the direction away from it, then ``n`` tilted by 30° and 45° toward eight
+        sides, within 60° of ``n``, whose lift keeps clear.  None clear: along ``n`` (the route's
+        search then says so)."""
+        c = self.clearance
+        tries = [n]
+        away = p - self.center
+        away = away / max(float(np.linalg.norm(away)), 1e-12)
+        e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(n, e1)
+        phi = np.arange(8) * np.pi / 4
+        fan = [np.cos(t) * n + np.sin(t) * (np.cos(f) * e1 + np.sin(f) * e2)
+               for t in np.radians([30.0, 45.0]) for f in phi]
+        for v in [n + self.up, self.up, n + away, away, *fan]:
+            length = float(np.linalg.norm(v))
+            if length > 1e-9 and float(v @ n) / length >= 0.5:
+                tries.append(v / length)
+        for u in tries:
+            # its upper quarter keeps clear (lower, a scan's noisy normal tilts the lift toward the
+            # surface near its foot: 10° puts 10 mm along it 9.95 mm high); tilted lifts start
+            # where they are 0.6 of the clearance high on a flat surface
+            s0 = min(max(0.75, 0.6 / float(u @ n)), 1.0)
+            if self._clear(np.array([p + s0 * c * u, p + c * u])):
+                return p + c * u
+        return p + c * n
+
     def _route(self, p_end, n_end, p_start, n_start) -> np.ndarray:
         c = self.clearance
-        up_a, up_b = p_end + c * n_end, p_start + c * n_start
+        up_a, up_b = self._lift(p_end, n_end), self._lift(p_start, n_start)
         direct = np.array([p_end, up_a, up_b, p_start])
         if self._clear(direct[1:3]):
             return direct
