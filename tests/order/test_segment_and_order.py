@@ -293,3 +293,21 @@ def test_a_lift_under_an_overhang_tilts_out_from_under_it():
     assert surface.closest_points(top[None])[1][0] >= 0.5 * c * 0.999
     assert guard._clear(route[1:-1])
     np.testing.assert_array_equal(route[-2], q + c * up)       # in the open: straight down as before
+
+
+def test_air_moves_that_cannot_clear_the_part_are_a_job_warning():
+    """Two passes on a floor under a roof 20 mm above it (the clearance): no lift can get clear, and the plan carries a warning naming the move (the job's report lists
+    the plan's warnings), beside the log line."""
+    from swath.order import route_links
+
+    floor, roof = flat_plate(size_x=0.2, size_y=0.1, spacing=0.01), flat_plate(size_x=0.2, size_y=0.1, spacing=0.01)
+    v = np.vstack([floor.vertices, roof.vertices + [0.0, 0.0, 0.02]])
+    surface = Surface(v, np.vstack([floor.faces, roof.faces + len(floor.vertices)]), name="sandwich")
+    up = np.tile([0.0, 0.0, 1.0], (2, 1))
+    passes = [Pass(np.array([[0.05, y, 0.0], [0.15, y, 0.0]]), up) for y in (0.04, 0.06)]
+    tp = route_links(ToolPath(surface, passes, "test"), clearance=0.02)
+    (warning,) = tp.metadata["warnings"]
+    assert warning.startswith("1 of 1 air moves pass closer than half the clearance (10 mm)") and "after passes 1)" in warning
+    # in the open, no warning
+    open_tp = route_links(ToolPath(floor, passes, "test"), clearance=0.02)
+    assert "warnings" not in open_tp.metadata

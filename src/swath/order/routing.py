@@ -63,6 +63,9 @@ class AirGuard:
         self.up = up
         self._max_edge = float(surface.edge_lengths.max())
         self._routes: dict[tuple, np.ndarray] = {} if memo is None else memo
+        #: ends ``(p_end, p_start)`` of the routes this guard found that pass closer than half the
+        #: clearance to the part (a route taken from a shared memo is not listed again)
+        self.near_part: list[tuple[np.ndarray, np.ndarray]] = []
 
     def _clear(self, route: np.ndarray) -> bool:
         seg = np.linalg.norm(np.diff(route, axis=0), axis=1)
@@ -163,6 +166,7 @@ class AirGuard:
         arc = np.clip(self._sphere_arc(up_a, up_b), self.box[0], self.box[1])
         route = np.vstack([[p_end, up_a], arc, [up_b, p_start]])
         if not self._clear(route[1:-1]):
+            self.near_part.append((np.array(p_end, float), np.array(p_start, float)))
             log.warning("no air route found within %.0f mm of the part's bounding box between (%s) and (%s); "
                         "the link may pass closer than half the clearance", 1e3 * self.margin,
                         np.round(p_end, 3).tolist(), np.round(p_start, 3).tolist())
@@ -194,9 +198,21 @@ def route_links(toolpath: ToolPath, *, clearance: float, pad_radius: float = DEF
         raise InputError(f"clearance must be a positive length in m, got {clearance!r}")
     guard = AirGuard(toolpath.surface, clearance, pad_radius=pad_radius)
     passes = toolpath.passes
-    links = [Link(guard.route(a.points[-1], a.normals[-1] / np.linalg.norm(a.normals[-1]),
-                              b.points[0], b.normals[0] / np.linalg.norm(b.normals[0])))
-             for a, b in zip(passes[:-1], passes[1:])]
+    links, near = [], []
+    for i, (a, b) in enumerate(zip(passes[:-1], passes[1:])):
+        known = len(guard.near_part)
+        links.append(Link(guard.route(a.points[-1], a.normals[-1] / np.linalg.norm(a.normals[-1]),
+                                      b.points[0], b.normals[0] / np.linalg.norm(b.normals[0]))))
+        if len(guard.near_part) > known:
+            near.append(i + 1)                            # the pass it leaves, counted from 1
     meta = dict(toolpath.metadata, air_route_length_m=float(sum(link.length for link in links)),
                 air_route_clearance_m=float(clearance))
+    if near:
+        # into the job's warnings (and its report), not only the log
+        where = ", ".join(str(i) for i in near[:10]) + (", ..." if len(near) > 10 else "")
+        meta["warnings"] = [*meta.get("warnings", []),
+                            f"{len(near)} of {len(links)} air moves pass closer than half the clearance "
+                            f"({0.5e3 * clearance:.0f} mm) to the part (after passes {where}): a pass ends in a fold "
+                            "or under an overhang the tool cannot lift clear of; check those moves in the cell (the log "
+                            "gives their ends), or plan another direction (--direction) so the passes end elsewhere"]
     return toolpath.replace(links=tuple(links), metadata=meta)
