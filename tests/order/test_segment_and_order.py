@@ -311,3 +311,28 @@ def test_air_moves_that_cannot_clear_the_part_are_a_job_warning():
     # in the open, no warning
     open_tp = route_links(ToolPath(floor, passes, "test"), clearance=0.02)
     assert "warnings" not in open_tp.metadata
+
+
+def test_a_route_round_a_fin_under_a_roof_goes_out_sideways():
+    """Two pass ends on a floor, on either side of a fin that rises to a roof 60 mm up; the fin and
+    the roof close everything but the sides.  Straight across, up, along the normals and away from
+    the centre all run into the part; a direction from the spread-out set leads round the fin's end,
+    clear of the part and inside the reach box."""
+    from swath.examples.parts import grid_faces
+    from swath.order.routing import AirGuard
+
+    floor, roof = flat_plate(size_x=0.2, size_y=0.1, spacing=0.01), flat_plate(size_x=0.2, size_y=0.1, spacing=0.01)
+    y, z = np.meshgrid(np.linspace(0, 0.1, 11), np.linspace(0, 0.06, 7), indexing="ij")
+    fin = np.stack([np.full(y.size, 0.1), y.ravel(), z.ravel()], axis=1)
+    parts = [floor.vertices, roof.vertices + [0.0, 0.0, 0.06], fin]
+    offsets = np.cumsum([0] + [len(p) for p in parts])
+    faces = [floor.faces + offsets[0], roof.faces[:, ::-1] + offsets[1], grid_faces(11, 7) + offsets[2]]
+    surface = Surface(np.vstack(parts), np.vstack(faces), name="fin under a roof")
+    guard = AirGuard(surface, 0.02, pad_radius=0.03)
+    up = np.array([0.0, 0.0, 1.0])
+    a, b = np.array([0.05, 0.05, 0.0]), np.array([0.15, 0.05, 0.0])
+    route = guard.route(a, up, b, up)
+    assert guard._clear(route[1:-1]) and not guard.near_part
+    np.testing.assert_allclose(route[[1, -2]], [a + 0.02 * up, b + 0.02 * up])
+    assert (route >= guard.box[0] - 1e-12).all() and (route <= guard.box[1] + 1e-12).all()
+    assert route[2:4, 1].min() < 0.0 or route[2:4, 1].max() > 0.1         # round the fin's end

@@ -22,14 +22,29 @@ log = logging.getLogger(__name__)
 DEFAULT_PAD_RADIUS = 0.0381
 
 
+def _fibonacci_sphere(n: int) -> np.ndarray:
+    """``n`` unit vectors ``(n, 3)`` spread evenly over the sphere (a Fibonacci lattice)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    phi = np.pi * (3.0 - np.sqrt(5.0)) * k
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+_SPHERE = _fibonacci_sphere(64)
+
+
 class AirGuard:
     """Finds air routes between passes that keep clear of the part and stay near it.
 
     Every waypoint lies inside the part's bounding box grown by ``pad_radius + clearance`` (the
-    *reach box*): a lifted route rises along the mean normal of its two ends, the part's best-fit
-    normal or away from the part's centre, by heights that double from the clearance up to the
-    reach box's face; the last resort runs round the part on the sphere about it, pulled into the
-    reach box.  (Before, lifts doubled up to four times the part's half-diagonal and the last resort
+    *reach box*): the tool lifts off along the surface normal (tilted where that runs into the
+    part, :meth:`_lift`), and a lifted route rises along the mean normal of its two ends, the part's
+    best-fit normal, away from the part's centre or, where those all run into the part, one of 64
+    directions spread over the sphere, by heights that double from the clearance up to the reach
+    box's face; the last resort runs round the part on the sphere about it, pulled into the reach
+    box.  Routes that still pass closer than half the clearance are logged and listed in
+    :attr:`near_part`.  (Before, lifts doubled up to four times the part's half-diagonal and the last resort
     ran on a sphere outside the box: on a 2 m panel that put air moves 1.8 m beyond the part.)
 
     Parameters
@@ -155,7 +170,11 @@ class AirGuard:
         out = mid - self.center
         if np.linalg.norm(out) > 1e-9:
             dirs.append(out / np.linalg.norm(out))
-        for u in dirs:
+        # then 64 directions spread over the sphere, nearest the first choice first: where a scan
+        # folds over the pass ends all three can run into it (bezier_dac_scan: a tenth of all
+        # directions clears such a link, none of the three)
+        fan = _SPHERE[np.argsort(-(_SPHERE @ dirs[0]), kind="stable")]
+        for u in [*dirs, *fan]:
             h_max = min(self._reach(up_a, u), self._reach(up_b, u))
             heights = [h for h in c * 2.0 ** np.arange(40) if h < h_max] + ([h_max] if h_max > 0 else [])
             for h in heights:
