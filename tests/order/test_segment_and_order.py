@@ -308,9 +308,10 @@ def test_air_moves_that_cannot_clear_the_part_are_a_job_warning():
     tp = route_links(ToolPath(surface, passes, "test"), clearance=0.02)
     (warning,) = tp.metadata["warnings"]
     assert warning.startswith("1 of 1 air moves pass closer than half the clearance (10 mm)") and "after passes 1)" in warning
+    assert tp.metadata["air_moves_near_part_count"] == 1
     # in the open, no warning
     open_tp = route_links(ToolPath(floor, passes, "test"), clearance=0.02)
-    assert "warnings" not in open_tp.metadata
+    assert "warnings" not in open_tp.metadata and open_tp.metadata["air_moves_near_part_count"] == 0
 
 
 def test_a_route_round_a_fin_under_a_roof_goes_out_sideways():

@@ -212,7 +212,9 @@ class AirGuard:
 def route_links(toolpath: ToolPath, *, clearance: float, pad_radius: float = DEFAULT_PAD_RADIUS) -> ToolPath:
     """``toolpath`` with an air route (:class:`~swath.core.Link`) between every two consecutive passes:
     up ``clearance`` (m) along the surface normal, across clear of the part and inside its bounding
-    box grown by ``pad_radius + clearance``, and down (:class:`AirGuard`)."""
+    box grown by ``pad_radius + clearance``, and down (:class:`AirGuard`).  The metadata gains
+    ``air_route_length_m``, ``air_route_clearance_m`` and ``air_moves_near_part_count`` (routes that
+    pass closer than half the clearance: each also a warning naming the pass it leaves)."""
     if not (np.isfinite(clearance) and clearance > 0):
         raise InputError(f"clearance must be a positive length in m, got {clearance!r}")
     guard = AirGuard(toolpath.surface, clearance, pad_radius=pad_radius)
@@ -225,7 +227,7 @@ def route_links(toolpath: ToolPath, *, clearance: float, pad_radius: float = DEF
         if len(guard.near_part) > known:
             near.append(i + 1)                            # the pass it leaves, counted from 1
     meta = dict(toolpath.metadata, air_route_length_m=float(sum(link.length for link in links)),
-                air_route_clearance_m=float(clearance))
+                air_route_clearance_m=float(clearance), air_moves_near_part_count=len(near))
     if near:
         # into the job's warnings (and its report), not only the log
         where = ", ".join(str(i) for i in near[:10]) + (", ..." if len(near) > 10 else "")
