@@ -44,8 +44,9 @@ class AirGuard:
     directions spread over the sphere, by heights that double from the clearance up to the reach
     box's face; the last resort runs round the part on the sphere about it, pulled into the reach
     box.  Routes that still pass closer than half the clearance are logged and listed in
-    :attr:`near_part`.  (Before, lifts doubled up to four times the part's half-diagonal and the last resort
-    ran on a sphere outside the box: on a 2 m panel that put air moves 1.8 m beyond the part.)
+    :attr:`near_part`.  (Before, lifts doubled up to four times the part's half-diagonal and the
+    last resort ran on a sphere outside the box: on a 2 m panel that put air moves 1.8 m beyond
+    the part.)
 
     Parameters
     ----------
@@ -133,7 +134,8 @@ class AirGuard:
         sides, within 60° of ``n``, whose lift keeps clear.  None clear: along ``n`` (the route's
         search then says so)."""
         c = self.clearance
-        tries = [n]
+        tries = [n]                                  # as given first: the lift every route had before
+        n = n / max(float(np.linalg.norm(n)), 1e-12)
         away = p - self.center
         away = away / max(float(np.linalg.norm(away)), 1e-12)
         e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -150,10 +152,10 @@ class AirGuard:
             # its upper quarter keeps clear (lower, a scan's noisy normal tilts the lift toward the
             # surface near its foot: 10° puts 10 mm along it 9.95 mm high); tilted lifts start
             # where they are 0.6 of the clearance high on a flat surface
-            s0 = min(max(0.75, 0.6 / float(u @ n)), 1.0)
+            s0 = min(max(0.75, 0.6 / max(float(u @ n), 1e-12)), 1.0)
             if self._clear(np.array([p + s0 * c * u, p + c * u])):
                 return p + c * u
-        return p + c * n
+        return p + c * tries[0]
 
     def _route(self, p_end, n_end, p_start, n_start) -> np.ndarray:
         c = self.clearance
