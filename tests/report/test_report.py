@@ -84,9 +84,13 @@ def make_job(surface=None):
     area = sampled.vertex_areas
     mean = np.average(depth[covered], weights=area[covered])
     std = np.sqrt(np.average((depth[covered] - mean) ** 2, weights=area[covered]))
+    inner = sampled.farther_from_boundary(PAD_RADIUS)
+    mean_i = np.average(depth[inner], weights=area[inner])
+    std_i = np.sqrt(np.average((depth[inner] - mean_i) ** 2, weights=area[inner]))
     metrics = {
         "coverage_fraction": np.float64(area[covered].sum() / area.sum()),
         "removal_cov": np.float64(std / mean),
+        "interior_removal_cov": np.float64(std_i / mean_i),
         "mean_depth_m": np.float64(mean),
         "contact_length_m": traj.contact_length,
         "air_length_m": traj.air_length,
@@ -288,6 +292,9 @@ def test_write_report_outputs_offline_html(tmp_path, job):
     assert "raster" in text and surface.name in text
     cov = float(metrics["coverage_fraction"]) * 100
     assert f"{cov:.1f} %" in text or f"{cov:.3g} %" in text
+    # the CoV inside the edge band, explained and in the table
+    inner = float(metrics["interior_removal_cov"]) * 100
+    assert "interior removal CoV" in text and (f"{inner:.1f} %" in text or f"{inner:.3g} %" in text)
     assert len(text.encode()) < 8e6
 
 

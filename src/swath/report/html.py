@@ -392,7 +392,9 @@ most {shown} faces for display; the figures and metrics use the full sampling.</
 <section><h2>Summary</h2>
 <p class="note">Each figure's unit is part of its key name (m, s, fraction, …); values are shown here in
 handier units. Fractions are shown in per cent; "CoV" is the standard deviation of the removal depth
-divided by its mean over the covered area; the coverage lower bound is the surface area divided by the
+divided by its mean over the covered area, "interior removal CoV" the same over the part more than a pad
+radius in from its edge (untouched points included; the band where the pad hangs over is left out); the
+coverage lower bound is the surface area divided by the
 widest swath the pad can make, the shortest contact path that could cover the part, and "efficiency" relates
 it to the path actually run (100 % cannot be beaten).</p>
 <div class="tables">{_table({k: v for k, v in metrics.items() if k != "warnings"}, "Metrics")}{_table(settings, "Settings")}</div></section>
