@@ -372,6 +372,12 @@ def _pose_force(trajectory, force, idx: np.ndarray) -> np.ndarray:
     return np.where(den > 0, num / np.maximum(den, 1e-300), force[idx])
 
 
+def _weighted_mean_std(values: np.ndarray, weights: np.ndarray) -> tuple[float, float]:
+    """Weighted mean and standard deviation of ``values`` ``(k,)`` (``weights`` ``(k,)``, not all 0)."""
+    mean = float(np.average(values, weights=weights))
+    return mean, float(np.sqrt(np.average((values - mean) ** 2, weights=weights)))
+
+
 def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
     """Every figure of a plan, keys with units.
 
@@ -392,8 +398,7 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
     total = float(a.sum())
     if cov.any():
         w = a[cov]
-        mean = float(np.average(d[cov], weights=w))
-        std = float(np.sqrt(np.average((d[cov] - mean) ** 2, weights=w)))
+        mean, std = _weighted_mean_std(d[cov], w)
         order = np.argsort(d[cov])
         cdf = np.cumsum(w[order]) / w.sum()
         pct = lambda q: float(d[cov][order][min(int(np.searchsorted(cdf, q)), len(order) - 1)])
@@ -404,13 +409,11 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
         # The trajectory never touched the part: no depth statistics (NaN), zero coverage.
         mean = std = median = effective = p5 = p95 = float("nan")
     inner = removal.surface.farther_from_boundary(tool.pad_radius)
+    cov_interior = float("nan")
     if inner.any() and len(d):
-        wi = a[inner]
-        mean_i = float(np.average(d[inner], weights=wi))
-        std_i = float(np.sqrt(np.average((d[inner] - mean_i) ** 2, weights=wi)))
-        cov_interior = std_i / mean_i if mean_i > 0 else float("nan")
-    else:
-        cov_interior = float("nan")
+        mean_i, std_i = _weighted_mean_std(d[inner], a[inner])
+        if mean_i > 0:
+            cov_interior = std_i / mean_i
     L_contact = trajectory.contact_length
     # L* over the whole part, and over the part the plan touched: efficiency compares the path run
     # with the shortest that could have covered what it covered, so it cannot pass 1 by leaving
