@@ -277,7 +277,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     say("timing trajectory", 0, 1)
-    trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
+    trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
     timings["trajectory_s"] = time.perf_counter() - t0
 
     extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
@@ -323,6 +323,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics.update(extra_metrics)
     if settings.calibration:
         metrics["preston_coefficient_per_Pa"] = tool.preston
+    # FORMATS.md: a deliberate tilt of the tool is stated in the job's metadata
+    metrics["lead_angle_rad"] = float(trajectory.metadata.get("lead_angle_rad", 0.0))
+    metrics["tool_tilt"] = str(trajectory.metadata.get("tool_tilt", "none (z = -surface normal)"))
     metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
     for w in metrics["warnings"]:
         log.warning("%s", w)

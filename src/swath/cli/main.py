@@ -103,6 +103,11 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="raster pass spacing for even removal: ripple (the spacing whose summed pad "
                         "cross-profiles are flattest, path within 1.5x the coverage bound; with --planner uniform its overlap), greedy (Wang's pattern "
                         "search, pass by pass, against the target) or joint (equal spacing and feed together)")
+    e.add_argument("--lead-angle",
+                   help="tilt the pad about the axis across the feed in contact, its leading edge lifted, e.g. "
+                        "7deg; auto: the angle at which half the pad presses on a flat part (7.0 deg for the "
+                        "default pad), which turns each pass's removal profile from a semicircle into a "
+                        "parabola and halves the ripple between passes (default 0: z along minus the normal)")
     e.add_argument("--feed-simulate-check", action=argparse.BooleanOptionalAction, default=None,
                    help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "
                         "simulator finds more than the target plus the tolerance (up to 6 rounds; default on)")

@@ -60,6 +60,9 @@ class JobSettings:
     max_angular: float | None = DEFAULT_LIMITS["max_angular"]
     max_accel: float | None = DEFAULT_LIMITS["max_accel"]
     overlap: float | None = None
+    # tilt of the pad about the axis across the feed in contact, rad; None ("auto"): half the pad
+    # presses on a flat part (Tool.half_pad_lead)
+    lead_angle: float | None = 0.0
     join_gap: float | None = None
     # Single passes by default: each pass picks its own direction, so a one-way sweep (return moves,
     # no 180-degree turns at 1 rad/s) can win over a region's snake (example:hub: 131 s vs 186 s).
@@ -123,6 +126,11 @@ class JobSettings:
             out.append(TangentialAccelLimit(self.max_accel))
         return out
 
+    def lead(self) -> float:
+        """The lead angle (rad) the trajectory tilts the tool by in contact: ``lead_angle``, or for
+        ``auto`` the angle at which half the pad presses on a flat part (``Tool.half_pad_lead``)."""
+        return self.tool().half_pad_lead if self.lead_angle is None else float(self.lead_angle)
+
     def links(self):
         """How the tool moves between passes."""
         from ..trajectory import LinkSettings
@@ -142,6 +150,7 @@ class JobSettings:
             "direction_rad": self.direction, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
             "max_centripetal_m_per_s2": self.max_centripetal, "max_angular_rad_per_s": self.max_angular,
             "max_accel_m_per_s2": self.max_accel, "overlap_fraction": self.overlap,
+            "lead_angle_rad": self.lead(),
             "fit": self.fit, "fit_parameterization": self.parameterization,
             "surface_spacing_m": self.surface_spacing,
             **{f"planner_{k}": v for k, v in self.planner_options.items()},
@@ -230,6 +239,7 @@ SCHEMA: dict[str, Key] = {
     "max_angular": Key("angular_speed", positive=True, off=True),
     "max_accel": Key("acceleration", positive=True, off=True),
     "overlap": Key("fraction", lo=0.0, hi=0.9),
+    "lead_angle": Key("angle", auto=True, lo=-math.pi / 4, hi=math.pi / 4),
     "planner_options": Key("table"),
     "fit": Key("bool"), "parameterization": Key("str", choices=("auto", "projection", "lscm", "rows")),
     "memory_budget": Key("str"),

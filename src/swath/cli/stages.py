@@ -121,7 +121,7 @@ def job_target(settings):
 def spacing_plan(surface, tool, planner, settings, arguments: dict):
     """Raster passes placed by ``settings.optimise_spacing``: ``ripple`` plans the raster at the
     spacing whose summed pad cross-profiles are flattest with the path within 1.5x the coverage
-    bound (:func:`swath.feed.ripple_spacing`), or the uniform planner at the overlap that gives that
+    bound (:func:`swath.feed.ripple_spacing`, for the pad at the job's lead angle), or the uniform planner at the overlap that gives that
     spacing over the local swath width (:func:`swath.feed.ripple_overlap`); ``greedy`` and ``joint`` place the planes against the
     job's target depth (:func:`swath.feed.greedy_offsets`, :func:`swath.feed.joint_spacing`) in the
     raster's direction (its automatic choice when none is given).  The feed stage then optimises
@@ -132,11 +132,11 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict):
     if method == "ripple" and settings.planner == "uniform":
         # the uniform planner spaces passes by overlap of the local swath width: keep d / w at the
         # ratio the ripple analysis chose (on a plane w = 2R and the spacing is ripple_spacing's)
-        overlap = ripple_overlap(tool)
+        overlap = ripple_overlap(tool, lead_angle=settings.lead())
         log.info("ripple overlap %.3f of the swath width", overlap)
         return planner(surface, tool, **{**arguments, "overlap": overlap})
     if method == "ripple":
-        spacing, cov = ripple_spacing(tool)
+        spacing, cov = ripple_spacing(tool, lead_angle=settings.lead())
         log.info("ripple spacing %.1f mm (pad cross-profile ripple CoV %.3f on a plane)", spacing * 1e3, cov)
         return planner(surface, tool, **{**arguments, "spacing": spacing})
     direction = arguments.get("direction")
@@ -190,8 +190,8 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None
             say(f"optimising the feed: {stage}", done, total)
 
     result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory,
-                           simulate=simulate, progress=report)
-    timed = time_path(toolpath, constraints + [result.profile], links=settings.links())
+                           simulate=simulate, progress=report, lead_angle=settings.lead())
+    timed = time_path(toolpath, constraints + [result.profile], links=settings.links(), lead_angle=settings.lead())
     metrics = {k if k.startswith("feed") else f"feed_{k}": v for k, v in result.metrics.items()
                if isinstance(v, (int, float, str, bool))}
     return timed, result, metrics

@@ -77,6 +77,23 @@ class Tool:
         return self.force / (self._k * math.pi * self.pad_radius**2)
 
     @property
+    def half_pad_lead(self) -> float:
+        """The lead angle (rad) at which the pad, pressed on a plane at ``force``, touches it on
+        exactly half its face (its trailing half): 6.97° for the default 1 mm on a 38.1 mm pad.
+
+        Tilted by ``θ`` about the axis across the feed (the leading edge raised), the pad face lies
+        ``h = s − u sin θ`` under a plane point ``u`` ahead of the TCP, and the points within ``R`` of
+        the tool axis form an ellipse ``(u cos θ)² + v² <= R²``.  The force balance
+        ``F = k ∫ h⁺ dA`` puts the contact's front edge through the TCP (``s = 0``) when
+        ``F = k (sin θ / cos² θ) · 2R³/3``, i.e. ``sin θ / cos² θ = q = 3π e / (2R)`` (``e`` the
+        depression on flat), solved as ``sin θ = (√(1 + 4q²) − 1) / (2q)``.  The pressure then
+        falls linearly from the trailing rim to zero at the centre line, and a straight pass of an
+        orbital pad removes the parabola ``∝ R² − y²`` across its width instead of the untilted
+        pad's semicircle (:func:`swath.feed.ripple.cross_profile`)."""
+        q = 3.0 * math.pi * self.flat_depression / (2.0 * self.pad_radius)
+        return math.asin((math.sqrt(1.0 + 4.0 * q * q) - 1.0) / (2.0 * q))
+
+    @property
     def pad_area(self) -> float:
         """Pad face area ``π R²``, m²."""
         return math.pi * self.pad_radius**2

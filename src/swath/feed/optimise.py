@@ -107,7 +107,7 @@ def dwell_to_profile(toolpath: ToolPath, nodes, dwell: np.ndarray) -> FeedProfil
 
 
 def _time_dwell(toolpath, nodes, dwell: np.ndarray, *, cons: list, v_min: float, v_max: float, heading_scale: float,
-                rounds: int, ratio_tolerance: float):
+                lead_angle: float, rounds: int, ratio_tolerance: float):
     """The feed profile that makes :func:`swath.trajectory.time_path` spend ``dwell`` (s) in each node:
     the node feeds, corrected by the timed-to-planned dwell ratio for at most ``rounds`` rounds.
     Returns ``(profile, timed_ratio or None, last timed trajectory or None, command)`` with
@@ -118,7 +118,7 @@ def _time_dwell(toolpath, nodes, dwell: np.ndarray, *, cons: list, v_min: float,
     for _ in range(max(0, int(rounds))):
         from ..trajectory import time_path
 
-        traj = time_path(toolpath, cons + [profile], heading_scale=heading_scale)
+        traj = time_path(toolpath, cons + [profile], heading_scale=heading_scale, lead_angle=lead_angle)
         timed = trajectory_node_dwell(traj, nodes, toolpath)
         timed_ratio = np.where(dwell > 0, timed / dwell, 1.0)
         if np.abs(timed_ratio - 1).max() <= ratio_tolerance:
@@ -176,7 +176,8 @@ def _trim_over(kernel: RemovalKernel, toolpath, traj, command: np.ndarray, faste
             break
         command, trimmed = new, True
         profile = dwell_to_profile(toolpath, nodes, nodes.length / command)
-        traj = time_path(toolpath, timing["cons"] + [profile], heading_scale=timing["heading_scale"])
+        traj = time_path(toolpath, timing["cons"] + [profile], heading_scale=timing["heading_scale"],
+                         lead_angle=timing["lead_angle"])
         if progress is not None:
             progress("trim", k, rounds)
         t0 = time.perf_counter()
@@ -281,7 +282,8 @@ def removal_stats(depth: np.ndarray, target: np.ndarray, areas: np.ndarray, mask
 def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: float, mode: str = "match",
                   objective: str = "l1", v_min: float | None = None, boundary_margin: float | None = None,
                   kernel: RemovalKernel | None = None, node_spacing: float | None = None,
-                  sample_spacing: float | None = None, heading_scale: float = 5e-3, time_limit: float = 600.0,
+                  sample_spacing: float | None = None, heading_scale: float = 5e-3, lead_angle: float = 0.0,
+                  time_limit: float = 600.0,
                   region: np.ndarray | None = None, smoothing: float = 2e-2, time_weight: float = 1e-3,
                   cap_margin: float = 0.5, model_error: float = 0.10, round_slack: float = 0.1,
                   max_rows: int = 5000, timing_rounds: int = 5, ratio_tolerance: float = 0.01, trajectory=None,
@@ -315,6 +317,11 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         ``sample_spacing``, m).
     heading_scale : float
         As in :func:`swath.trajectory.time_path`, m (for the angular-speed caps).
+    lead_angle : float
+        As in :func:`swath.trajectory.time_path`, rad: the tilt every timing here uses.  When it is
+        not 0 the kernel is built on the poses of ``toolpath`` timed with it (the tilted pad presses
+        elsewhere than the untilted one), unless ``kernel`` or ``trajectory`` is given; a given
+        ``trajectory`` must carry the same lead angle.
     region : (S,) bool, optional
         Kernel samples to match (instead of every touched sample ``boundary_margin`` in).
     cap_margin : float
@@ -434,7 +441,19 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     if not (0 <= round_slack < 1):
         raise InputError(f"round_slack must lie in [0, 1), got {round_slack!r}")
     margin = tool.pad_radius if boundary_margin is None else float(boundary_margin)
+    from ..trajectory.timing import check_lead_angle
+
+    lead_angle = check_lead_angle(lead_angle)
+    if trajectory is not None and float(trajectory.metadata.get("lead_angle_rad", 0.0)) != lead_angle:
+        raise InputError(f"the trajectory given for the kernel was timed with a lead angle of "
+                         f"{trajectory.metadata.get('lead_angle_rad', 0.0)!r} rad, not the {lead_angle!r} rad asked for; "
+                         "time it with the same lead_angle")
     t0 = time.perf_counter()
+    if kernel is None and trajectory is None and lead_angle != 0.0:
+        from ..trajectory import time_path
+
+        # the kernel must see the tilted pad: its poses from the plan timed with the lead
+        trajectory = time_path(toolpath, list(cons.values()), heading_scale=heading_scale, lead_angle=lead_angle)
     if kernel is None:
         cb = None if progress is None else (lambda done, total: progress("kernel", done, total))
         kernel = build_kernel(toolpath, tool, node_spacing=node_spacing, sample_spacing=sample_spacing,
@@ -448,7 +467,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         # longer than Δs / cap at any command; the programme must know (else those nodes over-grind)
         from ..trajectory import time_path
 
-        fastest_traj = time_path(toolpath, list(cons.values()), heading_scale=heading_scale)
+        fastest_traj = time_path(toolpath, list(cons.values()), heading_scale=heading_scale, lead_angle=lead_angle)
         floor = trajectory_node_dwell(fastest_traj, nodes, toolpath)
         caps = np.clip(np.minimum(caps, nodes.length / np.maximum(floor, 1e-12)), v_min, v_max)
     t_min, t_max = nodes.length / caps, nodes.length / v_min
@@ -491,7 +510,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     held: dict = {}                 # the samples the programme held at its cap, for the re-solves
     dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, found=held, **solve_kw)
     t_solve = time.perf_counter() - t1
-    timing = dict(cons=list(cons.values()), v_min=v_min, v_max=v_max, heading_scale=heading_scale,
+    timing = dict(cons=list(cons.values()), v_min=v_min, v_max=v_max, heading_scale=heading_scale, lead_angle=lead_angle,
                   rounds=timing_rounds, ratio_tolerance=ratio_tolerance)
     profile, timed_ratio, traj, command = _time_dwell(toolpath, nodes, dwell, **timing)
     sim_rounds: list[dict] = []
@@ -504,7 +523,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             if traj is None:
                 from ..trajectory import time_path
 
-                traj = time_path(toolpath, timing["cons"] + [profile], heading_scale=heading_scale)
+                traj = time_path(toolpath, timing["cons"] + [profile], heading_scale=heading_scale, lead_angle=lead_angle)
             if progress is not None:
                 progress("simulate", rnd, simulate_rounds + 1)
             t3 = time.perf_counter()

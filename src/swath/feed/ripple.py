@@ -42,6 +42,8 @@ a wavelength of about ``R`` that turns the tool far faster than the angular-spee
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..contact import Tool
@@ -52,12 +54,17 @@ _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(48)
 _CHORD_NODES, _CHORD_WEIGHTS = 0.5 * (_NODES + 1.0), _WEIGHTS
 
 
-def cross_profile(tool: Tool, offsets, *, speed: float = 1.0) -> np.ndarray:
+def cross_profile(tool: Tool, offsets, *, speed: float = 1.0, lead_angle: float = 0.0) -> np.ndarray:
     """Depth (m) removed at lateral ``offsets`` (m, ``(k,)``) from a straight pass on a plane
-    crossed at ``speed`` (m/s): the chord integral of the Preston rate under the flat pad."""
+    crossed at ``speed`` (m/s): the chord integral of the Preston rate under the flat pad.
+
+    ``lead_angle`` (rad) tilts the pad about the axis across the feed, as
+    :func:`swath.trajectory.time_path` does (:func:`_tilted_profile`); 0 is the pad pressed flat."""
     y = np.abs(np.asarray(offsets, float))
     if not (np.isfinite(speed) and speed > 0):
         raise InputError(f"speed must be a positive speed in m/s, got {speed!r}")
+    if lead_angle != 0.0:
+        return _tilted_profile(tool, y, speed, float(lead_angle))
     R = tool.pad_radius
     pressure = tool.force / (np.pi * R * R)
     c = np.sqrt(np.clip(R * R - y * y, 0.0, None))
@@ -66,16 +73,62 @@ def cross_profile(tool: Tool, offsets, *, speed: float = 1.0) -> np.ndarray:
     return tool.preston * pressure / speed * (c * (rate * _CHORD_WEIGHTS[None, :]).sum(axis=1))
 
 
-def ripple_cov(tool: Tool, spacing: float, *, n: int = 512) -> float:
+def tilted_sink(tool: Tool, lead_angle: float) -> float:
+    """The sink ``s`` (m) of a pad tilted by ``lead_angle`` (rad) on a plane: the root of the force
+    balance ``F = (k / cos θ) ∫∫_disc (s − x tan θ)⁺ dx dy`` (the disc in the pad's own
+    coordinates; ``x = u cos θ`` for a plane point ``u`` ahead of the TCP).  0 at
+    ``Tool.half_pad_lead``; the depression on flat at 0.
+
+    With ``c = s / tan θ`` the contact is the disc's part ``x < c``, and the integral is
+    ``tan θ · (c A(c) + (2/3)(R² − c²)^{3/2})``, ``A(c) = c √(R² − c²) + R² (asin(c/R) + π/2)``
+    the area of that part; once ``c >= R`` the whole pad touches and it is ``π R² s``."""
+    from scipy.optimize import brentq
+
+    R, t = tool.pad_radius, abs(math.tan(lead_angle))
+    need = tool.force * math.cos(lead_angle) / tool.k
+    whole = need / (math.pi * R * R)
+    if whole >= R * t:                        # the whole pad touches (no tilt, or a small one)
+        return whole
+
+    def excess(c):
+        root = math.sqrt(max(R * R - c * c, 0.0))
+        area = c * root + R * R * (math.asin(max(-1.0, min(1.0, c / R))) + 0.5 * math.pi)
+        return t * (c * area + (2.0 / 3.0) * root**3) - need
+
+    return t * float(brentq(excess, -R, R, xtol=1e-15 * R, rtol=1e-15))
+
+
+def _tilted_profile(tool: Tool, y: np.ndarray, speed: float, lead: float) -> np.ndarray:
+    """:func:`cross_profile` of a pad tilted by ``lead`` (rad) about the axis across the feed: at
+    ``x`` along the feed (pad coordinates) the pressure is ``k (s − x tan θ)⁺``, ``s`` from
+    :func:`tilted_sink`, and a pass over the plane point at ``u = x / cos θ`` lasts ``du / v``.
+    Integrated exactly up to the contact's straight edge ``x = s / tan θ`` (Gauss-Legendre on the
+    chord's touching part, where the integrand is smooth)."""
+    R, t = tool.pad_radius, math.tan(abs(lead))
+    s = tilted_sink(tool, lead)
+    w = np.sqrt(np.clip(R * R - y * y, 0.0, None))                 # half chord at offset y
+    edge = s / t                                                     # contact where x < edge
+    lo, hi = -w, np.minimum(w, edge)
+    span = np.clip(hi - lo, 0.0, None)
+    x = lo[:, None] + span[:, None] * _CHORD_NODES[None, :]
+    h = np.clip(s - x * t, 0.0, None)
+    rate = tool.relative_speed(np.sqrt(x * x + y[:, None] ** 2))
+    integral = span * (h * rate * _CHORD_WEIGHTS[None, :]).sum(axis=1)
+    # _CHORD_WEIGHTS sum to 2 over [0, 1]: half of that is the unit interval's measure
+    return tool.preston * tool.k / (speed * math.cos(lead)) * 0.5 * integral
+
+
+def ripple_cov(tool: Tool, spacing: float, *, n: int = 512, lead_angle: float = 0.0) -> float:
     """Coefficient of variation of the summed cross-profiles of infinitely many parallel passes
-    ``spacing`` (m) apart, all at the same feed (over one period, ``n`` points)."""
+    ``spacing`` (m) apart, all at the same feed (over one period, ``n`` points), the pad tilted by
+    ``lead_angle`` (rad, :func:`cross_profile`)."""
     d = float(spacing)
     if not (np.isfinite(d) and d > 0):
         raise InputError(f"spacing must be a positive length in m, got {spacing!r}")
-    return lattice_cov(tool, [0.0], [1.0], d, n=n)
+    return lattice_cov(tool, [0.0], [1.0], d, n=n, lead_angle=lead_angle)
 
 
-def lattice_cov(tool: Tool, offsets, weights, period: float, *, n: int = 1024) -> float:
+def lattice_cov(tool: Tool, offsets, weights, period: float, *, n: int = 1024, lead_angle: float = 0.0) -> float:
     """Coefficient of variation of the summed cross-profiles of passes at ``offsets`` (m, ``(N,)``)
     across the feed, each with relative dwell ``weights`` (``(N,)``, >= 0: the pass's mean dwell per
     unit length), the pattern repeated every ``period`` (m) — over one period, ``n`` points.
@@ -96,7 +149,7 @@ def lattice_cov(tool: Tool, offsets, weights, period: float, *, n: int = 1024) -
     y = (np.arange(n) + 0.5) / n * P
     images = np.arange(-int(np.ceil(R / P)) - 1, int(np.ceil(R / P)) + 2) * P
     rel = (y[:, None, None] - y0[None, :, None] - images[None, None, :]).ravel()
-    total = (cross_profile(tool, rel).reshape(n, y0.size, -1).sum(axis=2) * w[None, :]).sum(axis=1)
+    total = (cross_profile(tool, rel, lead_angle=lead_angle).reshape(n, y0.size, -1).sum(axis=2) * w[None, :]).sum(axis=1)
     return float(total.std() / total.mean())
 
 
@@ -160,13 +213,14 @@ def weave_ripple_cov(tool: Tool, spacing: float, *, amplitude: float, wavelength
 
 
 def ripple_spacing(tool: Tool, *, max_length_ratio: float = 1.5, min_length_ratio: float = 1.0,
-                   steps: int = 61) -> tuple[float, float]:
+                   steps: int = 61, lead_angle: float = 0.0) -> tuple[float, float]:
     """The pass spacing (m) with the least ripple whose contact length ``2R / d`` lies within
     ``[min_length_ratio, max_length_ratio]`` times the coverage lower bound; returns
     ``(spacing, ripple CoV)``.
 
     A scan of ``steps`` spacings, then a golden-section refinement around the best (the CoV is
-    smooth in the spacing).
+    smooth in the spacing).  ``lead_angle`` (rad): the pad tilted as in :func:`cross_profile`
+    (at ``Tool.half_pad_lead`` the least ripple within 1.5 L* is 5.3 % at ``d = 1.40 R``).
     """
     if not (np.isfinite(max_length_ratio) and max_length_ratio >= min_length_ratio > 0):
         raise InputError(f"need 0 < min_length_ratio <= max_length_ratio, got {min_length_ratio!r}, "
@@ -174,22 +228,25 @@ def ripple_spacing(tool: Tool, *, max_length_ratio: float = 1.5, min_length_rati
     R = tool.pad_radius
     lo, hi = 2 * R / max_length_ratio, 2 * R / min_length_ratio
     grid = np.linspace(lo, hi, steps)
-    cov = np.array([ripple_cov(tool, d) for d in grid])
+    def ripple(d):
+        return ripple_cov(tool, d, lead_angle=lead_angle)
+
+    cov = np.array([ripple(d) for d in grid])
     k = int(np.argmin(cov))
     a, b = grid[max(k - 1, 0)], grid[min(k + 1, steps - 1)]
     g = (np.sqrt(5) - 1) / 2
     for _ in range(30):
         c1, c2 = b - g * (b - a), a + g * (b - a)
-        if ripple_cov(tool, c1) <= ripple_cov(tool, c2):
+        if ripple(c1) <= ripple(c2):
             b = c2
         else:
             a = c1
     d = 0.5 * (a + b)
-    best = (d, ripple_cov(tool, d))
+    best = (d, ripple(d))
     return best if best[1] <= cov[k] else (float(grid[k]), float(cov[k]))
 
 
-def ripple_overlap(tool: Tool, *, max_length_ratio: float = 1.5) -> float:
+def ripple_overlap(tool: Tool, *, max_length_ratio: float = 1.5, lead_angle: float = 0.0) -> float:
     """The swath overlap (fraction of the swath width) that puts neighbouring passes at the
     least-ripple spacing: ``1 − d* / (2R)``, ``d*`` from :func:`ripple_spacing`.
 
@@ -198,7 +255,7 @@ def ripple_overlap(tool: Tool, *, max_length_ratio: float = 1.5) -> float:
     the swath the spacing shrinks with it, keeping the ratio ``d / w`` the ripple analysis chose.
     Orbital pad: about 0.16; rotary pad: about 0.06 (``max_length_ratio`` 1.5).
     """
-    d, _ = ripple_spacing(tool, max_length_ratio=max_length_ratio)
+    d, _ = ripple_spacing(tool, max_length_ratio=max_length_ratio, lead_angle=lead_angle)
     return float(1.0 - d / (2.0 * tool.pad_radius))
 
 

@@ -4,6 +4,8 @@
 travel direction ``T`` — the Darboux frame ``(T, B = n × T, n)`` of the pass relabelled so that z
 points into the part and ``y = z × x``.  :func:`swath.trajectory.time_path` passes a travel
 direction smoothed over ``heading_scale`` (:func:`swath.trajectory.geometry.smoothed_directions`).
+:func:`with_lead` tilts those frames by a lead angle about their y-axis (a deliberate tilt,
+FORMATS.md: the pad's leading edge lifts off the part).
 """
 
 from __future__ import annotations
@@ -41,6 +43,19 @@ def tool_frames(normals: np.ndarray, tangents: np.ndarray) -> np.ndarray:
             x[i] = cand / np.linalg.norm(cand)
     y = np.cross(z, x)
     return np.stack([x, y, z], axis=2)
+
+
+def with_lead(frames: np.ndarray, lead: float) -> np.ndarray:
+    """The tool frames ``(k, 3, 3)`` turned by ``lead`` (rad) about their own y-axis:
+    ``x' = cos θ x − sin θ z``, ``z' = sin θ x + cos θ z``.
+
+    A positive lead lifts the pad's leading edge (``x'`` points out of the part) and leans the tool
+    axis ``z'`` toward the travel direction, so the pad presses with its trailing half.  The same
+    constant turn of every frame: the frames' angular velocity in the part frame is unchanged.
+    """
+    c, s = np.cos(lead), np.sin(lead)
+    turn = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    return frames @ turn
 
 
 def quaternions_from_frames(frames: np.ndarray) -> np.ndarray:

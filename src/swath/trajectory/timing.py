@@ -37,6 +37,15 @@ It equals the Darboux formula ``v·(τ_g T − κ_n B + κ_g n)`` (:func:`.geome
 the heading is not smoothed — ``tests/test_timing_limits.py`` checks one against the other on a
 helix on a cylinder (κ_g = 0, κ_n = −cos²α/R, τ_g = sinα cosα/R).
 
+Lead angle
+----------
+``time_path(..., lead_angle=θ)`` turns every contact frame by ``θ`` about its y-axis
+(:func:`.orientation.with_lead`): the pad's leading edge lifts and it presses with its trailing
+part (``Tool.half_pad_lead`` makes that exactly half the pad on a plane).  The TCP stays on the
+surface; the contact model finds the pad's sink for the tilted face.  The turn is the same for
+every frame, so ω, the angular-speed caps and the timing do not change.  The trajectory's
+metadata says so (``tool_tilt``, ``lead_angle_rad``), as FORMATS.md asks of a deliberate tilt.
+
 Links
 -----
 Approach, retract and air moves are rounded and timed with toppra (:mod:`.links`).
@@ -67,7 +76,7 @@ from .constraints import (
 )
 from .geometry import rotation_steps, smoothed_directions
 from .links import LinkSettings, time_link
-from .orientation import make_continuous, quaternions_from_frames, tool_frames
+from .orientation import make_continuous, quaternions_from_frames, tool_frames, with_lead
 from .trajectory import Trajectory
 
 log = logging.getLogger(__name__)
@@ -90,7 +99,7 @@ __all__ = ["FeedLimit", "FeedProfile", "CentripetalLimit", "AngularSpeedLimit", 
 
 
 def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | None = None,
-              heading_scale: float = 5e-3) -> Trajectory:
+              heading_scale: float = 5e-3, lead_angle: float = 0.0) -> Trajectory:
     """Turn ``toolpath`` into timed TCP poses.
 
     Parameters
@@ -105,6 +114,9 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
     heading_scale : float
         Gaussian scale, m, over which the tool's x-axis (heading) follows the travel direction
         (default 5 mm; 0 = the raw chord direction).
+    lead_angle : float
+        Tilt of the tool about its y-axis in contact, rad (default 0: ``z = −normal``); positive
+        lifts the pad's leading edge (module notes).  ``Tool.half_pad_lead`` presses half the pad.
 
     Returns
     -------
@@ -116,7 +128,7 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
     ------
     InputError
         On unknown or repeated constraints, a missing feed, an empty tool path, a feed profile that
-        does not match the passes, or a negative ``heading_scale``.
+        does not match the passes, a negative ``heading_scale`` or a lead angle outside ±45°.
     """
     cons = _collect([FeedLimit()] if constraints is None else constraints)
     links = LinkSettings() if links is None else links
@@ -125,6 +137,7 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
         raise InputError("the tool path has no passes to time")
     if not (np.isfinite(heading_scale) and heading_scale >= 0):
         raise InputError(f"heading_scale must be a length >= 0 in m, got {heading_scale!r}")
+    lead_angle = check_lead_angle(lead_angle)
     for c in cons.values():
         if hasattr(c, "check"):
             c.check(toolpath.passes)
@@ -136,7 +149,7 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
     # with another feed, as the feed optimisation does, asks for every link again)
     guard = AirGuard(surface, links.clearance, memo=surface_memo(surface, ("air routes", links.clearance), dict))
 
-    timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale)
+    timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale, lead_angle)
              for i, p in enumerate(toolpath.passes)]
     out: dict[str, list] = {k: [] for k in ("pos", "quat", "contact", "feed", "pass", "t", "omega")}
     clock = 0.0
@@ -177,7 +190,8 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
     t = np.concatenate(out["t"])
     omega = np.concatenate(out["omega"])
     meta = {"feed_m_per_s": feed, "clearance_m": links.clearance, "link_speed_m_per_s": links.speed,
-            "link_accel_m_per_s2": links.acceleration, "tool_tilt": "none (z = -surface normal)",
+            "link_accel_m_per_s2": links.acceleration, "tool_tilt": describe_lead(lead_angle),
+            "lead_angle_rad": lead_angle,
             "heading_scale_m": heading_scale, "contact_grid_step_m": step,
             "angular_velocity": "discrete derivative of the tool frames (part frame)",
             "link_timing": methods, "constraints": [_describe(c) for c in cons.values()]}
@@ -216,22 +230,45 @@ def _describe(c) -> dict:
     return d
 
 
-def _pass_geometry(p: Pass, surface, step: float, heading_scale: float) -> dict:
+def check_lead_angle(lead_angle) -> float:
+    """``lead_angle`` (rad) as a float, refused unless finite and within ±45° (a pad tilted further
+    presses on its rim alone)."""
+    try:
+        value = float(lead_angle)
+    except (TypeError, ValueError):
+        raise InputError(f"the lead angle must be an angle in rad, got {lead_angle!r}") from None
+    if not (np.isfinite(value) and abs(value) <= np.pi / 4):
+        raise InputError(f"the lead angle must lie within ±45° (±0.785 rad), got {lead_angle!r} rad")
+    return value
+
+
+def describe_lead(lead_angle: float) -> str:
+    """The ``tool_tilt`` line of a trajectory's metadata for a lead angle (rad)."""
+    if lead_angle == 0.0:
+        return "none (z = -surface normal)"
+    return (f"lead {np.degrees(lead_angle):.2f} deg about tool y in contact: z = -surface normal turned toward the "
+            f"travel direction, the pad's {'leading' if lead_angle > 0 else 'trailing'} edge lifted")
+
+
+def _pass_geometry(p: Pass, surface, step: float, heading_scale: float, lead_angle: float = 0.0) -> dict:
     """What timing a pass needs that no speed limit changes: its grid (arc length ``s`` (n,) m on
     the chords, points and unit normals (n, 3), fractional source index ``u`` (n,), step ``h`` m),
     the tool's quaternions (n, 4), the chord of each step ``ds`` (n-1,) m and the tool's rotation
     per metre on each step ``Omega`` (n-1, 3) rad/m and at each grid point ``rho_node`` (n,).
     ``ds``, ``Omega`` and ``rho_node`` are absent for a pass of zero length.
 
-    Kept with the pass (while it lives) for the same surface, grid step and heading scale, read-only:
-    the feed optimisation times the same passes with a new feed profile up to a dozen times."""
+    Kept with the pass (while it lives) for the same surface, grid step, heading scale and lead
+    angle, read-only: the feed optimisation times the same passes with a new feed profile up to a
+    dozen times."""
     known = _PASS_GEOMETRY.get(p)
-    if known is not None and known[0]() is surface and known[1] == (step, heading_scale):
+    if known is not None and known[0]() is surface and known[1] == (step, heading_scale, lead_angle):
         return known[2]
     s, pts, nrm, u = _grid(p, surface, step)
     s, pts, nrm, u = _refine(s, pts, nrm, u, surface)
     h = float(s[1] - s[0]) if len(s) > 1 else 0.0
     frames = tool_frames(nrm, smoothed_directions(pts, max(h, 1e-12), heading_scale))
+    if lead_angle != 0.0:
+        frames = with_lead(frames, lead_angle)
     g = {"s": s, "points": pts, "normals": nrm, "u": u, "h": h, "quaternion": quaternions_from_frames(frames)}
     if h > 1e-12:
         # The grid is uniform up to the projection of refined points; time with the true chords.
@@ -243,17 +280,18 @@ def _pass_geometry(p: Pass, surface, step: float, heading_scale: float) -> dict:
     for v in g.values():
         if isinstance(v, np.ndarray):
             v.setflags(write=False)
-    _PASS_GEOMETRY[p] = (weakref.ref(surface), (step, heading_scale), g)
+    _PASS_GEOMETRY[p] = (weakref.ref(surface), (step, heading_scale, lead_angle), g)
     return g
 
 
-#: :func:`_pass_geometry` of each pass: ``(surface weakref, (step, heading_scale), geometry)``.
+#: :func:`_pass_geometry` of each pass: ``(surface weakref, (step, heading_scale, lead_angle), geometry)``.
 _PASS_GEOMETRY: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _time_pass(index: int, p: Pass, surface, step: float, constraints: list, heading_scale: float) -> dict:
+def _time_pass(index: int, p: Pass, surface, step: float, constraints: list, heading_scale: float,
+               lead_angle: float = 0.0) -> dict:
     """Sample and time one contact pass (see the module notes)."""
-    g = _pass_geometry(p, surface, step, heading_scale)
+    g = _pass_geometry(p, surface, step, heading_scale, lead_angle)
     s, pts, nrm, u, h, quat = g["s"], g["points"], g["normals"], g["u"], g["h"], g["quaternion"]
     if h <= 1e-12:                                   # a pass of zero length: touch and go
         k = len(pts)
