@@ -213,13 +213,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import subprocess
 import sys
 import time
 
 import numpy as np
 
-from common import REPO, SHARED_MESH_UNITS, SHARED_MESHES, max_rss_mb, print_table
+from common import SHARED_MESH_UNITS, SHARED_MESHES, max_rss_mb, print_table, rows_per_part
 
 FEED = 0.05          # m/s
 TOL_FRACTION = 0.10
@@ -628,21 +627,7 @@ def main(argv):
         print_table([solve_one(argv[1], depth, slack)], SOLVE_COLUMNS)
         return
     names = argv or ["plate", "panel", "blade", *[f for f in SHARED_MESH_UNITS if (SHARED_MESHES / f).exists()]]
-    rows = []
-    for name in names:
-        proc = subprocess.run([sys.executable, __file__, "--one", name, *passed] + (["--simulate-loop"] if SIMULATE_LOOP else []),
-                              capture_output=True, text=True,
-                              cwd=REPO, timeout=3600)
-        line = next((l for l in proc.stdout.splitlines() if l.startswith("ROWS ")), None)
-        if line is None:
-            rows.append({"part": name, "run": "FAILED: " + (proc.stderr.strip().splitlines() or ["?"])[-1][:100]})
-        else:
-            rows.extend(json.loads(line[5:]))
-        print_table([r for r in rows if r.get("part") == name], COLUMNS)
-        sys.stdout.flush()
-    print()
-    print_table(rows, COLUMNS)
-
+    rows_per_part(__file__, names, COLUMNS, [*passed] + (["--simulate-loop"] if SIMULATE_LOOP else []))
 
 if __name__ == "__main__":
     main(sys.argv[1:])

@@ -29,14 +29,13 @@ Run: ``PYTHONPATH=src python benchmarks/bench_lead.py [plate panel blade noether
 from __future__ import annotations
 
 import json
-import subprocess
 import sys
 import time
 
 import numpy as np
 
 from bench_feed import CAP_MARGIN, FEED, MODEL_ERROR, TOL_FRACTION, _load
-from common import REPO, max_rss_mb, print_table
+from common import max_rss_mb, rows_per_part
 
 DEPTH_FACTOR = 3.0   # the target over the least depth both attitudes reach at the feed limit
 
@@ -97,20 +96,7 @@ def main(argv):
     if len(argv) >= 2 and argv[0] == "--one":
         print("ROWS " + json.dumps(run_one(argv[1])))
         return
-    rows = []
-    for name in argv or ["plate", "panel", "blade"]:
-        proc = subprocess.run([sys.executable, __file__, "--one", name], capture_output=True, text=True, cwd=REPO,
-                              timeout=3600)
-        line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("ROWS ")), None)
-        if line is None:
-            rows.append({"part": name, "run": "FAILED: " + (proc.stderr.strip().splitlines() or ["?"])[-1][:100]})
-        else:
-            rows.extend(json.loads(line[5:]))
-        print_table([r for r in rows if r.get("part") == name], COLUMNS)
-        sys.stdout.flush()
-    print()
-    print_table(rows, COLUMNS)
-
+    rows_per_part(__file__, argv or ["plate", "panel", "blade"], COLUMNS)
 
 if __name__ == "__main__":
     main(sys.argv[1:])

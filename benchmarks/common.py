@@ -57,3 +57,27 @@ def print_table(rows: list[dict], columns: list[tuple[str, str]]) -> None:
     print("  ".join(h.rjust(w) for h, w in zip(heads, widths)))
     for c in cells:
         print("  ".join(v.rjust(w) for v, w in zip(c, widths)))
+
+
+def rows_per_part(script: str, names: list[str], columns: list[tuple[str, str]], extra_args=()) -> list[dict]:
+    """Run ``script --one NAME *extra_args`` for every part name in its own process (so each part's
+    peak memory is its own), collect the rows it prints after ``ROWS `` (JSON), print each part's
+    table as it comes and all of them at the end; a part whose process fails gets a ``FAILED`` row
+    naming the error's last line."""
+    import json
+    import subprocess
+
+    rows: list[dict] = []
+    for name in names:
+        proc = subprocess.run([sys.executable, script, "--one", name, *extra_args], capture_output=True, text=True,
+                              cwd=REPO, timeout=3600)
+        line = next((ln for ln in proc.stdout.splitlines() if ln.startswith("ROWS ")), None)
+        if line is None:
+            rows.append({"part": name, "run": "FAILED: " + (proc.stderr.strip().splitlines() or ["?"])[-1][:100]})
+        else:
+            rows.extend(json.loads(line[5:]))
+        print_table([r for r in rows if r.get("part") == name], columns)
+        sys.stdout.flush()
+    print()
+    print_table(rows, columns)
+    return rows
