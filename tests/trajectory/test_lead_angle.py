@@ -62,6 +62,10 @@ def test_untilted_pad_is_unchanged():
     y = np.linspace(0.0, 1.1 * R, 7)
     np.testing.assert_array_equal(cross_profile(TOOL, y), cross_profile(TOOL, y, lead_angle=0.0))
     np.testing.assert_allclose(cross_profile(TOOL, y, lead_angle=1e-9), cross_profile(TOOL, y), rtol=1e-9)
+    # a trailing edge lifted instead removes the same profile (the mirror image along the pass)
+    theta = TOOL.half_pad_lead
+    np.testing.assert_allclose(cross_profile(TOOL, y, lead_angle=-theta), cross_profile(TOOL, y, lead_angle=theta),
+                               rtol=1e-12)
 
 
 def test_half_pad_profile_is_the_parabola_and_removes_the_same_volume():

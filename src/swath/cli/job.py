@@ -254,6 +254,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate import simulate_removal
     from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
+    from ..trajectory.timing import describe_lead
     from . import stages
     from .guard import check_budget
 
@@ -324,8 +325,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.calibration:
         metrics["preston_coefficient_per_Pa"] = tool.preston
     # FORMATS.md: a deliberate tilt of the tool is stated in the job's metadata
-    metrics["lead_angle_rad"] = float(trajectory.metadata.get("lead_angle_rad", 0.0))
-    metrics["tool_tilt"] = str(trajectory.metadata.get("tool_tilt", "none (z = -surface normal)"))
+    metrics["lead_angle_rad"] = settings.lead()
+    metrics["tool_tilt"] = describe_lead(settings.lead())
     metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
     for w in metrics["warnings"]:
         log.warning("%s", w)

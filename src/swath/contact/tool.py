@@ -79,7 +79,7 @@ class Tool:
     @property
     def half_pad_lead(self) -> float:
         """The lead angle (rad) at which the pad, pressed on a plane at ``force``, touches it on
-        exactly half its face (its trailing half): 6.97° for the default 1 mm on a 38.1 mm pad.
+        exactly half its face (its trailing half): 7.00° for the default 1 mm on a 38.1 mm pad.
 
         Tilted by ``θ`` about the axis across the feed (the leading edge raised), the pad face lies
         ``h = s − u sin θ`` under a plane point ``u`` ahead of the TCP, and the points within ``R`` of

@@ -50,7 +50,8 @@ def with_lead(frames: np.ndarray, lead: float) -> np.ndarray:
     ``x' = cos θ x − sin θ z``, ``z' = sin θ x + cos θ z``.
 
     A positive lead lifts the pad's leading edge (``x'`` points out of the part) and leans the tool
-    axis ``z'`` toward the travel direction, so the pad presses with its trailing half.  The same
+    axis ``z'`` toward the travel direction, so the pad presses with its trailing part (half of it
+    at ``Tool.half_pad_lead`` on a plane).  The same
     constant turn of every frame: the frames' angular velocity in the part frame is unchanged.
     """
     c, s = np.cos(lead), np.sin(lead)
