@@ -191,3 +191,24 @@ def test_inputs_that_cannot_apply_are_refused_first(tmp_path, capsys, argv, frag
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and fragment in err[0]
     assert not out.exists()
+
+
+def test_a_partly_unreachable_robot_cell_is_a_job_warning_said_once(tmp_path):
+    """Poses no configuration reaches are left out of the robot programs, so the report must say so
+    (they used to reach the console only, once for every cell the placement search tried, and
+    metrics.json's warnings stayed empty).  The robot and force figures all name their unit (or
+    say they are pure numbers), so the job logs no naming complaint."""
+    out = tmp_path / "out"
+    r = run_cli("plan", "example:plate", "--spacing", "100mm", "--robot", "ur3e", "--base", "0.2,-0.15,0,0,0,0",
+                "--program", "urscript", "--force-control", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((out / "metrics.json").read_text())
+    m = doc["metrics"]
+    assert 0 < m["robot_reachable_fraction"] < 1
+    robot = [w for w in m["warnings"] if w.startswith("robot: ")]
+    n_bad = round((1 - m["robot_reachable_fraction"]) * m["robot_n_poses"])
+    assert len(robot) == 1 and f"{n_bad} of {m['robot_n_poses']} poses are unreachable for ur3e" in robot[0]
+    assert r.stderr.count("poses are unreachable") == 1
+    assert "without a unit suffix" not in r.stderr
+    assert {"robot_min_manipulability", "robot_min_wrist_sin", "force_gain_margin"} <= set(m)
+    assert robot[0] in (out / "report.html").read_text()

@@ -147,6 +147,12 @@ def test_key_units_and_human_format():
     assert key_unit("feed_m_per_s").unit == "m/s"
     assert key_unit("n_passes").kind == "count"
     assert key_unit("planner").kind == "unknown"
+    # pure numbers that say what they are: the robot's and the force loop's measures
+    assert key_unit("robot_min_wrist_sin") == key_unit("x").__class__("robot min wrist sine", "", "plain")
+    assert key_unit("robot_min_manipulability").label == "robot min manipulability"
+    assert key_unit("force_gain_margin").label == "force gain margin"
+    assert key_unit("robot_placement_score").kind == "plain"
+    assert key_unit("stability_margin").kind == "unknown"          # a margin says nothing without its unit
     assert format_value("pad_radius_m", 0.0381) == "38.1 mm"
     assert format_value("contact_length_m", 12.25) == "12.25 m"
     assert format_value("mean_depth_m", 2.5e-6) == "2.5 µm"

@@ -68,6 +68,31 @@ def test_unreachable_stretch_is_reported_with_pass_and_position(plate_trajectory
         solve_trajectory(tr, get_robot("ur10e"), far, strict=True)
 
 
+def test_unreachable_poses_are_one_warning_the_caller_can_keep_quiet(plate_trajectory, caplog):
+    """The solution carries the sentence either way; it is logged only when asked, and the robot
+    stage hands it (with what the programs do about it) to its caller as ``warnings``."""
+    tr = plate_trajectory
+    far = Cell.from_text("1.2,-0.15,0,0,0,0")
+    with caplog.at_level("WARNING"):
+        quiet = solve_trajectory(tr, get_robot("ur10e"), far, warn=False)
+    assert not caplog.records
+    n_bad = int((~quiet.reachable).sum())
+    assert quiet.warning.startswith(f"{n_bad} of {len(tr)} poses are unreachable for ur10e")
+    assert f"pass {quiet.stretches[0].pass_index}" in quiet.warning
+    with caplog.at_level("WARNING"):
+        loud = solve_trajectory(tr, get_robot("ur10e"), far)
+    assert [r.getMessage() for r in caplog.records] == [loud.warning]
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        result = run_robot_stage(tr, robot="ur10e", cell=far, programs=[], warn=False)
+    assert not caplog.records
+    assert len(result.warnings) == 1
+    assert quiet.warning in result.warnings[0] and "leave these samples out" in result.warnings[0]
+    near = Cell.from_text("0.55,-0.15,0,0,0,0", "0,0,120mm,0,0,0")
+    ok = run_robot_stage(tr, robot="ur10e", cell=near, programs=[])
+    assert ok.solution.warning is None and ok.warnings == []
+
+
 def test_a_cell_where_no_pose_is_reachable_is_refused_even_when_not_strict(plate_trajectory):
     """Nothing to program (the program writers used to fail on an empty pose list): the error names
     the robot, how far the nearest pose is against its reach, and what to change."""
@@ -108,6 +133,29 @@ def test_placement_search_finds_a_reachable_placement(plate_trajectory):
     assert best.reachable_fraction == 1.0
     assert best.z == pytest.approx(-plate_trajectory.position[:, 2].min())
     assert np.hypot(best.x, best.y) < model.reach
+
+
+def test_placement_trials_do_not_warn(plate_trajectory, caplog, monkeypatch):
+    """The search solves its best few cells on the whole trajectory; cells it does not choose
+    may leave poses unreachable, and those are not the user's concern (they were logged as
+    warnings, one per trial, before the job's own)."""
+    import swath.robot.placement as placement
+
+    trials = []
+    real = placement.solve_trajectory
+
+    def spy(*args, **kwargs):
+        sol = real(*args, **kwargs)
+        trials.append(sol)
+        return sol
+
+    monkeypatch.setattr(placement, "solve_trajectory", spy)
+    with caplog.at_level("WARNING"):
+        best = placement.search_placement(plate_trajectory, get_robot("ur3e"), Cell(), n_xy=4,
+                                          yaws=(0.0, math.pi / 2), n_sample=40, n_refine=4)
+    assert any(t.warning for t in trials)              # some trial cell missed poses ...
+    assert not [r for r in caplog.records if r.levelname == "WARNING"]     # ... and said nothing
+    assert best.reachable_fraction == max(t.reachable_fraction for t in trials)
 
 
 def test_singularity_margin_rejects_a_straight_wrist():

@@ -328,6 +328,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics["lead_angle_rad"] = settings.lead()
     metrics["tool_tilt"] = describe_lead(settings.lead())
     metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
+    if robot is not None:
+        metrics["warnings"] += robot.warnings
     for w in metrics["warnings"]:
         log.warning("%s", w)
     record = settings.as_record()

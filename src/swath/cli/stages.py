@@ -68,7 +68,7 @@ def robot_stage(trajectory, surface, settings):
     from ..robot import run_robot_stage
 
     result = run_robot_stage(trajectory, **robot_options(settings), out_dir=None, surface=surface,
-                             force=settings.force)
+                             force=settings.force, warn=False)      # the job reports result.warnings
     metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
     return result.trajectory, result, metrics
 

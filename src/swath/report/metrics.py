@@ -86,6 +86,11 @@ _SUFFIXES: dict[tuple[str, ...], tuple[str, str, str | None]] = {
     ("count",): ("", "count", "count"),
     ("index",): ("", "count", "index"),
     ("seed",): ("", "count", "seed"),
+    # dimensionless measures whose name says what they are
+    ("sin",): ("", "plain", "sine"),                    # |sin| of a joint angle (0 at a singularity)
+    ("manipulability",): ("", "plain", "manipulability"),   # Yoshikawa, linear rows over the reach
+    ("score",): ("", "plain", "score"),
+    ("gain", "margin"): ("", "plain", "gain margin"),   # a ratio (x), not in dB
 }
 _MAX_SUFFIX = max(len(k) for k in _SUFFIXES)
 

@@ -132,7 +132,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     best: tuple | None = None
     for frac_branch, frac, manip, base2part, _ in scored[:n_refine]:
         trial = cell.with_base(base2part)
-        sol = solve_trajectory(trajectory, model, trial, margins=margins)
+        sol = solve_trajectory(trajectory, model, trial, margins=margins, warn=False)   # a trial, not the answer
         m = np.nanmean(sol.measures["manipulability"]) if sol.reachable.any() else 0.0
         key = (sol.reachable_fraction, m)
         if best is None or key > best[0]:

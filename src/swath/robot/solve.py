@@ -105,6 +105,9 @@ class JointSolution:
         ``wrist``, ``elbow``, ``shoulder_m``, ``manipulability``, ``joint_limit_margin_rad`` of the
         chosen configuration (NaN where unreachable).
     branch_names : tuple of str
+    warning : str or None
+        The unreachable poses in one sentence (how many, the first stretches, what to do); None
+        when every pose is reached.
     """
 
     q: np.ndarray
@@ -114,6 +117,8 @@ class JointSolution:
     stretches: list = field(default_factory=list)
     measures: dict = field(default_factory=dict)
     branch_names: tuple = ()
+    #: One sentence naming the unreachable poses and what to do (None when every pose is reached).
+    warning: str | None = None
 
     @property
     def reachable_fraction(self) -> float:
@@ -256,7 +261,7 @@ def choose_branches(feasible: np.ndarray, segs) -> np.ndarray:
 
 
 def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *, margins: Margins | None = None,
-                     strict: bool = False, seed=None) -> JointSolution:
+                     strict: bool = False, seed=None, warn: bool = True) -> JointSolution:
     """Joint values along ``trajectory`` on one continuous configuration branch.
 
     Parameters
@@ -272,6 +277,10 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
         Raise :class:`UnreachableError` on any unreachable sample instead of reporting it.
     seed : (6,) float, optional
         Start configuration of a numerical model, rad.
+    warn : bool
+        Log the unreachable poses as a warning (default).  Either way the sentence is the
+        solution's ``warning``; a caller that trials many cells (the placement search) or reports
+        warnings itself (a job) passes False.
 
     Returns
     -------
@@ -301,6 +310,7 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
         switches.append({"sample": int(s), "from": names[branch[s - 1]], "to": names[branch[s]],
                          "pass_after": int(after[0]) if len(after) else -1})
     stretches = []
+    msg = None
     bad = ~ok
     i = 0
     while i < n:
@@ -329,7 +339,8 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
                                    + ". Move the part (--base, or --place) or choose a larger robot.")
         if strict:
             raise UnreachableError(msg)
-        log.warning(msg)
+        if warn:
+            log.warning(msg)
     measures = {k: np.full(n, np.nan) for k in ("wrist", "elbow", "shoulder_m", "manipulability", "joint_limit_margin_rad")}
     if ok.any():
         m = model.singularity_measures(q[ok])
@@ -338,7 +349,7 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
         measures["joint_limit_margin_rad"][ok] = model.joint_limit_margin(q[ok])
     branch = np.where(ok, branch, -1)
     return JointSolution(q=q, branch=branch, reachable=ok, switches=switches, stretches=stretches,
-                         measures=measures, branch_names=names)
+                         measures=measures, branch_names=names, warning=msg)
 
 
 def flips_inside_passes(solution: JointSolution, trajectory) -> int:

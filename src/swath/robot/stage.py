@@ -51,6 +51,10 @@ class RobotResult:
         ``n_branch_switches``, ``configuration_flips_in_passes``, ``max_fk_position_error_m``,
         ``max_fk_angle_error_rad``, ``max_joint_speed_ratio``, ``max_joint_accel_ratio``,
         ``retime_added_s``, ``min_manipulability``, ``min_joint_limit_margin_rad`` …
+    warnings : list of str
+        What the user must know before running the programs, one sentence each: poses no
+        configuration reaches (the programs leave them out) and configuration changes inside a
+        contact pass.
     """
 
     model: RobotModel
@@ -61,6 +65,7 @@ class RobotResult:
     reach_map: object = None
     files: list = field(default_factory=list)
     metrics: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
 
 def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell):
@@ -75,7 +80,7 @@ def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell
 def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell | None = None,
                     programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
                     margins: Margins | None = None, strict: bool = False, force: float = 20.0,
-                    surface=None, reach_vertices: int = 1500) -> RobotResult:
+                    surface=None, reach_vertices: int = 1500, warn: bool = True) -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -104,6 +109,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         surface; :func:`swath.robot.reachability_map`).
     reach_vertices : int
         At most this many vertices in the reachability map.
+    warn : bool
+        Log the result's warnings (default); they are the result's ``warnings`` either way.
 
     Returns
     -------
@@ -121,7 +128,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         cell = placement.cell
     t_place = time.perf_counter() - t0
     t0 = time.perf_counter()
-    solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict)
+    solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
     t_ik = time.perf_counter() - t0
     retimed, rt = retime_trajectory(trajectory, solution, model)
     dp, da = fk_errors(retimed, solution, model, cell)
@@ -144,6 +151,10 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     }
     if placement is not None:
         metrics.update(placement.as_record())
+    warnings = robot_warnings(solution, metrics)
+    if warn:
+        for w in warnings:
+            log.warning("%s", w)
     reach_map = None
     if surface is not None:
         from .reach import reachability_map
@@ -156,7 +167,22 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
             raise InputError(f"no pose of the trajectory is reachable for {model.name}; no program written")
         files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
     return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
-                       reach_map=reach_map, files=files, metrics=metrics)
+                       reach_map=reach_map, files=files, metrics=metrics, warnings=warnings)
+
+
+def robot_warnings(solution: JointSolution, metrics: dict) -> list[str]:
+    """The robot stage's warnings: unreachable poses (the solution's sentence; the programs skip
+    those samples, so the robot would move straight across them) and branch changes inside a
+    contact pass (the arm reconfigures with the pad on the part)."""
+    out = []
+    if solution.warning:
+        out.append(f"robot: {solution.warning} The programs leave these samples out, so the robot moves straight "
+                   "across them.")
+    flips = int(metrics.get("configuration_flips_in_passes", 0))
+    if flips:
+        out.append(f"robot: the arm changes configuration {flips} time(s) inside a contact pass ({metrics['robot']}), "
+                   "with the pad on the part; move the part (--base, or --place) or choose another robot")
+    return out
 
 
 def robot_options_from_mapping(values: dict) -> dict:
