@@ -122,7 +122,7 @@ def hub_table():
                                  air_m=air, lifts=len(out.passes) - 1, contact_m=out.contact_length,
                                  vs_index=100 * (1 - air / base["index"]),
                                  vs_greedy=100 * (1 - air / base["greedy"]) if "greedy" in base else float("nan"),
-                                 vs_status_quo=100 * (1 - air / quo), seconds=out.metadata["order_seconds"]))
+                                 vs_status_quo=100 * (1 - air / quo), seconds=out.metadata["order_time_s"]))
     print_table(rows, [("step_overs", ""), ("groups", ""), ("method", ""), ("air_m", ".3f"), ("lifts", "d"),
                        ("contact_m", ".2f"), ("vs_index", ".1f"), ("vs_greedy", ".1f"), ("vs_status_quo", ".1f"),
                        ("seconds", ".3f")])
@@ -185,7 +185,7 @@ def trajectory_row(part, label, tp, removal: bool):
     air = ~traj.contact
     excess = np.maximum(np.maximum(lo - traj.position[air], traj.position[air] - hi), 0.0).max() if air.any() else 0.0
     row = dict(part=part, plan=label, passes=len(tp.passes), contact_m=tp.contact_length, air_m=traj.air_length,
-               cycle_s=traj.duration, beyond_box_m=float(excess), order_s=tp.metadata.get("order_seconds", np.nan),
+               cycle_s=traj.duration, beyond_box_m=float(excess), order_s=tp.metadata.get("order_time_s", np.nan),
                route_rounds=tp.metadata.get("order_route_rounds", 0))
     if removal:
         rm = simulate_removal(traj, tp.surface, TOOL)

@@ -155,6 +155,10 @@ def test_order_toolpath_keeps_passes_and_flips_them():
     assert out.metadata["air_after_m"] == pytest.approx(0.2)        # a snake
     assert sorted(out.regions.tolist()) == [0, 1, 2]
     assert out.contact_length == pytest.approx(tp.contact_length)
+    # a job writes the plan's metadata into metrics.json's settings: every figure names its unit
+    from swath.report.metrics import keys_without_unit
+
+    assert keys_without_unit(out.metadata) == [] and out.metadata["order_time_s"] >= 0
     with pytest.raises(InputError):
         order_toolpath(tp, groups=[[0, 1]])
     with pytest.raises(InputError):

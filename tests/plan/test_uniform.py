@@ -195,3 +195,20 @@ def test_shared_scans_are_covered_and_passes_stay_on_the_part(name, degrees):
         _, dist, _ = s.closest_points(p.points)
         assert dist.max() < 1e-4
         assert np.linalg.norm(np.diff(p.points, axis=0), axis=1).max() < 1.5e-3
+
+
+def test_generations_that_stall_warn_only_if_area_stays_untouched(caplog):
+    """On snp_part_scan (0 deg) a generation reaches no new area and the loop stops; the touch-up
+    passes then cover the pockets left, so the plan warns of nothing (the stop used to be a
+    warning on every such plan, whatever it left)."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io.mesh import load_mesh
+
+    name = "snp_part_scan.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    with caplog.at_level("INFO", logger="swath.plan"):
+        tp = uniform(surface, Tool(), direction=0.0, workers=1)
+    assert any("covered nothing new" in r.getMessage() for r in caplog.records)
+    assert tp.metadata["n_touch_up_passes"] > 0
+    assert tp.metadata["predicted_coverage_fraction"] >= 0.995
+    assert tp.metadata["warnings"] == []

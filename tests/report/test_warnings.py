@@ -40,3 +40,13 @@ def test_an_unreachable_target_depth_is_named_with_what_to_change(slow_job):
     assert "down to 5 mm/s" in w and "lower the target" in w and "raise the force" in w
     close = {"feed_target_mean_m": 2e-5, "feed_removal_mean_m": 1.85e-5}
     assert not [w for w in plan_warnings(surface, tp, None, close, 0.05, tool.pad_radius) if "optimised feed" in w]
+
+
+def test_coverage_just_under_the_threshold_does_not_read_as_on_it(slow_job):
+    """98.96 % used to be written "coverage is 99.0 % (below 99 %)"; at 99 % there is no warning."""
+    surface, tp, _, tool = slow_job
+    (w,) = [w for w in plan_warnings(surface, tp, None, {"coverage_fraction": 0.98962}, 0.05, tool.pad_radius)
+            if w.startswith("coverage")]
+    assert w.startswith("coverage is 98.96 % (below 99 %): 1.04 % of the part is never touched")
+    assert not [w for w in plan_warnings(surface, tp, None, {"coverage_fraction": 0.99}, 0.05, tool.pad_radius)
+                if w.startswith("coverage")]

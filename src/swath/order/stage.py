@@ -165,7 +165,7 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
     ToolPath
         The same passes, reordered and flipped (:meth:`Pass.reversed`); ``metadata`` gains
         ``order_method``, ``air_before_m`` (as given), ``air_after_m``, with ``link_speed`` also
-        ``link_time_before_s`` and ``link_time_after_s`` (estimates), ``order_seconds``,
+        ``link_time_before_s`` and ``link_time_after_s`` (estimates), ``order_time_s``,
         ``order_groups`` (the group order as indices into ``groups``) and, when the input had it,
         ``pass_region`` reordered; with ``join_gap`` also ``joined_step_overs``,
         ``joined_contact_m`` and ``join_max_gap_m`` (:func:`~swath.order.joining.join_passes`):
@@ -240,7 +240,7 @@ def order_toolpath(toolpath, *, groups=None, method: str = "gtsp", start=None, s
             p = toolpath.passes[i]
             passes.append(p.reversed() if variants.flip[node] else p)
     meta = dict(toolpath.metadata)
-    meta.update(order_method=method, air_before_m=before, air_after_m=after, order_seconds=seconds,
+    meta.update(order_method=method, air_before_m=before, air_after_m=after, order_time_s=seconds,
                 order_groups=[int(variants.group[v]) for v in tour], order_clearance_m=float(clearance),
                 order_route_rounds=rounds, order_objective="time" if model.timed else "length")
     if model.timed:

@@ -37,6 +37,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
 
     generations = []          # each: list of pass points (k, 3)
     notes: list[str] = []     # what the kept plan must warn about
+    stalled = False           # the generations stopped because one reached no new area
     covered = np.zeros(len(W.vertices), bool)
     current = _seed_curves(ctx, seed, cross, step)
     reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
@@ -89,8 +90,9 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
                   len(pieces), len(new), _area(W, left))
         if not (gained & ~covered).any():
-            notes.append("uniform: a pass generation covered nothing new, so the planner stopped there")
-            log.info("%s", notes[-1])
+            # What is left is judged after the touch-ups (below): a warning only if area stays untouched.
+            stalled = True
+            log.info("uniform: a pass generation covered nothing new, so the planner stopped there")
             break
         generations.append(new)
         covered |= gained
@@ -111,8 +113,9 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
     # capped as in _Context.touched); the simulator's figure is the one to trust.
     covered_pred = float(W.vertex_areas[covered].sum() / W.area)
     if covered_pred < 0.995:
+        why = "; the passes stopped where one more generation reached no new area" if stalled else ""
         notes.append(f"uniform: {100 * (1 - covered_pred):.1f} % of {ctx.surface.name or 'the part'} is predicted to "
-                     "stay untouched (regions no pass reaches); lower the overlap's step or segment the part")
+                     f"stay untouched (regions no pass reaches{why}); lower the overlap's step or segment the part")
     return dict(angle=float(angle), feed_dir=feed_dir, polylines=merged,
                 levels=[generation_of.get(id(p), -1) for p in merged], touch_up_index=touch_up_index,
                 covered_pred=covered_pred, notes=notes, n_generations=len(generations), n_touch_ups=len(touch_ups),

@@ -47,7 +47,8 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
     out = [str(w) for w in toolpath.metadata.get("warnings", [])]
     cov = metrics.get("coverage_fraction")
     if cov is not None and np.isfinite(cov) and cov < MIN_COVERAGE:
-        out.append(f"coverage is {100 * cov:.1f} % (below {100 * MIN_COVERAGE:.0f} %): {100 * (1 - cov):.1f} % of "
+        # two decimals: 98.96 % must not read "99.0 % (below 99 %)"
+        out.append(f"coverage is {100 * cov:.2f} % (below {100 * MIN_COVERAGE:.0f} %): {100 * (1 - cov):.2f} % of "
                    "the part is never touched; lower the spacing or raise the overlap, or plan the part in regions")
     eff = metrics.get("efficiency")
     if eff is not None and np.isfinite(eff) and eff > 1.0 + 1e-9:
