@@ -164,3 +164,37 @@ def test_job_with_auto_lead_states_the_tilt(tmp_path):
     np.testing.assert_allclose(np.degrees(np.arccos(z @ [0.0, 0.0, -1.0])), math.degrees(theta), atol=1e-3)
     assert main(["-q", "plan", "example:plate", "--lead-angle", "60deg", "--out", str(tmp_path / "bad")]) == 2
     assert not (tmp_path / "bad").exists()
+
+
+
+def test_a_lead_changes_no_cycle_time_so_candidates_rank_alike():
+    """Planners rank candidate directions by the cycle time the job's cost times untilted.  On a
+    curved part with the job's air links that is the tilted cycle time too, sample for sample:
+    the passes keep their timing, and every link turns the tool through the same angle, because
+    tilting both end frames by the same lead about their own y-axes only conjugates the turn
+    between them (``(R_a L)^T R_b L = L^T (R_a^T R_b) L``)."""
+    from swath.cli.job import planner_arguments, settings_from_mapping
+    from swath.examples import blade
+    from swath.order import order_toolpath
+
+    settings = settings_from_mapping({"part": "example:blade", "out": "unused", "planner": "uniform",
+                                      "lead_angle": "auto"})
+    cost = planner_arguments(settings)["cost"]
+    tp = raster(blade(), Tool(), spacing=0.07, point_spacing=4e-3)
+    ordered = order_toolpath(tp)
+    flat = time_path(ordered, list(cost.constraints), links=cost.links)
+    led = time_path(ordered, list(cost.constraints), links=cost.links, lead_angle=settings.lead())
+    assert (~flat.contact).sum() > 100                           # air links with turns in them
+    assert cost(tp)[0] == flat.duration
+    np.testing.assert_allclose(led.t, flat.t, rtol=0, atol=1e-9)        # rounding in the links' turns only
+    np.testing.assert_allclose(led.position, flat.position, rtol=0, atol=1e-12)
+
+    def step_turns(tr):          # angle (rad) the tool frame turns between consecutive samples
+        x, z = tr.tool_x(), tr.tool_z()
+        frames = np.stack([x, np.cross(z, x), z], axis=2)
+        rel = np.einsum("nji,njk->nik", frames[:-1], frames[1:])
+        return np.arccos(np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1, 1))
+
+    turns = step_turns(flat)
+    assert turns[~flat.contact[1:]].max() > 0.01                 # the links do turn the tool
+    np.testing.assert_allclose(step_turns(led), turns, atol=2e-7)
