@@ -135,6 +135,16 @@ def test_placement_search_finds_a_reachable_placement(plate_trajectory):
     assert np.hypot(best.x, best.y) < model.reach
 
 
+def test_a_configuration_flip_inside_a_pass_is_a_warning():
+    from swath.robot.solve import JointSolution
+    from swath.robot.stage import robot_warnings
+
+    clean = JointSolution(q=np.zeros((3, 6)), branch=np.zeros(3, int), reachable=np.ones(3, bool))
+    assert robot_warnings(clean, {"configuration_flips_in_passes": 0, "robot": "ur10e"}) == []
+    (w,) = robot_warnings(clean, {"configuration_flips_in_passes": 2, "robot": "ur10e"})
+    assert w.startswith("robot: the arm changes configuration 2 time(s) inside a contact pass (ur10e)")
+
+
 def test_placement_trials_do_not_warn(plate_trajectory, caplog, monkeypatch):
     """The search solves its best few cells on the whole trajectory; cells it does not choose
     may leave poses unreachable, and those are not the user's concern (they were logged as

@@ -117,7 +117,6 @@ class JointSolution:
     stretches: list = field(default_factory=list)
     measures: dict = field(default_factory=dict)
     branch_names: tuple = ()
-    #: One sentence naming the unreachable poses and what to do (None when every pose is reached).
     warning: str | None = None
 
     @property
