@@ -67,6 +67,23 @@ def test_straight_pass_uniform_target_needs_constant_feed(plate):
     assert np.mean(target[centre]) == pytest.approx(_centre_rate() * 2 * R / v_star, rel=0.04)
 
 
+def test_nodes_at_the_slowest_feed_are_counted_where_the_target_asks_for_more(plate):
+    """A target twice as deep as the slowest feed removes holds every node at the slowest feed
+    (the feed range binds, not the target); the target one constant feed removes holds none."""
+    tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
+    k = build_kernel(tp, TOOL)
+    v_min = 0.005
+    deep = 2.0 * k.removal(k.dwell_at_speed(v_min))
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=deep, tolerance=0.05 * deep.max(), model_error=0.0,
+                        kernel=k, boundary_margin=0.0, v_min=v_min)
+    assert res.metrics["nodes_at_slowest_fraction"] == 1.0
+    np.testing.assert_allclose(res.speed, v_min, rtol=1e-3)
+    even = k.removal(k.dwell_at_speed(0.02))
+    res = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=even, tolerance=0.05 * even.max(), model_error=0.0,
+                        kernel=k, boundary_margin=0.0, v_min=v_min)
+    assert res.metrics["nodes_at_slowest_fraction"] == 0.0
+
+
 def test_two_overlapping_passes_change_feed_where_they_overlap(plate):
     """Pass A (x 0.02..0.22) and pass B (x 0.12..0.22) d = R/2 apart; the target is a uniform depth D
     on both centre lines (one pad radius in from the pass ends).  A centre line gets rate·2R per unit pace from its own pass and

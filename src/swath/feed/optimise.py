@@ -70,7 +70,7 @@ class FeedResult:
         ``removal_cov``, ``removal_mean_m``, ``target_mean_m``, ``max_over_removal_m``,
         ``max_under_removal_m``, ``residual_rms_m``, ``contact_time_s``, ``fastest_contact_time_s``,
         what binds (:func:`_binding`): ``samples_at_cap``, ``nodes_at_fastest_fraction``,
-        ``nodes_held_by_cap_fraction``, and with ``simulate=``: ``simulated_rounds`` (per round ``kind``
+        ``nodes_held_by_cap_fraction``, ``nodes_at_slowest_fraction``, and with ``simulate=``: ``simulated_rounds`` (per round ``kind``
         ``"solve"`` or ``"trim"``, ``max_over_target_m``, ``samples_over``, ``held_back_ratio`` or
         ``nodes_sped_up``), ``simulated_max_over_target_m``, ``simulate_time_s`` (``solve_time_s``
         then includes the re-solves), ...
@@ -229,12 +229,14 @@ def _simulated_on_kernel(removal, samples) -> np.ndarray:
 
 
 def _binding(kernel: RemovalKernel, dwell: np.ndarray, t_min: np.ndarray, predicted: np.ndarray, cap: np.ndarray,
-             region: np.ndarray, tolerance: float) -> dict:
-    """What holds the feed up: region samples whose predicted removal (m, ``(S,)``) is at the
-    programme's ``cap`` (m, ``(S,)``, within 0.1 % of ``tolerance``), the share of the ``n``
+             region: np.ndarray, tolerance: float, t_max: np.ndarray) -> dict:
+    """What holds the feed up or down: region samples whose predicted removal (m, ``(S,)``) is at
+    the programme's ``cap`` (m, ``(S,)``, within 0.1 % of ``tolerance``), the share of the ``n``
     nodes whose dwell (s, ``(n,)``) is the fastest the limits allow (``t_min``, s, within 0.1 %),
-    and the share that are at their fastest *and* reach a sample at the cap: slowing any of those
-    would over-grind it, whatever the target elsewhere under the node.  (On the flat plate with
+    the share that are at their fastest *and* reach a sample at the cap (slowing any of those
+    would over-grind it, whatever the target elsewhere under the node), and the share at the
+    slowest feed (``t_max``, s, within 0.1 %: the feed range, not the target, stops those from
+    removing more).  (On the flat plate with
     a rotary pad the overlap of the overhanging outer pass and the next one's rim holds that whole
     next pass at the feed limit.)"""
     slack = 1e-3 * max(float(tolerance), 1e-3 * float(np.max(cap[region], initial=0.0)), 1e-15)
@@ -244,7 +246,8 @@ def _binding(kernel: RemovalKernel, dwell: np.ndarray, t_min: np.ndarray, predic
     reached[np.unique(kernel.matrix.tocsr()[at_cap].indices)] = True
     n = max(len(dwell), 1)
     return {"samples_at_cap": int(len(at_cap)), "nodes_at_fastest_fraction": float(np.sum(fastest) / n),
-            "nodes_held_by_cap_fraction": float(np.sum(fastest & reached) / n)}
+            "nodes_held_by_cap_fraction": float(np.sum(fastest & reached) / n),
+            "nodes_at_slowest_fraction": float(np.sum(dwell >= t_max * (1 - 1e-3)) / n)}
 
 
 def resolve_target(target, samples) -> np.ndarray:
@@ -599,7 +602,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                "fastest_contact_time_s": float(t_min.sum()), "speed_mean_m_per_s": float(np.mean(speed)),
                "speed_min_m_per_s": float(speed.min()), "speed_max_m_per_s": float(speed.max())}
     metrics.update(removal_stats(predicted, target_s, kernel.samples.vertex_areas, region))
-    metrics.update(_binding(kernel, dwell, t_min, predicted, cap, region, tolerance))
+    metrics.update(_binding(kernel, dwell, t_min, predicted, cap, region, tolerance, t_max))
     log.info("feed optimisation (%s/%s): %d nodes, %d samples, CoV %.3f, solve %.1f s", mode, objective, len(nodes),
              region.sum(), metrics["removal_cov"], t_solve)
     if sim_rounds:
