@@ -14,6 +14,22 @@ children included), the ratio uniform / raster of both, and the load average bef
 
     PYTHONPATH=src python benchmarks/bench_cli_e2e.py [--repeat 2] [snp_part_scan.ply example:plate ...]
 
+Session 17 (``--repeat 2``, load 0.21 before and 1.39 after; wall s raster / uniform, ratio, CPU ratio in
+brackets): snp_part_scan 3.80 / 6.76, 1.78 (2.40); noether_raw_mesh 5.19 / 15.37, **2.96** (4.70);
+bezier_dac_cad 2.87 / 4.07, 1.42 (1.74); bezier_dac_scan 5.70 / 14.66, 2.57 (3.54); noether_wavy 2.38 /
+3.35, 1.41 (1.75); bezier_complex_shape 4.02 / 9.79, 2.43 (3.47); crs_part_5 8.39 / 23.55, 2.81 (4.02);
+built-in plate 1.33, panel 1.64, blade 1.68.  Tried and dropped: potpourri3d's heat method on the
+working mesh's own cotan Laplacian (``use_robust=False``) instead of its robust intrinsic one.  Its set-up
+and solves take half the time (noether_raw_mesh: 0.90 s and 42 ms a solve against 1.74 s and 94 ms;
+1.4-2.2x on every shared mesh), and noether_raw_mesh ran 12.3 s against raster's 5.4 s, **2.27x**.  But the
+plans move: the per-candidate cycle times changed by -23 % to +16 % per part (22 candidates shorter, 20
+longer, over the seven meshes), so it breaks issue 16's "same plan" and was not kept.  Its distances
+agree with the robust ones to within the heat method's own error against fast marching (p95 within
+120 mm of the sources: 2.2-2.5 mm on snp_part_scan for both, 12 against 9 mm on crs_part_5).  The
+planner's sensitivity to millimetre changes of the distance field is itself a finding: its discrete
+steps (passes broken at sharp turns, touch-ups, fragments under the least pass length) turn them
+into different plans.
+
 Session 13 (``--repeat 2``, load 1.35 before and 1.51 after; wall s raster / uniform, ratio, CPU ratio in
 brackets): snp_part_scan 3.48 / 6.06, 1.74 (2.35); noether_raw_mesh 4.71 / 14.18, **3.01** (4.79);
 bezier_dac_cad 2.72 / 3.94, 1.45 (1.81); bezier_dac_scan 5.70 / 13.97, 2.45 (3.39); noether_wavy 2.58 /
