@@ -135,6 +135,30 @@ def test_placement_search_finds_a_reachable_placement(plate_trajectory):
     assert np.hypot(best.x, best.y) < model.reach
 
 
+def test_placement_search_keeps_solving_cells_until_one_reaches_every_pose():
+    """bezier_dac_cad's default raster on a UR5e: the four best cells by the sampled score each
+    miss one pose of 2667 (a pose between the 150 scored ones), so the search solves further
+    cells in score order and stops at the first that reaches every pose."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.cli.job import make_plan
+    from swath.cli.settings import settings_from_mapping
+    from swath.io.mesh import load_mesh
+    from swath.robot import search_placement
+    from swath.trajectory import time_path
+
+    name = "bezier_dac_cad.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    settings = settings_from_mapping({"part": name, "out": "unused"})
+    trajectory = time_path(make_plan(surface, settings), settings.constraints(), links=settings.links())
+    model = get_robot("ur5e")
+    first_four = search_placement(trajectory, model, n_refine=4, max_refine=4)
+    assert first_four.solved == 4 and 0.999 < first_four.reachable_fraction < 1.0
+    best = search_placement(trajectory, model, n_refine=4)
+    assert best.reachable_fraction == 1.0
+    assert 4 < best.solved <= 32
+    assert best.as_record()["placements_solved"] == best.solved
+
+
 def test_a_configuration_flip_inside_a_pass_is_a_warning():
     from swath.robot.solve import JointSolution
     from swath.robot.stage import robot_warnings
