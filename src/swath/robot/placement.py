@@ -96,7 +96,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         While none of the cells solved so far reaches every pose, the next best cells are solved
         too, up to this many in all (about 0.25 s each for 2700 poses on a UR5e): the sampled
         score sees ``n_sample`` poses, so a lone unreachable pose between them can hide in its
-        best cells (bezier_dac_cad on a UR5e: the best 9 cells each miss one pose of 2667, the 10th reaches all).
+        best cells (bezier_dac_cad on a UR5e: the best 8 cells each miss one pose of 2667, the 9th reaches all).
 
     Returns
     -------
