@@ -5,7 +5,8 @@ and raster plan time against trimesh's own plane slicing at 18k, 80k and 500k fa
 
 Table 1 runs each part in its own process (so the peak RSS is that part's): raster with the
 default job settings (3-inch pad, 20 N, 50 mm/s, auto angle, 1 mm point spacing), then timing,
-the removal simulation (default sampling) and the report (metrics.json, PNGs, report.html).
+the removal simulation (the job's sampling: a lattice at the tool's sample spacing, 3 mm for the
+3-inch pad; ``bench_simulate.py`` times it at 2 mm) and the report (metrics.json, PNGs, report.html).
 Columns: load / plan / trajectory / simulate / report wall times (s), the simulation per 100 m of
 contact path, and the child's peak RSS (MB).
 
@@ -18,6 +19,15 @@ resampling).  Best of 3 (``--repeats``), wall and CPU time (CPU time suffers les
 machine).
 The ratio raster / trimesh is the machine-independent figure to compare with noether's published
 0.23 s / 0.67 s / 4.5 s (their C++ slicer against VTK on their machine).
+
+Session 17 run (quiet machine).  Table 1: raster end to end per part, simulate s (s per 100 m), peak RSS:
+snp_part_scan 0.17 (3.4), 460 MB; noether_raw_mesh 0.48 (4.9), 484 MB; bezier_dac_cad 0.10 (4.3); bezier_dac_scan
+0.42 (4.2), 548 MB; noether_wavy 0.05 (4.1); bezier_complex_shape 0.32 (3.3); crs_part_5 0.67 s for 72.5 m (0.9),
+788 MB; the 500k-face panel: plan 1.64 s, simulate 0.71 s for 13.6 m (5.2: the fixed cost of a short path),
+685 MB.  (Before this run the table simulated with the library's default sampling, the subdivided mesh,
+not the job's lattice: crs_part_5 then took 5.82 s, 2.4 s of it subdividing and 1.6 s finding the
+subdivided mesh's boundary.)  Table 2, raster auto / trimesh: 18k faces 0.347 / 0.005 s, 80k 0.417 /
+0.014 s, 500k 1.214 / 0.079 s; against noether's published 0.23 / 0.67 / 4.5 s that is 1.5x / 0.62x / 0.27x.
 
 The shared meshes are looked for in ``SWATH_SHARED_MESHES``, ``../shared/meshes`` beside the
 repository, then ``../../shared/meshes`` (a worktree).
@@ -76,11 +86,14 @@ def one_part(name: str) -> dict:
     trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
     row["trajectory_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    removal = simulate_removal(trajectory, surface, settings.tool())
+    # as the job simulates: its removal sampling (lattice) at its sample spacing
+    removal = simulate_removal(trajectory, surface, settings.tool(), sample_spacing=settings.sample_spacing,
+                               sampling=settings.removal_sampling)
     row["simulate_s"] = time.perf_counter() - t0
     row["contact_m"] = trajectory.contact_length
     row["sim_s_per_100m"] = 100.0 * row["simulate_s"] / max(trajectory.contact_length, 1e-9)
     row["samples"] = int(removal.metrics.get("n_removal_samples", 0))
+    row["spacing_mm"] = 1e3 * removal.metrics["removal_sample_spacing_m"]
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         write_report(Path(tmp), surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
@@ -179,7 +192,7 @@ def main():
         print("\nraster end to end, each part in its own process (times s, peak RSS MB)")
         print_table(rows, [("part", "s"), ("faces", "d"), ("load_s", ".2f"), ("plan_s", ".2f"),
                            ("trajectory_s", ".2f"), ("simulate_s", ".2f"), ("report_s", ".2f"), ("contact_m", ".1f"),
-                           ("sim_s_per_100m", ".1f"), ("samples", "d"), ("coverage_pct", ".2f"),
+                           ("sim_s_per_100m", ".1f"), ("spacing_mm", ".1f"), ("samples", "d"), ("coverage_pct", ".2f"),
                            ("peak_rss_MB", ".0f"), ("note", "s")])
     if not args.skip_slicing:
         rows = slicing_table(repeats=args.repeats)
