@@ -70,8 +70,8 @@ class FeedResult:
         ``removal_cov``, ``removal_mean_m``, ``target_mean_m``, ``max_over_removal_m``,
         ``max_under_removal_m``, ``residual_rms_m``, ``contact_time_s``, ``fastest_contact_time_s``,
         what binds (:func:`_binding`): ``samples_at_cap``, ``nodes_at_fastest_fraction``,
-        ``nodes_held_by_cap_fraction``, ``nodes_at_slowest_fraction``, and with ``simulate=``: ``simulated_rounds`` (per round ``kind``
-        ``"solve"`` or ``"trim"``, ``max_over_target_m``, ``samples_over``, ``held_back_ratio`` or
+        ``nodes_held_by_cap_fraction``, ``nodes_at_slowest_fraction``, and with ``simulate=``:
+        ``simulated_rounds`` (per round ``kind`` ``"solve"`` or ``"trim"``, ``max_over_target_m``, ``samples_over``, ``held_back_ratio`` or
         ``nodes_sped_up``), ``simulated_max_over_target_m``, ``simulate_time_s`` (``solve_time_s``
         then includes the re-solves), ...
     """

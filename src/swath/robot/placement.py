@@ -150,7 +150,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         if best is None or key > best[0]:
             best = (key, trial, base2part)
     if best is None:
-        raise InputError("placement search scored no base pose; give n_refine >= 1")
+        raise InputError("placement search solved no cell; give n_refine or max_refine >= 1")
     (frac, m), trial, base2part = best
     yaw = math.atan2(base2part[1, 0], base2part[0, 0])
     log.info("placement for %s: (%.3f, %.3f, %.3f) m, yaw %.0f deg, %.2f %% reachable (%d cells solved)", model.name,
