@@ -60,19 +60,16 @@ from common import max_rss_mb, print_table
 
 BASE = {"part": "example:blade", "overwrite": True}
 
+#: spanwise uniform passes, the pad led at the half-pad angle, the feed optimised
+SPAN_LED = {"planner": "uniform", "direction": "0deg", "lead_angle": "auto", "optimise_feed": True}
+
 #: name -> job settings over BASE (the keys of ``swath plan``'s TOML job file)
 ROWS = {
     "raster chord const": {"planner": "raster"},
     "uniform span feed": {"planner": "uniform", "direction": "0deg", "optimise_feed": True, "target_depth": "33um"},
     # at the default overlap the nose takes 27.5 um at the fastest feed: 20 um is refused
-    "uniform span lead feed": {"planner": "uniform", "direction": "0deg", "lead_angle": "auto",
-                               "optimise_feed": True, "target_depth": "30um"},
-    "+ overlap 0.2": {"planner": "uniform", "direction": "0deg", "lead_angle": "auto", "overlap": 0.2,
-                      "optimise_feed": True, "target_depth": "20um"},
-    "+ overlap 0.25": {"planner": "uniform", "direction": "0deg", "lead_angle": "auto", "overlap": 0.25,
-                       "optimise_feed": True, "target_depth": "20um"},
-    "+ overlap 0.3": {"planner": "uniform", "direction": "0deg", "lead_angle": "auto", "overlap": 0.3,
-                      "optimise_feed": True, "target_depth": "20um"},
+    "uniform span lead feed": {**SPAN_LED, "target_depth": "30um"},
+    **{f"+ overlap {o}": {**SPAN_LED, "overlap": o, "target_depth": "20um"} for o in (0.2, 0.25, 0.3)},
     "raster chord ripple lead feed": {"planner": "raster", "optimise_spacing": "ripple", "lead_angle": "auto",
                                       "optimise_feed": True, "target_depth": "20um", "max_angular": "10rad/s"},
 }
