@@ -9,19 +9,6 @@ of each run with and without its start-up (timed apart, before the sweep), the s
 the load average before and after, since the cores are shared.  Checks that every run gives the
 same table (all columns but times).
 
-Each run is timed after its warm-up (``startup_s``): a Ray run after Ray's start and a small job on
-each worker (:func:`swath.cli.batch.warm_up`, which ``swath batch`` runs too), a serial run after the
-same small job in this process; ``speedup_with_startup`` counts both start-ups.
-Session 10 (2 vCPUs, load 0.8-1.1, ``--order 1 2 1 2``): serial 14.5 / 15.1 s against 7.5 / 7.6 s on 2
-workers, **1.97x / 1.95x** (1.35x / 1.32x with the start-ups: 1.1-1.8 s serial, 4.5 s Ray).  The
-long sweep ``--parts crs_part_5.stl bezier_dac_scan.ply --order 1 2`` (jobs of 2-20 s): 73.1 s
-against 41.6 s, **1.76x** (1.58x with start-ups).  Before the warm-up (session 9) the short sweep
-gave 1.61x: each worker's first job paid its imports and first calls (1.4 s), and the mean serial
-time counted one cold run of two; the jobs are also shorter (16.8 → 14.5 s serially) since the
-report's removal map is no longer measured triangle by triangle.  On the long sweep two jobs side by side each run about 12 %
-slower than alone (``sum_job_s`` 83.0 against 73.1 s), and a serial uniform job plans its candidate
-directions on both CPUs where a Ray task gets one.
-
 On a machine shared through sessions (Linux autogroup scheduling: ``/proc/self/autogroup``; the
 local Ray's workers join the session of the process that starts them), a busy machine gives the
 session a fixed share of the CPUs however many workers it runs: the speed-up shows only when the

@@ -25,7 +25,7 @@ temporary folder.  Columns:
 
     PYTHONPATH=src python benchmarks/bench_blade.py [--only ROW,ROW]
 
-Session 17 run (quiet machine):
+Measured with swath 0.2.0 on 2 vCPUs:
 
 =============================  ======  ============  ============  =======  ======  =======  =======
 row                            passes  cov_interior  L_over_Lstar  over_um  tol_um  cycle_s  at_vmin

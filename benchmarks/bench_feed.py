@@ -102,75 +102,6 @@ bezier_dac_scan (23.42 -> 24.99 µm), crs_part_5 (9.75 -> 9.94), bezier_dac_cad 
 (crs_part_5).  The constant-feed row's over-removal is negative on every part (at most -0.18 µm).
 The loop's early stop (no cap left to tighten) came after this run: same figures, less ``opt_s``.
 
-Session 9 run (``--simulate-loop``, every part with three simulated rounds, bezier_dac_scan again with the
-default six; quiet machine; the optimiser now puts a small cost on
-dwell, ``time_weight``, so stretches over no optimised sample run at the fastest feed): interior CoV
-(L / L*) of the best row within 1.5 L* — plate 0.099 ripple+feed (1.27), panel 0.110 space+feed (1.32),
-blade 0.190 uniform+feed (1.27), **bezier_dac_cad 0.097 edge+feed (1.07), the one shared mesh within
-10 %**, noether_raw_mesh 0.138 feed (1.49; space+feed 0.087 at 1.65), bezier_complex_shape 0.333 feed
-(1.50), noether_wavy 0.471 feed (1.43), crs_part_5 0.282 space+feed (1.19); bezier_dac_scan and
-snp_part_scan have no row within 1.5 L* but uniform+feed (0.357, 0.424).  Cycle time of the
-optimised feed against constant feed: noether_raw_mesh feed 441 s against 328 s (it was 984 s before
-the dwell cost), edge+feed 404 s; bezier_dac_cad 91 / 67 s (feed / edge+feed) against 62 s; plate 47 s
-against 40 s.  Over-removal within the tolerance on every row but: bezier_dac_scan ripple+feed 3.13 µm against 2.50
-(without the dwell cost 2.48: it was within by luck) -- at its worst sample the simulator reads 28.07 µm
-where the kernel reads 18.15 (1.55x), so the cap the simulator asks for lies below what the kernel
-thinks the fastest feed removes and the loop cannot tighten it (the scan's kernel contact model, not
-the feed); its edge+feed row read 3.50 µm with three simulated rounds and 1.76 µm (within 2.55) with
-the default six (35 -> 14 -> 5 -> 1 -> 0 samples over in rounds 1-5) -- and crs_part_5's uniform+feed
-row (7.03 µm against 2.45), whose target was the kernel bound only; with the simulator's bound too, as
-every other row (the rule now), it reads 1.58 µm against 2.97 (D 29.75 µm, CoV 0.305 at 1.26 L*).  Peak memory 1.99 GB (crs_part_5), its optimisation 84-123 s
-with the simulator loop (``--solve`` alone: 45.8 s in all, 787 MB).
-
-Session 10, bezier_dac_scan only (``--simulate-loop``): the kernel's poses now follow the tool axis
-(at most 1 degree of turn between two poses of a node, :data:`swath.feed.kernel.MAX_POSE_TURN`): on
-the scan's crawl zones the axis swings tens of degrees per mm and a rim sample's removal was 12 %
-under the simulator with poses a distance step apart.  Over-removal against the tolerance 2.50 µm
-(2.55 edge+feed): feed 2.42, space+feed 1.85, ripple+feed 1.89 (was 3.13), edge+feed 3.16 (was
-1.76), uniform+feed 2.47 (of 5.21).  The new ``over_spread_um`` column shows where the rest of the
-kernel / simulator gap lies: ``over_timed_um`` -1.60 / -2.14 / -1.64 / -0.63 µm (feed / space /
-ripple / edge rows), ``over_spread_um`` 2.91 / 1.54 / 2.29 / 2.64, ``over_fine_um`` 3.07 / 1.67 /
-2.49 / 2.71: sharing each node's dwell as the timed trajectory does closes nearly all of it.  Where
-the optimised feed steps between nodes (5 to 50 mm/s) the timing changes speed within the last
-millimetre of a node, and the even spread along the node misses that.  Re-spreading the kernel in
-every simulated round (tried) did not converge on this scan: the feed steps move with every
-solve, and the samples over went 23, 8, 6, 4, 7, 7, 3 in rounds 0-6 while the optimisation took
-2-4 times longer; re-spreading once and then keeping the kernel stopped after round 1 with 8
-samples over at the fastest feed.  So the loop keeps the even spread, and which row of this scan
-ends over the tolerance stays a matter of where the feed steps fall.  The other parts, same session (every
-part, ``--simulate-loop``): over-removal within the tolerance on every row of every part but
-bezier_dac_scan's edge+feed; interior CoV as in session 9 within 0.003 (best within 1.5 L*: plate
-0.099, panel 0.110, blade 0.190, bezier_dac_cad 0.097, noether_raw_mesh 0.138, snp_part_scan 0.258
-only at 1.65 L* (0.424 uniform+feed within), noether_wavy 0.471, bezier_complex_shape 0.333,
-crs_part_5 0.282); peak memory 1.99 GB (crs_part_5); crs_part_5 ``--solve`` 42.0 s, 786 MB.
-
-Session 11 (``--simulate-loop``): after the re-solve rounds the optimiser reads each sample's depth
-also from the kernel spread as the timed trajectory spreads each node's dwell (``spread_check``),
-and where that or the simulated depth is over, trim rounds only ever raise the commanded feed of the
-nodes over it (``trim_rounds``).  bezier_dac_scan, over-removal simulated / integrated at every
-sample (``over_um`` / ``over_fine_um``) against 2.50 µm (2.55 edge+feed): feed 1.99 / 2.46 (was
-2.42 / 3.07), space+feed 1.85 / 1.67, ripple+feed 1.89 / 2.49, edge+feed 1.65 / 1.60 (was 3.16 /
-2.71), uniform+feed 2.47 / 2.13 of 5.21: every row within on both readings; the feed row's CoV
-0.184 (0.183), cycle 1309 s (1310).  The other nine parts: every row within the tolerance on both
-readings, CoV and cycle time as in session 10 (no trim was needed there); crs_part_5's rows took
-71-121 s with the loop, peak memory 2.04 GB (1.99: the spread check's kernel).
-
-Session 12.  Speed: re-timing a plan now reuses its timed links, air routes and pass grids, and a second
-simulation of the same part its sample mesh (bit-identical trajectories, dwell and depth, checked on
-snp_part_scan and crs_part_5).  crs_part_5's feed optimisation with the simulator loop (the default raster,
-its least depth, ``optimise_feed(..., simulate=...)``), one run after the other on the same machine: 69.6 s
-before, 47.9 s now (within the issue's 60 s); HiGHS is 36 s of what is left (11 solves of the programme).
-Then each simulated re-solve starts with the samples the previous solve held at its cap
-(``solve_dwell(cap_rows=..., found=...)``) instead of finding them again over up to six solves.
-``--simulate-loop`` on crs_part_5 and bezier_dac_scan (the two at a time, as in session 11): every row's
-CoV and over-removal as in session 11 (one exception: bezier_dac_scan's rotary row, 9.03 -> 8.22 µm of
-32.35), ``opt_s`` crs_part_5 71-121 -> 54-110 s, bezier_dac_scan 15-87 -> 11-75 s (edge+feed 79.5 ->
-48.7 s); crs_part_5's peak memory 2.04 -> 2.20 GB (the kept sample mesh and pass grids).
-
-Pad compliance (``--depression``, without ``--simulate-loop``, so ``over_um`` is not the job's figure):
-the interior CoV the best row reaches within 1.5 L* with a pad that compresses 1 mm (the default, session 11),
-3 mm and 5 mm on flat at the same 20 N:
-
 =======================  =====  =================  =================
 part                     1 mm   3 mm               5 mm
 =======================  =====  =================  =================
@@ -188,20 +119,6 @@ dips whatever the feed does.  A softer pad halves the CoV on the scans and the w
 none (closest: noether_raw_mesh 0.106, noether_wavy 0.110).  (crs_part_5's uniform+feed row reads 0.176 at
 1.21 L*, but 1.99 µm over against 1.18 without the simulator loop, so it is not counted.)  Jobs now run this comparison themselves when the
 removal CoV is above 0.15 (``swath.simulate.compliance``) and say when a softer pad would help.
-
-Session 14, the feed optimisation alone on crs_part_5 (``--simulate-loop --solve crs_part_5.stl``, the default
-raster, one run after the other): the cutting-plane rounds of each solve now stop once no thinned-out sample is
-over the programme's cap by more than a tenth of what the cap holds back under the tolerance
-(``optimise_feed(round_slack=0.1)``; ``--round-slack 0`` gives the old rounds, which chased excesses down to a
-thousandth of the tolerance).  Least depth (7.25 µm): solve 38.0 -> 31.0 s, CoV 0.291 and over-removal 0.00 µm
-both times.  At a 12 µm target as a job might set it (``--target-depth 12um``): solve 67.7 -> 48.7 s (seven interior-point
-solves instead of ten), CoV 0.263 -> 0.262, the largest removal 4.75 µm under the target both times; peak
-memory 1.32 GB.  The job ``swath plan crs_part_5.stl --optimise-feed --target-depth 12um``: its
-``feed_solve_time_s`` 68.6 -> 48.7 s, the whole command 92.8 -> 72.3 s.  The full table with the new rounds
-(``--simulate-loop plate panel blade bezier_dac_scan.ply``): every row's simulated over-removal within its
-tolerance (bezier_dac_scan, over / tolerance in µm: feed 1.93 / 2.50, space+feed 1.98 / 2.50, ripple+feed 1.60 /
-2.50, edge+feed 1.90 / 2.55, uniform+feed 2.47 / 5.21, rotary 6.07 / 32.35); the best interior CoV within 1.5 L*
-as before (plate 0.099, panel 0.109, blade 0.190; bezier_dac_scan's feed row 0.184).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_feed.py [--simulate-loop] [--depression 3mm] [plate panel blade crs_part_5.stl ...]``; the feed
 optimisation's time and peak memory alone: ``... bench_feed.py [--simulate-loop] --solve crs_part_5.stl [--target-depth 12um]

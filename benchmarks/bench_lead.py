@@ -16,12 +16,6 @@ least depth itself every node runs at the fastest feed and the feed has no room 
 trajectory: interior removal CoV (samples a pad radius in from the open boundary, untouched ones
 included), L / L*, the largest over-removal against ``D``, cycle time and optimisation time.
 
-Last run (session 15, interior CoV, flat+feed → lead+feed; L / L*): plate 0.126 → 0.063 (1.27 → 1.52),
-panel 0.104 → 0.059 (1.32 → 1.51), blade 0.200 → 0.232 (1.27 → 1.52); over-removal within the
-tolerance in every optimised row; cycle time +3 % (plate), +5 % (panel), +20 % (blade); 906 MB peak.
-The lead's passes are 1.40 R apart against 1.68 R, so their contact length is 20 % longer: on the
-plate and panel the raster's edge passes put it just over 1.5 L*.
-
 Run: ``PYTHONPATH=src python benchmarks/bench_lead.py [plate panel blade noether_raw_mesh.ply ...]``
 (default: the three built-in parts).
 """

@@ -21,23 +21,6 @@ planned, D = visit order and path types planned: 853 -> 732 -> 305 mm):
   in either direction, any order).
 * **status quo**: the whole part rastered without segmentation, snake order, no contact step-overs.
 
-1. Wheel hub: air by method, groups and join rule.
-2. Optimality: the ``gtsp`` method against the exact Held-Karp optimum where it runs (<= 14
-   groups; the LKH path is forced on these too: below 11 groups ``gtsp`` is the DP itself) and
-   against the best of 100 LKH runs on larger instances; wall and CPU seconds (the machine is
-   shared: CPU seconds are the solver's own cost).
-3. Raster and uniform on the hub and the shared meshes, as planned (index: the planner's own
-   order) and ordered pass by pass (every pass its own group, as jobs do) by ``greedy`` and
-   ``gtsp``, by air length (``order_objective = length``) or by link time (``time``, the job's
-   default: the trajectory stage's link speed and acceleration, 1 rad/s, contact step-overs at the
-   feed), without and with contact step-overs ('+ join'); raster also segmented.  Every figure
-   is of the timed trajectory (time_path: feed 50 mm/s, 1 rad/s, 2 m/s²): air length and % less
-   than index and than greedy with the same step-over rule, cycle time, farthest excursion beyond
-   the part's bounding box, simulated coverage (parts < 1 m²).
-4. Why the objective and the trajectory agree (or did not): every link of the hub's segmented
-   plan, ordered as in table 3, as the order stage costs it (straight at the clearance, routed,
-   closed-form time; last session's time estimate alongside) against the timed trajectory.
-
 Run: ``PYTHONPATH=src python benchmarks/bench_order.py [--no-removal] [--no-uniform] [--only N] [--hub-only]``.
 """
 

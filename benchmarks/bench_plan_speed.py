@@ -43,13 +43,6 @@ only between runs minutes apart (the A/B figures below).
 | bezier_complex_shape | 0.61 | | 195 | 1.8 | 8.26 (8.30) |
 | crs_part_5 | 3.45 | | 465 | 1.8 | 6.65 (6.45) |
 
-The uniform/raster ratios move between runs by more than this session's changes could explain
-(e.g. panel_80k 12.9 -> 16.2, bezier_dac_scan 7.8 -> 8.7, with uniform only faster in serial A/B):
-load and uniform's fixed costs (numba compilation in the workers, heat solves) dominate them.  Uniform meets 3x
-raster on no mesh.
-
-This session (same plans, bit for bit; A/B minutes apart on the same machine):
-
 * ``Surface.subdivided(method="halving")`` no longer calls trimesh: :func:`swath.surface.subdivide.
   halve_long_edges` gives trimesh 5.2's ``subdivide_to_size`` mesh (vertices and faces, same order,
   same bits; pinned in tests/surface/test_halving.py) at 0.6x its time (18k panel at R/8: 50 against

@@ -7,14 +7,6 @@ guard found no clear one), the air route length and the routing time.  Uniform i
 crs_part_5 (its plan alone takes 20 s; raster shows the routing there).
 
     PYTHONPATH=src python benchmarks/bench_routing.py [part ...]
-
-Session 14: every part's links clear, except bezier_dac_scan uniform (1 of 86).  Before this session
-bezier_dac_scan had 4 of 52 (raster) and 9 of 86 (uniform) routes near the part: passes ending
-under a fold of the scan, where lifting along the normal ran into the part, or where straight up,
-along the normals and away from the centre all did.  The lift now tilts out (up to 45°) and the
-route tries 64 more directions; the links of every other part are unchanged bit for bit.  Routing
-a whole plan takes 2-60 ms; bezier_dac_scan uniform 0.21 s (its one link near the part tries every
-direction and height before the last resort).
 """
 
 from __future__ import annotations

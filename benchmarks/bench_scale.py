@@ -20,15 +20,6 @@ machine).
 The ratio raster / trimesh is the machine-independent figure to compare with noether's published
 0.23 s / 0.67 s / 4.5 s (their C++ slicer against VTK on their machine).
 
-Session 17 run (quiet machine).  Table 1: raster end to end per part, simulate s (s per 100 m), peak RSS:
-snp_part_scan 0.17 (3.4), 460 MB; noether_raw_mesh 0.48 (4.9), 484 MB; bezier_dac_cad 0.10 (4.3); bezier_dac_scan
-0.42 (4.2), 548 MB; noether_wavy 0.05 (4.1); bezier_complex_shape 0.32 (3.3); crs_part_5 0.67 s for 72.5 m (0.9),
-788 MB; the 500k-face panel: plan 1.64 s, simulate 0.71 s for 13.6 m (5.2: the fixed cost of a short path),
-685 MB.  (Before this run the table simulated with the library's default sampling, the subdivided mesh,
-not the job's lattice: crs_part_5 then took 5.82 s, 2.4 s of it subdividing and 1.6 s finding the
-subdivided mesh's boundary.)  Table 2, raster auto / trimesh: 18k faces 0.347 / 0.005 s, 80k 0.417 /
-0.014 s, 500k 1.214 / 0.079 s; against noether's published 0.23 / 0.67 / 4.5 s that is 1.5x / 0.62x / 0.27x.
-
 The shared meshes are looked for in ``SWATH_SHARED_MESHES``, ``../shared/meshes`` beside the
 repository, then ``../../shared/meshes`` (a worktree).
 """

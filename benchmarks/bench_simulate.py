@@ -73,12 +73,6 @@ count (``estimate``) equals its samples; the area estimate of the mesh over-coun
 capped on crs_part_5).  The depth pictures cost 0.7-2.6 s on the lattice (subdividing the part for
 display and reading the depth off the samples) against 0.03-9.2 s on the subdivided mesh.
 
-Session 9 (``--parts panel500k panel500k_long --methods lattice``, load 1.4 with another job running):
-panel500k 0.43 s for 13.6 m (3.16 s per 100 m; integration 0.10 s, the rest the metrics' fixed cost),
-panel500k_long **1.05 s for 123.8 m (0.85 s per 100 m**, integration 0.57 s per 100 m), 251,126 samples at
-2.00 mm, peak RSS 603 MB: the 500k-face part is simulated at 2 mm well under the issue's 5 s per 100 m
-and 4 GiB.
-
 Earlier run (before the lattice was the default), on a quiet machine (load 0.1): crs_part_5 at 2 mm
 lattice 1.57 s (2.17 s per 100 m, 823 MB RSS) against long_edges at 2.34 mm 7.38 s (10.2 s per 100 m,
 1541 MB); panel100k at 2 mm lattice 1.56 s (1.54 s per 100 m) against long_edges 1.78 s; panel100k at
