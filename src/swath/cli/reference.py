@@ -47,10 +47,9 @@ def option_rows(parser: argparse.ArgumentParser) -> list[tuple[str, str, str, st
             continue
         if action.option_strings:
             name = ", ".join(f"`{s}`" for s in action.option_strings)
-            if isinstance(action, argparse.BooleanOptionalAction):
-                name = ", ".join(f"`{s}`" for s in action.option_strings)
-            elif action.nargs != 0:
-                name += f" *{(action.metavar or action.dest).upper()}*"
+            if action.nargs != 0 and not isinstance(action, argparse.BooleanOptionalAction):
+                metavar = action.metavar if isinstance(action.metavar, str) else action.dest
+                name += f" *{metavar.upper()}*"
         else:
             name = f"*{action.dest.upper()}*"
         choices = ", ".join(f"`{c}`" for c in action.choices) if action.choices else ""
