@@ -124,3 +124,24 @@ def test_docs_images_are_small():
     assert len(images) >= 5
     for img in images:
         assert img.stat().st_size < 300_000, img.name
+
+
+def test_the_metrics_documented_are_the_ones_a_job_writes(tmp_path):
+    """Every key in the formats page's table of main metrics is in a real job's metrics.json,
+    and its name carries a unit swath can read."""
+    import json
+
+    from swath.cli.job import run_job
+    from swath.cli.settings import settings_from_mapping
+    from swath.report.metrics import key_unit
+
+    page = (DOCS / "reference" / "formats.md").read_text(encoding="utf-8")
+    table = page[page.index("The main metrics:"):page.index("`settings` holds")]
+    keys = [k for row in table.splitlines() if row.startswith("| `")
+            for k in re.findall(r"`([a-z0-9_]+)`", row.split("|")[1])]
+    assert len(keys) >= 20
+    run_job(settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "job"), "point_spacing": "4mm"}))
+    metrics = json.loads((tmp_path / "job" / "metrics.json").read_text())["metrics"]
+    for key in keys:
+        assert key in metrics, key
+        assert key == "warnings" or key_unit(key).kind != "unknown", key
