@@ -113,6 +113,9 @@ def test_every_page_in_the_nav_exists_and_every_marker_is_known():
     assert "reference/cli.md" in pages and "BENCHMARKS.md" in pages
     for page in pages:
         assert (DOCS / page).is_file(), page
+    orphans = [str(p.relative_to(DOCS)) for p in DOCS.rglob("*.md")
+               if p.parent.name != "guide" and str(p.relative_to(DOCS)) not in pages]
+    assert not orphans, f"pages missing from the nav in mkdocs.yml: {orphans}"
     hooks = _hooks()
     for md in DOCS.rglob("*.md"):
         for name in re.findall(r"^<!-- swath:([a-z-]+) -->$", md.read_text(encoding="utf-8"), re.M):
