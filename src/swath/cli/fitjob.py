@@ -198,6 +198,7 @@ def fit_document(settings: FitSettings, scan: Scan, patch, report, residuals, su
     """The content of ``fit.json`` (lengths in m, times in s; units in the key names)."""
     from .. import __version__
     from ..report.metrics import to_jsonable
+    from ..report.warncodes import tagged
 
     a = np.abs(residuals)
     fit = report.to_dict()
@@ -215,7 +216,7 @@ def fit_document(settings: FitSettings, scan: Scan, patch, report, residuals, su
     }
     return to_jsonable({
         "format_version": FORMAT_VERSION,
-        "warnings": list(report.warnings),
+        "warnings": [tagged(w) for w in report.warnings],          # "... [W-FIT-RESIDUAL]"
         "swath_version": __version__,
         "created_utc": _dt.datetime.now(_dt.UTC).replace(microsecond=0).isoformat(),
         "input": {"scan": str(settings.scan), "units": settings.units, "kind": scan.kind,

@@ -251,6 +251,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     """
     from ..io.atomic import atomic_directory, check_output_dir
     from ..report import plan_warnings, write_report
+    from ..report.warncodes import tagged
     from ..simulate import simulate_removal
     from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
@@ -330,6 +331,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
     if robot is not None:
         metrics["warnings"] += robot.warnings
+    metrics["warnings"] = [tagged(w) for w in metrics["warnings"]]        # "... [W-CODE]", docs: Warnings
     for w in metrics["warnings"]:
         log.warning("%s", w)
     record = settings.as_record()

@@ -282,6 +282,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     level = logging.ERROR if args.quiet else (logging.DEBUG if args.verbose else logging.WARNING)
     logging.basicConfig(level=level, format="swath: %(levelname)s: %(message)s")
+    from ..report.warncodes import install_warning_codes
+
+    install_warning_codes()                # each warning ends with its code, e.g. [W-COVERAGE-LOW]
     try:
         progress = _Progress(args.quiet)
         if args.command == "batch":

@@ -326,13 +326,28 @@ section.ok{border-left:6px solid #2e8b57}
 """
 
 
+def _plain(markdown: str) -> str:
+    return markdown.replace("`", "").replace("\\", "").replace("*", "")
+
+
+def _advice_html(warning: str) -> str:
+    """The docs entry of a warning's code (``[W-...]``), folded under the warning."""
+    from .warncodes import CODES, code_for
+
+    c = CODES.get(code_for(warning) or "")
+    if c is None:
+        return ""
+    return (f"<details><summary>{c.code}: what it means, what to do</summary><p>{_html.escape(_plain(c.meaning))} "
+            f"<b>What to do:</b> {_html.escape(_plain(c.action))} (docs: Reference, Warnings, {c.code})</p></details>")
+
+
 def _warnings_html(metrics: dict) -> str:
     """The warnings panel at the top of the report (empty when the plan raised none)."""
     warnings = list(metrics.get("warnings") or [])
     if not warnings:
         return ("<section class='ok'><h2>Warnings</h2><p>None: coverage, efficiency, speed limits and air moves "
                 "are all within their checks.</p></section>")
-    items = "".join(f"<li>{_html.escape(str(w))}</li>" for w in warnings)
+    items = "".join(f"<li>{_html.escape(str(w))}{_advice_html(str(w))}</li>" for w in warnings)
     return f"<section class='warn'><h2>Warnings ({len(warnings)})</h2><ul>{items}</ul></section>"
 
 

@@ -292,3 +292,11 @@ def _rounded(value, digits: int = 4):
     if isinstance(value, dict):
         return {k: _rounded(v, digits) for k, v in value.items()}
     return value
+
+
+def unit_suffix_markdown() -> str:
+    """A Markdown table of the unit suffixes :func:`key_unit` reads (the docs' file formats page)."""
+    rows = ["| key ends with | unit | shown as |", "|---|---|---|"]
+    for suffix, (unit, kind, _) in sorted(_SUFFIXES.items(), key=lambda kv: (-len(kv[0]), kv[0])):
+        rows.append(f"| `_{'_'.join(suffix)}` | {unit or '(none)'} | {kind} |")
+    return "\n".join(rows) + "\n"

@@ -1,0 +1,259 @@
+"""Short codes for every warning swath can print, with what each means and what to do.
+
+A warning's text ends with its code in brackets, ``... [W-COVERAGE-LOW]``: in the log, in
+``metrics.json`` (``warnings``) and in the report, which also shows the entry's advice.  The docs
+page *Reference → Warnings* is generated from :data:`CODES`, so every code has a docs entry
+(anchor ``#w-coverage-low``), and a test checks that every warning the library can emit resolves
+to a code.
+
+A warning gets its code either explicitly (its text holds ``[W-SOME-CODE]``) or from the entry's
+``match`` regular expression, searched in the message (both the logging template, e.g.
+``"removal sampled at %.2f mm"``, and the formatted text must match).  Adding a warning means
+adding one :func:`entry` to :data:`CODES`::
+
+    entry("W-CELL-COLLISION", r"collides with", "The tool or robot touches a cell body.", "Move the part."),
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+
+#: A code: ``W-`` and upper-case words joined by dashes.
+CODE_RE = re.compile(r"\[(W-[A-Z0-9]+(?:-[A-Z0-9]+)*)\]")
+
+
+@dataclass(frozen=True)
+class WarningCode:
+    """One warning code.
+
+    code : ``W-...``, upper case.
+    match : regular expression searched in the warning's text (``""``: the code is only given
+        explicitly, ``[W-...]`` in the text).
+    meaning : what the warning says about the plan or input (a sentence or two, Markdown).
+    action : what to do about it (Markdown).
+    stage : the pipeline stage that emits it (a heading of the docs page).
+    """
+
+    code: str
+    match: str
+    meaning: str
+    action: str
+    stage: str = "plan"
+
+    @property
+    def anchor(self) -> str:
+        """The docs page anchor, e.g. ``w-coverage-low``."""
+        return self.code.lower()
+
+
+def entry(code: str, match: str, meaning: str, action: str, stage: str = "plan") -> tuple[str, WarningCode]:
+    """A :data:`CODES` item: ``(code, WarningCode(...))``."""
+    return code, WarningCode(code, match, meaning, action, stage)
+
+
+#: Every warning code -> its entry.  Add one line per new warning (see the module docstring).
+CODES: dict[str, WarningCode] = dict([
+    # --- input: reading parts and scans -------------------------------------------------------
+    entry("W-UNITS-SUSPECT", r"the file may not be in",
+          "The part's size, read in the given unit, is possible but unusual: it may be in another unit.",
+          "Check the size in the message; pass `--units` with the file's real unit.", "input"),
+    entry("W-UNITS-FORCED", r"accepted because units were forced",
+          "The part's size is outside 5 mm .. 20 m in the given unit, but `--force-units` accepts it.",
+          "Make sure the unit is right: every length of the plan scales with it.", "input"),
+    entry("W-MESH-NONMANIFOLD", r"edges are shared by more than two faces",
+          "Some edges join more than two faces (sheets branching off the surface); swath kept the two faces "
+          "that continue the surface and dropped the branches.",
+          "Check the dropped area in the message; repair the mesh (e.g. MeshLab *Repair non manifold edges*) "
+          "if it matters.", "input"),
+    entry("W-MESH-NONORIENTABLE", r"non-orientable piece",
+          "Small pieces of the mesh cannot be wound consistently (like a Möbius strip) and were dropped.",
+          "Repair the mesh (e.g. MeshLab *Re-orient all faces coherently*) if those pieces are to be finished.",
+          "input"),
+    entry("W-MESH-PIECES", r"pieces: kept the largest|closed solid facing .* form .* pieces",
+          "The mesh has several separate pieces; only the largest is planned.",
+          "Pass `--all-pieces` to plan every piece, or split the file.", "input"),
+    entry("W-SCAN-NAN", r"dropped .* NaN points",
+          "The point cloud holds NaN points (no-return pixels of an organised scan); they were dropped.",
+          "Nothing, unless many points are missing: then rescan.", "input"),
+    entry("W-SCAN-NORMALS", r"normals are zero or not finite",
+          "Some normals stored in the scan file are unusable, so all the file's normals are ignored.",
+          "Nothing: swath estimates normals itself. Pass `--side` if the tool side is ambiguous.", "input"),
+    # --- scan fits and registration ---------------------------------------------------------------
+    entry("W-FIT-STRAY", r"dropping .* stray points",
+          "A few points lie apart from the scanned surface (specks, fixtures) and are left out of the fit.",
+          "Nothing, if they are noise; otherwise crop the scan to the part.", "fit"),
+    entry("W-FIT-RESIDUAL", r"points .* lie more than .* from the fitted patch",
+          "The smooth B-spline patch does not follow the scan everywhere (stray points, a fold, a sharp "
+          "feature).",
+          "Look at the residual map in `fit.html`; clean the scan or fit the region on its own.", "fit"),
+    entry("W-REGISTER-NOT-CONVERGED", r"ICP did not converge",
+          "The registration stopped before the pose settled.",
+          "Start from a closer initial pose, use the coarse stage, lower `--trim` for partial overlap or allow "
+          "more iterations (`--max-iterations`).", "fit"),
+    entry("W-REGISTER-ILL-POSED", r"pose is poorly determined",
+          "The surface can nearly slide on itself (a plane, a cylinder): the pose is uncertain along that motion.",
+          "Use `--table` (the perimeter fixes the slide) or check the pose against features.", "fit"),
+    entry("W-REGISTER-AMBIGUOUS", r"another pose .* fits almost as well",
+          "A second, different pose fits the scan almost as well: the part may be symmetric.",
+          "Check the pose in `register.html`; constrain it (`--table`) or give a closer initial pose.", "fit"),
+    # --- planning and ordering ------------------------------------------------------------------
+    entry("W-RASTER-GAP", r"predicted to stay untouched",
+          "The raster's planes and fill passes still leave part of the surface untouched.",
+          "Lower `--spacing`, choose another `--direction`, or plan in regions (`--segment auto`).", "plan"),
+    entry("W-PIECE-UNPLANNED", r"have no seed and get no passes",
+          "The equidistant planner found no seed curve on some pieces of the part; they get no passes.",
+          "Plan with `--planner raster` or `uniform`, or plan those pieces on their own.", "plan"),
+    entry("W-PATCH-SPLIT", r"the boundary cuts the patch into several regions",
+          "The trimmed patch falls apart into several regions in its parameter domain; only the largest is "
+          "planned.",
+          "Plan on the patch's mesh (`--surface-spacing`) with another planner, or fit each region.", "plan"),
+    entry("W-AIR-NEAR-PART", r"closer than half the clearance",
+          "Some air moves pass closer to the part than half the clearance: a pass ends in a fold or under an "
+          "overhang the tool cannot lift clear of.",
+          "Check those moves in the cell (the log gives their ends), or plan another `--direction`.", "plan"),
+    # --- trajectory ---------------------------------------------------------------------------------
+    entry("W-TOPPRA-MISSING", r"toppra is not installed",
+          "Air moves are timed with a trapezoidal profile instead of time-optimally.",
+          "`pip install toppra` (a dependency of swath).", "trajectory"),
+    entry("W-LINK-TRAPEZOID", r"toppra failed on a link|toppra found no parameterisation|"
+                              r"links were timed with the trapezoidal fallback",
+          "Some air moves could not be timed by toppra and use a trapezoidal speed profile, which is slower "
+          "but within the limits.",
+          "Nothing: the cycle time is slightly pessimistic.", "trajectory"),
+    entry("W-SLOW-CONTACT", r"hold the tool below half the feed",
+          "The speed limits (angular speed, centripetal or tangential acceleration) slow the tool far below "
+          "the feed for a share of the contact time; it dwells there and removes more.",
+          "Relax the limits (`--max-angular`, `--max-centripetal`, `--max-accel`) or choose another direction.",
+          "trajectory"),
+    entry("W-AIR-OUTSIDE", r"air moves go .* outside the part's bounding box",
+          "Air moves leave the part's bounding box by more than the pad radius plus the clearance.",
+          "Check that the cell has room there.", "trajectory"),
+    # --- feed optimisation ----------------------------------------------------------------------------
+    entry("W-FEED-OVER-TARGET", r"feed optimisation: .* over the",
+          "After the feed was optimised and checked in the removal simulation, some points still get more "
+          "than the target depth plus the tolerance, even at the fastest feed the limits allow.",
+          "Raise the target or the tolerance, or the feed limit; plan the passes farther apart.", "feed"),
+    entry("W-TARGET-SHORT", r"the optimised feed removes",
+          "Even at the slowest allowed feed the plan removes clearly less than the target depth on average.",
+          "Lower the target or raise the tolerance, raise the force, plan the passes closer, or run the job "
+          "more than once.", "feed"),
+    # --- robot ---------------------------------------------------------------------------------------------
+    entry("W-ROBOT-UNREACHABLE", r"poses are unreachable for|The programs leave these samples out",
+          "Some poses of the trajectory are out of the robot's reach or joint limits, or near a singularity; "
+          "the programs leave those samples out, so the robot would move straight across them.",
+          "Move the part (`--base`, or `--place` to search a placement) or choose a larger robot.", "robot"),
+    entry("W-ROBOT-FLIP", r"changes configuration .* inside a contact pass",
+          "The arm changes configuration (shoulder, elbow or wrist branch) with the pad on the part.",
+          "Move the part (`--base`, or `--place`) or choose another robot.", "robot"),
+    # --- simulation, force control, calibration ------------------------------------------------------------
+    entry("W-REMOVAL-COARSENED", r"removal sampled at .* instead of",
+          "The part is too large for the removal simulation's sample cap at the asked spacing; it is sampled "
+          "more coarsely.",
+          "Nothing for the plan; for finer removal maps plan regions of the part separately.", "simulate"),
+    entry("W-COVERAGE-LOW", r"coverage is .* \(below",
+          "Part of the surface is never touched by the pressed pad.",
+          "Lower the spacing or raise the overlap, or plan the part in regions (`--segment auto`).",
+          "simulate"),
+    entry("W-EFFICIENCY-ABOVE-1", r"efficiency .* is above 1",
+          "The efficiency η = L\\* / L exceeds 1, which no plan can reach: the lower bound counts area the "
+          "passes never cover.",
+          "Read it together with `coverage_fraction`.", "simulate"),
+    entry("W-PAD-TOO-STIFF", r"is too stiff to follow",
+          "The removal is uneven because the pad is too stiff for the surface's curvature or waviness; a "
+          "softer pad would remove clearly more evenly (simulated).",
+          "Use a softer interface pad (the `--depression` in the message), or plan on a smooth fit of the "
+          "scan (`swath fit`).", "simulate"),
+    entry("W-FORCE-NO-SURFACE", r"have no surface under the pad",
+          "The force simulation found no surface under the pad at some contact samples and assumes the "
+          "flat depression there.",
+          "Check the part and the trajectory near the edges.", "simulate"),
+    entry("W-FORCE-UNSETTLED", r"did not settle within",
+          "At the start of a contact run the simulated force did not settle before the hold time ran out.",
+          "Lower the approach speed or raise the force loop's gains; check the force trace in the report.",
+          "simulate"),
+    entry("W-FORCE-NO-CONTACT", r"no contact within .* beyond the nominal sink",
+          "The simulated tool found no contact within the search depth: the part is not where the plan "
+          "expects it; the pass is skipped.",
+          "Register the part (`swath register`) or check `--part-offset`.", "simulate"),
+    entry("W-CALIBRATION-EXPONENTS", r"calibration exponents",
+          "The calibration fits pressure and speed exponents; the removal model is linear and uses a Preston "
+          "coefficient exact only at the nominal pressure and speed.",
+          "Keep the force and feed near the calibration's nominal values.", "simulate"),
+    # --- output, execution -------------------------------------------------------------------------
+    entry("W-METRIC-UNIT", r"names without a unit suffix",
+          "A metric or setting key lacks a unit suffix (`_m`, `_s`, `_fraction`, ...). This is a bug in swath.",
+          "Report it.", "report"),
+    entry("W-HELPER-PROCESS", r"a helper process ended without an answer",
+          "A helper process swath starts to overlap work ended early (e.g. out of memory); the work is done "
+          "in the main process instead.",
+          "Nothing; the job is slower. Check the memory if it recurs.", "run"),
+    entry("W-RAY-WARMUP", r"warming the Ray workers up failed",
+          "`swath batch` could not warm its Ray workers up; the jobs run anyway, the first on each worker "
+          "a little slower.",
+          "Nothing, unless the jobs then fail: check the Ray cluster.", "run"),
+])
+
+#: Docs page of the codes (relative to the docs site root).
+DOCS_PAGE = "reference/warnings.md"
+
+
+def code_for(text: str) -> str | None:
+    """The code of a warning ``text`` (explicit ``[W-...]`` first, else the first entry whose
+    ``match`` is found), or None."""
+    m = CODE_RE.search(text)
+    if m:
+        return m.group(1)
+    for c in CODES.values():
+        if c.match and re.search(c.match, text):
+            return c.code
+    return None
+
+
+def tagged(text: str) -> str:
+    """``text`` ending with its code, ``"... [W-COVERAGE-LOW]"`` (unchanged when it has one
+    already or matches no entry)."""
+    if CODE_RE.search(text):
+        return text
+    code = code_for(text)
+    return f"{text} [{code}]" if code else text
+
+
+class WarningCodeFilter(logging.Filter):
+    """A handler filter that ends each WARNING record's message with its code."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno == logging.WARNING and isinstance(record.msg, str) and not CODE_RE.search(record.msg):
+            try:
+                text = record.getMessage()
+            except (TypeError, ValueError):
+                return True
+            code = code_for(record.msg) or code_for(text)
+            if code and f"[{code}]" not in text:
+                record.msg, record.args = f"{text} [{code}]", None
+        return True
+
+
+def install_warning_codes(logger: logging.Logger | None = None) -> None:
+    """Add :class:`WarningCodeFilter` to the handlers of ``logger`` (default the root logger)."""
+    for handler in (logger or logging.getLogger()).handlers:
+        if not any(isinstance(f, WarningCodeFilter) for f in handler.filters):
+            handler.addFilter(WarningCodeFilter())
+
+
+def warnings_markdown() -> str:
+    """The docs page body: one section per code, grouped by stage."""
+    stages = {"input": "Reading parts and scans", "fit": "Scan fits and registration", "plan": "Planning",
+              "trajectory": "Timing", "feed": "Feed optimisation", "robot": "Robot", "simulate":
+              "Removal, force and calibration", "report": "Output", "run": "Running jobs"}
+    lines = []
+    for stage in [*stages, *sorted({c.stage for c in CODES.values()} - set(stages))]:
+        codes = sorted((c for c in CODES.values() if c.stage == stage), key=lambda c: c.code)
+        if not codes:
+            continue
+        lines += [f"## {stages.get(stage, stage.capitalize())}", ""]
+        for c in codes:
+            lines += [f"### {c.code} {{#{c.anchor}}}", "", f"**What it means.** {c.meaning}", "",
+                      f"**What to do.** {c.action}", ""]
+    return "\n".join(lines)
