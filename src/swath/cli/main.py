@@ -9,6 +9,7 @@
     swath batch sweep.toml [--workers 2]   # a grid of jobs on Ray, one results table
     swath fit SCAN [--units mm] [--parameterization auto|projection|lscm|rows] [--spacing 2mm] --out DIR
     swath register CAD SCAN [--units mm] [--scan-units mm] [--table] --out DIR
+    swath rework CAD SCAN [--units mm] [--placement register] [--min-excess 2um] ... --out DIR
 
 Errors caused by the input exit with status 2 and one line on stderr; no half-written output is
 left behind.
@@ -103,6 +104,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="raster pass spacing for even removal: ripple (the spacing whose summed pad "
                         "cross-profiles are flattest, path within 1.5x the coverage bound; with --planner uniform its overlap), greedy (Wang's pattern "
                         "search, pass by pass, against the target) or joint (equal spacing and feed together)")
+    e.add_argument("--length-budget",
+                   help="with --optimise-spacing ripple: the contact length the spacing may use, in multiples of the "
+                        "coverage bound L*, e.g. 2 (default 1.5): closer passes, less ripple between them")
     e.add_argument("--lead-angle",
                    help="tilt the pad about the axis across the feed in contact, its leading edge lifted, e.g. "
                         "7deg; auto: the angle at which half the pad presses on a flat part (7.0 deg for the "
@@ -198,6 +202,27 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--force-units", action="store_true", help="accept sizes outside 5 mm .. 20 m")
     g.add_argument("--out", required=True, help="output directory (written atomically)")
     g.add_argument("--overwrite", action="store_true", help="replace an existing non-empty folder swath did not write")
+
+    w = add_parser("rework", help="plan again only where a scan after a run shows material left: the feed set to "
+                                  "remove the measured excess; rework.json, rework.png, plan/")
+    w.add_argument("cad", help="nominal CAD surface: mesh (STL, PLY, OBJ)")
+    w.add_argument("scan", help="the part measured after the run: point cloud or mesh")
+    w.add_argument("--units", default="m", help="unit of the CAD file: m, mm, cm or in")
+    w.add_argument("--scan-units", help="unit of the scan file (default: --units)")
+    w.add_argument("--side", help="for a closed CAD solid: the direction the tool comes from, e.g. +z")
+    w.add_argument("--force-units", action="store_true", help="accept sizes outside 5 mm .. 20 m")
+    w.add_argument("--placement", default="register",
+                   help="how the CAD is placed on the scan: register (global search, then refined on the areas at "
+                        "the nominal surface), as-measured (the scan is in the CAD frame), or a transform.json "
+                        "written by swath register (then refined)")
+    w.add_argument("--excess-radius", default="10mm",
+                   help="scan points within this distance of a CAD vertex are averaged into its excess")
+    w.add_argument("--min-excess", help="excess under which nothing is reworked, e.g. 2um (default: three times "
+                                        "the excess map's noise, at least 1um)")
+    _add_plan_options(w, with_part_options=False)
+    # the least ripple between passes the contact model allows (3.7 % on a plane, at 2 L*): a rework
+    # run removes a few micrometres, so the ripple is the residual's largest part
+    w.set_defaults(lead_angle="15deg", optimise_spacing="ripple", length_budget="2")
 
     d = add_parser("demo", help="plan the built-in helicopter-blade section with the uniform planner")
     d.add_argument("--part", default="example:blade", help="built-in part (example:blade, example:plate, example:panel)")
@@ -307,6 +332,14 @@ def main(argv=None) -> int:
             if not args.quiet:
                 print(_register_summary(settings, doc))
             return 0
+        if args.command == "rework":
+            from .reworkjob import run_rework
+
+            settings = _rework_settings_from_args(args)
+            doc = run_rework(settings, progress=progress)
+            if not args.quiet:
+                print(_rework_summary(settings, doc))
+            return 0
         if args.command in ("calibrate", "doe"):
             from .calibrate_cmd import run_calibrate, run_doe
 
@@ -387,6 +420,41 @@ def _fit_summary(settings, doc: dict) -> str:
         f"rms {f['rms_m'] * 1e3:.3g} mm, max {f['max_error_m'] * 1e3:.3g} mm over {f['n_points']} points{dropped}; "
         f"surface {doc['surface']['n_vertices']} vertices at {doc['surface']['spacing_m'] * 1e3:.3g} mm"
     )
+
+
+def _rework_settings_from_args(args):
+    import dataclasses
+
+    from ..units import parse_quantity
+    from .reworkjob import ReworkSettings
+    from .settings import SCHEMA, settings_from_mapping
+
+    values = {k: v for k, v in vars(args).items() if k in SCHEMA and v is not None}
+    tolerance = values.pop("depth_tolerance", None)
+    for key in ("target_depth", "target_map", "optimise_feed"):
+        if values.pop(key, None) is not None:
+            raise InputError(f"swath rework sets the target from the scan; drop --{key.replace('_', '-')}")
+    values["part"] = args.cad
+    plan = settings_from_mapping(values)
+    if tolerance is not None:
+        plan = dataclasses.replace(plan, depth_tolerance=parse_quantity(tolerance, "length"))
+    radius = parse_quantity(args.excess_radius, "length")
+    min_excess = None if args.min_excess is None else parse_quantity(args.min_excess, "length")
+    if min_excess is not None and min_excess < 0:
+        raise InputError(f"--min-excess must be >= 0, got {args.min_excess}")
+    return ReworkSettings(cad=args.cad, scan=args.scan, out=args.out, plan=plan, scan_units=args.scan_units,
+                          placement=args.placement, radius=radius, min_excess=min_excess, overwrite=args.overwrite)
+
+
+def _rework_summary(settings, doc: dict) -> str:
+    if "message" in doc:
+        return f"{doc['message']} -> {settings.out}/rework.json"
+    return (f"wrote {settings.out}/rework.json, rework.png, plan/ (trajectory.csv in the CAD frame)\n"
+            f"  excess rms {doc['excess_rms_m'] * 1e6:.3g} um (max {doc['excess_max_m'] * 1e6:.3g} um) over "
+            f"{doc['rework_area_m2']:.3g} m2 -> predicted residual rms {doc['residual_rms_m'] * 1e6:.3g} um "
+            f"({100 * doc['residual_rms_fraction']:.1f} %), most left {doc['residual_max_m'] * 1e6:.3g} um, most "
+            f"below nominal {doc['over_removal_max_m'] * 1e6:.3g} um; {doc['n_passes']} passes, cycle "
+            f"{doc['cycle_time_s']:.1f} s")
 
 
 def _register_summary(settings, doc: dict) -> str:

@@ -97,6 +97,10 @@ class JobSettings:
     optimise_spacing: str | None = None
     # the optimised feed is checked in the removal simulator and corrected where it over-removes
     feed_simulate_check: bool = True
+    # "fastest": raise the target to what the passes remove at the fastest feed (a tapering target map)
+    target_floor: str = "none"
+    # the contact length a spacing optimisation may use, in multiples of the coverage bound L*
+    length_budget: float = 1.5
     # robot stage
     robot: str | None = None
     base: str | None = None
@@ -248,7 +252,8 @@ SCHEMA: dict[str, Key] = {
     "optimise_feed": Key("bool"), "target_depth": Key("length", positive=True, bare_max=1e-2, hint="um, e.g. 20um"),
     "target_map": Key("path"), "depth_tolerance": Key("length", lo=0.0, bare_max=1e-2, hint="um, e.g. 5um"),
     "optimise_spacing": Key("str", choices=("ripple", "greedy", "joint"), off=True),
-    "feed_simulate_check": Key("bool"),
+    "feed_simulate_check": Key("bool"), "target_floor": Key("str", choices=("none", "fastest")),
+    "length_budget": Key("fraction", lo=1.0, hi=4.0),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
 }

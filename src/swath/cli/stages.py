@@ -132,11 +132,11 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict):
     if method == "ripple" and settings.planner == "uniform":
         # the uniform planner spaces passes by overlap of the local swath width: keep d / w at the
         # ratio the ripple analysis chose (on a plane w = 2R and the spacing is ripple_spacing's)
-        overlap = ripple_overlap(tool, lead_angle=settings.lead())
+        overlap = ripple_overlap(tool, lead_angle=settings.lead(), max_length_ratio=settings.length_budget)
         log.info("ripple overlap %.3f of the swath width", overlap)
         return planner(surface, tool, **{**arguments, "overlap": overlap})
     if method == "ripple":
-        spacing, cov = ripple_spacing(tool, lead_angle=settings.lead())
+        spacing, cov = ripple_spacing(tool, lead_angle=settings.lead(), max_length_ratio=settings.length_budget)
         log.info("ripple spacing %.1f mm (pad cross-profile ripple CoV %.3f on a plane)", spacing * 1e3, cov)
         return planner(surface, tool, **{**arguments, "spacing": spacing})
     direction = arguments.get("direction")
@@ -190,7 +190,8 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None
             say(f"optimising the feed: {stage}", done, total)
 
     result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory,
-                           simulate=simulate, progress=report, lead_angle=settings.lead())
+                           simulate=simulate, progress=report, lead_angle=settings.lead(),
+                           target_floor=settings.target_floor)
     timed = time_path(toolpath, constraints + [result.profile], links=settings.links(), lead_angle=settings.lead())
     metrics = {k if k.startswith("feed") else f"feed_{k}": v for k, v in result.metrics.items()
                if isinstance(v, (int, float, str, bool))}

@@ -291,7 +291,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
                   cap_margin: float = 0.5, model_error: float = 0.10, round_slack: float = 0.1,
                   max_rows: int = 5000, timing_rounds: int = 5, ratio_tolerance: float = 0.01, trajectory=None,
                   simulate=None, simulate_rounds: int = 6, simulate_margin: float = 0.02,
-                  trim_rounds: int = 8, spread_check: bool = True, progress=None) -> FeedResult:
+                  trim_rounds: int = 8, spread_check: bool = True, target_floor: str = "none",
+                  progress=None) -> FeedResult:
     """Optimise the feed along every pass of ``toolpath`` so its removal matches ``target``.
 
     Parameters
@@ -414,6 +415,11 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         (:func:`_timed_spread_removal`), and trim where the larger of that and the simulated depth
         is over (default True; one kernel build per check).  ``metrics["simulated_rounds"]`` then
         holds ``spread_max_over_target_m`` and ``spread_samples_over`` in the last solve round.
+    target_floor : {"none", "fastest"}
+        ``"fastest"``: raise the target at every sample to what the passes remove there at the
+        fastest feed the limits allow (wherever the passes run they remove at least that), instead
+        of refusing such a target: for a target map that tapers to zero, e.g. the excess of a
+        rework scan.  ``metrics["target_raised_max_m"]`` says by how much at most.
     progress : callable, optional
         ``progress(stage, done, total)`` with ``stage`` in ``"kernel"`` (batches of poses),
         ``"solve"`` (before each HiGHS solve: ``done`` the solves before it, ``total`` 0 since their
@@ -497,6 +503,13 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
             progress("solve", solves, 0)
         solves += 1
 
+    if target_floor not in ("none", "fastest"):
+        raise InputError(f"target_floor must be 'none' or 'fastest', got {target_floor!r}")
+    raised = 0.0
+    if target_floor == "fastest":
+        at_fastest = kernel.removal(t_min)
+        raised = float(np.max(np.maximum(at_fastest - target_s, 0.0)[region], initial=0.0))
+        target_s = np.maximum(target_s, at_fastest)
     t1 = time.perf_counter()
     mean_target = float(np.average(target_s[region], weights=kernel.samples.vertex_areas[region])) if region.any() else 0.0
     lp_tolerance = tolerance - max(cap_margin * tolerance, model_error * mean_target)
@@ -597,7 +610,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     metrics = {"status": status, "mode": mode, "objective": objective, "kernel_time_s": t_kernel,
                "solve_time_s": t_solve, "n_nodes": len(nodes), "n_region_samples": int(region.sum()),
                "kernel_nonzeros": int(kernel.matrix.nnz), "tolerance_m": float(tolerance),
-               "programme_cap_over_target_m": float(lp_tolerance),
+               "programme_cap_over_target_m": float(lp_tolerance), "target_raised_max_m": raised,
                "v_min_m_per_s": v_min, "v_max_m_per_s": v_max, "contact_time_s": float(dwell.sum()),
                "fastest_contact_time_s": float(t_min.sum()), "speed_mean_m_per_s": float(np.mean(speed)),
                "speed_min_m_per_s": float(speed.min()), "speed_max_m_per_s": float(speed.max())}
