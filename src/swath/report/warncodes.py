@@ -98,6 +98,9 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-REGISTER-AMBIGUOUS", r"another pose .* fits almost as well",
           "A second, different pose fits the scan almost as well: the part may be symmetric.",
           "Check the pose in `register.html`; constrain it (`--table`) or give a closer initial pose.", "fit"),
+    entry("W-REWORK-UNMEASURED", r"the scan measured only",
+          "The rework scan covers less than half of the CAD: the unmeasured rest is taken as nominal.",
+          "Check the placement (`--placement`, `--scan-units`) or scan the whole area to finish.", "fit"),
     # --- planning and ordering ------------------------------------------------------------------
     entry("W-RASTER-GAP", r"predicted to stay untouched",
           "The raster's planes and fill passes still leave part of the surface untouched.",
