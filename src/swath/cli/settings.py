@@ -105,6 +105,8 @@ class JobSettings:
     place: bool = False
     table_z: float = 0.0
     robot_strict: bool = False
+    cell: str | None = None
+    allow_collisions: bool = False
 
     def tool(self):
         from ..contact import Tool
@@ -166,7 +168,8 @@ class JobSettings:
                           depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
         if self.robot:
             record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
-                          place=self.place, table_z_m=self.table_z)
+                          place=self.place, table_z_m=self.table_z, cell=self.cell,
+                          allow_collisions=self.allow_collisions)
         return record
 
 
@@ -251,6 +254,7 @@ SCHEMA: dict[str, Key] = {
     "feed_simulate_check": Key("bool"),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
+    "cell": Key("path"), "allow_collisions": Key("bool"),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job
@@ -409,10 +413,10 @@ def check_settings(settings: JobSettings) -> None:
     check_side(settings.side, "side")                # refused even where the part turns out open
     if settings.fit and str(settings.part).lower().endswith(".json"):
         raise InputError(f"{Path(settings.part).name} is already a fitted patch; drop --fit to plan on it")
-    if settings.robot or settings.programs or settings.place:
+    if settings.robot or settings.programs or settings.place or settings.cell:
         from .stages import robot_options
 
-        robot_options(settings)                     # robot name, base and tcp poses, program formats
+        robot_options(settings)                     # robot name, cell file, base and tcp poses, program formats
     if settings.optimise_feed and not (settings.target_depth or settings.target_map):
         raise InputError("--optimise-feed needs a target: --target-depth (e.g. 20um) or --target-map FILE")
     if (settings.target_depth or settings.target_map or settings.depth_tolerance) and not settings.optimise_feed:
