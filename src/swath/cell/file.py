@@ -160,7 +160,9 @@ def _body(b, where: str, root: Path | None, *, prefix: str) -> Body:
         if not file.is_file():
             raise InputError(f"{where}: mesh file {file} not found (relative paths are read from the cell file's folder)")
         scale = parse_quantity(f"1{b.get('units', 'm')}", "length")
-        v, f = read_mesh_file(file, file.suffix.lower())
+        if file.suffix.lower() not in (".stl", ".ply", ".obj"):
+            raise InputError(f"{where}: a mesh body reads .stl, .ply or .obj files, got {file.name}")
+        v, f, _ = read_mesh_file(file, file.suffix.lower())
         shape = Mesh(np.asarray(v, dtype=float) * scale, f)
     else:
         raise InputError(f"{where}: shape must be box, cylinder, capsule or mesh, got {b.get('shape')!r}")

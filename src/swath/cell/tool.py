@@ -11,7 +11,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bodies import Body, Cylinder
-from .frames import format_pose
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,4 +57,4 @@ def default_sander() -> ToolBody:
               Body("tool spindle", Cylinder(s["spindle_radius"], s["spindle_length"]), spindle))
     return ToolBody(bodies=bodies, tcp2flange=tcp2flange,
                     description=f"3-inch random-orbital sander (holder Ø90x50 mm, spindle Ø70x95 mm, pad Ø76.2 mm; "
-                                f"TCP {format_pose(tcp2flange)} from the flange)")
+                                f"TCP {1e3 * tcp2flange[2, 3]:.0f} mm out along the flange's z axis)")
