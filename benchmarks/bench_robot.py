@@ -66,8 +66,8 @@ def job_trajectory(part: str, units: str, point_spacing: float):
 
 
 def stage_row(name, trajectory, robot: str, out: Path, surface=None) -> dict:
-    from swath.robot import Cell, flips_inside_passes, run_robot_stage
     from swath.cell import parse_pose
+    from swath.robot import Cell, flips_inside_passes, run_robot_stage
     from swath.robot.pose import pose_error, poses_from_trajectory
     from swath.robot.readers import read_joint_csv
 

@@ -214,3 +214,21 @@ def test_cell_file_table_false_means_no_table(tmp_path):
     (tmp_path / "cell2.toml").write_text("robot = 'irb4600'\n")
     cell = read_cell_file(tmp_path / "cell2.toml")
     assert cell.table is None and cell.auto_table and cell.tool is None
+
+
+def test_surface_points_bound_every_point_of_the_mesh(rng):
+    """Culling a mesh by sampled points is safe only if every point of every triangle lies within
+    the stated bound of a sampled point: checked on random points of long, thin and obtuse triangles."""
+    from scipy.spatial import cKDTree
+
+    from swath.cell.collide import surface_points
+
+    v = np.array([[0, 0, 0], [1.0, 0, 0], [0.5, 0.02, 0], [0, 0.3, 0.1], [0.05, 0.05, 0.4]])
+    f = np.array([[0, 1, 2], [0, 1, 3], [0, 3, 4], [1, 3, 4]])
+    pts, bound = surface_points(v, f, spacing=0.01)
+    assert bound <= 0.01 / np.sqrt(3) * (1 + 1e-6)
+    w = rng.dirichlet(np.ones(3), size=20000)
+    tri = v[f[rng.integers(0, len(f), 20000)]]
+    sample = np.einsum("nk,nkd->nd", w, tri)
+    d, _ = cKDTree(pts).query(sample)
+    assert d.max() <= bound

@@ -181,4 +181,6 @@ def test_the_job_refuses_a_colliding_plan_unless_allowed(tmp_path, capsys):
     assert any("--allow-collisions" in w for w in metrics["warnings"])
     assert any("3-inch random-orbital sander" in w for w in metrics["warnings"])
     assert (tmp_path / "allowed" / "robot").is_dir()
+    html = (tmp_path / "allowed" / "report.html").read_text(encoding="utf-8")
+    assert "fixture post" in html and "tool spindle hits fixture post" in html and "table (assumed)" in html
     assert format_pose(parse_pose(metrics["robot_part2base"])) == metrics["robot_part2base"]

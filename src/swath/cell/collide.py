@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from .bodies import Body, Mesh
+from .bodies import Body, Box, Mesh
 
 log = logging.getLogger(__name__)
 
@@ -92,9 +92,12 @@ class CollisionScene:
         (the robot's first link on its table, the tool on the last wrist link).
     self_pairs : iterable of (int, int)
         Pairs of indices into ``moving`` checked against each other.
+    cull_spacing : float
+        Spacing of the points sampled on mesh bodies for culling, m (smaller culls more, costs
+        memory: about area / spacing² points).
     """
 
-    def __init__(self, static, moving, *, skip=(), self_pairs=()):
+    def __init__(self, static, moving, *, skip=(), self_pairs=(), cull_spacing: float = 0.008):
         coal = _coal()
         self.static = list(static)
         self.moving = list(moving)
@@ -108,10 +111,14 @@ class CollisionScene:
             if isinstance(b.shape, Mesh):
                 from scipy.spatial import cKDTree
 
-                v = b.shape.vertices @ b.body2frame[:3, :3].T + b.body2frame[:3, 3]
-                self._static_cull.append(("mesh", cKDTree(v), b.shape.max_edge(), *b.aabb()))
+                pts, cover = surface_points(b.shape.vertices, b.shape.faces, spacing=cull_spacing)
+                pts = pts @ b.body2frame[:3, :3].T + b.body2frame[:3, 3]
+                self._static_cull.append(("mesh", cKDTree(pts), cover, *b.aabb()))
+            elif isinstance(b.shape, Box):
+                self._static_cull.append(("box", np.linalg.inv(b.body2frame), np.asarray(b.shape.size) / 2,
+                                          *b.aabb()))
             else:
-                self._static_cull.append(("box", None, 0.0, *b.aabb()))
+                self._static_cull.append(("aabb", None, 0.0, *b.aabb()))
         self._moving_geom = [m.body.shape.coal() for m in self.moving]
         self._cover = [m.body.shape.cover() for m in self.moving]
 
@@ -169,12 +176,21 @@ class CollisionScene:
             for s, b in enumerate(self.static):
                 if (m.body.name, b.name) in self.skip:
                     continue
-                kind, tree, edge, lo, hi = self._static_cull[s]
+                kind, cull, extra, lo, hi = self._static_cull[s]
                 near = np.all((c + r[:, None] > lo) & (c - r[:, None] < hi), axis=2)     # (n, k)
                 if kind == "mesh" and near.any():
+                    # every point of the mesh is within `extra` of a sampled point
                     pn, pk = np.nonzero(near)
-                    d, _ = tree.query(c[pn, pk], distance_upper_bound=float(r.max() + edge) + 1e-9)
-                    close = d < r[pk] + edge
+                    d, _ = cull.query(c[pn, pk], distance_upper_bound=float(r.max() + extra) + 1e-9)
+                    close = d < r[pk] + extra
+                    near = np.zeros_like(near)
+                    near[pn[close], pk[close]] = True
+                elif kind == "box" and near.any():
+                    # exact sphere-box test in the box's frame
+                    pn, pk = np.nonzero(near)
+                    local = c[pn, pk] @ cull[:3, :3].T + cull[:3, 3]
+                    gap = np.linalg.norm(np.maximum(np.abs(local) - extra, 0.0), axis=1)
+                    close = gap < r[pk]
                     near = np.zeros_like(near)
                     near[pn[close], pk[close]] = True
                 poses = np.flatnonzero(near.any(axis=1))
@@ -201,3 +217,44 @@ class CollisionScene:
                              point_base=np.asarray(out_p, dtype=float).reshape(-1, 3)[order],
                              depth=np.asarray(out_d, dtype=float)[order], n_queries=n_queries,
                              stats={"poses": n, "candidates": n_candidates})
+
+
+def surface_points(vertices, faces, *, spacing: float):
+    """Points on a triangle mesh such that every point of the mesh lies near one of them.
+
+    Each triangle is split into ``n²`` similar triangles (``n`` = its longest edge over ``spacing``,
+    rounded up) whose corners are the points; every point of a triangle lies within its longest
+    edge over √3 of a corner, so of a returned point within the returned bound.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        m.
+    faces : (m, 3) int
+    spacing : float
+        Largest edge of the small triangles, m.
+
+    Returns
+    -------
+    points : (k, 3) float
+        m (duplicates on shared edges are kept).
+    bound : float
+        Every point of the mesh is within this distance of a returned point, m.
+    """
+    v = np.asarray(vertices, dtype=float)
+    tri = v[np.asarray(faces)]
+    longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    n_sub = np.maximum(1, np.ceil(longest / spacing).astype(int))
+    out = [v]
+    bound = 0.0
+    for n in np.unique(n_sub):
+        group = tri[n_sub == n]
+        bound = max(bound, float((longest[n_sub == n] / n).max()) / np.sqrt(3.0))
+        if n == 1:
+            continue
+        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+        keep = i + j <= n
+        a, b = i[keep] / n, j[keep] / n
+        w = np.column_stack([1 - a - b, a, b])                       # barycentric weights (p, 3)
+        out.append(np.einsum("pk,tkd->tpd", w, group).reshape(-1, 3))
+    return np.vstack(out), bound * (1 + 1e-9) + 1e-12

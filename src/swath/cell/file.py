@@ -119,7 +119,7 @@ def _table(t, where: str) -> Table | None:
                          f"got {t!r}")
     centre = t.get("centre", t.get("center", [0, 0]))
     size = t.get("size", [2, 2])
-    if len(centre) != 2 or len(size) != 2:
+    if not isinstance(centre, list) or not isinstance(size, list) or len(centre) != 2 or len(size) != 2:
         raise InputError(f"{where}: centre and size take two lengths (x, y), got {centre!r}, {size!r}")
     return Table(top_z=parse_quantity(t["top_z"], "length"),
                  centre_xy=tuple(parse_quantity(v, "length") for v in centre),

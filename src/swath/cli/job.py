@@ -354,7 +354,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             figures.update(write_force_plots(tmp, trace=force))
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                      metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}",
-                     extra_figures=figures)
+                     extra_figures=figures, scene_traces=None if robot is None else stages.cell_scene(robot, metrics, surface))
     say("done", 1, 1)
     return metrics
 

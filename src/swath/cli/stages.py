@@ -131,6 +131,13 @@ def robot_stage(trajectory, surface, settings):
     return result.trajectory, result, metrics
 
 
+def cell_scene(result, metrics, surface) -> list:
+    """The robot cell (table, fixtures) and the collisions found, as 3D-view traces in the part frame."""
+    from ..report.cell_view import cell_traces
+
+    return cell_traces(result.cell, metrics.get("collisions", ()), part_vertices=surface.vertices)
+
+
 def write_robot_outputs(result, surface, settings, out_dir) -> dict:
     """The robot programs and figures (joint plots, reachability map) into ``out_dir``; returns
     the figures by name."""

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
 from ..cell import Cell
+from ..errors import InputError
 from .models import RobotModel
 from .pose import make_transform, poses_from_trajectory, rot_z
 from .solve import Margins, branch_table, solve_trajectory

@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from ..io.atomic import write_text_atomic
 from ..cell import Cell
+from ..io.atomic import write_text_atomic
 from .models import RobotModel
 from .pose import (
     make_transform,

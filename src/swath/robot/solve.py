@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import UnreachableError
 from ..cell import Cell
+from ..errors import UnreachableError
 from .models import RobotModel
 from .pose import poses_from_trajectory
 

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
 from ..cell import Cell, parse_pose
+from ..errors import InputError
 from .models import RobotModel, get_robot
 from .placement import Placement, search_placement
 from .pose import pose_error, poses_from_trajectory
