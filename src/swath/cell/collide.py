@@ -113,7 +113,9 @@ class CollisionScene:
 
                 pts, cover = surface_points(b.shape.vertices, b.shape.faces, spacing=cull_spacing)
                 pts = pts @ b.body2frame[:3, :3].T + b.body2frame[:3, 3]
-                self._static_cull.append(("mesh", cKDTree(pts), cover, *b.aabb()))
+                # an unbalanced tree with big leaves answers these bounded queries ~5x faster here
+                tree = cKDTree(pts, leafsize=64, balanced_tree=False, compact_nodes=False)
+                self._static_cull.append(("mesh", tree, cover, *b.aabb()))
             elif isinstance(b.shape, Box):
                 self._static_cull.append(("box", np.linalg.inv(b.body2frame), np.asarray(b.shape.size) / 2,
                                           *b.aabb()))
@@ -121,13 +123,11 @@ class CollisionScene:
                 self._static_cull.append(("aabb", None, 0.0, *b.aabb()))
         self._moving_geom = [m.body.shape.coal() for m in self.moving]
         self._cover = [m.body.shape.cover() for m in self.moving]
-
-    def _sphere_centres(self, link2base: np.ndarray, i: int) -> np.ndarray:
-        """(n, k, 3) world centres of moving body ``i``'s covering spheres."""
-        m = self.moving[i]
-        t = link2base[:, m.link] @ m.body.body2frame
-        c = self._cover[i][0]
-        return np.einsum("nij,kj->nki", t[:, :3, :3], c) + t[:, None, :3, 3]
+        # one sphere around each moving body's covering spheres: the first, cheapest cull
+        self._bound = []
+        for c, r in self._cover:
+            mid = (c.min(axis=0) + c.max(axis=0)) / 2
+            self._bound.append((mid, float(np.max(np.linalg.norm(c - mid, axis=1) + r))))
 
     def check(self, link2base) -> CollisionHits:
         """Every pose where a checked pair touches.
@@ -151,7 +151,7 @@ class CollisionScene:
         n_queries = 0
         n_candidates = 0
         body_pose = [link2base[:, m.link] @ m.body.body2frame for m in self.moving]
-        centres = [self._sphere_centres(link2base, i) for i in range(len(self.moving))]
+        bound_c = [t[:, :3, :3] @ mid + t[:, :3, 3] for t, (mid, _) in zip(body_pose, self._bound)]
 
         def query(i, geom_b, tf_b, poses, name_b):
             nonlocal n_queries
@@ -171,46 +171,47 @@ class CollisionScene:
                     out_d.append(abs(float(c.penetration_depth)))
 
         for i, m in enumerate(self.moving):
-            c = centres[i]
-            r = self._cover[i][1]
+            rb = self._bound[i][1]
+            cov_c, cov_r = self._cover[i]
             for s, b in enumerate(self.static):
                 if (m.body.name, b.name) in self.skip:
                     continue
                 kind, cull, extra, lo, hi = self._static_cull[s]
-                near = np.all((c + r[:, None] > lo) & (c - r[:, None] < hi), axis=2)     # (n, k)
-                if kind == "mesh" and near.any():
-                    # every point of the mesh is within `extra` of a sampled point
-                    pn, pk = np.nonzero(near)
-                    d, _ = cull.query(c[pn, pk], distance_upper_bound=float(r.max() + extra) + 1e-9)
-                    close = d < r[pk] + extra
-                    near = np.zeros_like(near)
-                    near[pn[close], pk[close]] = True
-                elif kind == "box" and near.any():
-                    # exact sphere-box test in the box's frame
-                    pn, pk = np.nonzero(near)
-                    local = c[pn, pk] @ cull[:3, :3].T + cull[:3, 3]
-                    gap = np.linalg.norm(np.maximum(np.abs(local) - extra, 0.0), axis=1)
-                    close = gap < r[pk]
-                    near = np.zeros_like(near)
-                    near[pn[close], pk[close]] = True
-                poses = np.flatnonzero(near.any(axis=1))
-                n_candidates += len(poses)
-                query(i, *self._static_geom[s], poses, b.name)
+                cand = np.flatnonzero(np.all((bound_c[i] + rb > lo) & (bound_c[i] - rb < hi), axis=1))
+                if len(cand) and kind in ("mesh", "box"):
+                    t = body_pose[i][cand]
+                    c = np.swapaxes(t[:, :3, :3] @ cov_c.T, 1, 2) + t[:, None, :3, 3]     # (m, k, 3)
+                    pn, pk = np.nonzero(np.ones(c.shape[:2], bool))
+                    if kind == "mesh":
+                        # every point of the mesh is within `extra` of a sampled point
+                        d, _ = cull.query(c[pn, pk], distance_upper_bound=float(cov_r.max() + extra) + 1e-9)
+                        close = d < cov_r[pk] + extra
+                    else:
+                        # exact sphere-box test in the box's frame
+                        local = c[pn, pk] @ cull[:3, :3].T + cull[:3, 3]
+                        close = np.linalg.norm(np.maximum(np.abs(local) - extra, 0.0), axis=1) < cov_r[pk]
+                    cand = cand[np.unique(pn[close])]
+                n_candidates += len(cand)
+                query(i, *self._static_geom[s], cand, b.name)
         for i, j in self.self_pairs:
             if (self.moving[i].body.name, self.moving[j].body.name) in self.skip:
                 continue
-            ci, cj = centres[i], centres[j]
-            ri, rj = self._cover[i][1], self._cover[j][1]
-            dist = np.linalg.norm(ci[:, :, None] - cj[:, None], axis=3)
-            poses = np.flatnonzero(np.any(dist < ri[:, None] + rj[None], axis=(1, 2)))
-            n_candidates += len(poses)
-            tj = body_pose[j]
-            geom_j = self._moving_geom[j]
+            gap = np.linalg.norm(bound_c[i] - bound_c[j], axis=1) - self._bound[i][1] - self._bound[j][1]
+            cand = np.flatnonzero(gap < 0)
+            if len(cand):
+                ti, tj = body_pose[i][cand], body_pose[j][cand]
+                (ci, ri), (cj, rj) = self._cover[i], self._cover[j]
+                wi = np.swapaxes(ti[:, :3, :3] @ ci.T, 1, 2) + ti[:, None, :3, 3]
+                wj = np.swapaxes(tj[:, :3, :3] @ cj.T, 1, 2) + tj[:, None, :3, 3]
+                dist = np.linalg.norm(wi[:, :, None] - wj[:, None], axis=3)
+                cand = cand[np.any(dist < ri[:, None] + rj[None], axis=(1, 2))]
+            n_candidates += len(cand)
+            tj_all = body_pose[j]
 
-            def tf_j(k, tj=tj):
+            def tf_j(k, tj=tj_all):
                 return coal.Transform3s(tj[k, :3, :3].copy(), tj[k, :3, 3].copy())
 
-            query(i, geom_j, tf_j, poses, self.moving[j].body.name)
+            query(i, self._moving_geom[j], tf_j, cand, self.moving[j].body.name)
         order = np.argsort(np.asarray(out_pose, dtype=int), kind="stable")
         return CollisionHits(pose=np.asarray(out_pose, dtype=int)[order],
                              body_a=[out_a[k] for k in order], body_b=[out_b[k] for k in order],
