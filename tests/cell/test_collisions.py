@@ -184,3 +184,36 @@ def test_the_job_refuses_a_colliding_plan_unless_allowed(tmp_path, capsys):
     html = (tmp_path / "allowed" / "report.html").read_text(encoding="utf-8")
     assert "fixture post" in html and "tool spindle hits fixture post" in html and "table (assumed)" in html
     assert format_pose(parse_pose(metrics["robot_part2base"])) == metrics["robot_part2base"]
+
+
+def test_self_collisions_culled_match_coal_on_every_pair(rng):
+    """Random UR10e configurations: the arm's links and the tool against links three or more joints
+    away, culled, find exactly what coal finds when asked about every pair at every pose."""
+    import coal
+
+    from swath.robot.collision import job_scene
+
+    model = get_robot("ur10e")
+    tool = default_sander()
+    scene, _ = job_scene(model, Cell(tool=tool, tcp2flange=tool.tcp2flange, auto_table=False))
+    q = rng.uniform(-math.pi, math.pi, (400, 6))
+    frames = model.chain.frames(q)
+    hits = scene.check(frames)
+    want = set()
+    for i, j in scene.self_pairs:
+        a, b = scene.moving[i], scene.moving[j]
+        for k in range(len(q)):
+            ta = frames[k, a.link] @ a.body.body2frame
+            tb = frames[k, b.link] @ b.body.body2frame
+            res = coal.CollisionResult()
+            if coal.collide(a.body.shape.coal(), coal.Transform3s(ta[:3, :3].copy(), ta[:3, 3].copy()),
+                            b.body.shape.coal(), coal.Transform3s(tb[:3, :3].copy(), tb[:3, 3].copy()),
+                            coal.CollisionRequest(), res):
+                want.add((k, a.body.name, b.body.name))
+    got = {(int(k), a, b) for k, a, b in zip(hits.pose, hits.body_a, hits.body_b)}
+    assert got == want
+    assert len({k for k, _, _ in want}) > 10            # random configurations do fold onto themselves
+    assert len({(a, b) for _, a, b in want}) >= 2       # and more than one pair of bodies meets
+    # adjacent links and the tool on the last wrist links are never pairs
+    names = {(scene.moving[i].body.name, scene.moving[j].body.name) for i, j in scene.self_pairs}
+    assert ("robot link 5", "tool holder") not in names and ("robot link 2", "robot link 3") not in names
