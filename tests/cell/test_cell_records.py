@@ -232,3 +232,24 @@ def test_surface_points_bound_every_point_of_the_mesh(rng):
     sample = np.einsum("nk,nkd->nd", w, tri)
     d, _ = cKDTree(pts).query(sample)
     assert d.max() <= bound
+
+
+def test_a_job_file_reads_its_cell_file_beside_it(tmp_path):
+    """`cell = "cell.toml"` in a job file is read from the job file's folder, and a bad cell file is
+    refused when the settings are checked, before any work."""
+    from swath.cli.settings import check_settings, load_job_toml
+    from swath.cli.stages import job_cell
+
+    (tmp_path / "cell.toml").write_text('robot = "irb4600"\npart2base = "1.2,0,-0.3,0,0,0"\ntable = false\n')
+    (tmp_path / "job.toml").write_text('[job]\npart = "example:plate"\nout = "out"\ncell = "cell.toml"\n'
+                                       'allow_collisions = true\n')
+    settings = load_job_toml(tmp_path / "job.toml")
+    assert settings.cell == str(tmp_path / "cell.toml") and settings.allow_collisions
+    check_settings(settings)
+    cell = job_cell(settings)
+    np.testing.assert_allclose(cell.part2base[:3, 3], [1.2, 0, -0.3])
+    assert cell.tool is not None and cell.tool.tcp2flange[2, 3] == pytest.approx(0.175)   # the default sander
+    assert any("3-inch random-orbital sander" in n for n in cell.notes)
+    (tmp_path / "cell.toml").write_text('part2base = "1.2,0,-0.3,0,0"\n')
+    with pytest.raises(InputError, match="six values"):
+        check_settings(load_job_toml(tmp_path / "job.toml"))

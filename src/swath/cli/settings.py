@@ -370,7 +370,7 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
     if not kwargs.get("part") or not kwargs.get("out"):
         raise InputError("a job needs 'part' (a mesh file or example:NAME) and 'out' (the output directory)")
     if base_dir is not None:
-        for k in ("part", "out", "calibration", "target_map"):
+        for k in ("part", "out", "calibration", "target_map", "cell"):
             p = kwargs.get(k)
             if p and not str(p).startswith("example:") and not Path(p).is_absolute():
                 kwargs[k] = str(base_dir / p)
