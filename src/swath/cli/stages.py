@@ -52,12 +52,13 @@ def job_cell(settings):
         cell = replace(cell, tcp2flange=parse_pose(settings.tcp, name="--tcp (tcp2flange)"))
         if cell.tool is None:
             notes.append("cell: --tcp gives the TCP but not the tool's body, so only the robot's links are checked "
-                         "for collisions; describe the tool in a cell file ([tool] with [[tool.body]] entries)")
+                         "for collisions; describe the tool in a cell file ([tool] with [[tool.body]] entries) [W-CELL-NO-TOOL-BODY]")
     elif cell.tool is None:
         tool = default_sander()
         cell = replace(cell, tool=tool, tcp2flange=tool.tcp2flange)
         notes.append(f"cell: no tool given (--tcp or a cell file's [tool]), so a {tool.description} is assumed "
-                     "for the TCP and the collision check; give your tool's TCP and body in a cell file")
+                     "for the TCP and the collision check; give your tool's TCP and body in a cell file "
+                     "[W-CELL-DEFAULT-TOOL]")
     return replace(cell, notes=tuple(notes))
 
 
@@ -120,13 +121,14 @@ def robot_stage(trajectory, surface, settings):
         warnings.append(f"cell: no table given, so the part is assumed to stand on a table whose top is its lowest "
                         f"point (z = {table.top_z * 1e3:.0f} mm in the base frame), {table.size_xy[0]:.1f} x "
                         f"{table.size_xy[1]:.1f} m under the robot's whole reach; the arm and the tool are checked "
-                        "against it (a cell file's [table], or `table = false`, says otherwise)")
+                        "against it (a cell file's [table], or `table = false`, says otherwise) [W-CELL-DEFAULT-TABLE]")
     if report.events:
         if not settings.allow_collisions:
             raise CollisionError(f"collision check: {report.message()}; no program written. Move the part (--base, "
                                  "--place) or the fixture, change the tool or the path, or pass --allow-collisions "
                                  "to write the programs anyway")
-        warnings.append(f"cell: {report.message()}; the programs are written anyway (--allow-collisions)")
+        warnings.append(f"cell: {report.message()}; the programs are written anyway (--allow-collisions) "
+                        "[W-CELL-COLLISION]")
     result = replace(result, cell=report.cell, warnings=warnings)
     return result.trajectory, result, metrics
 
