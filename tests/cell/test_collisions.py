@@ -82,7 +82,7 @@ def test_a_clean_cell_passes(solved, plate):
                                part_vertices=plate.vertices, part_faces=plate.faces)
     assert rep.events == []
     assert rep.cell.table is not None and rep.cell.table.assumed and rep.cell.table.top_z == pytest.approx(0, abs=1e-12)
-    assert rep.n_poses >= len(solved.trajectory) and rep.n_queries > 0
+    assert rep.n_poses >= len(solved.trajectory)
     # joint steps between checked poses <= 2 deg: more poses than samples where the arm moves far
     dq = np.abs(np.diff(solved.solution.q, axis=0)).max(axis=1)
     assert rep.n_poses == len(solved.trajectory) + int(np.sum(np.maximum(np.ceil(dq / math.radians(2)), 1) - 1))
