@@ -217,3 +217,22 @@ def test_self_collisions_culled_match_coal_on_every_pair(rng):
     # adjacent links and the tool on the last wrist links are never pairs
     names = {(scene.moving[i].body.name, scene.moving[j].body.name) for i, j in scene.self_pairs}
     assert ("robot link 5", "tool holder") not in names and ("robot link 2", "robot link 3") not in names
+
+
+def test_an_arm_through_the_table_is_refused_with_the_link_named(tmp_path, plate_trajectory, plate):
+    """A table slab 360 to 400 mm above the plate (a cell file whose table top is wrong): the tool,
+    up to 175 mm, passes under it, the wrist links do not; the job refuses, naming a robot link and
+    the table, and says the arm passes through the table."""
+    from swath.cli.job import JobSettings
+    from swath.cli.stages import robot_stage
+    from swath.robot.collision import CollisionError
+
+    cell = tmp_path / "cell.toml"
+    cell.write_text(f'robot = "ur10e"\npart2base = "{PART2BASE}"\n[table]\ntop_z = "400mm"\nthickness = "40mm"\n'
+                    'centre = ["550mm", "-150mm"]\nsize = ["1.0", "1.0"]\n')
+    settings = JobSettings(part="example:plate", out=str(tmp_path / "out"), cell=str(cell))
+    with pytest.raises(CollisionError) as err:
+        robot_stage(plate_trajectory, plate, settings)
+    text = str(err.value)
+    assert "robot link" in text and "hits table" in text and "The arm passes through the table" in text
+    assert "tool" not in text.split("no program written")[0]

@@ -123,10 +123,13 @@ def robot_stage(trajectory, surface, settings):
                         f"{table.size_xy[1]:.1f} m under the robot's whole reach; the arm and the tool are checked "
                         "against it (a cell file's [table], or `table = false`, says otherwise) [W-CELL-DEFAULT-TABLE]")
     if report.events:
+        arm_in_table = any(e.body_a.startswith("robot link") and e.body_b == "table" for e in report.events)
+        hint = (" The arm passes through the table: raise the part or bring it nearer the robot so that the elbow "
+                "stays above the table top." if arm_in_table else "")
         if not settings.allow_collisions:
-            raise CollisionError(f"collision check: {report.message()}; no program written. Move the part (--base, "
-                                 "--place) or the fixture, change the tool or the path, or pass --allow-collisions "
-                                 "to write the programs anyway")
+            raise CollisionError(f"collision check: {report.message()}; no program written.{hint} Move the part "
+                                 "(--base, --place) or the fixture, change the tool or the path, or pass "
+                                 "--allow-collisions to write the programs anyway")
         warnings.append(f"cell: {report.message()}; the programs are written anyway (--allow-collisions) "
                         "[W-CELL-COLLISION]")
     result = replace(result, cell=report.cell, warnings=warnings)
