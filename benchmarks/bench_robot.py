@@ -66,19 +66,19 @@ def job_trajectory(part: str, units: str, point_spacing: float):
 
 
 def stage_row(name, trajectory, robot: str, out: Path, surface=None) -> dict:
+    from swath.cell import parse_pose
     from swath.robot import Cell, flips_inside_passes, run_robot_stage
-    from swath.robot.cell import parse_pose
     from swath.robot.pose import pose_error, poses_from_trajectory
     from swath.robot.readers import read_joint_csv
 
-    cell = Cell(flange2tcp=parse_pose("0,0,150mm,0,0,0"))
+    cell = Cell(tcp2flange=parse_pose("0,0,150mm,0,0,0"))
     t0 = time.perf_counter()
     res = run_robot_stage(trajectory, robot=robot, cell=cell, programs=["csv", "urscript", "rapid", "krl", "ros"],
                           out_dir=out, place=True, surface=surface)
     wall = time.perf_counter() - t0
     rows = read_joint_csv(out / "joints.csv")
     idx = np.flatnonzero(res.solution.reachable)
-    dp, da = pose_error(res.cell.part2tcp(res.model.fk(rows["q"])), poses_from_trajectory(trajectory)[idx])
+    dp, da = pose_error(res.cell.tcp2part(res.model.fk(rows["q"])), poses_from_trajectory(trajectory)[idx])
     v = np.abs(np.diff(rows["q"], axis=0)) / np.diff(rows["t"])[:, None] / res.model.max_speed
     # rows either side of an unreachable gap are not consecutive motion; leave those steps out
     consecutive = np.diff(idx) == 1

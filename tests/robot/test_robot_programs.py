@@ -64,9 +64,9 @@ def test_urscript_round_trip(written, plate_trajectory):
     res, d = written["ur10e"]
     got = read_urscript(d / "swath_job.script")
     idx = _kept(res)
-    np.testing.assert_allclose(got["tcp"], res.cell.flange2tcp, atol=1e-7)
-    want = res.cell.base2part @ poses_from_trajectory(plate_trajectory)[idx]
-    dp, da = pose_error(got["base2tcp"], want)
+    np.testing.assert_allclose(got["tcp"], res.cell.tcp2flange, atol=1e-7)
+    want = res.cell.part2base @ poses_from_trajectory(plate_trajectory)[idx]
+    dp, da = pose_error(got["tcp2base"], want)
     assert dp.max() < 1e-6 and da.max() < 1e-7
     # force_mode brackets exactly the contact samples; blend 0 at pass ends
     tr = plate_trajectory
@@ -82,8 +82,8 @@ def test_rapid_round_trip(written, plate_trajectory):
     res, d = written["irb4600"]
     got = read_rapid(d / "SwathJob.mod")
     idx = _kept(res)
-    np.testing.assert_allclose(got["tool"], res.cell.flange2tcp, atol=1e-7)
-    np.testing.assert_allclose(got["wobj"], res.cell.base2part, atol=1e-7)
+    np.testing.assert_allclose(got["tool"], res.cell.tcp2flange, atol=1e-7)
+    np.testing.assert_allclose(got["wobj"], res.cell.part2base, atol=1e-7)
     dp, da = pose_error(got["targets"], poses_from_trajectory(plate_trajectory)[idx])
     assert dp.max() < 1e-7 and da.max() < 1e-8
     np.testing.assert_array_equal(got["conf"], abb_confdata(res.model, res.solution.q[idx]))
@@ -106,8 +106,8 @@ def test_krl_round_trip(written, plate_trajectory):
     res, d = written["kr120"]
     got = read_krl(d / "swath_job.src", d / "swath_job.dat")
     idx = _kept(res)
-    np.testing.assert_allclose(got["base"], res.cell.base2part, atol=1e-7)
-    np.testing.assert_allclose(FLANGE2KUKA_FLANGE @ got["tool"], res.cell.flange2tcp, atol=1e-7)
+    np.testing.assert_allclose(got["base"], res.cell.part2base, atol=1e-7)
+    np.testing.assert_allclose(FLANGE2KUKA_FLANGE @ got["tool"], res.cell.tcp2flange, atol=1e-7)
     dp, da = pose_error(got["targets"], poses_from_trajectory(plate_trajectory)[idx])
     assert dp.max() < 1e-7 and da.max() < 1e-7
     status, turn = kuka_status_turn(res.model, res.solution.q[idx])
@@ -124,7 +124,7 @@ def test_joint_files_round_trip_through_forward_kinematics(written, plate_trajec
     ros = read_ros_yaml(d / "joint_trajectory.yaml")
     idx = np.flatnonzero(res.solution.reachable)
     for q in (csv["q"], ros["q"]):
-        got = res.cell.part2tcp(res.model.fk(q))
+        got = res.cell.tcp2part(res.model.fk(q))
         dp, da = pose_error(got, poses_from_trajectory(plate_trajectory)[idx])
         assert dp.max() < 1e-8 and da.max() < 1e-8        # 0.01 µm, far inside the 0.01 mm / 0.01° asked
     np.testing.assert_allclose(csv["t"], res.trajectory.t[idx], atol=1e-9)

@@ -20,7 +20,7 @@ def test_reachability_map_splits_a_plate_at_the_reach_limit(plate):
     assert len(rm.points) == 400
     assert 0.05 < rm.reachable_fraction < 0.95
     # reach falls with distance from the base: the nearest vertices are reachable, the farthest not
-    dist = np.linalg.norm((cell.base2part[:3, :3] @ rm.points.T).T + cell.base2part[:3, 3], axis=1)
+    dist = np.linalg.norm((cell.part2base[:3, :3] @ rm.points.T).T + cell.part2base[:3, 3], axis=1)
     order = np.argsort(dist)
     assert rm.reachable[order[:20]].all() and not rm.reachable[order[-20:]].any()
     assert np.all(rm.manipulability[rm.reachable] > 0) and np.all(rm.manipulability[~rm.reachable] == 0)

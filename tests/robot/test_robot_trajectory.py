@@ -128,7 +128,7 @@ def test_placement_search_finds_a_reachable_placement(plate_trajectory):
     from swath.robot import search_placement
 
     model = get_robot("ur10e")
-    best = search_placement(plate_trajectory, model, Cell(flange2tcp=parse_pose("0,0,100mm,0,0,0")), n_xy=4,
+    best = search_placement(plate_trajectory, model, Cell(tcp2flange=parse_pose("0,0,100mm,0,0,0")), n_xy=4,
                             yaws=(0.0, math.pi / 2), n_sample=40, n_refine=2)
     assert best.reachable_fraction == 1.0
     assert best.z == pytest.approx(-plate_trajectory.position[:, 2].min())
@@ -212,8 +212,8 @@ def test_robot_options_from_cli_text():
                                        "program": "rapid, csv", "place": "auto", "table-z": "700mm"})
     assert opts["robot"] == "irb4600" and opts["programs"] == ["rapid", "csv"] and opts["place"] is True
     assert opts["table_z"] == pytest.approx(0.7)
-    np.testing.assert_allclose(opts["cell"].base2part[:3, 3], [1.2, 0, 0.3])
-    np.testing.assert_allclose(opts["cell"].flange2tcp[:3, 3], [0, 0, 0.15])
+    np.testing.assert_allclose(opts["cell"].part2base[:3, 3], [1.2, 0, 0.3])
+    np.testing.assert_allclose(opts["cell"].tcp2flange[:3, 3], [0, 0, 0.15])
     with pytest.raises(InputError, match="unknown robot setting"):
         robot_options_from_mapping({"robto": "ur5e"})
     with pytest.raises(InputError, match="auto"):

@@ -289,9 +289,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory, surface, progress=say)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
-    if settings.robot:
+    if settings.robot or settings.cell:
         t0 = time.perf_counter()
-        say(f"robot: inverse kinematics for {settings.robot}", 0, 1)
+        say(f"robot: inverse kinematics for {settings.robot or 'the cell file robot'}", 0, 1)
         trajectory, robot, robot_metrics = stages.robot_stage(trajectory, surface, settings)
         extra_metrics.update(robot_metrics)
         timings["robot_s"] = time.perf_counter() - t0
@@ -356,7 +356,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             figures.update(write_force_plots(tmp, trace=force))
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                      metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}",
-                     extra_figures=figures)
+                     extra_figures=figures, scene_traces=None if robot is None else stages.cell_scene(robot, metrics, surface))
     say("done", 1, 1)
     return metrics
 

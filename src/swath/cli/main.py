@@ -124,6 +124,11 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     r.add_argument("--place", action="store_true", default=None,
                    help="search where to put the part so the whole job is reachable (x, y, yaw on the table)")
     r.add_argument("--table-z", help="with --place: height of the part's lowest point in the base frame, e.g. 0mm")
+    r.add_argument("--cell", help="cell file (TOML): robot, part2base, tool (tcp2flange and body), table, fixtures; "
+                                  "the job's motion is checked for collisions in it (see docs/guide/cell.md)")
+    r.add_argument("--allow-collisions", action="store_true", default=None,
+                   help="write the robot programs even when the collision check finds a collision (a warning "
+                        "then; default: refuse with exit status 2)")
     f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
     f.add_argument("--force-control", action="store_true",
                    help="simulate hybrid position/force control along the trajectory: a force column, a force plot, "

@@ -109,6 +109,8 @@ class JobSettings:
     place: bool = False
     table_z: float = 0.0
     robot_strict: bool = False
+    cell: str | None = None
+    allow_collisions: bool = False
 
     def tool(self):
         from ..contact import Tool
@@ -170,7 +172,8 @@ class JobSettings:
                           depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
         if self.robot:
             record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
-                          place=self.place, table_z_m=self.table_z)
+                          place=self.place, table_z_m=self.table_z, cell=self.cell,
+                          allow_collisions=self.allow_collisions)
         return record
 
 
@@ -256,6 +259,7 @@ SCHEMA: dict[str, Key] = {
     "length_budget": Key("fraction", lo=1.0, hi=4.0),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
+    "cell": Key("path"), "allow_collisions": Key("bool"),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job
@@ -371,7 +375,7 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
     if not kwargs.get("part") or not kwargs.get("out"):
         raise InputError("a job needs 'part' (a mesh file or example:NAME) and 'out' (the output directory)")
     if base_dir is not None:
-        for k in ("part", "out", "calibration", "target_map"):
+        for k in ("part", "out", "calibration", "target_map", "cell"):
             p = kwargs.get(k)
             if p and not str(p).startswith("example:") and not Path(p).is_absolute():
                 kwargs[k] = str(base_dir / p)
@@ -414,10 +418,10 @@ def check_settings(settings: JobSettings) -> None:
     check_side(settings.side, "side")                # refused even where the part turns out open
     if settings.fit and str(settings.part).lower().endswith(".json"):
         raise InputError(f"{Path(settings.part).name} is already a fitted patch; drop --fit to plan on it")
-    if settings.robot or settings.programs or settings.place:
+    if settings.robot or settings.programs or settings.place or settings.cell:
         from .stages import robot_options
 
-        robot_options(settings)                     # robot name, base and tcp poses, program formats
+        robot_options(settings)                     # robot name, cell file, base and tcp poses, program formats
     if settings.optimise_feed and not (settings.target_depth or settings.target_map):
         raise InputError("--optimise-feed needs a target: --target-depth (e.g. 20um) or --target-map FILE")
     if (settings.target_depth or settings.target_map or settings.depth_tolerance) and not settings.optimise_feed:

@@ -36,41 +36,111 @@ def force_stage(trajectory, surface, tool, settings):
     return trajectory_with_force(trajectory, trace), trace, dict(trace.metrics)
 
 
+def job_cell(settings):
+    """The job's robot cell: the cell file (``--cell``) if any, ``--base`` (part2base) and ``--tcp``
+    (tcp2flange) over it, and the default 3-inch sander when no tool is given (said in the cell's
+    ``notes``)."""
+    from dataclasses import replace
+
+    from ..cell import Cell, default_sander, parse_pose, read_cell_file
+
+    cell = read_cell_file(settings.cell) if settings.cell else Cell()
+    notes = list(cell.notes)
+    if settings.base:
+        cell = replace(cell, part2base=parse_pose(settings.base, name="--base (part2base)"))
+    if settings.tcp:
+        cell = replace(cell, tcp2flange=parse_pose(settings.tcp, name="--tcp (tcp2flange)"))
+        if cell.tool is None:
+            notes.append("cell: --tcp gives the TCP but not the tool's body, so only the robot's links are checked "
+                         "for collisions; describe the tool in a cell file ([tool] with [[tool.body]] entries) [W-CELL-NO-TOOL-BODY]")
+    elif cell.tool is None:
+        tool = default_sander()
+        cell = replace(cell, tool=tool, tcp2flange=tool.tcp2flange)
+        notes.append(f"cell: no tool given (--tcp or a cell file's [tool]), so a {tool.description} is assumed "
+                     "for the TCP and the collision check; give your tool's TCP and body in a cell file "
+                     "[W-CELL-DEFAULT-TOOL]")
+    return replace(cell, notes=tuple(notes))
+
+
 def robot_options(settings) -> dict:
     """Keyword arguments of :func:`swath.robot.run_robot_stage` from the job's settings (checked:
-    a known robot, parseable base and tcp poses, known program formats)."""
+    a known robot, a readable cell file, parseable base and tcp poses, known program formats)."""
     from ..errors import InputError
     from ..robot import get_robot
     from ..robot.programs import PROGRAM_FILES
     from ..robot.stage import robot_options_from_mapping
 
-    if not settings.robot:
-        raise InputError("programs and placement need a robot: add --robot (e.g. ur10e, irb4600, kr120)")
-    get_robot(settings.robot)
+    cell = job_cell(settings)
+    robot = settings.robot or cell.robot
+    if not robot:
+        raise InputError("programs, placement and a cell need a robot: add --robot (e.g. ur10e, irb4600, kr120) "
+                         "or `robot = ...` in the cell file")
+    get_robot(robot)
     unknown = set(settings.programs) - set(PROGRAM_FILES)
     if unknown:
         raise InputError(f"unknown program format(s) {', '.join(sorted(unknown))}; choose from "
                          f"{', '.join(PROGRAM_FILES)}")
-    values = {"robot": settings.robot, "program": ",".join(settings.programs or ("csv",)),
-              "place": "auto" if settings.place else "", "table_z": settings.table_z,
+    table_z = settings.table_z
+    if settings.place and cell.table is not None and not settings.table_z:
+        table_z = cell.table.top_z
+    values = {"robot": robot, "program": ",".join(settings.programs or ("csv",)),
+              "place": "auto" if settings.place else "", "table_z": table_z,
               "robot_strict": settings.robot_strict}
-    if settings.base:
-        values["base"] = settings.base
-    if settings.tcp:
-        values["tcp"] = settings.tcp
-    return robot_options_from_mapping(values)
+    options = robot_options_from_mapping(values)
+    options["cell"] = cell
+    return options
 
 
 def robot_stage(trajectory, surface, settings):
     """Inverse kinematics along the trajectory for the job's robot, re-timed where a joint limit
-    binds; returns the re-timed trajectory, the :class:`RobotResult` and its metrics (nothing is
-    written: see :func:`write_robot_outputs`)."""
+    binds, then the collision check of the whole joint path in the cell; returns the re-timed
+    trajectory, the :class:`RobotResult` (its cell with the table assumed, if any) and its metrics
+    (nothing is written: see :func:`write_robot_outputs`).
+
+    Raises
+    ------
+    CollisionError
+        When a body of the robot or tool hits the part, the cell or the robot, unless
+        ``settings.allow_collisions`` (then a warning).
+    """
+    from dataclasses import replace
+
     from ..robot import run_robot_stage
+    from ..robot.collision import CollisionError, check_job_collisions
 
     result = run_robot_stage(trajectory, **robot_options(settings), out_dir=None, surface=surface,
                              force=settings.force, warn=False)      # the job reports result.warnings
     metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
+    report = check_job_collisions(result.trajectory, result.solution, result.model, result.cell,
+                                  part_vertices=surface.vertices, part_faces=surface.faces)
+    metrics.update(report.metrics())
+    metrics["robot_table"] = report.cell.table.as_record() if report.cell.table is not None else None
+    warnings = list(result.warnings) + list(report.cell.notes)
+    table = report.cell.table
+    if table is not None and table.assumed:
+        warnings.append(f"cell: no table given, so the part is assumed to stand on a table whose top is its lowest "
+                        f"point (z = {table.top_z * 1e3:.0f} mm in the base frame), {table.size_xy[0]:.1f} x "
+                        f"{table.size_xy[1]:.1f} m under the robot's whole reach; the arm and the tool are checked "
+                        "against it (a cell file's [table], or `table = false`, says otherwise) [W-CELL-DEFAULT-TABLE]")
+    if report.events:
+        arm_in_table = any(e.body_a.startswith("robot link") and e.body_b == "table" for e in report.events)
+        hint = (" The arm passes through the table: raise the part or bring it nearer the robot so that the elbow "
+                "stays above the table top." if arm_in_table else "")
+        if not settings.allow_collisions:
+            raise CollisionError(f"collision check: {report.message()}; no program written.{hint} Move the part "
+                                 "(--base, --place) or the fixture, change the tool or the path, or pass "
+                                 "--allow-collisions to write the programs anyway")
+        warnings.append(f"cell: {report.message()}; the programs are written anyway (--allow-collisions) "
+                        "[W-CELL-COLLISION]")
+    result = replace(result, cell=report.cell, warnings=warnings)
     return result.trajectory, result, metrics
+
+
+def cell_scene(result, metrics, surface) -> list:
+    """The robot cell (table, fixtures) and the collisions found, as 3D-view traces in the part frame."""
+    from ..report.cell_view import cell_traces
+
+    return cell_traces(result.cell, metrics.get("collisions", ()), part_vertices=surface.vertices)
 
 
 def write_robot_outputs(result, surface, settings, out_dir) -> dict:

@@ -165,7 +165,7 @@ def _link_lines(trajectory) -> list[np.ndarray]:
 
 
 def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_faces: int = MAX_VIEW_FACES,
-              max_line_points: int = MAX_LINE_POINTS):
+              max_line_points: int = MAX_LINE_POINTS, scene_traces=None):
     """The interactive plotly 3D view: removal-coloured mesh, passes, air moves.
 
     Parameters
@@ -180,6 +180,9 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
         Removal depth (m) on the sampled surface; the mesh is coloured by it in µm.
     max_faces, max_line_points : int
         Display budgets.
+    scene_traces : list of plotly traces, optional
+        More of the scene in the part frame (the robot cell: table, fixtures, collision marks);
+        the view's range grows to take in their markers.
 
     Returns
     -------
@@ -249,6 +252,7 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
                                    line=dict(width=1.5, color="rgb(120,120,120)"), opacity=0.7,
                                    hoverinfo="skip"))
 
+    traces.extend(scene_traces or [])
     fig = go.Figure(traces)
     # Look at the side the surface faces, tilted a little, with its normal axis pointing up.
     u, v, w = frame.axes
@@ -257,6 +261,10 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
     axis = dict(showbackground=False, gridcolor="rgb(225,225,225)", zerolinecolor="rgb(200,200,200)")
     # The view spans the part and a margin, so far air moves do not shrink the part to a speck.
     lo, hi = surface.vertices.min(axis=0) - 0.08 * diag, surface.vertices.max(axis=0) + 0.08 * diag
+    for tr in scene_traces or []:
+        if tr.type == "scatter3d" and tr.x is not None and len(tr.x):
+            marks = np.column_stack([tr.x, tr.y, tr.z]).astype(float)
+            lo, hi = np.minimum(lo, marks.min(axis=0) - 0.02 * diag), np.maximum(hi, marks.max(axis=0) + 0.02 * diag)
     fig.update_layout(
         scene=dict(aspectmode="data",
                    xaxis=dict(title=dict(text="x (m)"), range=[lo[0], hi[0]], **axis),
@@ -353,7 +361,7 @@ def _warnings_html(metrics: dict) -> str:
 
 def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, metrics=None, settings=None,
                      title=None, images=None, max_faces: int = MAX_VIEW_FACES,
-                     max_line_points: int = MAX_LINE_POINTS) -> str:
+                     max_line_points: int = MAX_LINE_POINTS, scene_traces=None) -> str:
     """The report as HTML text (see :func:`write_report_html`)."""
     if surface is None:
         raise InputError("the report needs the part surface")
@@ -367,7 +375,7 @@ def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, m
     now = _dt.datetime.now(_dt.UTC).replace(microsecond=0)
 
     fig = figure_3d(surface, toolpath=toolpath, trajectory=trajectory, removal=removal, max_faces=max_faces,
-                    max_line_points=max_line_points)
+                    max_line_points=max_line_points, scene_traces=scene_traces)
     plot_div = fig.to_html(full_html=False, include_plotlyjs=True, div_id="view3d", default_width="100%",
                            default_height="680px",
                            config=dict(displaylogo=False, responsive=True,
@@ -423,7 +431,7 @@ works offline.</footer>
 
 def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=None, metrics=None,
                       settings=None, title=None, images=None, max_faces: int = MAX_VIEW_FACES,
-                      max_line_points: int = MAX_LINE_POINTS) -> Path:
+                      max_line_points: int = MAX_LINE_POINTS, scene_traces=None) -> Path:
     """Write the self-contained HTML report atomically.
 
     Parameters
@@ -451,6 +459,8 @@ def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=
         Faces shown at most in the 3D mesh (default 60,000).
     max_line_points : int
         Points shown at most per 3D line trace (default 20,000).
+    scene_traces : list of plotly traces, optional
+        The robot cell in the part frame (:func:`swath.report.cell_view.cell_traces`).
 
     Returns
     -------
@@ -460,7 +470,7 @@ def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=
     path = Path(path)
     text = report_html_text(surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                             metrics=metrics, settings=settings, title=title, images=images,
-                            max_faces=max_faces, max_line_points=max_line_points)
+                            max_faces=max_faces, max_line_points=max_line_points, scene_traces=scene_traces)
     write_text_atomic(path, text)
     log.info("wrote report %s (%.1f MB)", path, len(text.encode("utf-8")) / 1e6)
     return path

@@ -7,7 +7,7 @@
 :mod:`.programs` / :mod:`.readers` (URScript, RAPID, KRL, ROS YAML, CSV).
 """
 
-from .cell import Cell, format_pose, parse_pose
+from ..cell import Cell, format_pose, parse_pose
 from .models import ROBOTS, RobotModel, dh_robot, get_robot
 from .retime import retime_joints, retime_trajectory
 from .solve import (

@@ -1,6 +1,6 @@
 """A serial chain of revolute joints: batch forward kinematics and the geometric Jacobian.
 
-A chain is ``base2flange(q) = A_1 R(u_1, θ_1) A_2 R(u_2, θ_2) … A_6 R(u_6, θ_6) A_7`` with fixed
+A chain is ``flange2base(q) = A_1 R(u_1, θ_1) A_2 R(u_2, θ_2) … A_6 R(u_6, θ_6) A_7`` with fixed
 transforms ``A_i`` (m), unit joint axes ``u_i`` in the local frame, and joint angles
 ``θ_i = sign_i · q_i + offset_i`` (rad) mapping the maker's joint values ``q`` to the chain.  Both the
 Denavit–Hartenberg arms (UR, generic) and the ortho-parallel-wrist arms (ABB, KUKA) are written so.
@@ -71,7 +71,7 @@ class Chain:
         return out
 
     def fk(self, q) -> np.ndarray:
-        """(n, 4, 4) base2flange for joint values ``q`` ``(n, n_joints)`` (rad)."""
+        """(n, 4, 4) flange2base for joint values ``q`` ``(n, n_joints)`` (rad)."""
         return self.frames(q)[:, -1]
 
     def jacobian(self, q) -> np.ndarray:

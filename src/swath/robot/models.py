@@ -1,6 +1,6 @@
 """Robot models: kinematic chain, closed-form or numerical IK, joint limits from the makers' datasheets.
 
-Every model maps joint values ``q`` (the maker's convention, rad) to ``base2flange``, the flange
+Every model maps joint values ``q`` (the maker's convention, rad) to ``flange2base``, the flange
 frame (z out of the flange, the ISO 9409 / ROS ``tool0`` convention) in the robot base frame
 (z up, x forward at joint 1 = 0), and back through :meth:`RobotModel.ik`, which returns every
 configuration branch in a fixed slot so that a branch can be followed along a path.
@@ -48,7 +48,7 @@ class RobotModel:
     ----------
     name : str
     chain : Chain
-        Forward kinematics (base2flange, m).
+        Forward kinematics (flange2base, m).
     lower, upper : (6,) float
         Joint position limits, rad.
     max_speed : (6,) float
@@ -86,19 +86,19 @@ class RobotModel:
         return ("numeric",) if self.kind == "numeric" else BRANCH_NAMES_8
 
     def fk(self, q) -> np.ndarray:
-        """(n, 4, 4) base2flange of joint values ``q`` ``(n, 6)`` (rad); m."""
+        """(n, 4, 4) flange2base of joint values ``q`` ``(n, 6)`` (rad); m."""
         return self.chain.fk(q)
 
     def jacobian(self, q) -> np.ndarray:
         """(n, 6, 6) geometric Jacobian (m/rad rows 0–2, rad/rad rows 3–5)."""
         return self.chain.jacobian(q)
 
-    def ik(self, base2flange, *, seed=None) -> np.ndarray:
+    def ik(self, flange2base, *, seed=None) -> np.ndarray:
         """Every branch's joint values for flange poses.
 
         Parameters
         ----------
-        base2flange : (n, 4, 4) float
+        flange2base : (n, 4, 4) float
             Flange poses in the base frame, m.
         seed : (6,) float, optional
             Start of the numerical solver (numeric models only; each later pose starts from the
@@ -110,7 +110,7 @@ class RobotModel:
             Joint values in (-pi, pi] (closed form) or near the seed (numeric), rad; NaN where the
             branch has no solution.  Joint limits are not applied here.
         """
-        t = np.asarray(base2flange, dtype=float).reshape(-1, 4, 4)
+        t = np.asarray(flange2base, dtype=float).reshape(-1, 4, 4)
         if self.kind == "opw" and self.opw is not None:
             return opw_ik(self.opw, t)
         if self.kind == "ur":

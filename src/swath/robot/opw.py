@@ -49,13 +49,13 @@ class OPWParameters:
                      offset=np.asarray(self.offset, dtype=float))
 
 
-def opw_ik(params: OPWParameters, base2flange) -> np.ndarray:
-    """All 8 inverse-kinematics solutions of base2flange poses, in the maker's joint values.
+def opw_ik(params: OPWParameters, flange2base) -> np.ndarray:
+    """All 8 inverse-kinematics solutions of flange2base poses, in the maker's joint values.
 
     Parameters
     ----------
     params : OPWParameters
-    base2flange : (n, 4, 4) float
+    flange2base : (n, 4, 4) float
         Flange poses in the base frame, m.
 
     Returns
@@ -65,7 +65,7 @@ def opw_ik(params: OPWParameters, base2flange) -> np.ndarray:
         (the wrist centre out of reach of that branch).
     """
     p = params
-    t = np.asarray(base2flange, dtype=float).reshape(-1, 4, 4)
+    t = np.asarray(flange2base, dtype=float).reshape(-1, 4, 4)
     n = len(t)
     r = t[:, :3, :3]
     wc = t[:, :3, 3] - p.c4 * r[:, :, 2]

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cell import Cell
 from ..errors import InputError
-from .cell import Cell
 from .models import RobotModel
 from .pose import make_transform, poses_from_trajectory, rot_z
 from .solve import Margins, branch_table, solve_trajectory
@@ -77,7 +77,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         TCP poses in the part frame, m.
     model : RobotModel
     cell : Cell, optional
-        Its tool (``flange2tcp``) is kept; its placement is replaced (default: TCP on the flange).
+        Its tool (``tcp2flange``) is kept; its placement is replaced (default: TCP on the flange).
     table_z : float
         Height of the part's lowest trajectory point in the base frame, m (default 0: the robot
         stands on the table).
@@ -105,27 +105,27 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     cell = Cell() if cell is None else cell
     margins = Margins() if margins is None else margins
     yaws = (0.0, math.pi / 2, math.pi, 1.5 * math.pi) if yaws is None else tuple(yaws)
-    part2tcp = poses_from_trajectory(trajectory)
+    tcp2part = poses_from_trajectory(trajectory)
     centre = 0.5 * (trajectory.position.min(axis=0) + trajectory.position.max(axis=0))
     z_origin = table_z - trajectory.position[:, 2].min()
     pick = np.flatnonzero(trajectory.contact)
     if len(pick) == 0:
         pick = np.arange(len(trajectory))
     pick = pick[np.linspace(0, len(pick) - 1, min(n_sample, len(pick))).astype(int)]
-    sample = part2tcp[pick]
+    sample = tcp2part[pick]
     reach = model.reach
-    inv_tool = np.linalg.inv(cell.flange2tcp)
+    inv_tool = np.linalg.inv(cell.tcp2flange)
     no_pass = np.zeros(len(sample), bool)
 
     def score(x, y, yaw):
         # place the part centre (not its origin) on the grid point
         c_rot = rot_z(yaw) @ centre
-        base2part = _placement(x - c_rot[0], y - c_rot[1], z_origin, yaw)
-        q, feas, _ = branch_table(base2part @ sample @ inv_tool, model, margins, same_pass=no_pass)
+        part2base = _placement(x - c_rot[0], y - c_rot[1], z_origin, yaw)
+        q, feas, _ = branch_table(part2base @ sample @ inv_tool, model, margins, same_pass=no_pass)
         best = feas.sum(axis=0).argmax()
         ok = feas[:, best]
         manip = model.singularity_measures(q[ok, best])["manipulability"].mean() if ok.any() else 0.0
-        return (ok.mean(), feas.any(axis=1).mean(), manip, base2part, (x, y, yaw))
+        return (ok.mean(), feas.any(axis=1).mean(), manip, part2base, (x, y, yaw))
 
     xs = np.linspace(0.25, 0.95, n_xy) * reach
     ys = np.linspace(-0.6, 0.6, n_xy) * reach
@@ -139,22 +139,22 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     scored.sort(key=lambda s: (s[0], s[1], s[2]), reverse=True)
     best: tuple | None = None
     solved = 0
-    for i, (frac_branch, frac, manip, base2part, _) in enumerate(scored[:max(n_refine, max_refine)]):
+    for i, (frac_branch, frac, manip, part2base, _) in enumerate(scored[:max(n_refine, max_refine)]):
         if i >= n_refine and best is not None and best[0][0] >= 1.0:
             break
-        trial = cell.with_base(base2part)
+        trial = cell.with_base(part2base)
         sol = solve_trajectory(trajectory, model, trial, margins=margins, warn=False)   # a trial, not the answer
         solved += 1
         m = np.nanmean(sol.measures["manipulability"]) if sol.reachable.any() else 0.0
         key = (sol.reachable_fraction, m)
         if best is None or key > best[0]:
-            best = (key, trial, base2part)
+            best = (key, trial, part2base)
     if best is None:
         raise InputError("placement search solved no cell; give n_refine or max_refine >= 1")
-    (frac, m), trial, base2part = best
-    yaw = math.atan2(base2part[1, 0], base2part[0, 0])
+    (frac, m), trial, part2base = best
+    yaw = math.atan2(part2base[1, 0], part2base[0, 0])
     log.info("placement for %s: (%.3f, %.3f, %.3f) m, yaw %.0f deg, %.2f %% reachable (%d cells solved)", model.name,
-             *base2part[:3, 3], math.degrees(yaw), 100 * frac, solved)
-    return Placement(cell=trial, x=float(base2part[0, 3]), y=float(base2part[1, 3]), z=float(base2part[2, 3]),
+             *part2base[:3, 3], math.degrees(yaw), 100 * frac, solved)
+    return Placement(cell=trial, x=float(part2base[0, 3]), y=float(part2base[1, 3]), z=float(part2base[2, 3]),
                      yaw=yaw, reachable_fraction=float(frac), score=float(m), evaluated=len(scored),
                      solved=solved)

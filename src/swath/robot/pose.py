@@ -148,7 +148,7 @@ def invert(transform) -> np.ndarray:
 
 
 def poses_from_trajectory(trajectory) -> np.ndarray:
-    """(n, 4, 4) part2tcp transforms of a :class:`swath.trajectory.Trajectory` (m)."""
+    """(n, 4, 4) tcp2part transforms of a :class:`swath.trajectory.Trajectory` (m)."""
     return make_transform(quat_to_matrix(trajectory.quaternion), trajectory.position)
 
 

@@ -9,7 +9,7 @@ its kept neighbours stays within ``tol_position`` (m) and ``tol_angle`` (rad) of
 Units and frames per format (the readers in :mod:`swath.robot.readers` parse them back):
 
 * URScript — ``p[x, y, z, rx, ry, rz]`` TCP poses in the robot base frame, m and rotation vector
-  (rad); ``set_tcp`` from ``flange2tcp``; ``movej`` to the first configuration and at every branch
+  (rad); ``set_tcp`` from ``tcp2flange``; ``movej`` to the first configuration and at every branch
   switch; ``force_mode`` along the tool z-axis around each contact pass; ``movel`` with blend
   radius ``r`` (0 at pass ends) and speed ``v`` = the timed feed (m/s).
 * RAPID — TCP poses in the part frame (``wobjdata`` user frame = the part placement), mm and
@@ -17,7 +17,7 @@ Units and frames per format (the readers in :mod:`swath.robot.readers` parse the
   rules); ``MoveL`` with a ``speeddata`` per feed and ``z1`` (``fine`` at pass ends).
 * KRL — ``.dat`` with ``FRAME`` base/tool and ``E6POS`` points (X, Y, Z mm; A, B, C deg, ``Rz(A)
   Ry(B) Rx(C)``; S status, T turn); ``.src`` sets ``$BASE``, ``$TOOL``, ``$VEL.CP`` (m/s) and runs
-  ``LIN … C_DIS``.  KUKA's flange frame has x out of the flange: ``$TOOL = Ry(90°) · flange2tcp``.
+  ``LIN … C_DIS``.  KUKA's flange frame has x out of the flange: ``$TOOL = Ry(90°) · tcp2flange``.
 * ROS ``trajectory_msgs/JointTrajectory`` YAML — joint names, positions (rad), velocities (rad/s),
   ``time_from_start`` {secs, nsecs}.
 * ``joints.csv`` — ``t,q1..q6,contact,pass,branch`` (s, rad).
@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from ..cell import Cell
 from ..io.atomic import write_text_atomic
-from .cell import Cell
 from .models import RobotModel
 from .pose import (
     make_transform,
@@ -47,7 +47,7 @@ from .solve import JointSolution, segments
 PROGRAM_FILES = {"urscript": ("swath_job.script",), "rapid": ("SwathJob.mod",), "krl": ("swath_job.src", "swath_job.dat"),
                  "ros": ("joint_trajectory.yaml",), "csv": ("joints.csv",)}
 
-#: KUKA's $FLANGE (x out of the flange) from the model flange (z out): base2flange_kuka = base2flange · this.
+#: KUKA's $FLANGE (x out of the flange) from the model flange (z out): base2flange_kuka = flange2base · this.
 FLANGE2KUKA_FLANGE = make_transform(rot_y(-math.pi / 2))
 
 
@@ -150,9 +150,9 @@ def _fmt(values, digits: int) -> str:
 def urscript_text(data: ProgramInput) -> str:
     tr, sol, cell = data.trajectory, data.solution, data.cell
     idx = data.kept()
-    base2tcp = cell.base2part @ poses_from_trajectory(tr)[idx]
-    rv = _rotvec(base2tcp[:, :3, :3])
-    tcp = np.concatenate([cell.flange2tcp[:3, 3], _rotvec(cell.flange2tcp[:3, :3])])
+    tcp2base = cell.part2base @ poses_from_trajectory(tr)[idx]
+    rv = _rotvec(tcp2base[:, :3, :3])
+    tcp = np.concatenate([cell.tcp2flange[:3, 3], _rotvec(cell.tcp2flange[:3, :3])])
     lines = ["def swath_job():", f"  # swath robot program for {data.model.name}; poses in the base frame (m, rotation vector)",
              f"  set_tcp(p[{_fmt(tcp, 7)}])"]
     lines.append(f"  movej([{_fmt(sol.q[idx[0]], 8)}], a=0.5, v=0.3)")
@@ -168,7 +168,7 @@ def urscript_text(data: ProgramInput) -> str:
             in_force = True
         v = max(float(tr.feed[i]), 1e-3)
         r = 0.0 if (i in ends or k == len(idx) - 1) else data.blend
-        lines.append(f"  movel(p[{_fmt(base2tcp[k, :3, 3], 7)},{_fmt(rv[k], 9)}], a=1.0, v={v:.5f}, r={r:.4f})")
+        lines.append(f"  movel(p[{_fmt(tcp2base[k, :3, 3], 7)},{_fmt(rv[k], 9)}], a=1.0, v={v:.5f}, r={r:.4f})")
         nxt_c = k + 1 < len(idx) and bool(tr.contact[idx[k + 1]]) and tr.pass_index[idx[k + 1]] == tr.pass_index[i]
         if in_force and not nxt_c:
             lines.append("  end_force_mode()")
@@ -203,8 +203,8 @@ def abb_confdata(model: RobotModel, q) -> np.ndarray:
 def rapid_text(data: ProgramInput) -> str:
     tr, cell = data.trajectory, data.cell
     idx = data.kept()
-    part2tcp = poses_from_trajectory(tr)[idx]
-    quat = matrix_to_quat(part2tcp[:, :3, :3])
+    tcp2part = poses_from_trajectory(tr)[idx]
+    quat = matrix_to_quat(tcp2part[:, :3, :3])
     conf = abb_confdata(data.model, data.solution.q[idx])
 
     def frame(t):
@@ -213,10 +213,10 @@ def rapid_text(data: ProgramInput) -> str:
     speeds: dict[float, str] = {}
     ends = {s for s, e, p in segments(tr) if p} | {e - 1 for s, e, p in segments(tr) if p}
     lines = ["MODULE SwathJob", f"  ! swath robot program for {data.model.name}: TCP poses in the part frame (mm, quaternion)",
-             f"  PERS tooldata tSwath := [TRUE,{frame(cell.flange2tcp)},[1,[0,0,0.001],[1,0,0,0],0,0,0]];",
-             f"  PERS wobjdata wSwath := [FALSE,TRUE,\"\",{frame(cell.base2part)},[[0,0,0],[1,0,0,0]]];"]
+             f"  PERS tooldata tSwath := [TRUE,{frame(cell.tcp2flange)},[1,[0,0,0.001],[1,0,0,0],0,0,0]];",
+             f"  PERS wobjdata wSwath := [FALSE,TRUE,\"\",{frame(cell.part2base)},[[0,0,0],[1,0,0,0]]];"]
     for k in range(len(idx)):
-        lines.append(f"  CONST robtarget p{k} := [[{_fmt(part2tcp[k, :3, 3] * 1e3, 4)}],[{_fmt(quat[k], 9)}],"
+        lines.append(f"  CONST robtarget p{k} := [[{_fmt(tcp2part[k, :3, 3] * 1e3, 4)}],[{_fmt(quat[k], 9)}],"
                      f"[{','.join(str(int(c)) for c in conf[k])}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
     body = ["    MoveJ p0, v100, fine, tSwath\\WObj:=wSwath;"]
     for k, i in enumerate(idx[1:], start=1):
@@ -257,13 +257,13 @@ def _abc(t) -> str:
 def krl_texts(data: ProgramInput, name: str = "swath_job") -> tuple[str, str]:
     tr, cell = data.trajectory, data.cell
     idx = data.kept()
-    part2tcp = poses_from_trajectory(tr)[idx]
+    tcp2part = poses_from_trajectory(tr)[idx]
     status, turn = kuka_status_turn(data.model, data.solution.q[idx])
-    kuka_tool = np.linalg.inv(FLANGE2KUKA_FLANGE) @ cell.flange2tcp
+    kuka_tool = np.linalg.inv(FLANGE2KUKA_FLANGE) @ cell.tcp2flange
     dat = ["&ACCESS RVP", f"DEFDAT {name}", f"; swath robot program for {data.model.name}: TCP poses in $BASE (mm, deg)",
-           f"DECL FRAME BASE_SWATH={{{_abc(cell.base2part)}}}", f"DECL FRAME TOOL_SWATH={{{_abc(kuka_tool)}}}"]
+           f"DECL FRAME BASE_SWATH={{{_abc(cell.part2base)}}}", f"DECL FRAME TOOL_SWATH={{{_abc(kuka_tool)}}}"]
     for k in range(len(idx)):
-        dat.append(f"DECL E6POS XP{k + 1}={{{_abc(part2tcp[k])},S {status[k]},T {turn[k]},"
+        dat.append(f"DECL E6POS XP{k + 1}={{{_abc(tcp2part[k])},S {status[k]},T {turn[k]},"
                    "E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
     dat += ["ENDDAT", ""]
     ends = {s for s, e, p in segments(tr) if p} | {e - 1 for s, e, p in segments(tr) if p}

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cell import Cell
+from ..cell import Cell
 from .models import RobotModel
 from .pose import make_transform, rot_z
 from .solve import Margins, branch_table
@@ -89,8 +89,8 @@ def reachability_map(surface, model: RobotModel, cell: Cell, *, max_vertices: in
     reach = np.zeros(m, bool)
     for h in range(n_headings):
         r = rot @ rot_z(2 * math.pi * h / n_headings)
-        part2tcp = make_transform(r, verts[idx])
-        q, feas, _ = branch_table(cell.base2flange(part2tcp), model, margins, same_pass=np.zeros(m, bool))
+        tcp2part = make_transform(r, verts[idx])
+        q, feas, _ = branch_table(cell.flange2base(tcp2part), model, margins, same_pass=np.zeros(m, bool))
         flat = q.reshape(-1, 6)
         ok = feas.reshape(-1)
         manip = np.zeros(len(flat))

@@ -37,7 +37,7 @@ def read_urscript(path) -> dict:
     Returns
     -------
     dict
-        ``tcp`` (4, 4) flange2tcp; ``base2tcp`` (m, 4, 4) movel targets (m); ``blend`` (m,) m;
+        ``tcp`` (4, 4) tcp2flange; ``tcp2base`` (m, 4, 4) movel targets (m); ``blend`` (m,) m;
         ``speed`` (m,) m/s; ``in_force`` (m,) bool (target inside force_mode); ``movej`` list of (6,)
         joint values (rad); ``force`` list of wrench z values (N).
     """
@@ -66,7 +66,7 @@ def read_urscript(path) -> dict:
             in_force.append(force)
     if tcp is None:
         raise InputError(f"{path}: no set_tcp line; not a swath URScript")
-    return {"tcp": tcp, "base2tcp": np.array(poses), "blend": np.array(blend), "speed": np.array(speed),
+    return {"tcp": tcp, "tcp2base": np.array(poses), "blend": np.array(blend), "speed": np.array(speed),
             "in_force": np.array(in_force), "movej": movej, "force": forces}
 
 
@@ -81,7 +81,7 @@ def read_rapid(path) -> dict:
     Returns
     -------
     dict
-        ``tool`` (4, 4) flange2tcp, ``wobj`` (4, 4) base2part (m); ``targets`` (m, 4, 4) part2tcp in
+        ``tool`` (4, 4) tcp2flange, ``wobj`` (4, 4) part2base (m); ``targets`` (m, 4, 4) tcp2part in
         move order (m); ``conf`` (m, 4) int; ``speed`` (m,) TCP speed, m/s (MoveJ: nan); ``zone`` list.
     """
     text = Path(path).read_text(encoding="utf-8")
@@ -121,7 +121,7 @@ def read_krl(src_path, dat_path) -> dict:
     Returns
     -------
     dict
-        ``base`` (4, 4) base2part, ``tool`` (4, 4) KUKA flange2tcp (m); ``targets`` (m, 4, 4) TCP poses in
+        ``base`` (4, 4) part2base, ``tool`` (4, 4) KUKA tcp2flange (m); ``targets`` (m, 4, 4) TCP poses in
         $BASE in move order; ``status``, ``turn`` (m,) int; ``speed`` (m,) $VEL.CP in force (m/s);
         ``approx`` (m,) bool (C_DIS).
     """

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..cell import Cell
 from ..errors import UnreachableError
-from .cell import Cell
 from .models import RobotModel
 from .pose import poses_from_trajectory
 
@@ -137,12 +137,12 @@ def segments(trajectory) -> list[tuple[int, int, bool]]:
     return out
 
 
-def branch_table(base2flange, model: RobotModel, margins: Margins | None = None, *, seed=None, same_pass=None):
+def branch_table(flange2base, model: RobotModel, margins: Margins | None = None, *, seed=None, same_pass=None):
     """Every branch's unwrapped joint values and feasibility along a pose sequence.
 
     Parameters
     ----------
-    base2flange : (n, 4, 4) float
+    flange2base : (n, 4, 4) float
         Flange poses in the base frame, m.
     model : RobotModel
     margins : Margins
@@ -162,7 +162,7 @@ def branch_table(base2flange, model: RobotModel, margins: Margins | None = None,
         0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump.
     """
     margins = Margins() if margins is None else margins
-    raw = model.ik(base2flange, seed=seed)
+    raw = model.ik(flange2base, seed=seed)
     n, nb, _ = raw.shape
     lo, hi = model.lower + margins.joint_limit, model.upper - margins.joint_limit
     q = np.full_like(raw, np.nan)
@@ -293,7 +293,7 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
     cell = Cell() if cell is None else cell
     margins = Margins() if margins is None else margins
     segs = segments(trajectory)
-    flange = cell.base2flange(poses_from_trajectory(trajectory))
+    flange = cell.flange2base(poses_from_trajectory(trajectory))
     n = len(trajectory)
     same_pass = np.zeros(n, bool)
     same_pass[1:] = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0)
@@ -330,7 +330,7 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
                + ". Move the part (--base, or --place) or choose a larger robot.")
         if not ok.any():
             # nothing to program: refused whether strict or not
-            p_base = trajectory.position @ cell.base2part[:3, :3].T + cell.base2part[:3, 3]
+            p_base = trajectory.position @ cell.part2base[:3, :3].T + cell.part2base[:3, 3]
             near = float(np.linalg.norm(p_base, axis=1).min())
             raise UnreachableError(f"none of the {n} poses is reachable for {model.name} in this cell (the nearest "
                                    f"lies {near:.2f} m from the robot base, its reach is about {model.reach:.2f} m); "

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cell import Cell, parse_pose
 from ..errors import InputError
-from .cell import Cell, parse_pose
 from .models import RobotModel, get_robot
 from .placement import Placement, search_placement
 from .pose import pose_error, poses_from_trajectory
@@ -73,7 +73,7 @@ def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell
     idx = np.flatnonzero(solution.reachable)
     if not len(idx):
         return np.zeros(0), np.zeros(0)
-    got = cell.part2tcp(model.fk(solution.q[idx]))
+    got = cell.tcp2part(model.fk(solution.q[idx]))
     return pose_error(got, poses_from_trajectory(trajectory)[idx])
 
 
@@ -206,8 +206,8 @@ def robot_options_from_mapping(values: dict) -> dict:
     tcp = values.get("tcp")
     table = values.get("table_z", values.get("table-z"))
     return {"robot": values.get("robot", "ur10e"),
-            "cell": Cell(base2part=np.eye(4) if base is None else parse_pose(base),
-                         flange2tcp=np.eye(4) if tcp is None else parse_pose(tcp)),
+            "cell": Cell(part2base=np.eye(4) if base is None else parse_pose(base),
+                         tcp2flange=np.eye(4) if tcp is None else parse_pose(tcp)),
             "programs": programs, "place": place == "auto",
             "table_z": 0.0 if table is None else parse_quantity(table, "length"),
             "strict": bool(values.get("robot_strict", values.get("robot-strict", False)))}
