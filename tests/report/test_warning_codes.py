@@ -38,6 +38,10 @@ def _skeleton(node, names: dict) -> str | None:
     return None
 
 
+#: Local lists that collect a job's warnings (their appends are warnings wherever they are made).
+WARNING_LISTS = ("warnings", "notes")
+
+
 def _warning_texts() -> list[tuple[str, str]]:
     """``(where, text)`` of every warning in the library's source."""
     found = []
@@ -61,8 +65,9 @@ def _warning_texts() -> list[tuple[str, str]]:
                         text = _skeleton(node.args[1], names)       # "%s" passes a message on
                     if text is not None:
                         found.append((where, text))
-                elif lists_of_warnings and isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
-                        and node.func.attr == "append" and node.args:
+                elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                        and node.func.attr == "append" and node.args and (lists_of_warnings or (
+                            isinstance(node.func.value, ast.Name) and node.func.value.id in WARNING_LISTS)):
                     text = _skeleton(node.args[0], names)
                     if text is not None:
                         found.append((where, text))

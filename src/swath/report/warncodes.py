@@ -11,7 +11,7 @@ A warning gets its code either explicitly (its text holds ``[W-SOME-CODE]``) or 
 ``"removal sampled at %.2f mm"``, and the formatted text must match).  Adding a warning means
 adding one :func:`entry` to :data:`CODES`::
 
-    entry("W-CELL-COLLISION", r"collides with", "The tool or robot touches a cell body.", "Move the part."),
+    entry("W-SOME-CODE", r"text the warning holds", "What it means.", "What to do.", "stage"),
 """
 
 from __future__ import annotations
@@ -150,6 +150,24 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-ROBOT-FLIP", r"changes configuration .* inside a contact pass",
           "The arm changes configuration (shoulder, elbow or wrist branch) with the pad on the part.",
           "Move the part (`--base`, or `--place`) or choose another robot.", "robot"),
+    # --- the cell -------------------------------------------------------------------------------------------
+    entry("W-CELL-DEFAULT-TOOL", "",
+          "No tool was described: a 3-inch random-orbital sander (holder, spindle, 175 mm TCP) is assumed for "
+          "the TCP and the collision check.",
+          "Describe your tool in a cell file (`[tool]` with `tcp2flange` and `[[tool.body]]`) or give `--tcp`.",
+          "robot"),
+    entry("W-CELL-NO-TOOL-BODY", "",
+          "A TCP was given without a tool body: only the robot's links are checked for collisions.",
+          "Describe the tool's body in a cell file (`[[tool.body]]` cylinders or boxes).", "robot"),
+    entry("W-CELL-DEFAULT-TABLE", "",
+          "No table was described: the part is taken to stand on a table whose top is its lowest point, and the "
+          "arm is checked against it.",
+          "Describe the real table in a cell file (`[table]`), or `table = false` if there is none.", "robot"),
+    entry("W-CELL-COLLISION", "",
+          "With `--allow-collisions`: the robot or the tool touches the part, the table, a fixture or itself "
+          "somewhere along the job (the report marks where).",
+          "Move the part (`part2base`), change the tool body or the fixtures, or plan another direction; "
+          "without `--allow-collisions` such a plan writes no program.", "robot"),
     # --- simulation, force control, calibration ------------------------------------------------------------
     entry("W-REMOVAL-COARSENED", r"removal sampled at .* instead of",
           "The part is too large for the removal simulation's sample cap at the asked spacing; it is sampled "
