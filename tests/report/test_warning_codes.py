@@ -39,7 +39,7 @@ def _skeleton(node, names: dict) -> str | None:
 
 
 #: Local lists that collect a job's warnings (their appends are warnings wherever they are made).
-WARNING_LISTS = ("warnings", "notes")
+WARNING_LISTS = ("warnings",)
 
 
 def _warning_texts() -> list[tuple[str, str]]:

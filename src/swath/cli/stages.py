@@ -45,21 +45,21 @@ def job_cell(settings):
     from ..cell import Cell, default_sander, parse_pose, read_cell_file
 
     cell = read_cell_file(settings.cell) if settings.cell else Cell()
-    notes = list(cell.notes)
+    warnings = list(cell.notes)
     if settings.base:
         cell = replace(cell, part2base=parse_pose(settings.base, name="--base (part2base)"))
     if settings.tcp:
         cell = replace(cell, tcp2flange=parse_pose(settings.tcp, name="--tcp (tcp2flange)"))
         if cell.tool is None:
-            notes.append("cell: --tcp gives the TCP but not the tool's body, so only the robot's links are checked "
-                         "for collisions; describe the tool in a cell file ([tool] with [[tool.body]] entries) [W-CELL-NO-TOOL-BODY]")
+            warnings.append("cell: --tcp gives the TCP but not the tool's body, so only the robot's links are checked "
+                            "for collisions; describe the tool in a cell file ([tool] with [[tool.body]] entries) [W-CELL-NO-TOOL-BODY]")
     elif cell.tool is None:
         tool = default_sander()
         cell = replace(cell, tool=tool, tcp2flange=tool.tcp2flange)
-        notes.append(f"cell: no tool given (--tcp or a cell file's [tool]), so a {tool.description} is assumed "
-                     "for the TCP and the collision check; give your tool's TCP and body in a cell file "
-                     "[W-CELL-DEFAULT-TOOL]")
-    return replace(cell, notes=tuple(notes))
+        warnings.append(f"cell: no tool given (--tcp or a cell file's [tool]), so a {tool.description} is assumed "
+                        "for the TCP and the collision check; give your tool's TCP and body in a cell file "
+                        "[W-CELL-DEFAULT-TOOL]")
+    return replace(cell, notes=tuple(warnings))
 
 
 def robot_options(settings) -> dict:
