@@ -46,7 +46,7 @@ def robot_options(settings) -> dict:
 
     if not settings.robot:
         raise InputError("programs and placement need a robot: add --robot (e.g. ur10e, irb4600, kr120)")
-    get_robot(settings.robot)
+    get_robot(settings.robot, tip=settings.tip)
     unknown = set(settings.programs) - set(PROGRAM_FILES)
     if unknown:
         raise InputError(f"unknown program format(s) {', '.join(sorted(unknown))}; choose from "
@@ -58,6 +58,10 @@ def robot_options(settings) -> dict:
         values["base"] = settings.base
     if settings.tcp:
         values["tcp"] = settings.tcp
+    if settings.tip:
+        values["tip"] = settings.tip
+    if settings.keep_out is not None:
+        values["keep_out"] = settings.keep_out
     return robot_options_from_mapping(values)
 
 
