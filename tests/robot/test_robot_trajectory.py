@@ -87,10 +87,10 @@ def test_unreachable_poses_are_one_warning_the_caller_can_keep_quiet(plate_traje
         result = run_robot_stage(tr, robot="ur10e", cell=far, programs=[], warn=False)
     assert not caplog.records
     assert len(result.warnings) == 1
-    assert quiet.warning in result.warnings[0] and "leave these samples out" in result.warnings[0]
+    assert quiet.warning in result.warnings[0] and "split there with a retract and an approach" in result.warnings[0]
     near = Cell.from_text("0.55,-0.15,0,0,0,0", "0,0,120mm,0,0,0")
     ok = run_robot_stage(tr, robot="ur10e", cell=near, programs=[])
-    assert ok.solution.warning is None and ok.warnings == []
+    assert ok.solution.warning is None and not [w for w in ok.warnings if "unreachable" in w]
 
 
 def test_a_cell_where_no_pose_is_reachable_is_refused_even_when_not_strict(plate_trajectory):
@@ -186,7 +186,8 @@ def test_placement_trials_do_not_warn(plate_trajectory, caplog, monkeypatch):
     monkeypatch.setattr(placement, "solve_trajectory", spy)
     with caplog.at_level("WARNING"):
         best = placement.search_placement(plate_trajectory, get_robot("ur3e"), Cell(), n_xy=4,
-                                          yaws=(0.0, math.pi / 2), n_sample=40, n_refine=4)
+                                          yaws=(0.0, math.pi / 2), n_sample=40, n_refine=4, keep_out=0.2,
+                                          max_refine=6)
     assert any(t.warning for t in trials)              # some trial cell missed poses ...
     assert not [r for r in caplog.records if r.levelname == "WARNING"]     # ... and said nothing
     assert best.reachable_fraction == max(t.reachable_fraction for t in trials)

@@ -291,7 +291,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.robot:
         t0 = time.perf_counter()
         say(f"robot: inverse kinematics for {settings.robot}", 0, 1)
-        trajectory, robot, robot_metrics = stages.robot_stage(trajectory, surface, settings)
+        # the simulation below runs on the robot's trajectory: unreachable stretches are air there
+        trajectory, robot, robot_metrics = stages.robot_stage(trajectory, surface, settings, progress=say)
         extra_metrics.update(robot_metrics)
         timings["robot_s"] = time.perf_counter() - t0
     if settings.force_control:

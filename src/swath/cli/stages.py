@@ -65,14 +65,15 @@ def robot_options(settings) -> dict:
     return robot_options_from_mapping(values)
 
 
-def robot_stage(trajectory, surface, settings):
+def robot_stage(trajectory, surface, settings, *, progress=None):
     """Inverse kinematics along the trajectory for the job's robot, re-timed where a joint limit
     binds; returns the re-timed trajectory, the :class:`RobotResult` and its metrics (nothing is
     written: see :func:`write_robot_outputs`)."""
     from ..robot import run_robot_stage
 
     result = run_robot_stage(trajectory, **robot_options(settings), out_dir=None, surface=surface,
-                             force=settings.force, warn=False)      # the job reports result.warnings
+                             force=settings.force, warn=False,      # the job reports result.warnings
+                             progress=None if progress is None else (lambda m, d, n: progress(m, d, n)))
     metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
     return result.trajectory, result, metrics
 

@@ -11,6 +11,7 @@ placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fa
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,7 +81,8 @@ def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell
 def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell | None = None,
                     programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
                     margins: Margins | None = None, strict: bool = False, force: float = 20.0,
-                    surface=None, reach_vertices: int = 1500, warn: bool = True) -> RobotResult:
+                    surface=None, reach_vertices: int = 1500, warn: bool = True, keep_out: float | None = None,
+                    split_gaps: bool = True, clearance: float = 0.02, progress=None) -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -111,6 +113,16 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         At most this many vertices in the reachability map.
     warn : bool
         Log the result's warnings (default); they are the result's ``warnings`` either way.
+    keep_out : float, optional
+        With ``place``: radius of the keep-out cylinder about the base axis, m
+        (default :func:`swath.robot.placement.default_keep_out`).
+    split_gaps : bool
+        Split passes at unreachable stretches with a retract and an approach (default); the returned
+        trajectory is then what the robot runs (:func:`swath.robot.gaps.split_unreachable`).
+    clearance : float
+        Retract/approach height at a split, m.
+    progress : callable, optional
+        ``progress(message, done, total)`` for the placement search and the solves.
 
     Returns
     -------
@@ -123,12 +135,24 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         raise InputError("the robot stage needs a trajectory with at least one sample")
     placement = None
     t0 = time.perf_counter()
+    say = progress or (lambda message, done, total: None)
     if place:
-        placement = search_placement(trajectory, model, cell, table_z=table_z, margins=margins)
+        placement = search_placement(trajectory, model, cell, table_z=table_z, margins=margins, keep_out=keep_out,
+                                     points=None if surface is None else np.asarray(surface.vertices),
+                                     progress=progress)
         cell = placement.cell
     t_place = time.perf_counter() - t0
     t0 = time.perf_counter()
+    say(f"robot: inverse kinematics on {len(trajectory)} poses", 0, 1)
     solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
+    first_warning, gaps, n_unreachable = solution.warning, [], int((~solution.reachable).sum())
+    if split_gaps and n_unreachable and solution.reachable.any():
+        from .gaps import adopt_joint_moves, split_unreachable
+
+        say(f"robot: {n_unreachable} unreachable poses become air moves; solving again", 0, 1)
+        trajectory, q_moves, gaps = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
+        solution = adopt_joint_moves(solve_trajectory(trajectory, model, cell, margins=margins, warn=False),
+                                     q_moves, model)
     t_ik = time.perf_counter() - t0
     retimed, rt = retime_trajectory(trajectory, solution, model)
     dp, da = fk_errors(retimed, solution, model, cell)
@@ -147,11 +171,14 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         "min_manipulability": float(np.nanmin(meas["manipulability"])) if len(idx) else float("nan"),
         "min_joint_limit_margin_rad": float(np.nanmin(meas["joint_limit_margin_rad"])) if len(idx) else float("nan"),
         "min_wrist_sin": float(np.nanmin(meas["wrist"])) if len(idx) else float("nan"),
+        "n_unreachable_poses": n_unreachable, "n_gaps": len(gaps),
+        "gap_contact_length_m": float(sum(g.contact_length for g in gaps)),
+        "gaps": [g.as_record() for g in gaps],
         **cell.as_record(),
     }
     if placement is not None:
         metrics.update(placement.as_record())
-    warnings = robot_warnings(solution, metrics)
+    warnings = robot_warnings(solution, metrics, first_warning=first_warning, split=split_gaps)
     if warn:
         for w in warnings:
             log.warning("%s", w)
@@ -170,18 +197,49 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
                        reach_map=reach_map, files=files, metrics=metrics, warnings=warnings)
 
 
-def robot_warnings(solution: JointSolution, metrics: dict) -> list[str]:
-    """The robot stage's warnings: unreachable poses (the solution's sentence; the programs skip
-    those samples, so the robot would move straight across them) and branch changes inside a
-    contact pass (the arm reconfigures with the pad on the part)."""
+#: Thresholds of the robot stage's warnings: the Yoshikawa manipulability (linear rows divided by the
+#: reach), |sin| of the wrist angle (the angle between the axes of joints 4 and 6), and the smallest
+#: distance of any joint from its limit, rad.
+WARN_MANIPULABILITY = 0.01
+WARN_WRIST_SIN = math.sin(math.radians(10.0))
+WARN_JOINT_LIMIT_MARGIN = math.radians(5.0)
+
+
+def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str | None = None,
+                   split: bool = False) -> list[str]:
+    """The robot stage's warnings: unreachable poses (the first solve's sentence; with ``split`` the
+    passes were split there with a retract and an approach, else the programs skip those samples and
+    the robot moves straight across them), branch changes inside a contact pass (the arm reconfigures
+    with the pad on the part), and manipulability, wrist sine or joint-limit margin below the
+    thresholds :data:`WARN_MANIPULABILITY`, :data:`WARN_WRIST_SIN`, :data:`WARN_JOINT_LIMIT_MARGIN`."""
     out = []
-    if solution.warning:
-        out.append(f"robot: {solution.warning} The programs leave these samples out, so the robot moves straight "
+    sentence = first_warning if first_warning is not None else solution.warning
+    if sentence and split and metrics.get("n_gaps"):
+        out.append(f"robot: {sentence} The passes are split there with a retract and an approach "
+                   f"({metrics['n_gaps']} gap(s), {1e3 * metrics.get('gap_contact_length_m', 0.0):.0f} mm of contact "
+                   "path left unsanded); coverage and removal are computed on what the robot runs.")
+    elif sentence:
+        out.append(f"robot: {sentence} The programs leave these samples out, so the robot moves straight "
                    "across them.")
     flips = int(metrics.get("configuration_flips_in_passes", 0))
     if flips:
         out.append(f"robot: the arm changes configuration {flips} time(s) inside a contact pass ({metrics['robot']}), "
                    "with the pad on the part; move the part (--base, or --place) or choose another robot")
+    name = metrics.get("robot", "the robot")
+    manip = metrics.get("min_manipulability", float("nan"))
+    if np.isfinite(manip) and manip < WARN_MANIPULABILITY:
+        out.append(f"robot: {name} comes close to a singularity: manipulability falls to {manip:.2g} (warned below "
+                   f"{WARN_MANIPULABILITY:g}); small path errors become large joint speeds there; move the part "
+                   "(--base, or --place)")
+    wrist = metrics.get("min_wrist_sin", float("nan"))
+    if np.isfinite(wrist) and wrist < WARN_WRIST_SIN:
+        out.append(f"robot: {name}'s wrist comes near its singularity: sin of the wrist angle falls to {wrist:.2f} "
+                   f"({math.degrees(math.asin(min(wrist, 1.0))):.1f} deg; warned below 10 deg); wrist joints 4 and "
+                   "6 may spin fast; move the part or turn the tool about its axis")
+    margin = metrics.get("min_joint_limit_margin_rad", float("nan"))
+    if np.isfinite(margin) and margin < WARN_JOINT_LIMIT_MARGIN:
+        out.append(f"robot: a joint of {name} comes within {math.degrees(margin):.2f} deg of its limit (warned below "
+                   "5 deg); the controller may stop on a limit with a small path or calibration error")
     return out
 
 
@@ -193,7 +251,8 @@ def robot_options_from_mapping(values: dict) -> dict:
     """
     from ..units import parse_quantity
 
-    known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict"}
+    known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict", "tip",
+             "keep_out", "keep-out"}
     unknown = set(values) - known
     if unknown:
         raise InputError(f"unknown robot setting(s) {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
@@ -205,7 +264,11 @@ def robot_options_from_mapping(values: dict) -> dict:
     base = values.get("base")
     tcp = values.get("tcp")
     table = values.get("table_z", values.get("table-z"))
-    return {"robot": values.get("robot", "ur10e"),
+    robot = values.get("robot", "ur10e")
+    if str(robot).strip().lower().endswith(".urdf") or values.get("tip"):
+        robot = get_robot(robot, tip=values.get("tip"))       # a URDF robot is loaded (and checked) here
+    keep = values.get("keep_out", values.get("keep-out"))
+    return {"robot": robot, "keep_out": None if keep is None else parse_quantity(keep, "length"),
             "cell": Cell(base2part=np.eye(4) if base is None else parse_pose(base),
                          flange2tcp=np.eye(4) if tcp is None else parse_pose(tcp)),
             "programs": programs, "place": place == "auto",

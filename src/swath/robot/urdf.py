@@ -310,10 +310,10 @@ def numeric_ik(robot: RobotModel, poses, *, seed=None, max_jump: float = 0.5) ->
     rng = np.random.default_rng(0)
     start = np.clip(0.5 * (lo + hi), -math.pi, math.pi) if seed is None else np.asarray(seed, dtype=float)
     prev: np.ndarray | None = None
-    prev_pose = None
+    prev_pose = np.eye(4)
     for i, target in enumerate(poses):
         if prev is None:
-            q = _best_start(robot, target, start if prev_pose is None else start, rng)
+            q = _best_start(robot, target, start, rng)
             if q is not None:
                 out[i, 0] = q
                 prev, prev_pose = q, target
