@@ -353,9 +353,14 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             from ..report.force_plots import write_force_plots
 
             figures.update(write_force_plots(tmp, trace=force))
+        traces = None
+        if robot is not None:
+            from ..report.robot_plots import robot_traces
+
+            traces = robot_traces(robot)          # the arm, its reach and the stretches it skips
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                      metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}",
-                     extra_figures=figures)
+                     extra_figures=figures, extra_traces=traces)
     say("done", 1, 1)
     return metrics
 

@@ -24,7 +24,7 @@ __all__ = ["write_report", "write_metrics_json", "write_report_html", "write_plo
 
 
 def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=None, metrics=None,
-                 settings=None, title=None, extra_figures=None) -> dict[str, Path]:
+                 settings=None, title=None, extra_figures=None, extra_traces=None) -> dict[str, Path]:
     """Write ``metrics.json``, the PNG figures and ``report.html`` into ``out_dir``.
 
     Parameters
@@ -48,6 +48,8 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
     extra_figures : dict of str -> Path, optional
         PNGs other stages wrote into ``out_dir`` (force trace, joint plots, ...), shown after the
         standard figures.
+    extra_traces : list of plotly traces, optional
+        More to draw in the 3D view (the robot, its reach, unreached stretches).
 
     Returns
     -------
@@ -67,5 +69,5 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
     paths.update(pngs)
     paths["html"] = write_report_html(out_dir / "report.html", surface=surface, toolpath=toolpath,
                                       trajectory=trajectory, removal=removal, metrics=metrics,
-                                      settings=settings, title=title, images=pngs)
+                                      settings=settings, title=title, images=pngs, extra_traces=extra_traces)
     return paths

@@ -165,7 +165,7 @@ def _link_lines(trajectory) -> list[np.ndarray]:
 
 
 def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_faces: int = MAX_VIEW_FACES,
-              max_line_points: int = MAX_LINE_POINTS):
+              max_line_points: int = MAX_LINE_POINTS, extra_traces=None):
     """The interactive plotly 3D view: removal-coloured mesh, passes, air moves.
 
     Parameters
@@ -180,6 +180,8 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
         Removal depth (m) on the sampled surface; the mesh is coloured by it in µm.
     max_faces, max_line_points : int
         Display budgets.
+    extra_traces : list of plotly traces, optional
+        Drawn after the job's own (the robot, its reach, unreached stretches); the view widens to show them.
 
     Returns
     -------
@@ -249,7 +251,8 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
                                    line=dict(width=1.5, color="rgb(120,120,120)"), opacity=0.7,
                                    hoverinfo="skip"))
 
-    fig = go.Figure(traces)
+    extra = list(extra_traces or [])
+    fig = go.Figure(traces + extra)
     # Look at the side the surface faces, tilted a little, with its normal axis pointing up.
     u, v, w = frame.axes
     eye = w - 0.55 * v + 0.2 * u
@@ -257,6 +260,11 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
     axis = dict(showbackground=False, gridcolor="rgb(225,225,225)", zerolinecolor="rgb(200,200,200)")
     # The view spans the part and a margin, so far air moves do not shrink the part to a speck.
     lo, hi = surface.vertices.min(axis=0) - 0.08 * diag, surface.vertices.max(axis=0) + 0.08 * diag
+    for tr in extra:
+        xyz = np.c_[np.asarray(tr.x, float), np.asarray(tr.y, float), np.asarray(tr.z, float)]
+        xyz = xyz[np.all(np.isfinite(xyz), axis=1)]
+        if len(xyz):
+            lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
     fig.update_layout(
         scene=dict(aspectmode="data",
                    xaxis=dict(title=dict(text="x (m)"), range=[lo[0], hi[0]], **axis),
@@ -338,7 +346,7 @@ def _warnings_html(metrics: dict) -> str:
 
 def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, metrics=None, settings=None,
                      title=None, images=None, max_faces: int = MAX_VIEW_FACES,
-                     max_line_points: int = MAX_LINE_POINTS) -> str:
+                     max_line_points: int = MAX_LINE_POINTS, extra_traces=None) -> str:
     """The report as HTML text (see :func:`write_report_html`)."""
     if surface is None:
         raise InputError("the report needs the part surface")
@@ -352,7 +360,7 @@ def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, m
     now = _dt.datetime.now(_dt.UTC).replace(microsecond=0)
 
     fig = figure_3d(surface, toolpath=toolpath, trajectory=trajectory, removal=removal, max_faces=max_faces,
-                    max_line_points=max_line_points)
+                    max_line_points=max_line_points, extra_traces=extra_traces)
     plot_div = fig.to_html(full_html=False, include_plotlyjs=True, div_id="view3d", default_width="100%",
                            default_height="680px",
                            config=dict(displaylogo=False, responsive=True,
@@ -408,7 +416,7 @@ works offline.</footer>
 
 def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=None, metrics=None,
                       settings=None, title=None, images=None, max_faces: int = MAX_VIEW_FACES,
-                      max_line_points: int = MAX_LINE_POINTS) -> Path:
+                      max_line_points: int = MAX_LINE_POINTS, extra_traces=None) -> Path:
     """Write the self-contained HTML report atomically.
 
     Parameters
@@ -436,6 +444,8 @@ def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=
         Faces shown at most in the 3D mesh (default 60,000).
     max_line_points : int
         Points shown at most per 3D line trace (default 20,000).
+    extra_traces : list of plotly traces, optional
+        More to draw in the 3D view (see :func:`figure_3d`).
 
     Returns
     -------
@@ -445,7 +455,7 @@ def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=
     path = Path(path)
     text = report_html_text(surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                             metrics=metrics, settings=settings, title=title, images=images,
-                            max_faces=max_faces, max_line_points=max_line_points)
+                            max_faces=max_faces, max_line_points=max_line_points, extra_traces=extra_traces)
     write_text_atomic(path, text)
     log.info("wrote report %s (%.1f MB)", path, len(text.encode("utf-8")) / 1e6)
     return path

@@ -13,14 +13,14 @@ simulation and the metrics then run on this trajectory.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .pose import matrix_to_quat, poses_from_trajectory
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Gap:
     """One stretch the robot skips in air.
 
@@ -36,6 +36,8 @@ class Gap:
         Last dropped TCP position, part frame, m.
     contact_length : float
         Contact path length dropped, m.
+    path : (k, 3) float
+        The dropped TCP positions, part frame, m (for the report's 3D view).
     """
 
     pass_index: int
@@ -44,6 +46,7 @@ class Gap:
     position: tuple
     end_position: tuple
     contact_length: float
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def as_record(self) -> dict:
         return {"pass": self.pass_index, "start_sample": self.start, "stop_sample": self.stop,
@@ -69,7 +72,7 @@ def find_gaps(trajectory, reachable) -> list[Gap]:
         out.append(Gap(pass_index=int(passes[0]) if len(inside) else -1, start=int(s), stop=int(e),
                        position=tuple(float(v) for v in trajectory.position[s]),
                        end_position=tuple(float(v) for v in trajectory.position[e - 1]),
-                       contact_length=float(lengths.sum())))
+                       contact_length=float(lengths.sum()), path=trajectory.position[s:e].copy()))
     return out
 
 

@@ -52,6 +52,8 @@ class RobotResult:
         ``n_branch_switches``, ``configuration_flips_in_passes``, ``max_fk_position_error_m``,
         ``max_fk_angle_error_rad``, ``max_joint_speed_ratio``, ``max_joint_accel_ratio``,
         ``retime_added_s``, ``min_manipulability``, ``min_joint_limit_margin_rad`` …
+    gaps : list of Gap
+        Unreachable stretches the robot skips in air (:mod:`swath.robot.gaps`).
     warnings : list of str
         What the user must know before running the programs, one sentence each: poses no
         configuration reaches (the programs leave them out) and configuration changes inside a
@@ -67,6 +69,7 @@ class RobotResult:
     files: list = field(default_factory=list)
     metrics: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    gaps: list = field(default_factory=list)
 
 
 def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell):
@@ -194,7 +197,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
             raise InputError(f"no pose of the trajectory is reachable for {model.name}; no program written")
         files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
     return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
-                       reach_map=reach_map, files=files, metrics=metrics, warnings=warnings)
+                       reach_map=reach_map, files=files, metrics=metrics, warnings=warnings, gaps=gaps)
 
 
 #: Thresholds of the robot stage's warnings: the Yoshikawa manipulability (linear rows divided by the
