@@ -268,6 +268,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     surface, part_info = load_part_info(settings, progress=say)
     log.info("part %s", surface)
     check_budget(surface, settings)
+    if settings.robot and settings.place:
+        stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

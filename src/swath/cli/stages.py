@@ -65,6 +65,18 @@ def robot_options(settings) -> dict:
     return robot_options_from_mapping(values)
 
 
+def robot_fit_check(surface, settings) -> None:
+    """With ``--place``: refuse before planning a part whose footprint cannot lie within the robot's
+    reach outside the keep-out cylinder (:func:`swath.robot.placement.check_fits_reach`)."""
+    from ..robot import get_robot
+    from ..robot.placement import check_fits_reach, default_keep_out
+
+    options = robot_options(settings)
+    model = options["robot"] if not isinstance(options["robot"], str) else get_robot(options["robot"])
+    keep = options.get("keep_out")
+    check_fits_reach(surface.vertices, model, options["cell"], keep_out=default_keep_out(model) if keep is None else keep)
+
+
 def robot_stage(trajectory, surface, settings, *, progress=None):
     """Inverse kinematics along the trajectory for the job's robot, re-timed where a joint limit
     binds; returns the re-timed trajectory, the :class:`RobotResult` and its metrics (nothing is
