@@ -129,3 +129,16 @@ def test_urdf_refusals(tmp_path, ur10e_urdf):
     bad.write_text("<robot name='x'><link name='a'/>")
     with pytest.raises(InputError, match="could not read URDF"):
         urdf_robot(bad)
+
+
+def test_urdf_robot_from_job_settings(ur10e_urdf):
+    from swath.cli.settings import settings_from_mapping
+    from swath.cli.stages import robot_options
+
+    s = settings_from_mapping({"part": "example:plate", "out": "unused", "robot": str(ur10e_urdf), "tip": "tool0",
+                               "keep_out": "400mm"})
+    opts = robot_options(s)
+    assert opts["robot"].kind == "numeric" and opts["robot"].extra["tip"] == "tool0"
+    assert opts["keep_out"] == pytest.approx(0.4)
+    with pytest.raises(InputError, match="no frame 'nope'"):      # refused with the settings, before any work
+        settings_from_mapping({"part": "example:plate", "out": "unused", "robot": str(ur10e_urdf), "tip": "nope"})

@@ -16,9 +16,11 @@ tool-axis freedom), to stay away from joint limits and singularities.
 2. **Grid** over ``x, y`` and yaw: cells where the footprint enters the keep-out cylinder are
    dropped; the rest are ranked by the fraction of the part within horizontal reach, and the best
    ``n_ik`` are scored by IK on ``n_sample`` contact samples (fraction reached on one branch, then
-   mean manipulability), followed by a local refinement and the tool-axis rotations.
+   how many of the warning thresholds on manipulability, wrist sine and joint-limit margin the
+   reached configurations keep, then manipulability), followed by a local refinement and the
+   tool-axis rotations.
 3. The best few cells are solved on the trajectory (decimated to at most ``refine_samples``
-   samples) with :func:`swath.robot.solve.solve_trajectory`; the best of those wins.
+   samples) with :func:`swath.robot.solve.solve_trajectory`; the best of those by the same ranking wins.
 
 ``progress(message, done, total)`` hears about each step; ``time_budget`` (s) caps step 3.
 """
@@ -39,6 +41,23 @@ from .pose import make_transform, poses_from_trajectory, rot_z
 from .solve import Margins, branch_table, solve_trajectory
 
 log = logging.getLogger(__name__)
+
+
+#: Thresholds of the robot stage's warnings, which the search also steers clear of: the Yoshikawa
+#: manipulability (linear rows divided by the reach), |sin| of the wrist angle (between the axes of
+#: joints 4 and 6), and the smallest distance of any joint from its limit, rad.
+WARN_MANIPULABILITY = 0.01
+WARN_WRIST_SIN = math.sin(math.radians(10.0))
+WARN_JOINT_LIMIT_MARGIN = math.radians(5.0)
+
+
+def _clear_of_warnings(model: RobotModel, q) -> int:
+    """How many of the three warning thresholds joint rows ``q`` (n, 6) all keep (0..3)."""
+    if not len(q):
+        return 0
+    m = model.singularity_measures(q)
+    return (int(np.min(m["manipulability"]) >= WARN_MANIPULABILITY) + int(np.min(m["wrist"]) >= WARN_WRIST_SIN)
+            + int(np.min(model.joint_limit_margin(q)) >= WARN_JOINT_LIMIT_MARGIN))
 
 
 def default_keep_out(model: RobotModel) -> float:
@@ -242,7 +261,7 @@ def _decimate(trajectory, max_samples: int):
 def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *, table_z: float = 0.0,
                      n_xy: int = 9, yaws=None, margins: Margins | None = None, n_sample: int = 150,
                      n_refine: int = 4, max_refine: int = 32, keep_out: float | None = None,
-                     tool_rotations=None, n_ik: int = 60, refine_samples: int = 6000,
+                     tool_rotations=None, n_ik: int = 48, refine_samples: int = 6000,
                      time_budget: float = 40.0, points=None, progress=None) -> Placement:
     """Search the part placement that reaches the whole job with the largest margin.
 
@@ -342,7 +361,9 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         best = feas.sum(axis=0).argmax()
         ok = feas[:, best]
         manip = model.singularity_measures(q[ok, best])["manipulability"].mean() if ok.any() else 0.0
-        return (ok.mean(), feas.any(axis=1).mean(), manip, base2part, (x, y, yaw, rotation))
+        # reached fraction first, then how many warning thresholds the reached rows keep, then manipulability
+        return (ok.mean(), _clear_of_warnings(model, q[ok, best]), feas.any(axis=1).mean() + manip, base2part,
+                (x, y, yaw, rotation))
 
     xs = np.linspace(-1.0, 1.0, n_xy) * reach
     candidates = []
@@ -396,15 +417,16 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         solved += 1
         ok = sol.reachable
         m = float(np.nanmean(sol.measures["manipulability"])) if ok.any() else 0.0
-        k = (sol.reachable_fraction, m)
+        k = (sol.reachable_fraction, _clear_of_warnings(model, sol.q[ok]), m)
         if best is None or k > best[0]:
             best = (k, trial, base2part, params)
-        say(f"placement: cells solved, best {100 * best[0][0]:.2f} % reached", solved, limit)
+        say(f"placement: {solved} cell(s) solved, best {100 * best[0][0]:.2f} % reached, "
+            f"{best[0][1]} of 3 warning thresholds kept", 0, 1)
         if solved == 1:
             log.debug("placement: one refinement solve took %.2f s", time.perf_counter() - t_refine)
     if best is None:
         raise InputError("placement search solved no cell; give n_refine or max_refine >= 1")
-    (frac, m), trial, base2part, params = best
+    (frac, _, m), trial, base2part, params = best
     yaw = math.atan2(base2part[1, 0], base2part[0, 0])
     elapsed = time.perf_counter() - t_start
     log.info("placement for %s: (%.3f, %.3f, %.3f) m, yaw %.0f deg, tool turned %.0f deg, %.2f %% reachable "

@@ -21,7 +21,13 @@ import numpy as np
 from ..errors import InputError
 from .cell import Cell, parse_pose
 from .models import RobotModel, get_robot
-from .placement import Placement, search_placement
+from .placement import (  # noqa: F401  (the thresholds are the stage's too)
+    WARN_JOINT_LIMIT_MARGIN,
+    WARN_MANIPULABILITY,
+    WARN_WRIST_SIN,
+    Placement,
+    search_placement,
+)
 from .pose import pose_error, poses_from_trajectory
 from .programs import ProgramInput, write_programs
 from .retime import joint_speed_ratio, retime_trajectory
@@ -198,14 +204,6 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
     return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
                        reach_map=reach_map, files=files, metrics=metrics, warnings=warnings, gaps=gaps)
-
-
-#: Thresholds of the robot stage's warnings: the Yoshikawa manipulability (linear rows divided by the
-#: reach), |sin| of the wrist angle (the angle between the axes of joints 4 and 6), and the smallest
-#: distance of any joint from its limit, rad.
-WARN_MANIPULABILITY = 0.01
-WARN_WRIST_SIN = math.sin(math.radians(10.0))
-WARN_JOINT_LIMIT_MARGIN = math.radians(5.0)
 
 
 def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str | None = None,
