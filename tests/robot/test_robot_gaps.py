@@ -78,5 +78,6 @@ def test_split_of_a_fully_reached_trajectory_is_the_identity(plate_trajectory):
     cell = Cell.from_text("0.55,-0.15,0,0,0,0", "0,0,150mm,0,0,0")
     model = get_robot("ur10e")
     sol = solve_trajectory(plate_trajectory, model, cell)
-    run, q, gaps = split_unreachable(plate_trajectory, sol, model, cell)
+    run, q, gaps, src = split_unreachable(plate_trajectory, sol, model, cell)
+    assert np.array_equal(src, np.arange(len(plate_trajectory)))
     assert run is plate_trajectory and gaps == [] and np.array_equal(q, sol.q, equal_nan=True)

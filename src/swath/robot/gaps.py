@@ -131,11 +131,13 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
         Joint values of every sample of the new trajectory, rad: the solution's on kept samples,
         interpolated on the joint moves (between the lifted poses' joint values nearest the reached ones).
     gaps : list of Gap
+    src : (m,) int
+        Index of each sample in ``trajectory`` (-1 for an inserted air sample).
     """
     reach = np.asarray(solution.reachable, bool)
     gaps = find_gaps(trajectory, reach)
     if not gaps or not reach.any():
-        return trajectory, solution.q.copy(), gaps
+        return trajectory, solution.q.copy(), gaps, np.arange(len(trajectory))
     poses = poses_from_trajectory(trajectory)
     n = len(trajectory)
     pieces = []          # (poses (k,4,4), contact (k,), pass (k,), feed (k,), dt before each (k,), q (k,6), src (k,))
@@ -193,46 +195,56 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
     meta["robot_gaps"] = [g.as_record() for g in gaps]
     new = replace(trajectory, t=t, position=new_poses[:, :3, 3].copy(), quaternion=matrix_to_quat(new_poses[:, :3, :3]),
                   contact=contact, feed=feed, pass_index=pass_index, extra=extra, metadata=meta)
-    return new, q, gaps
+    return new, q, gaps, src
 
 
-def adopt_joint_moves(solution, q_moves, model):
-    """The re-solved :class:`JointSolution` with the joint moves' own values where the solve refused them.
+def solution_after_split(solution, trajectory, q, src, model):
+    """The :class:`JointSolution` of the split trajectory, without solving it again.
 
-    A joint move between two lifted poses is what the robot runs (its poses are FK of these joint
-    values), so a sample of it that the Cartesian solve rejects (a singularity margin crossed in air,
-    a branch the per-sample table did not follow) keeps the interpolated joints.
+    Kept samples keep their joint values and branch; the retract, joint-move and approach samples
+    take :func:`split_unreachable`'s joint values (their poses are FK of them) and the branch of the
+    sample before them.
 
     Parameters
     ----------
     solution : JointSolution
-        From solving the split trajectory.
-    q_moves : (n, 6) float
-        :func:`split_unreachable`'s joint values (NaN-free on the joint moves).
+        Of the trajectory before the split.
+    trajectory : Trajectory
+        The split trajectory.
+    q : (m, 6) float
+        Its joint values, rad.
+    src : (m,) int
+        Index of each sample in the trajectory before the split (-1 for an inserted air sample).
     model : RobotModel
 
     Returns
     -------
     JointSolution
     """
-    fill = ~solution.reachable & np.all(np.isfinite(q_moves), axis=1)
-    if not fill.any():
-        return solution
-    q = solution.q.copy()
-    q[fill] = q_moves[fill]
-    reach = solution.reachable | fill
-    branch = solution.branch.copy()
-    # a filled sample takes the branch of the nearest reached sample before it (else after it)
-    idx = np.flatnonzero(solution.reachable)
-    if len(idx):
-        pos = np.clip(np.searchsorted(idx, np.flatnonzero(fill)) - 1, 0, len(idx) - 1)
-        branch[fill] = solution.branch[idx[pos]]
-    measures = {k: v.copy() for k, v in solution.measures.items()}
-    m = model.singularity_measures(q[fill])
-    for k, v in m.items():
-        measures[k][fill] = v
-    measures["joint_limit_margin_rad"][fill] = model.joint_limit_margin(q[fill])
-    stretches = [st for st in solution.stretches if not reach[st.start:st.stop].all()]
-    warning = solution.warning if stretches else None
-    return replace(solution, q=q, reachable=reach, branch=branch, measures=measures, stretches=stretches,
-                   warning=warning)
+    m = len(q)
+    reach = np.all(np.isfinite(q), axis=1)
+    branch = np.full(m, -1)
+    kept = src >= 0
+    branch[kept] = solution.branch[src[kept]]
+    for i in range(1, m):                       # air samples: the branch they leave from
+        if branch[i] < 0 and reach[i]:
+            branch[i] = branch[i - 1]
+    for i in range(m - 2, -1, -1):              # the job's start: the branch it lands on
+        if branch[i] < 0 and reach[i]:
+            branch[i] = branch[i + 1]
+    names = solution.branch_names
+    switches = []
+    for s in np.flatnonzero(np.diff(branch)) + 1:
+        if branch[s] < 0 or branch[s - 1] < 0:
+            continue
+        after = trajectory.pass_index[s:][trajectory.contact[s:]]
+        switches.append({"sample": int(s), "from": names[branch[s - 1]], "to": names[branch[s]],
+                         "pass_after": int(after[0]) if len(after) else -1})
+    measures = {k: np.full(m, np.nan) for k in solution.measures}
+    if reach.any():
+        for k, v in model.singularity_measures(q[reach]).items():
+            if k in measures:
+                measures[k][reach] = v
+        measures["joint_limit_margin_rad"][reach] = model.joint_limit_margin(q[reach])
+    return replace(solution, q=q, branch=np.where(reach, branch, -1), reachable=reach, switches=switches,
+                   stretches=[], measures=measures, warning=None)

@@ -156,12 +156,11 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
     first_warning, gaps, n_unreachable = solution.warning, [], int((~solution.reachable).sum())
     if split_gaps and n_unreachable and solution.reachable.any():
-        from .gaps import adopt_joint_moves, split_unreachable
+        from .gaps import solution_after_split, split_unreachable
 
-        say(f"robot: {n_unreachable} unreachable poses become air moves; solving again", 0, 1)
-        trajectory, q_moves, gaps = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
-        solution = adopt_joint_moves(solve_trajectory(trajectory, model, cell, margins=margins, warn=False),
-                                     q_moves, model)
+        say(f"robot: {n_unreachable} unreachable poses become air moves (retract, joint move, approach)", 0, 1)
+        trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
+        solution = solution_after_split(solution, trajectory, q_moves, src, model)
     t_ik = time.perf_counter() - t0
     retimed, rt = retime_trajectory(trajectory, solution, model)
     dp, da = fk_errors(retimed, solution, model, cell)
