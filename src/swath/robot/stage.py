@@ -246,8 +246,9 @@ def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str
 def robot_options_from_mapping(values: dict) -> dict:
     """Keyword arguments of :func:`run_robot_stage` from CLI/TOML text values.
 
-    Keys: ``robot``, ``base``, ``tcp``, ``program`` (comma list), ``place`` (``auto`` or absent),
-    ``table_z`` (length), ``robot_strict`` (bool).
+    Keys: ``robot`` (a catalogue name or a ``.urdf`` file, loaded here), ``base``, ``tcp``, ``program``
+    (comma list), ``place`` (``auto`` or absent), ``table_z`` (length), ``robot_strict`` (bool), ``tip``
+    (the URDF's flange frame), ``keep_out`` (length: the placement's keep-out radius).
     """
     from ..units import parse_quantity
 
