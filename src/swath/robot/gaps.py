@@ -169,7 +169,9 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
         q_air = qa + np.linspace(0.0, 1.0, steps + 1)[:, None] * (qb - qa)
         air = cell.part2tcp(model.fk(q_air))
         k = len(air)
-        t_move = max(trajectory.t[b] - trajectory.t[a] - 2 * t_lift, 0.0)
+        # at least the time the slowest joint needs at half its speed limit (the re-timing refines it)
+        t_joints = float(np.max(np.abs(qb - qa) / (0.5 * model.max_speed)))
+        t_move = max(trajectory.t[b] - trajectory.t[a] - 2 * t_lift, t_joints, 1e-3 * steps)
         dt = np.r_[t_lift, np.full(k - 1, t_move / (k - 1))]
         pieces.append((air, np.zeros(k, bool), np.full(k, -1), np.full(k, air_speed), dt, q_air, np.full(k, -1)))
     if cursor < n:
