@@ -155,6 +155,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     say(f"robot: inverse kinematics on {len(trajectory)} poses", 0, 1)
     solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
     first_warning, gaps, n_unreachable = solution.warning, [], int((~solution.reachable).sum())
+    n_planned, planned_fraction, planned_stretches = len(trajectory), solution.reachable_fraction, len(solution.stretches)
     if split_gaps and n_unreachable and solution.reachable.any():
         from .gaps import solution_after_split, split_unreachable
 
@@ -168,8 +169,11 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     speed_ratio = joint_speed_ratio(retimed.t[idx], solution.q[idx], model.max_speed) if len(idx) > 1 else np.zeros(1)
     meas = solution.measures
     metrics = {
-        "robot": model.name, "n_poses": len(trajectory), "ik_time_s": t_ik, "placement_time_s": t_place,
-        "reachable_fraction": solution.reachable_fraction, "n_unreachable_stretches": len(solution.stretches),
+        # the planned trajectory's poses and how many the robot reaches (the split trajectory it runs has
+        # n_poses_run samples, all reached)
+        "robot": model.name, "n_poses": n_planned, "ik_time_s": t_ik, "placement_time_s": t_place,
+        "reachable_fraction": planned_fraction, "n_unreachable_stretches": planned_stretches,
+        "n_poses_run": len(trajectory),
         "n_branch_switches": len(solution.switches),
         "configuration_flips_in_passes": flips_inside_passes(solution, trajectory),
         "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
