@@ -54,4 +54,4 @@ def test_robot_figures_render(plate, tmp_path):
     fig2 = reachability_figure(plate, rm, color_by="joint_limit_margin")
     assert "margin" in fig2.axes[1].get_ylabel()
     paths = write_robot_plots(tmp_path, result=res, surface=plate, reach_map=rm)
-    assert set(paths) == {"joints", "reachability"} and all(p.stat().st_size > 1000 for p in paths.values())
+    assert set(paths) == {"joints", "reachability", "margins"} and all(p.stat().st_size > 1000 for p in paths.values())

@@ -87,10 +87,10 @@ def test_unreachable_poses_are_one_warning_the_caller_can_keep_quiet(plate_traje
         result = run_robot_stage(tr, robot="ur10e", cell=far, programs=[], warn=False)
     assert not caplog.records
     assert len(result.warnings) == 1
-    assert quiet.warning in result.warnings[0] and "leave these samples out" in result.warnings[0]
+    assert quiet.warning in result.warnings[0] and "split there with a retract and an approach" in result.warnings[0]
     near = Cell.from_text("0.55,-0.15,0,0,0,0", "0,0,120mm,0,0,0")
     ok = run_robot_stage(tr, robot="ur10e", cell=near, programs=[])
-    assert ok.solution.warning is None and ok.warnings == []
+    assert ok.solution.warning is None and not [w for w in ok.warnings if "unreachable" in w]
 
 
 def test_a_cell_where_no_pose_is_reachable_is_refused_even_when_not_strict(plate_trajectory):
@@ -151,9 +151,10 @@ def test_placement_search_keeps_solving_cells_until_one_reaches_every_pose():
     settings = settings_from_mapping({"part": name, "out": "unused"})
     trajectory = time_path(make_plan(surface, settings), settings.constraints(), links=settings.links())
     model = get_robot("ur5e")
-    first_four = search_placement(trajectory, model, n_refine=4, max_refine=4)
+    # no time budget: the test is about the order of the solves, not the clock
+    first_four = search_placement(trajectory, model, n_refine=4, max_refine=4, time_budget=math.inf)
     assert first_four.solved == 4 and 0.999 < first_four.reachable_fraction < 1.0
-    best = search_placement(trajectory, model, n_refine=4)
+    best = search_placement(trajectory, model, n_refine=4, time_budget=math.inf)
     assert best.reachable_fraction == 1.0
     assert 4 < best.solved <= 32
     assert best.as_record()["placements_solved"] == best.solved
@@ -186,7 +187,8 @@ def test_placement_trials_do_not_warn(plate_trajectory, caplog, monkeypatch):
     monkeypatch.setattr(placement, "solve_trajectory", spy)
     with caplog.at_level("WARNING"):
         best = placement.search_placement(plate_trajectory, get_robot("ur3e"), Cell(), n_xy=4,
-                                          yaws=(0.0, math.pi / 2), n_sample=40, n_refine=4)
+                                          yaws=(0.0, math.pi / 2), n_sample=40, n_refine=4, keep_out=0.2,
+                                          max_refine=6)
     assert any(t.warning for t in trials)              # some trial cell missed poses ...
     assert not [r for r in caplog.records if r.levelname == "WARNING"]     # ... and said nothing
     assert best.reachable_fraction == max(t.reachable_fraction for t in trials)

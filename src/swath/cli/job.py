@@ -269,6 +269,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     surface, part_info = load_part_info(settings, progress=say)
     log.info("part %s", surface)
     check_budget(surface, settings)
+    if settings.robot and settings.place:
+        stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -292,7 +294,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.robot or settings.cell:
         t0 = time.perf_counter()
         say(f"robot: inverse kinematics for {settings.robot or 'the cell file robot'}", 0, 1)
-        trajectory, robot, robot_metrics = stages.robot_stage(trajectory, surface, settings)
+        # the simulation below runs on the robot's trajectory: unreachable stretches are air there
+        trajectory, robot, robot_metrics = stages.robot_stage(trajectory, surface, settings, progress=say)
         extra_metrics.update(robot_metrics)
         timings["robot_s"] = time.perf_counter() - t0
     if settings.force_control:
@@ -354,9 +357,15 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             from ..report.force_plots import write_force_plots
 
             figures.update(write_force_plots(tmp, trace=force))
+        traces = None
+        if robot is not None:
+            from ..report.robot_plots import robot_traces
+
+            traces = robot_traces(robot)          # the arm, its reach and the stretches it skips
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                      metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}",
-                     extra_figures=figures, scene_traces=None if robot is None else stages.cell_scene(robot, metrics, surface))
+                     extra_figures=figures,
+                     scene_traces=None if robot is None else stages.cell_scene(robot, metrics, surface) + (traces or []))
     say("done", 1, 1)
     return metrics
 

@@ -116,7 +116,8 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "
                         "simulator finds more than the target plus the tolerance (up to 6 rounds; default on)")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
-    r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120")
+    r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120, or a URDF file "
+                                   "(path/to/robot.urdf, with --tip)")
     r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")
     r.add_argument("--tcp", help="the tool (TCP) pose in the flange frame, x,y,z,rx,ry,rz (e.g. 0,0,150mm,0,0,0)")
     r.add_argument("--program", dest="programs",
@@ -129,6 +130,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     r.add_argument("--allow-collisions", action="store_true", default=None,
                    help="write the robot programs even when the collision check finds a collision (a warning "
                         "then; default: refuse with exit status 2)")
+    r.add_argument("--tip", help="with --robot path/to/robot.urdf: the URDF frame the tool is mounted on (default tool0)")
+    r.add_argument("--keep-out", help="with --place: radius of the cylinder about the robot's base axis the part "
+                                      "must stay out of, e.g. 400mm (default 0.2 m + 0.1 x reach)")
     f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
     f.add_argument("--force-control", action="store_true",
                    help="simulate hybrid position/force control along the trajectory: a force column, a force plot, "

@@ -111,6 +111,8 @@ class JobSettings:
     robot_strict: bool = False
     cell: str | None = None
     allow_collisions: bool = False
+    tip: str | None = None
+    keep_out: float | None = None
 
     def tool(self):
         from ..contact import Tool
@@ -260,6 +262,7 @@ SCHEMA: dict[str, Key] = {
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
     "cell": Key("path"), "allow_collisions": Key("bool"),
+    "tip": Key("str"), "keep_out": Key("length", lo=0.0, hi=5.0, bare_max=5.0, hint="mm, e.g. 400mm"),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job

@@ -73,9 +73,9 @@ def robot_options(settings) -> dict:
     cell = job_cell(settings)
     robot = settings.robot or cell.robot
     if not robot:
-        raise InputError("programs, placement and a cell need a robot: add --robot (e.g. ur10e, irb4600, kr120) "
-                         "or `robot = ...` in the cell file")
-    get_robot(robot)
+        raise InputError("programs, placement and a cell need a robot: add --robot (e.g. ur10e, irb4600, kr120, "
+                         "or a URDF file with --tip) or `robot = ...` in the cell file")
+    get_robot(robot, tip=settings.tip)
     unknown = set(settings.programs) - set(PROGRAM_FILES)
     if unknown:
         raise InputError(f"unknown program format(s) {', '.join(sorted(unknown))}; choose from "
@@ -86,12 +86,28 @@ def robot_options(settings) -> dict:
     values = {"robot": robot, "program": ",".join(settings.programs or ("csv",)),
               "place": "auto" if settings.place else "", "table_z": table_z,
               "robot_strict": settings.robot_strict}
+    if settings.tip:
+        values["tip"] = settings.tip
+    if settings.keep_out is not None:
+        values["keep_out"] = settings.keep_out
     options = robot_options_from_mapping(values)
     options["cell"] = cell
     return options
 
 
-def robot_stage(trajectory, surface, settings):
+def robot_fit_check(surface, settings) -> None:
+    """With ``--place``: refuse before planning a part whose footprint cannot lie within the robot's
+    reach outside the keep-out cylinder (:func:`swath.robot.placement.check_fits_reach`)."""
+    from ..robot import get_robot
+    from ..robot.placement import check_fits_reach, default_keep_out
+
+    options = robot_options(settings)
+    model = options["robot"] if not isinstance(options["robot"], str) else get_robot(options["robot"])
+    keep = options.get("keep_out")
+    check_fits_reach(surface.vertices, model, options["cell"], keep_out=default_keep_out(model) if keep is None else keep)
+
+
+def robot_stage(trajectory, surface, settings, *, progress=None):
     """Inverse kinematics along the trajectory for the job's robot, re-timed where a joint limit
     binds, then the collision check of the whole joint path in the cell; returns the re-timed
     trajectory, the :class:`RobotResult` (its cell with the table assumed, if any) and its metrics
@@ -109,7 +125,8 @@ def robot_stage(trajectory, surface, settings):
     from ..robot.collision import CollisionError, check_job_collisions
 
     result = run_robot_stage(trajectory, **robot_options(settings), out_dir=None, surface=surface,
-                             force=settings.force, warn=False)      # the job reports result.warnings
+                             force=settings.force, warn=False,      # the job reports result.warnings
+                             progress=None if progress is None else (lambda m, d, n: progress(m, d, n)))
     metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
     report = check_job_collisions(result.trajectory, result.solution, result.model, result.cell,
                                   part_vertices=surface.vertices, part_faces=surface.faces)

@@ -181,8 +181,8 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
     max_faces, max_line_points : int
         Display budgets.
     scene_traces : list of plotly traces, optional
-        More of the scene in the part frame (the robot cell: table, fixtures, collision marks);
-        the view's range grows to take in their markers.
+        More of the scene in the part frame (the robot cell: table, fixtures, collision marks; the
+        robot, its reach, unreached stretches); the view's range grows to take them in.
 
     Returns
     -------
@@ -262,8 +262,11 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
     # The view spans the part and a margin, so far air moves do not shrink the part to a speck.
     lo, hi = surface.vertices.min(axis=0) - 0.08 * diag, surface.vertices.max(axis=0) + 0.08 * diag
     for tr in scene_traces or []:
-        if tr.type == "scatter3d" and tr.x is not None and len(tr.x):
-            marks = np.column_stack([tr.x, tr.y, tr.z]).astype(float)
+        if tr.x is None or not len(tr.x):
+            continue
+        marks = np.c_[np.asarray(tr.x, float), np.asarray(tr.y, float), np.asarray(tr.z, float)]
+        marks = marks[np.all(np.isfinite(marks), axis=1)]           # line traces break at None
+        if len(marks):
             lo, hi = np.minimum(lo, marks.min(axis=0) - 0.02 * diag), np.maximum(hi, marks.max(axis=0) + 0.02 * diag)
     fig.update_layout(
         scene=dict(aspectmode="data",
@@ -460,7 +463,8 @@ def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=
     max_line_points : int
         Points shown at most per 3D line trace (default 20,000).
     scene_traces : list of plotly traces, optional
-        The robot cell in the part frame (:func:`swath.report.cell_view.cell_traces`).
+        The robot cell in the part frame (:func:`swath.report.cell_view.cell_traces`) and the robot
+        (:func:`swath.report.robot_plots.robot_traces`).
 
     Returns
     -------

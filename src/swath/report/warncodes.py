@@ -147,6 +147,23 @@ CODES: dict[str, WarningCode] = dict([
           "Some poses of the trajectory are out of the robot's reach or joint limits, or near a singularity; "
           "the programs leave those samples out, so the robot would move straight across them.",
           "Move the part (`--base`, or `--place` to search a placement) or choose a larger robot.", "robot"),
+    entry("W-ROBOT-GAPS", r"The passes are split there with a retract and an approach",
+          "Some poses are out of the robot's reach: the passes are split there with a retract, a joint move and an "
+          "approach, and the stretches between are not sanded (coverage and removal are computed on what the "
+          "robot runs).",
+          "Move the part (`--base`, or `--place` to search a placement), choose a larger robot, or split the part "
+          "into setups.", "robot"),
+    entry("W-ROBOT-SINGULAR", r"comes close to a singularity",
+          "The arm's manipulability falls below 0.01 somewhere along the job: small path errors become large joint "
+          "speeds there.",
+          "Move the part (`--base`, or `--place`) or turn the tool about its axis.", "robot"),
+    entry("W-ROBOT-WRIST", r"wrist comes near its singularity",
+          "The wrist (joints 4 and 6 nearly aligned) comes within 10 deg of its singularity: joints 4 and 6 may spin "
+          "fast.",
+          "Move the part or turn the tool about its axis.", "robot"),
+    entry("W-ROBOT-JOINT-LIMIT", r"comes within .* deg of its limit",
+          "A joint comes within 5 deg of its limit: a small path or calibration error may stop the controller.",
+          "Move the part (`--base`, or `--place`) or turn the tool about its axis.", "robot"),
     entry("W-ROBOT-FLIP", r"changes configuration .* inside a contact pass",
           "The arm changes configuration (shoulder, elbow or wrist branch) with the pad on the part.",
           "Move the part (`--base`, or `--place`) or choose another robot.", "robot"),

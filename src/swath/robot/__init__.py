@@ -4,6 +4,7 @@
 (:mod:`.stage`) is the entry point; the parts are :mod:`.models` (catalogue, limits), :mod:`.opw`
 (closed-form IK), :mod:`.cell` (placement and tool), :mod:`.solve` (branch-continuous IK),
 :mod:`.retime` (joint limits), :mod:`.placement` (placement search), :mod:`.reach` (reachability map),
+:mod:`.gaps` (unreachable stretches flown in air), :mod:`.urdf` (URDF robots through pinocchio),
 :mod:`.programs` / :mod:`.readers` (URScript, RAPID, KRL, ROS YAML, CSV).
 """
 
@@ -38,6 +39,7 @@ __all__ = [
 from .placement import Placement, search_placement
 from .reach import ReachMap, reachability_map
 from .stage import RobotResult, robot_options_from_mapping, run_robot_stage
+from .urdf import urdf_robot
 
 __all__ += ["Placement", "ReachMap", "RobotResult", "reachability_map", "robot_options_from_mapping",
-            "run_robot_stage", "search_placement"]
+            "run_robot_stage", "search_placement", "urdf_robot"]

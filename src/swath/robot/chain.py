@@ -89,6 +89,11 @@ class Chain:
             jac[:, 3:, i] = w
         return jac
 
+    def joint_axes(self, q) -> np.ndarray:
+        """(n, n_joints, 3) unit joint axes in the base frame (turning sense of the joint values)."""
+        frames = self.frames(q)
+        return np.stack([frames[:, i, :3, :3] @ _AXIS_VEC[a] * self.sign[i] for i, a in enumerate(self.axes)], axis=1)
+
 
 _AXIS_PLANE = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}
 

@@ -111,6 +111,8 @@ class RobotModel:
             branch has no solution.  Joint limits are not applied here.
         """
         t = np.asarray(flange2base, dtype=float).reshape(-1, 4, 4)
+        if "ik" in self.extra:                  # a URDF model's own solver (swath.robot.urdf)
+            return self.extra["ik"](t, seed)
         if self.kind == "opw" and self.opw is not None:
             return opw_ik(self.opw, t)
         if self.kind == "ur":
@@ -154,7 +156,10 @@ class RobotModel:
             elbow = np.abs(np.sin(theta[:, 2]))
             shoulder = np.sqrt(np.maximum(p05[:, 0] ** 2 + p05[:, 1] ** 2 - d4 ** 2, 0.0))
         else:
-            wrist = elbow = np.full(len(q), np.inf)
+            # a general arm: the wrist is singular when the axes of joints 4 and 6 line up
+            axes = self.chain.joint_axes(q)
+            wrist = np.linalg.norm(np.cross(axes[:, 3], axes[:, 5]), axis=1)
+            elbow = np.full(len(q), np.inf)
             shoulder = np.full(len(q), np.inf)
         return {"wrist": wrist, "elbow": elbow, "shoulder_m": shoulder, "manipulability": manip}
 
@@ -348,8 +353,16 @@ ROBOTS.update({"irb4600-60/2.05": _irb4600, "irb4600": _irb4600, "kr120r2700-2":
                "kr120": _kr120r2700})
 
 
-def get_robot(name: str) -> RobotModel:
-    """The catalogue model called ``name`` (case-insensitive; see :data:`ROBOTS`)."""
+def get_robot(name: str, *, tip: str | None = None) -> RobotModel:
+    """The catalogue model called ``name`` (case-insensitive; see :data:`ROBOTS`), or the robot of a
+    URDF file when ``name`` ends in ``.urdf`` (``tip``: its flange frame, default ``tool0``; see
+    :func:`swath.robot.urdf.urdf_robot`)."""
+    if str(name).strip().lower().endswith(".urdf"):
+        from .urdf import urdf_robot
+
+        return urdf_robot(str(name).strip(), tip=tip or "tool0")
+    if tip is not None:
+        raise InputError(f"--tip names a frame of a URDF robot; {name!r} is a catalogue robot (drop --tip)")
     key = str(name).strip().lower()
     if key not in ROBOTS:
         raise InputError(f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOTS))}")

@@ -11,6 +11,7 @@ placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fa
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +21,13 @@ import numpy as np
 from ..cell import Cell, parse_pose
 from ..errors import InputError
 from .models import RobotModel, get_robot
-from .placement import Placement, search_placement
+from .placement import (  # noqa: F401  (the thresholds are the stage's too)
+    WARN_JOINT_LIMIT_MARGIN,
+    WARN_MANIPULABILITY,
+    WARN_WRIST_SIN,
+    Placement,
+    search_placement,
+)
 from .pose import pose_error, poses_from_trajectory
 from .programs import ProgramInput, write_programs
 from .retime import joint_speed_ratio, retime_trajectory
@@ -51,6 +58,8 @@ class RobotResult:
         ``n_branch_switches``, ``configuration_flips_in_passes``, ``max_fk_position_error_m``,
         ``max_fk_angle_error_rad``, ``max_joint_speed_ratio``, ``max_joint_accel_ratio``,
         ``retime_added_s``, ``min_manipulability``, ``min_joint_limit_margin_rad`` …
+    gaps : list of Gap
+        Unreachable stretches the robot skips in air (:mod:`swath.robot.gaps`).
     warnings : list of str
         What the user must know before running the programs, one sentence each: poses no
         configuration reaches (the programs leave them out) and configuration changes inside a
@@ -66,6 +75,7 @@ class RobotResult:
     files: list = field(default_factory=list)
     metrics: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    gaps: list = field(default_factory=list)
 
 
 def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell):
@@ -80,7 +90,8 @@ def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell
 def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell | None = None,
                     programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
                     margins: Margins | None = None, strict: bool = False, force: float = 20.0,
-                    surface=None, reach_vertices: int = 1500, warn: bool = True) -> RobotResult:
+                    surface=None, reach_vertices: int = 1500, warn: bool = True, keep_out: float | None = None,
+                    split_gaps: bool = True, clearance: float = 0.02, progress=None) -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -111,6 +122,16 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         At most this many vertices in the reachability map.
     warn : bool
         Log the result's warnings (default); they are the result's ``warnings`` either way.
+    keep_out : float, optional
+        With ``place``: radius of the keep-out cylinder about the base axis, m
+        (default :func:`swath.robot.placement.default_keep_out`).
+    split_gaps : bool
+        Split passes at unreachable stretches with a retract and an approach (default); the returned
+        trajectory is then what the robot runs (:func:`swath.robot.gaps.split_unreachable`).
+    clearance : float
+        Retract/approach height at a split, m.
+    progress : callable, optional
+        ``progress(message, done, total)`` for the placement search and the solves.
 
     Returns
     -------
@@ -123,12 +144,24 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         raise InputError("the robot stage needs a trajectory with at least one sample")
     placement = None
     t0 = time.perf_counter()
+    say = progress or (lambda message, done, total: None)
     if place:
-        placement = search_placement(trajectory, model, cell, table_z=table_z, margins=margins)
+        placement = search_placement(trajectory, model, cell, table_z=table_z, margins=margins, keep_out=keep_out,
+                                     points=None if surface is None else np.asarray(surface.vertices),
+                                     progress=progress)
         cell = placement.cell
     t_place = time.perf_counter() - t0
     t0 = time.perf_counter()
+    say(f"robot: inverse kinematics on {len(trajectory)} poses", 0, 1)
     solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
+    first_warning, gaps, n_unreachable = solution.warning, [], int((~solution.reachable).sum())
+    n_planned, planned_fraction, planned_stretches = len(trajectory), solution.reachable_fraction, len(solution.stretches)
+    if split_gaps and n_unreachable and solution.reachable.any():
+        from .gaps import solution_after_split, split_unreachable
+
+        say(f"robot: {n_unreachable} unreachable poses become air moves (retract, joint move, approach)", 0, 1)
+        trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
+        solution = solution_after_split(solution, trajectory, q_moves, src, model)
     t_ik = time.perf_counter() - t0
     retimed, rt = retime_trajectory(trajectory, solution, model)
     dp, da = fk_errors(retimed, solution, model, cell)
@@ -136,8 +169,11 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     speed_ratio = joint_speed_ratio(retimed.t[idx], solution.q[idx], model.max_speed) if len(idx) > 1 else np.zeros(1)
     meas = solution.measures
     metrics = {
-        "robot": model.name, "n_poses": len(trajectory), "ik_time_s": t_ik, "placement_time_s": t_place,
-        "reachable_fraction": solution.reachable_fraction, "n_unreachable_stretches": len(solution.stretches),
+        # the planned trajectory's poses and how many the robot reaches (the split trajectory it runs has
+        # n_poses_run samples, all reached)
+        "robot": model.name, "n_poses": n_planned, "ik_time_s": t_ik, "placement_time_s": t_place,
+        "reachable_fraction": planned_fraction, "n_unreachable_stretches": planned_stretches,
+        "n_poses_run": len(trajectory),
         "n_branch_switches": len(solution.switches),
         "configuration_flips_in_passes": flips_inside_passes(solution, trajectory),
         "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
@@ -147,11 +183,14 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         "min_manipulability": float(np.nanmin(meas["manipulability"])) if len(idx) else float("nan"),
         "min_joint_limit_margin_rad": float(np.nanmin(meas["joint_limit_margin_rad"])) if len(idx) else float("nan"),
         "min_wrist_sin": float(np.nanmin(meas["wrist"])) if len(idx) else float("nan"),
+        "n_unreachable_poses": n_unreachable, "n_gaps": len(gaps),
+        "gap_contact_length_m": float(sum(g.contact_length for g in gaps)),
+        "gaps": [g.as_record() for g in gaps],
         **cell.as_record(),
     }
     if placement is not None:
         metrics.update(placement.as_record())
-    warnings = robot_warnings(solution, metrics)
+    warnings = robot_warnings(solution, metrics, first_warning=first_warning, split=split_gaps)
     if warn:
         for w in warnings:
             log.warning("%s", w)
@@ -167,33 +206,58 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
             raise InputError(f"no pose of the trajectory is reachable for {model.name}; no program written")
         files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
     return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
-                       reach_map=reach_map, files=files, metrics=metrics, warnings=warnings)
+                       reach_map=reach_map, files=files, metrics=metrics, warnings=warnings, gaps=gaps)
 
 
-def robot_warnings(solution: JointSolution, metrics: dict) -> list[str]:
-    """The robot stage's warnings: unreachable poses (the solution's sentence; the programs skip
-    those samples, so the robot would move straight across them) and branch changes inside a
-    contact pass (the arm reconfigures with the pad on the part)."""
+def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str | None = None,
+                   split: bool = False) -> list[str]:
+    """The robot stage's warnings: unreachable poses (the first solve's sentence; with ``split`` the
+    passes were split there with a retract and an approach, else the programs skip those samples and
+    the robot moves straight across them), branch changes inside a contact pass (the arm reconfigures
+    with the pad on the part), and manipulability, wrist sine or joint-limit margin below the
+    thresholds :data:`WARN_MANIPULABILITY`, :data:`WARN_WRIST_SIN`, :data:`WARN_JOINT_LIMIT_MARGIN`."""
     out = []
-    if solution.warning:
-        out.append(f"robot: {solution.warning} The programs leave these samples out, so the robot moves straight "
+    sentence = first_warning if first_warning is not None else solution.warning
+    if sentence and split and metrics.get("n_gaps"):
+        out.append(f"robot: {sentence} The passes are split there with a retract and an approach "
+                   f"({metrics['n_gaps']} gap(s), {1e3 * metrics.get('gap_contact_length_m', 0.0):.0f} mm of contact "
+                   "path left unsanded); coverage and removal are computed on what the robot runs.")
+    elif sentence:
+        out.append(f"robot: {sentence} The programs leave these samples out, so the robot moves straight "
                    "across them.")
     flips = int(metrics.get("configuration_flips_in_passes", 0))
     if flips:
         out.append(f"robot: the arm changes configuration {flips} time(s) inside a contact pass ({metrics['robot']}), "
                    "with the pad on the part; move the part (--base, or --place) or choose another robot")
+    name = metrics.get("robot", "the robot")
+    manip = metrics.get("min_manipulability", float("nan"))
+    if np.isfinite(manip) and manip < WARN_MANIPULABILITY:
+        out.append(f"robot: {name} comes close to a singularity: manipulability falls to {manip:.2g} (warned below "
+                   f"{WARN_MANIPULABILITY:g}); small path errors become large joint speeds there; move the part "
+                   "(--base, or --place)")
+    wrist = metrics.get("min_wrist_sin", float("nan"))
+    if np.isfinite(wrist) and wrist < WARN_WRIST_SIN:
+        out.append(f"robot: {name}'s wrist comes near its singularity: sin of the wrist angle falls to {wrist:.2f} "
+                   f"({math.degrees(math.asin(min(wrist, 1.0))):.1f} deg; warned below 10 deg); wrist joints 4 and "
+                   "6 may spin fast; move the part or turn the tool about its axis")
+    margin = metrics.get("min_joint_limit_margin_rad", float("nan"))
+    if np.isfinite(margin) and margin < WARN_JOINT_LIMIT_MARGIN:
+        out.append(f"robot: a joint of {name} comes within {math.degrees(margin):.2f} deg of its limit (warned below "
+                   "5 deg); the controller may stop on a limit with a small path or calibration error")
     return out
 
 
 def robot_options_from_mapping(values: dict) -> dict:
     """Keyword arguments of :func:`run_robot_stage` from CLI/TOML text values.
 
-    Keys: ``robot``, ``base``, ``tcp``, ``program`` (comma list), ``place`` (``auto`` or absent),
-    ``table_z`` (length), ``robot_strict`` (bool).
+    Keys: ``robot`` (a catalogue name or a ``.urdf`` file, loaded here), ``base``, ``tcp``, ``program``
+    (comma list), ``place`` (``auto`` or absent), ``table_z`` (length), ``robot_strict`` (bool), ``tip``
+    (the URDF's flange frame), ``keep_out`` (length: the placement's keep-out radius).
     """
     from ..units import parse_quantity
 
-    known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict"}
+    known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict", "tip",
+             "keep_out", "keep-out"}
     unknown = set(values) - known
     if unknown:
         raise InputError(f"unknown robot setting(s) {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
@@ -205,7 +269,11 @@ def robot_options_from_mapping(values: dict) -> dict:
     base = values.get("base")
     tcp = values.get("tcp")
     table = values.get("table_z", values.get("table-z"))
-    return {"robot": values.get("robot", "ur10e"),
+    robot = values.get("robot", "ur10e")
+    if str(robot).strip().lower().endswith(".urdf") or values.get("tip"):
+        robot = get_robot(robot, tip=values.get("tip"))       # a URDF robot is loaded (and checked) here
+    keep = values.get("keep_out", values.get("keep-out"))
+    return {"robot": robot, "keep_out": None if keep is None else parse_quantity(keep, "length"),
             "cell": Cell(part2base=np.eye(4) if base is None else parse_pose(base),
                          tcp2flange=np.eye(4) if tcp is None else parse_pose(tcp)),
             "programs": programs, "place": place == "auto",

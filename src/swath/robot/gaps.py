@@ -1,0 +1,252 @@
+"""Unreachable stretches become air: the pass is split there with a retract and an approach.
+
+A pose no configuration reaches cannot be sanded; driving straight across it (what a program does
+when it skips the sample) would press the pad along a line the plan never made, and counting it as
+sanded overstates the coverage.  :func:`split_unreachable` rebuilds the trajectory the robot actually
+runs: the unreachable samples are dropped, the pad lifts ``clearance`` along minus the tool z-axis at
+the last reached sample (retract), the arm moves in joint space to above the next reached sample, and
+lowers onto it (approach).  The joint move is sampled (FK of joint values interpolated at most
+``max_joint_step`` apart) so that the trajectory's poses are where the arm really passes.  The
+simulation and the metrics then run on this trajectory.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .pose import matrix_to_quat, poses_from_trajectory
+
+
+@dataclass(frozen=True, eq=False)
+class Gap:
+    """One stretch the robot skips in air.
+
+    Attributes
+    ----------
+    pass_index : int
+        Contact pass it interrupts (-1 on an air link).
+    start, stop : int
+        Dropped samples ``[start, stop)`` of the original trajectory.
+    position : (3,) tuple of float
+        First dropped TCP position, part frame, m.
+    end_position : (3,) tuple of float
+        Last dropped TCP position, part frame, m.
+    contact_length : float
+        Contact path length dropped, m.
+    path : (k, 3) float
+        The dropped TCP positions, part frame, m (for the report's 3D view).
+    """
+
+    pass_index: int
+    start: int
+    stop: int
+    position: tuple
+    end_position: tuple
+    contact_length: float
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def as_record(self) -> dict:
+        return {"pass": self.pass_index, "start_sample": self.start, "stop_sample": self.stop,
+                "start_m": list(self.position), "end_m": list(self.end_position),
+                "contact_length_m": self.contact_length}
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``[start, stop)`` runs of True."""
+    d = np.diff(np.r_[0, mask.astype(int), 0])
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def find_gaps(trajectory, reachable) -> list[Gap]:
+    """The unreachable runs of ``trajectory`` (``reachable`` (n,) bool) as :class:`Gap` records."""
+    out = []
+    seg = np.linalg.norm(np.diff(trajectory.position, axis=0), axis=1)
+    for s, e in _runs(~np.asarray(reachable, bool)):
+        inside = np.flatnonzero(trajectory.contact[s:e])
+        passes = trajectory.pass_index[s:e][trajectory.contact[s:e]]
+        i = np.arange(max(s, 1), e)
+        lengths = seg[i - 1][trajectory.contact[i] & trajectory.contact[i - 1]]
+        out.append(Gap(pass_index=int(passes[0]) if len(inside) else -1, start=int(s), stop=int(e),
+                       position=tuple(float(v) for v in trajectory.position[s]),
+                       end_position=tuple(float(v) for v in trajectory.position[e - 1]),
+                       contact_length=float(lengths.sum()), path=trajectory.position[s:e].copy()))
+    return out
+
+
+def _nearest_ik(model, cell, tcp2part, q_ref, *, max_change: float = 0.5) -> np.ndarray | None:
+    """Joint values of one TCP pose nearest ``q_ref`` (any branch, 2π-equivalents, inside the limits,
+    no joint more than ``max_change`` rad away), rad; None when there is none."""
+    raw = model.ik(cell.flange2base(tcp2part[None]), seed=q_ref)[0]
+    raw = raw[np.all(np.isfinite(raw), axis=1)]
+    if not len(raw):
+        return None
+    cand = raw + 2 * math.pi * np.round((q_ref - raw) / (2 * math.pi))
+    inside = np.all((cand >= model.lower) & (cand <= model.upper), axis=1)
+    if not inside.any():
+        return None
+    cand = cand[inside]
+    best = cand[int(np.argmin(np.max(np.abs(cand - q_ref), axis=1)))]
+    return best if np.max(np.abs(best - q_ref)) <= max_change else None
+
+
+def _lift(model, cell, pose, q_ref, clearance):
+    """Joint values of ``pose`` lifted along minus its tool z by ``clearance`` (or a half, a quarter of
+    it where the full lift is out of reach), rad; ``q_ref`` when no lift is reachable."""
+    for f in (1.0, 0.5, 0.25):
+        p = pose.copy()
+        p[:3, 3] -= f * clearance * p[:3, 2]
+        q = _nearest_ik(model, cell, p, q_ref)
+        if q is not None:
+            return q
+    return np.asarray(q_ref, dtype=float)
+
+
+def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0.02, air_speed: float = 0.1,
+                      max_joint_step: float = math.radians(2.0)):
+    """The trajectory the robot runs: unreachable samples replaced by retract, joint move, approach.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        TCP poses in the part frame, m.
+    solution : JointSolution
+        Its joint values (``reachable`` marks what the robot reaches).
+    model : RobotModel
+    cell : Cell
+    clearance : float
+        Retract/approach height along minus the tool z-axis, m.
+    air_speed : float
+        Nominal TCP speed of the retract and approach, m/s (the robot stage re-times to the joint limits).
+    max_joint_step : float
+        Largest joint change between the joint move's samples, rad.
+
+    Returns
+    -------
+    trajectory : Trajectory
+        With the unreachable samples dropped and the air samples inserted (``contact`` 0, ``pass`` -1).
+    q : (m, 6) float
+        Joint values of every sample of the new trajectory, rad: the solution's on kept samples,
+        interpolated on the joint moves (between the lifted poses' joint values nearest the reached ones).
+    gaps : list of Gap
+    src : (m,) int
+        Index of each sample in ``trajectory`` (-1 for an inserted air sample).
+    """
+    reach = np.asarray(solution.reachable, bool)
+    gaps = find_gaps(trajectory, reach)
+    if not gaps or not reach.any():
+        return trajectory, solution.q.copy(), gaps, np.arange(len(trajectory))
+    poses = poses_from_trajectory(trajectory)
+    n = len(trajectory)
+    pieces = []          # (poses (k,4,4), contact (k,), pass (k,), feed (k,), dt before each (k,), q (k,6), src (k,))
+
+    def keep(lo, hi):
+        idx = np.arange(lo, hi)
+        dt = np.diff(trajectory.t[max(lo - 1, 0):hi])
+        if lo == 0:
+            dt = np.r_[0.0, dt]
+        pieces.append((poses[idx], trajectory.contact[idx], trajectory.pass_index[idx], trajectory.feed[idx],
+                       dt, solution.q[idx], idx))
+
+    cursor = 0
+    t_lift = clearance / air_speed
+    for g in gaps:
+        a, b = g.start - 1, g.stop            # last reached before, first reached after
+        if a < 0:                              # the job starts unreachable: begin at the first reached sample
+            cursor = b
+            continue
+        keep(cursor, a + 1)
+        cursor = b
+        qa = _lift(model, cell, poses[a], solution.q[a], clearance)
+        if b >= n:                             # the job ends unreachable: retract and stop
+            pieces.append((cell.tcp2part(model.fk(qa[None])), np.zeros(1, bool), np.full(1, -1),
+                           np.full(1, air_speed), np.full(1, t_lift), qa[None], np.full(1, -1)))
+            break
+        qb = _lift(model, cell, poses[b], solution.q[b], clearance)
+        steps = max(int(np.ceil(np.max(np.abs(qb - qa)) / max_joint_step)), 1)
+        q_air = qa + np.linspace(0.0, 1.0, steps + 1)[:, None] * (qb - qa)
+        air = cell.tcp2part(model.fk(q_air))
+        k = len(air)
+        # at least the time the slowest joint needs at half its speed limit (the re-timing refines it)
+        t_joints = float(np.max(np.abs(qb - qa) / (0.5 * model.max_speed)))
+        t_move = max(trajectory.t[b] - trajectory.t[a] - 2 * t_lift, t_joints, 1e-3 * steps)
+        dt = np.r_[t_lift, np.full(k - 1, t_move / (k - 1))]
+        pieces.append((air, np.zeros(k, bool), np.full(k, -1), np.full(k, air_speed), dt, q_air, np.full(k, -1)))
+    if cursor < n:
+        keep(cursor, n)
+    new_poses = np.concatenate([p[0] for p in pieces])
+    contact = np.concatenate([p[1] for p in pieces]).astype(bool)
+    pass_index = np.concatenate([p[2] for p in pieces]).astype(int)
+    feed = np.concatenate([p[3] for p in pieces])
+    dt = np.concatenate([p[4] for p in pieces])
+    q = np.concatenate([p[5] for p in pieces])
+    src = np.concatenate([p[6] for p in pieces])
+    # the sample after each air block (the landing) takes t_lift from the last air sample
+    landing = np.flatnonzero((src[1:] >= 0) & (src[:-1] < 0)) + 1
+    dt[landing] = t_lift
+    dt[0] = 0.0
+    t = trajectory.t[src[0]] + np.cumsum(dt) if src[0] >= 0 else np.cumsum(dt)
+    extra = {}
+    for name, col in trajectory.extra.items():
+        vals = np.zeros(len(src))
+        vals[src >= 0] = col[src[src >= 0]]
+        extra[name] = vals
+    meta = dict(trajectory.metadata)
+    meta["robot_gaps"] = [g.as_record() for g in gaps]
+    new = replace(trajectory, t=t, position=new_poses[:, :3, 3].copy(), quaternion=matrix_to_quat(new_poses[:, :3, :3]),
+                  contact=contact, feed=feed, pass_index=pass_index, extra=extra, metadata=meta)
+    return new, q, gaps, src
+
+
+def solution_after_split(solution, trajectory, q, src, model):
+    """The :class:`JointSolution` of the split trajectory, without solving it again.
+
+    Kept samples keep their joint values and branch; the retract, joint-move and approach samples
+    take :func:`split_unreachable`'s joint values (their poses are FK of them) and the branch of the
+    sample before them.
+
+    Parameters
+    ----------
+    solution : JointSolution
+        Of the trajectory before the split.
+    trajectory : Trajectory
+        The split trajectory.
+    q : (m, 6) float
+        Its joint values, rad.
+    src : (m,) int
+        Index of each sample in the trajectory before the split (-1 for an inserted air sample).
+    model : RobotModel
+
+    Returns
+    -------
+    JointSolution
+    """
+    m = len(q)
+    reach = np.all(np.isfinite(q), axis=1)
+    branch = np.full(m, -1)
+    kept = src >= 0
+    branch[kept] = solution.branch[src[kept]]
+    for i in range(1, m):                       # air samples: the branch they leave from
+        if branch[i] < 0 and reach[i]:
+            branch[i] = branch[i - 1]
+    for i in range(m - 2, -1, -1):              # the job's start: the branch it lands on
+        if branch[i] < 0 and reach[i]:
+            branch[i] = branch[i + 1]
+    names = solution.branch_names
+    switches = []
+    for s in np.flatnonzero(np.diff(branch)) + 1:
+        if branch[s] < 0 or branch[s - 1] < 0:
+            continue
+        after = trajectory.pass_index[s:][trajectory.contact[s:]]
+        switches.append({"sample": int(s), "from": names[branch[s - 1]], "to": names[branch[s]],
+                         "pass_after": int(after[0]) if len(after) else -1})
+    measures = {k: np.full(m, np.nan) for k in solution.measures}
+    if reach.any():
+        for k, v in model.singularity_measures(q[reach]).items():
+            if k in measures:
+                measures[k][reach] = v
+        measures["joint_limit_margin_rad"][reach] = model.joint_limit_margin(q[reach])
+    return replace(solution, q=q, branch=np.where(reach, branch, -1), reachable=reach, switches=switches,
+                   stretches=[], measures=measures, warning=None)

@@ -1,0 +1,84 @@
+"""Unreachable stretches: the pass is split with a retract and an approach, and the job's removal is
+simulated on what the robot runs."""
+
+import numpy as np
+import pytest
+
+from swath.robot import Cell, get_robot, run_robot_stage, solve_trajectory
+from swath.robot.gaps import split_unreachable
+
+
+@pytest.fixture(scope="module")
+def far_plate(plate_trajectory):
+    """The plate with its far end beyond a UR10e's reach (x from 1.0 m to 1.4 m from the base)."""
+    cell = Cell.from_text("1.0,-0.15,0,0,0,0", "0,0,150mm,0,0,0")
+    return plate_trajectory, cell, run_robot_stage(plate_trajectory, robot="ur10e", cell=cell, programs=[], warn=False)
+
+
+def test_unreachable_stretches_become_air_with_retract_and_approach(far_plate):
+    tr, cell, result = far_plate
+    model = result.model
+    first = solve_trajectory(tr, model, cell, warn=False)
+    dropped_contact = int((~first.reachable & tr.contact).sum())
+    assert dropped_contact > 100                                  # the far end is out of reach
+    run = result.trajectory
+    sol = result.solution
+    # every sample the robot runs is reached, on rows whose FK is the trajectory's pose
+    assert sol.reachable.all()
+    assert result.metrics["max_fk_position_error_m"] < 1e-9
+    assert result.metrics["max_fk_angle_error_rad"] < 1e-9
+    # the contact samples are the reachable ones of the plan, no more
+    assert int(run.contact.sum()) == int(tr.contact.sum()) - dropped_contact
+    # each gap: the last contact sample before it, then a retract 20 mm straight up its tool axis
+    gaps = result.metrics["gaps"]
+    assert result.metrics["n_gaps"] == len(gaps) > 0
+    ends = np.flatnonzero(run.contact[:-1] & ~run.contact[1:])
+    up = run.position[ends + 1] - run.position[ends]           # the plate's tool z is -Z: a retract goes up
+    lifted = [i for i, d in zip(ends, up) if np.allclose(d[:2], 0, atol=1e-9) and 0.004 < d[2] <= 0.02 + 1e-9]
+    starts = np.flatnonzero(~run.contact[:-1] & run.contact[1:])
+    down = run.position[starts + 1] - run.position[starts]
+    landed = [i for i, d in zip(starts, down) if np.allclose(d[:2], 0, atol=1e-9) and -0.02 - 1e-9 <= d[2] < -0.004]
+    assert len(lifted) == len([g for g in gaps if tr.contact[g["start_sample"] - 1]]) > 0
+    assert len(landed) >= len([g for g in gaps if g["stop_sample"] < len(tr) and tr.contact[g["stop_sample"]]]) > 0
+    # nothing jumps: no joint step is larger than the plan's own largest (on its air links)
+    ok = first.reachable[1:] & first.reachable[:-1]
+    assert np.abs(np.diff(sol.q, axis=0)).max() <= np.abs(np.diff(first.q, axis=0))[ok].max() + 1e-9
+    # the dropped contact length is the plan's contact length minus what the robot runs
+    seg = np.linalg.norm(np.diff(run.position, axis=0), axis=1)
+    ran = seg[run.contact[1:] & run.contact[:-1]].sum()
+    seg0 = np.linalg.norm(np.diff(tr.position, axis=0), axis=1)
+    planned = seg0[tr.contact[1:] & tr.contact[:-1]].sum()
+    dropped = result.metrics["gap_contact_length_m"]
+    assert ran + dropped == pytest.approx(planned, abs=0.03)        # a few boundary steps either way
+    assert np.all(np.diff(run.t) > 0)                               # no sample repeats a time
+    assert np.isfinite(result.metrics["max_joint_speed_ratio"]) and result.metrics["max_joint_speed_ratio"] <= 1.0
+
+
+def test_coverage_is_computed_on_what_the_robot_runs(far_plate):
+    from swath.contact import Tool
+    from swath.examples import example_part
+    from swath.simulate import simulate_removal
+
+    tr, _, result = far_plate
+    surface = example_part("plate")
+    planned = simulate_removal(tr, surface, Tool()).metrics["coverage_fraction"]
+    ran = simulate_removal(result.trajectory, surface, Tool()).metrics["coverage_fraction"]
+    assert planned > 0.99
+    # the plate is 0.4 m long; x > 0.3 m is out of reach on the passes: about a quarter is left
+    assert 0.6 < ran < 0.9
+
+
+def test_no_split_keeps_the_old_behaviour(plate_trajectory):
+    cell = Cell.from_text("1.0,-0.15,0,0,0,0", "0,0,150mm,0,0,0")
+    r = run_robot_stage(plate_trajectory, robot="ur10e", cell=cell, programs=[], warn=False, split_gaps=False)
+    assert len(r.trajectory) == len(plate_trajectory) and not r.solution.reachable.all()
+    assert any("moves straight across" in w for w in r.warnings)
+
+
+def test_split_of_a_fully_reached_trajectory_is_the_identity(plate_trajectory):
+    cell = Cell.from_text("0.55,-0.15,0,0,0,0", "0,0,150mm,0,0,0")
+    model = get_robot("ur10e")
+    sol = solve_trajectory(plate_trajectory, model, cell)
+    run, q, gaps, src = split_unreachable(plate_trajectory, sol, model, cell)
+    assert np.array_equal(src, np.arange(len(plate_trajectory)))
+    assert run is plate_trajectory and gaps == [] and np.array_equal(q, sol.q, equal_nan=True)
