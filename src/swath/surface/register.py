@@ -48,8 +48,8 @@ from .register_search import (
     _table_starts,
 )
 from .register_settings import COARSE_SPACING, MAX_POINTS, MIN_POINTS, PERIMETER_VIEW, PERIMETER_WEIGHT, PLACE_STEP
-from .surface import Surface
 from .register_target import _plane_axes, _Source, _Target
+from .surface import Surface
 
 log = logging.getLogger("swath.surface")
 
