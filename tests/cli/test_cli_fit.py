@@ -22,8 +22,8 @@ from swath.io.mesh import load_mesh, save_surface_ply
 from swath.io.patch import load_patch_json
 from swath.io.points import load_points
 from swath.io.scan import infer_scan_rows
+from swath.scan.register_result import rigid_matrix, rotation_angle
 from swath.surface import BSplinePatch, Surface
-from swath.surface.register_result import rigid_matrix, rotation_angle
 from swath.trajectory import read_csv
 
 #: The scanned part: a 0.20 x 0.15 m piece of the doubly curved panel (radii 0.35 m and 0.9 m).

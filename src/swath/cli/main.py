@@ -26,7 +26,7 @@ from ..errors import InputError, SwathError
 
 log = logging.getLogger("swath")
 
-#: Scan parameterisations of ``--parameterization`` (as :data:`swath.surface.fit.PARAMETERIZATIONS`).
+#: Scan parameterisations of ``--parameterization`` (as :data:`swath.scan.fit.PARAMETERIZATIONS`).
 PARAMETERIZATIONS = ("auto", "projection", "lscm", "rows")
 
 

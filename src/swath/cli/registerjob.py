@@ -123,7 +123,7 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
 
     check_output_dir(settings.out, overwrite=settings.overwrite)
     from ..io.mesh import parse_side
-    from ..surface.register import register_on_table, register_rigid
+    from ..scan.register import register_on_table, register_rigid
 
     say = progress or (lambda stage, done, total: None)
     if not (0.2 <= settings.trim <= 1.0):

@@ -1,4 +1,4 @@
-"""The ICP engine of :mod:`swath.surface.register`: trimmed point-to-plane steps, scoring and
+"""The ICP engine of :mod:`swath.scan.register`: trimmed point-to-plane steps, scoring and
 choice of the distinct poses, and the result with its uncertainty."""
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from .register_settings import (
 )
 from .register_target import _Source
 
-log = logging.getLogger("swath.surface")
+log = logging.getLogger("swath.scan")
 # --------------------------------------------------------------------------------------------
 # the engine
 # --------------------------------------------------------------------------------------------

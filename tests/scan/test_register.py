@@ -12,10 +12,10 @@ from scipy.spatial.transform import Rotation
 from conftest import shared_mesh
 from swath.errors import InfeasibleError, InputError
 from swath.examples import doubly_curved_panel, flat_plate
+from swath.scan.register import Registration, register_on_table, register_rigid
+from swath.scan.register_result import rigid_matrix, rotation_angle
+from swath.scan.register_settings import AMBIGUOUS_SCORE
 from swath.surface import Surface
-from swath.surface.register import Registration, register_on_table, register_rigid
-from swath.surface.register_result import rigid_matrix, rotation_angle
-from swath.surface.register_settings import AMBIGUOUS_SCORE
 
 NOISE = 1e-4            # scan noise, m (0.1 mm)
 OUTLIERS = 0.10         # fraction of all points that are outliers
@@ -124,7 +124,7 @@ def test_registration_to_dict_is_json(panel, tilted_scan):
 
 def test_exact_closest_points_match_trimesh():
     """The search over the triangles round the nearest vertices agrees with trimesh's global one."""
-    from swath.surface.register_target import _Target
+    from swath.scan.register_target import _Target
 
     coarse = doubly_curved_panel(spacing=0.02)
     rng = np.random.default_rng(6)
@@ -250,7 +250,7 @@ def test_rigid_with_the_perimeter_recovers_a_known_transform_of_a_scanned_surfac
 
 
 def test_quality_warnings_name_each_poor_or_ambiguous_figure():
-    from swath.surface.register_icp import quality_warnings
+    from swath.scan.register_icp import quality_warnings
 
     size = 0.5
     fine = dict(inlier_fraction=0.95, rms=1e-4, inlier_distance=1e-3, size=size, score=1e-3, runner_up_score=2e-3,

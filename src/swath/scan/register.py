@@ -38,6 +38,7 @@ import logging
 import numpy as np
 
 from ..errors import InputError
+from ..surface.surface import Surface
 from .register_icp import _register
 from .register_result import Registration
 from .register_search import (
@@ -49,9 +50,8 @@ from .register_search import (
 )
 from .register_settings import COARSE_SPACING, MAX_POINTS, MIN_POINTS, PERIMETER_VIEW, PERIMETER_WEIGHT, PLACE_STEP
 from .register_target import _plane_axes, _Source, _Target
-from .surface import Surface
 
-log = logging.getLogger("swath.surface")
+log = logging.getLogger("swath.scan")
 
 
 # --------------------------------------------------------------------------------------------

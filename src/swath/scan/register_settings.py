@@ -1,4 +1,4 @@
-"""Tuning constants of rigid registration (:mod:`swath.surface.register`), in one place."""
+"""Tuning constants of rigid registration (:mod:`swath.scan.register`), in one place."""
 
 from __future__ import annotations
 
