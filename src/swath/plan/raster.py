@@ -252,8 +252,9 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
                        "passes; lower the spacing, choose another direction or segment the part")
             else:
                 msg = (f"raster: the given spacing {1e3 * spacing:.4g} mm leaves {100 * gap:.1f} % of {name} "
-                       f"untouched ({len(passes)} passes on {n_planes} planes; the pad's contact reaches about "
-                       f"{1e3 * _median_chord(surface, tool, cross):.0f} mm across a pass); lower the spacing, "
+                       f"untouched ({_count(len(passes), 'pass', 'passes')} on {_count(n_planes, 'plane', 'planes')}; "
+                       f"the pad's contact reaches about {1e3 * _median_chord(surface, tool, cross):.0f} mm across "
+                       "a pass); lower the spacing, "
                        "leave it out for the full-coverage default, or add fill passes (planner option "
                        "fill_gaps = true)")
             if direction_rule != "candidate":
@@ -265,6 +266,10 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
              surface.name, spacing * 1e3, n_planes, len(passes), n_fill, dropped, sum(len(p.points) for p in passes),
              time.perf_counter() - t_start)
     return ToolPath(surface, passes, "raster", metadata)
+
+
+def _count(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"
 
 
 def _median_chord(surface, tool, cross) -> float:
