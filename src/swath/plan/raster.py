@@ -255,8 +255,8 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
                        f"untouched ({_count(len(passes), 'pass', 'passes')} on {_count(n_planes, 'plane', 'planes')}; "
                        f"the pad's contact reaches about {1e3 * _median_chord(surface, tool, cross):.0f} mm across "
                        "a pass); lower the spacing, "
-                       "leave it out for the full-coverage default, or add fill passes (planner option "
-                       "fill_gaps = true)")
+                       "leave it out for the full-coverage default, or add fill passes (fill_gaps = true under "
+                       "[planner_options] in a job file, fill_gaps=True in Python)")
             if direction_rule != "candidate":
                 log.warning("%s", msg)
             metadata["warnings"] = [msg]
