@@ -3,7 +3,7 @@
 Scans the built-in blade (round its leading edge) and the doubly curved panel with a simulated
 point laser — rows 2 mm apart, points 0.5 mm apart along a row, Gaussian noise σ = 0.1 mm along
 the normal and a 0.2 mm (per axis) row-to-row positioning offset — fits a patch with
-:func:`swath.surface.fit.fit_patch` and compares it with the true surface at every scanned point:
+:func:`swath.scan.fit.fit_patch` and compares it with the true surface at every scanned point:
 
 * position: distance from the true point to the fitted surface (RMS, max);
 * normals: angle between the fitted and the true normal (mean, 95th percentile, max);
@@ -52,8 +52,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import SHARED_MESHES  # noqa: E402
 from swath.contact import Tool, local_patch  # noqa: E402
 from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan  # noqa: E402
+from swath.scan.fit import fit_patch  # noqa: E402
 from swath.surface.curvature import principal_curvatures  # noqa: E402
-from swath.surface.fit import fit_patch  # noqa: E402
 
 TARGET_NORMAL_P95_DEG = 0.5
 TARGET_WIDTH_ERR = 0.05

@@ -65,7 +65,7 @@ def sample_scan(surface, n, rng, noise=1e-4, outliers=0.1):
 
 
 def errors(estimate, truth, points):
-    from swath.surface.register_result import rotation_angle
+    from swath.scan.register_result import rotation_angle
 
     angle = np.degrees(rotation_angle(estimate[:3, :3].T @ truth[:3, :3]))
     moved = points @ (estimate[:3, :3] - truth[:3, :3]).T + estimate[:3, 3] - truth[:3, 3]
@@ -84,9 +84,9 @@ def row(case, reg, seconds, truth=None, points=None):
 def synthetic_rows(rng):
     from scipy.spatial.transform import Rotation
 
+    from swath.scan.register import register_on_table, register_rigid
+    from swath.scan.register_result import rigid_matrix
     from swath.surface import Surface
-    from swath.surface.register import register_on_table, register_rigid
-    from swath.surface.register_result import rigid_matrix
 
     rows = []
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
@@ -123,9 +123,9 @@ def bezier_rows(starts, rng):
     from scipy.spatial.transform import Rotation
 
     from swath.io.mesh import load_mesh
+    from swath.scan.register import register_on_table, register_rigid
+    from swath.scan.register_result import rigid_matrix, rotation_angle
     from swath.surface import Surface
-    from swath.surface.register import register_on_table, register_rigid
-    from swath.surface.register_result import rigid_matrix, rotation_angle
 
     cad = load_mesh(SHARED_MESHES / "bezier_dac_cad.ply")
     scan = load_mesh(SHARED_MESHES / "bezier_dac_scan.ply", all_pieces=True)

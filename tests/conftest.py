@@ -39,10 +39,12 @@ def rng():
 
 @pytest.fixture(scope="module")
 def plate_trajectory():
-    """The built-in plate planned and timed as a job does (raster, 100 mm spacing)."""
+    """The built-in plate planned and timed as a job does (raster, 100 mm spacing, with the fill
+    passes that close what that spacing leaves: passes near the plate's edges)."""
     from swath.cli.job import JobSettings, load_part_info, make_plan
     from swath.trajectory import time_path
 
-    settings = JobSettings(part="example:plate", out="unused", spacing=0.1, point_spacing=4e-3)
+    settings = JobSettings(part="example:plate", out="unused", spacing=0.1, point_spacing=4e-3,
+                           planner_options={"fill_gaps": True})
     surface, _ = load_part_info(settings)
     return time_path(make_plan(surface, settings), settings.constraints(), links=settings.links())

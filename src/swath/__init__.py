@@ -28,7 +28,7 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 #: Public name -> the module that defines it (imported on first use).
 _EXPORTS = {
     "load_mesh": "swath.io.mesh", "load_points": "swath.io.points",
-    "Surface": "swath.surface", "fit_patch": "swath.surface.fit", "register_rigid": "swath.surface.register",
+    "Surface": "swath.surface", "fit_patch": "swath.scan.fit", "register_rigid": "swath.scan.register",
     "example_part": "swath.examples", "wheel_hub": "swath.examples",
     "Tool": "swath.contact",
     "raster": "swath.plan", "uniform": "swath.plan", "equidistant": "swath.plan", "PLANNERS": "swath.plan",

@@ -50,7 +50,7 @@ def dumps(doc: dict) -> str:
 
 
 def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None, tolerance=None, progress=None):
-    """Fit a B-spline patch to a scan (:func:`swath.surface.fit.fit_patch`).
+    """Fit a B-spline patch to a scan (:func:`swath.scan.fit.fit_patch`).
 
     Parameters
     ----------
@@ -77,7 +77,7 @@ def fit_scan(scan: Scan, *, parameterization: str = "auto", side=None, tolerance
     InputError, InfeasibleError
         As ``fit_patch`` (too few points, not one patch, a parameterisation that folds over).
     """
-    from ..surface.fit import PARAMETERIZATIONS, fit_patch
+    from ..scan.fit import PARAMETERIZATIONS, fit_patch
 
     if parameterization not in PARAMETERIZATIONS:
         raise InputError(f"unknown parameterization {parameterization!r}; choose one of "
@@ -130,7 +130,7 @@ class FitSettings:
         Accept a scan size outside 5 mm .. 20 m.
     tolerance : float or None
         Fit tolerance, m: points farther from the patch make a warning (default
-        :data:`swath.surface.fit.FIT_TOLERANCE`, 1 mm).
+        :data:`swath.scan.fit.FIT_TOLERANCE`, 1 mm).
     """
 
     scan: str

@@ -264,6 +264,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     check_output_dir(settings.out, overwrite=settings.overwrite)
     tool = stages.job_tool(settings)
 
+    from ..io.facing import facing_warning
+
     t0 = time.perf_counter()
     say("loading part", 0, 1)
     surface, part_info = load_part_info(settings, progress=say)
@@ -332,6 +334,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics["lead_angle_rad"] = settings.lead()
     metrics["tool_tilt"] = describe_lead(settings.lead())
     metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
+    facing = facing_warning(surface, side=settings.side)      # a part planned from underneath
+    if facing is not None:
+        metrics["warnings"].insert(0, facing)
     if robot is not None:
         metrics["warnings"] += robot.warnings
     metrics["warnings"] = [tagged(w) for w in metrics["warnings"]]        # "... [W-CODE]", docs: Warnings

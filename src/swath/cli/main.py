@@ -27,7 +27,7 @@ from ..errors import InputError, SwathError
 
 log = logging.getLogger("swath")
 
-#: Scan parameterisations of ``--parameterization`` (as :data:`swath.surface.fit.PARAMETERIZATIONS`).
+#: Scan parameterisations of ``--parameterization`` (as :data:`swath.scan.fit.PARAMETERIZATIONS`).
 PARAMETERIZATIONS = ("auto", "projection", "lscm", "rows")
 
 
@@ -201,7 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "the shift along the table and in height, perimeter weighted")
     g.add_argument("--keep-height", action="store_true",
                    help="with --table: the table is at the same height in both frames (3 DOF)")
-    g.add_argument("--table-normal", default="+z", help="with --table: the table normal, e.g. +z or 0,0,1")
+    g.add_argument("--table-normal", default="+z", help="the table normal, e.g. +z or 0,0,1 (without --table: the direction the outlines are compared along)")
     g.add_argument("--all-pieces", action="store_true",
                    help="keep every piece of a multi-piece CAD mesh (default the largest)")
     g.add_argument("--side", help="for a closed CAD solid: the direction the tool comes from, e.g. +z")

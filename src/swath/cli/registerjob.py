@@ -39,7 +39,8 @@ class RegisterSettings:
     keep_height : bool
         With ``table``: both frames put the table at the same height (3 DOF, the thesis's case).
     table_normal : str
-        Table normal, e.g. ``+z`` or ``0,0,1``.
+        Table normal, e.g. ``+z`` or ``0,0,1``; without ``table`` the direction the perimeters are
+        compared along (the CAD's and the scan's outlines seen from above).
     all_pieces : bool
         Keep every piece of a multi-piece CAD mesh (the scan always keeps all of its pieces).
     side : str or None
@@ -122,7 +123,7 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
 
     check_output_dir(settings.out, overwrite=settings.overwrite)
     from ..io.mesh import parse_side
-    from ..surface.register import register_on_table, register_rigid
+    from ..scan.register import register_on_table, register_rigid
 
     say = progress or (lambda stage, done, total: None)
     if not (0.2 <= settings.trim <= 1.0):
@@ -133,17 +134,17 @@ def run_register(settings: RegisterSettings, *, progress=None) -> dict:
     t0 = time.perf_counter()
     cad, target = load_registration_inputs(settings)
     opts: dict = dict(trim=settings.trim, max_iterations=settings.max_iterations, rng=0)
+    k = parse_side(settings.table_normal)
     if settings.table:
-        k = parse_side(settings.table_normal)
         dof = "3 DOF: turn about the table normal, shift along the table" if settings.keep_height else \
             "4 DOF: turn about the table normal, shift along the table and in height"
         method = f"table ({dof}; perimeter weighted)"
         say("registering on the table", 0, 1)
         reg = register_on_table(cad, target, table_normal=k, fit_height=not settings.keep_height, **opts)
     else:
-        method = "rigid (6 DOF: global search, trimmed point-to-plane ICP)"
+        method = "rigid (6 DOF: global search, trimmed point-to-plane ICP, perimeter seen along the table normal)"
         say("registering (global search, then ICP)", 0, 1)
-        reg = register_rigid(cad, target, **opts)
+        reg = register_rigid(cad, target, perimeter_view=k, **opts)
     elapsed = time.perf_counter() - t0
     doc = transform_document(settings, reg, method, elapsed)
     say("writing transform", 0, 1)
@@ -173,6 +174,7 @@ def transform_document(settings: RegisterSettings, reg, method: str, elapsed: fl
         "method_description": method,
         "rms_m": reg.rms, "inlier_fraction": reg.inlier_fraction, "iterations": reg.iterations,
         "converged": reg.converged, "time_s": elapsed,
+        "warnings": list(reg.warnings),
         "quality": quality,
     })
 

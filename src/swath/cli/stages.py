@@ -225,7 +225,8 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict):
     if method == "ripple":
         spacing, cov = ripple_spacing(tool, lead_angle=settings.lead(), max_length_ratio=settings.length_budget)
         log.info("ripple spacing %.1f mm (pad cross-profile ripple CoV %.3f on a plane)", spacing * 1e3, cov)
-        return planner(surface, tool, **{**arguments, "spacing": spacing})
+        # swath's spacing, not the user's: fill passes still close what it leaves (raster's default)
+        return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": spacing})
     direction = arguments.get("direction")
     if direction is None:
         direction = planner(surface, tool, **arguments).metadata["angle_rad"]

@@ -12,7 +12,7 @@ File format (``--target-map FILE``)
 
 Scan excess
 -----------
-:func:`excess_target` places the nominal CAD surface on a scan (:func:`swath.surface.register_rigid`)
+:func:`excess_target` places the nominal CAD surface on a scan (:func:`swath.scan.register_rigid`)
 and sets the target at every scan vertex to how far the scan sticks out of the CAD surface along the
 CAD's normal (toward the tool); points on or below the CAD surface get 0: remove only what sticks out.
 """
@@ -150,7 +150,7 @@ def excess_target(scan, cad, *, registration=None, max_depth: float | None = Non
     cad : Surface
         The nominal surface, m, in its own frame (normals toward the tool).
     registration : Registration, optional
-        ``cad2scan`` placement; default :func:`swath.surface.register_rigid` (CAD onto scan).
+        ``cad2scan`` placement; default :func:`swath.scan.register_rigid` (CAD onto scan).
     max_depth : float, optional
         Clip depths above this, m (scan spikes).
 
@@ -160,7 +160,8 @@ def excess_target(scan, cad, *, registration=None, max_depth: float | None = Non
         Depth at each scan vertex: its signed distance from the placed CAD surface along the CAD
         normal, where positive (0 elsewhere), m.
     """
-    from ..surface import Surface, register_rigid
+    from ..scan import register_rigid
+    from ..surface import Surface
 
     if registration is None:
         registration = register_rigid(cad, scan)

@@ -32,6 +32,7 @@ from .checks import (  # noqa: F401 - re-exported: the public names of the mesh 
     check_file,
     likely_unit,
 )
+from .facing import facing_warning
 from .mesh_pieces import SIDE_DOT, closed_components, cut_closed, orient_faces  # noqa: F401
 from .mesh_read import read_mesh_file
 from .mesh_repair import (  # noqa: F401
@@ -132,7 +133,9 @@ def load_mesh(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
         closed solid (its faces with outward normal n·side > 0.2 are kept); for an open surface
         the normals of each piece are flipped to face it (area-weighted majority).  Without it
         the file's own orientation is kept: its vertex normals if it has them, else the
-        area-weighted majority of its windings.
+        area-weighted majority of its windings; a part that then faces down, away from a tool
+        coming from +z, is logged as a warning naming the fix
+        (:func:`swath.io.facing.facing_warning`).
     all_pieces : bool
         Keep every connected piece instead of the largest by area.
     force_units : bool
@@ -280,6 +283,9 @@ def load_mesh(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
     surface = Surface(v, f, name=path.stem if name is None else name)
     log.info("%s: loaded %d vertices, %d faces, area %.4g m², extents %s m", label, len(v), len(f),
              surface.area, np.round(np.ptp(v, axis=0), 4).tolist())
+    facing = facing_warning(surface, side=side_vec)
+    if facing is not None:
+        log.warning("%s", facing)
     return surface
 
 

@@ -33,7 +33,7 @@ AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
 
 
 def raster(surface, tool, *, spacing: float | None = None, direction=None, point_spacing: float = 1e-3,
-           min_pass_length: float | None = None, cross_direction=None, fill_gaps: bool = True,
+           min_pass_length: float | None = None, cross_direction=None, fill_gaps: bool | None = None,
            edge_margin: float | None = None, progress=None) -> ToolPath:
     """Cover a surface with parallel plane slices, visited in snake order.
 
@@ -70,11 +70,15 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         plan) the area within 0.75 R of a dropped fragment and of no kept pass is at most 0.23 %
         (one fragment on bezier_complex_shape), typically below 0.05 %.
 
-    fill_gaps : bool
+    fill_gaps : bool, optional
         After the planes, check where the passes really leave the surface untouched (beside holes,
         at a piece's far side, where slivers were dropped, in the corners a diagonal direction
-        leaves; :mod:`swath.plan.gaps`) and add a short fill pass across each such patch (default
-        True).  ``predicted_gap_fraction`` is then measured from where the passes fall.
+        leaves; :mod:`swath.plan.gaps`) and add a short fill pass across each such patch.
+        ``predicted_gap_fraction`` is then measured from where the passes fall.  None (default):
+        fill with the default spacing, not with a given ``spacing`` — the spacing the user asked for
+        is kept (one plane per ``spacing`` across each piece, no extra passes) and the share of the
+        surface it leaves untouched is measured the same way, in ``predicted_gap_fraction``, with a
+        warning in ``metadata["warnings"]`` above :data:`GAP_WARN_SHARE`.
     edge_margin : float, optional
         Least distance (m, along the cross direction) from each piece's extent to its outermost
         planes.  None (default): the planes keep ``spacing`` and the margin is what is left,
@@ -103,7 +107,8 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         largest margin of any piece), spacing_rule, edge_rule (how ``edge_margin`` placed the
         outer planes), plane_spacing_m (per piece,
         the mean distance between its planes, below spacing_m where ``edge_margin`` moved them),
-        and for the default spacing predicted_gap_fraction.
+        predicted_gap_fraction (not with a given spacing and ``fill_gaps=False``), and
+        ``warnings`` when that share is above :data:`GAP_WARN_SHARE`.
 
     Raises
     ------
@@ -122,6 +127,8 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
     if edge_margin is not None and not edge_margin >= 0:                  # NaN fails too
         raise InputError(f"edge_margin must be a length >= 0 in m, math.inf or None, got {edge_margin!r}")
     angle, vector = split_direction(direction)
+    if fill_gaps is None and spacing is None:
+        fill_gaps = True                      # a spacing the user fixed is honoured (None: measured, not topped up)
 
     if angle is None and vector is None and cross_direction is None:
         return _auto_direction(surface, tool, spacing=spacing, point_spacing=point_spacing,
@@ -142,6 +149,10 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
     return _plan_along(surface, tool, feed, cross, angle=angle or 0.0, direction_rule=direction_rule, spacing=spacing,
                        point_spacing=point_spacing, min_pass_length=min_pass_length, fill_gaps=fill_gaps,
                        edge_margin=edge_margin, t_start=t_start)
+
+
+#: Predicted untouched share of the surface above which a plan warns.
+GAP_WARN_SHARE = 5e-3
 
 
 #: Contact length (m) one more pass is worth when directions are compared: its approach, retract
@@ -167,6 +178,8 @@ def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, f
     rule = (f"auto: least contact length + {PASS_ALLOWANCE:g} m per pass (fill passes included) among "
             f"({summary})")
     log.info("raster direction %s", rule)
+    for msg in best[2].metadata.get("warnings", []):
+        log.warning("%s", msg)
     meta = dict(best[2].metadata, direction_rule=rule,
                 candidates=[dict(direction_deg=math.degrees(a), length_m=tp.contact_length, n_passes=len(tp.passes),
                                  predicted_gap_fraction=tp.metadata.get("predicted_gap_fraction"))
@@ -215,6 +228,10 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
     n_fill, gap = 0, None
     if fill_gaps:
         passes, n_fill, gap = _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacing)
+    elif fill_gaps is None:
+        from .gaps import CoverageCheck
+
+        gap = CoverageCheck(surface, tool, feed).gap_fraction(passes)
     metadata = dict(
         spacing_m=float(spacing), angle_rad=float(angle or 0.0), direction_rule=direction_rule,
         feed_direction=feed.tolist(),
@@ -228,10 +245,20 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
     )
     if gap is not None:
         metadata["predicted_gap_fraction"] = gap
-        if gap > 5e-3:
-            msg = (f"raster: {100 * gap:.1f} % of {surface.name or 'the surface'} is predicted to stay untouched even "
-                   "after the fill passes; lower the spacing, choose another direction or segment the part")
-            log.warning("%s", msg)
+        if gap > GAP_WARN_SHARE:
+            name = surface.name or "the surface"
+            if fill_gaps:
+                msg = (f"raster: {100 * gap:.1f} % of {name} is predicted to stay untouched even after the fill "
+                       "passes; lower the spacing, choose another direction or segment the part")
+            else:
+                msg = (f"raster: the given spacing {1e3 * spacing:.4g} mm leaves {100 * gap:.1f} % of {name} "
+                       f"untouched ({_count(len(passes), 'pass', 'passes')} on {_count(n_planes, 'plane', 'planes')}; "
+                       f"the pad's contact reaches about {1e3 * _median_chord(surface, tool, cross):.0f} mm across "
+                       "a pass); lower the spacing, "
+                       "leave it out for the full-coverage default, or add fill passes (fill_gaps = true under "
+                       "[planner_options] in a job file, fill_gaps=True in Python)")
+            if direction_rule != "candidate":
+                log.warning("%s", msg)
             metadata["warnings"] = [msg]
     elif choice is not None:
         metadata["predicted_gap_fraction"] = choice.gap_fraction
@@ -239,6 +266,19 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
              surface.name, spacing * 1e3, n_planes, len(passes), n_fill, dropped, sum(len(p.points) for p in passes),
              time.perf_counter() - t_start)
     return ToolPath(surface, passes, "raster", metadata)
+
+
+def _count(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"
+
+
+def _median_chord(surface, tool, cross) -> float:
+    """The median contact chord (m) across passes cut by planes normal to ``cross``: the width one
+    pass covers, for the gap warning."""
+    from ..contact.widths import effective_widths, pad_scale_samples
+
+    w_eff, _ = effective_widths(pad_scale_samples(surface, tool), tool, cross)
+    return float(np.median(w_eff))
 
 
 def choose_angle(surface, tool, *, spacing: float | None = None, angles=AUTO_ANGLES,

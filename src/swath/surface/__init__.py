@@ -5,15 +5,12 @@
 functions in :mod:`swath.surface.geometry` and :mod:`swath.surface.curvature`.
 
 Smooth parts come as :class:`BSplinePatch` (exact derivatives and curvature; ``to_surface`` for
-a triangulation), fitted to scans by :func:`fit_patch`; a nominal CAD surface is placed on a scan
-by :func:`register_rigid` or :func:`register_on_table`, which return a :class:`Registration`.
+a triangulation).  Fitting patches to scans and registering a CAD surface on a scan are the
+:mod:`swath.scan` stage's.
 """
 
 from .bspline import BSplinePatch
 from .curvature import PrincipalCurvature, principal_curvatures
-from .fit import FitReport, fit_patch
-from .register import Registration, register_on_table, register_rigid
 from .surface import Surface
 
-__all__ = ["Surface", "PrincipalCurvature", "principal_curvatures", "BSplinePatch", "FitReport", "fit_patch",
-           "Registration", "register_on_table", "register_rigid"]
+__all__ = ["Surface", "PrincipalCurvature", "principal_curvatures", "BSplinePatch"]

@@ -1,4 +1,4 @@
-"""Coarse global search of :mod:`swath.surface.register`: start poses (principal axes, the
+"""Coarse global search of :mod:`swath.scan.register`: start poses (principal axes, the
 icosahedral rotations, turns on a table) placed where they fit a distance field of the target."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from .register_settings import (
 )
 from .register_target import _plane_axes, _right_handed_axes
 
-log = logging.getLogger("swath.surface")
+log = logging.getLogger("swath.scan")
 # --------------------------------------------------------------------------------------------
 # start poses
 # --------------------------------------------------------------------------------------------

@@ -1,9 +1,10 @@
-"""The ICP engine of :mod:`swath.surface.register`: trimmed point-to-plane steps, scoring and
+"""The ICP engine of :mod:`swath.scan.register`: trimmed point-to-plane steps, scoring and
 choice of the distinct poses, and the result with its uncertainty."""
 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 
@@ -25,6 +26,8 @@ from .register_settings import (
     MAX_STEP_ANGLE,
     NO_MATCH,
     POLISH_FROM,
+    POOR_INLIERS,
+    POOR_RMS,
     SAME_POSE_ANGLE,
     SAME_POSE_SHIFT,
     SEARCH_FACTOR,
@@ -32,7 +35,7 @@ from .register_settings import (
 )
 from .register_target import _Source
 
-log = logging.getLogger("swath.surface")
+log = logging.getLogger("swath.scan")
 # --------------------------------------------------------------------------------------------
 # the engine
 # --------------------------------------------------------------------------------------------
@@ -454,15 +457,43 @@ def _finish(src, tgt, matrix, iterations, converged, trim, inlier_distance, min_
     log.info("registration: rms %.4g mm over %.1f%% inliers, %d iterations, rotation %.3f deg; "
              "1-sigma %.3g mm / %.3g deg", 1e3 * rms, 100 * frac, iterations, np.degrees(result.angle),
              1e3 * sig_tra, np.degrees(sig_rot))
-    if sig_tra + sig_rot * src.size / 2 > inlier_distance:
-        log.warning("registration: the pose is poorly determined (1-sigma %.3g mm at the centroid, %.3g deg): "
-                    "the surface nearly slides on itself by %s; use register_on_table with the perimeter, or "
-                    "check the pose against features", 1e3 * sig_tra, np.degrees(sig_rot), weak_text)
-    if runner_score is not None and runner_score < AMBIGUOUS_SCORE * score:
-        log.warning("registration: another pose (turned %.1f deg, centroid %.3g mm away) fits almost as well "
-                    "(score %.4g vs %.4g mm): the part is nearly symmetric; give initial= to pick one",
-                    np.degrees(runner_angle), 1e3 * runner_shift, 1e3 * runner_score, 1e3 * score)
+    warnings = quality_warnings(frac, rms, inlier_distance, src.size, score, runner_score, runner_angle,
+                                runner_shift, sig_tra, sig_rot, weak_text)
+    for w in warnings:
+        log.warning("registration: %s", w)
+    result = replace(result, warnings=tuple(warnings))
     return result
+
+
+def quality_warnings(inlier_fraction, rms, inlier_distance, size, score, runner_up_score, runner_up_angle, runner_up_shift,
+                     sigma_translation, sigma_rotation, weakest_motion) -> list[str]:
+    """What makes a registration poor or ambiguous, in words (empty when nothing does).
+
+    Poor: fewer than :data:`POOR_INLIERS` of the source points are inliers, or the inlier rms is
+    above :data:`POOR_RMS` of the source size (``size``, m).  Ambiguous: the best distinct pose
+    scores within :data:`AMBIGUOUS_SCORE` of the chosen one, or the one-sigma uncertainty at the
+    part's edge exceeds the inlier distance.  Lengths in m, angles in rad.
+    """
+    out = []
+    if inlier_fraction < POOR_INLIERS:
+        out.append(f"only {100 * inlier_fraction:.1f} % of the CAD points lie within {1e3 * inlier_distance:.3g} mm of "
+                   f"the scan (below {100 * POOR_INLIERS:.0f} %): the scan covers part of the CAD, or the two differ "
+                   "in shape; check the residuals (residuals.csv) before trusting the pose")
+    if rms > POOR_RMS * size:
+        out.append(f"the inlier rms {1e3 * rms:.3g} mm is {100 * rms / size:.2f} % of the part's size (above "
+                   f"{100 * POOR_RMS:.1f} %): the CAD and the scan differ in shape by about that much, so the pose is "
+                   "a compromise between them")
+    if runner_up_score is not None and runner_up_score < AMBIGUOUS_SCORE * score:
+        out.append(f"ambiguous: another pose (turned {np.degrees(runner_up_angle):.1f} deg, centroid "
+                   f"{1e3 * runner_up_shift:.3g} mm away) fits within {100 * (runner_up_score / score - 1):.0f} % of the "
+                   f"best (score {1e3 * runner_up_score:.4g} vs {1e3 * score:.4g} mm; within "
+                   f"{100 * (AMBIGUOUS_SCORE - 1):.0f} % counts as ambiguous); give an initial pose to pick one, or "
+                   "register on the table with the perimeter")
+    if sigma_translation + sigma_rotation * size / 2 > inlier_distance:
+        out.append(f"the pose is poorly determined (1-sigma {1e3 * sigma_translation:.3g} mm at the centroid, "
+                   f"{np.degrees(sigma_rotation):.3g} deg): the surface nearly slides on itself by {weakest_motion}; "
+                   "register on the table with the perimeter, or check the pose against features")
+    return out
 
 
 def _ro(a):

@@ -12,9 +12,9 @@ from swath.contact import Tool, local_patch
 from swath.errors import InfeasibleError, InputError
 from swath.examples import blade, doubly_curved_panel, flat_plate
 from swath.examples.scansim import blade_patch, panel_patch, simulate_laser_scan
+from swath.scan.fit import fit_patch
+from swath.scan.fit_knots import curvature_knots
 from swath.surface.exact_shapes import nurbs_sphere
-from swath.surface.fit import fit_patch
-from swath.surface.fit_knots import curvature_knots
 
 
 def _errors(truth, patch, scan, rng, n_width=300):
@@ -335,7 +335,7 @@ def test_example_patches_match_the_example_meshes():
 def test_rows_fit_with_a_fixed_smoothing_length():
     # The numeric-smoothing path of the skinning (no cross-validation) fits as well as GCV here.
     from swath.examples.scansim import panel_patch, simulate_laser_scan
-    from swath.surface.fit import fit_patch
+    from swath.scan.fit import fit_patch
 
     rng = np.random.default_rng(7)
     scan = simulate_laser_scan(panel_patch(), row_spacing=4e-3, point_spacing=2e-3, rng=rng)
@@ -400,7 +400,7 @@ def small_scan():
 
 
 def test_fit_warns_when_points_lie_beyond_the_tolerance(small_scan, caplog):
-    from swath.surface.fit import FIT_TOLERANCE
+    from swath.scan.fit import FIT_TOLERANCE
 
     # σ = 0.1 mm noise and 0.2 mm row offsets: within the default 1 mm, not within 0.25 mm
     patch, report = fit_patch(small_scan.points, parameterization="projection")
@@ -421,7 +421,7 @@ def test_fit_warns_when_points_lie_beyond_the_tolerance(small_scan, caplog):
 
 
 def test_residual_warning_rule():
-    from swath.surface.fit import _residual_warnings
+    from swath.scan.fit import _residual_warnings
 
     tol = 1e-3
     assert _residual_warnings(np.r_[np.full(999, 5e-4), 2e-3], tol) == []       # 0.1 % just beyond

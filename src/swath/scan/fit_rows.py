@@ -1,4 +1,4 @@
-"""Skinning along scan rows (Jaeger §3.2.2) for :func:`swath.surface.fit.fit_patch`."""
+"""Skinning along scan rows (Jaeger §3.2.2) for :func:`swath.scan.fit.fit_patch`."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 import numpy as np
 
 from ..errors import InfeasibleError, InputError
-from .bspline import BSplinePatch
-from .bspline_basis import basis_derivatives
+from ..surface.bspline import BSplinePatch
+from ..surface.bspline_basis import basis_derivatives
 from .fit_knots import _knots_from_patch, _uniform_knots
 from .fit_solve import (
     _aniso_step,

@@ -1,4 +1,4 @@
-"""Input checks and parameterisation of :func:`swath.surface.fit.fit_patch`: one patch (no
+"""Input checks and parameterisation of :func:`swath.scan.fit.fit_patch`: one patch (no
 separate pieces, no closed mesh), projection onto the best-fit plane, or LSCM of a mesh."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError
 
-log = logging.getLogger("swath.surface.fit")
+log = logging.getLogger("swath.scan.fit")
 # ----------------------------------------------------------------------------------------------
 # Input checks
 # ----------------------------------------------------------------------------------------------
@@ -111,7 +111,7 @@ def _check_mesh_patch(n_vertices: int, F: np.ndarray) -> None:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from .topology import boundary_edges
+    from ..surface.topology import boundary_edges
 
     used = np.unique(F)
     if len(used) < n_vertices:
@@ -182,7 +182,7 @@ def _lscm_parameters(X: np.ndarray, F: np.ndarray) -> np.ndarray:
         import igl
     except ImportError:  # pragma: no cover - libigl is a dependency
         raise InputError("the 'lscm' parameterisation needs libigl (pip install libigl)") from None
-    from .geometry import face_normals_and_areas
+    from ..surface.geometry import face_normals_and_areas
 
     Fi = np.ascontiguousarray(F, dtype=np.int64)
     bnd = np.asarray(igl.boundary_loop(Fi), dtype=np.int64)

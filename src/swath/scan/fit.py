@@ -22,7 +22,7 @@
    across-row smoothing right; the final fit of all points keeps that smoothing across the rows.
 4. **Correct the parameters**: project the points on the fitted patch and refit.
 
-The normal equations are banded and solved as such (:mod:`swath.surface.fit_solve`), so a fit of
+The normal equations are banded and solved as such (:mod:`swath.scan.fit_solve`), so a fit of
 ~10⁵ points on a 130 × 100 control net takes seconds and a few hundred MB.  Points farther from the
 patch than a tolerance (default 1 mm, the pad depression) make a warning; every stage reports
 progress through an optional ``progress(stage, done, total)``.
@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InfeasibleError, InputError
-from .bspline import BSplinePatch
+from ..surface.bspline import BSplinePatch
 from .fit_input import (
     _check_mesh_patch,
     _check_spread,
@@ -402,7 +402,7 @@ def _orient(patch: BSplinePatch, X, u, v, normals, F) -> tuple[BSplinePatch, boo
     if normals is not None:
         flip = np.einsum("ij,ij->i", n_patch, normals[sample]).sum() < 0
     elif F is not None:
-        from .geometry import face_normals_and_areas, vertex_normals
+        from ..surface.geometry import face_normals_and_areas, vertex_normals
 
         fn, fa = face_normals_and_areas(X, F)
         vn = vertex_normals(len(X), F, fn, fa)

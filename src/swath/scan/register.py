@@ -38,6 +38,7 @@ import logging
 import numpy as np
 
 from ..errors import InputError
+from ..surface.surface import Surface
 from .register_icp import _register
 from .register_result import Registration
 from .register_search import (
@@ -47,10 +48,10 @@ from .register_search import (
     _rotation_starts,
     _table_starts,
 )
-from .register_settings import COARSE_SPACING, MAX_POINTS, MIN_POINTS, PLACE_STEP
+from .register_settings import COARSE_SPACING, MAX_POINTS, MIN_POINTS, PERIMETER_VIEW, PERIMETER_WEIGHT, PLACE_STEP
 from .register_target import _plane_axes, _Source, _Target
 
-log = logging.getLogger("swath.surface")
+log = logging.getLogger("swath.scan")
 
 
 # --------------------------------------------------------------------------------------------
@@ -60,8 +61,17 @@ def register_rigid(source, target, *, source_normals=None, target_normals=None, 
                    initial=None, trim: float = 0.9, max_iterations: int = 100, tolerance: float = 1e-6,
                    inlier_distance: float | None = None, min_inlier_fraction: float = 0.3,
                    max_normal_angle: float = np.radians(60.0), max_points: int = MAX_POINTS,
-                   require_convergence: bool = True, rng=None) -> Registration:
+                   require_convergence: bool = True, perimeter_weight: float = PERIMETER_WEIGHT,
+                   perimeter_view=None, rng=None) -> Registration:
     """Rigidly register ``source`` onto ``target`` (6 DOF): coarse global search, then trimmed ICP.
+
+    When both are surfaces with a perimeter, the source's perimeter is matched to the target's as
+    seen along ``perimeter_view`` (the table's up or the scanner's view), as on a table
+    (:func:`register_on_table`): a long, gently curved part nearly slides on itself along its
+    length, and its surface alone leaves several poses tens of millimetres apart within a few
+    percent of the same fit, while its outline pins it.  On the bezier pair the surface alone
+    puts the CAD centroid 90 mm from where the table registration does (scores 2.92 and 3.27 mm,
+    within 12 %); with the perimeter seen along +z the two agree within 0.6 mm.
 
     Parameters
     ----------
@@ -108,13 +118,25 @@ def register_rigid(source, target, *, source_normals=None, target_normals=None, 
     require_convergence : bool
         Refuse (``InfeasibleError``) when ICP does not converge within ``max_iterations``;
         otherwise return with ``converged=False`` and a logged warning.
+    perimeter_weight : float
+        Weight of each source perimeter point relative to an interior point (>= 0; 0 matches the
+        surface alone).  Used when the source and the target are surfaces with boundary loops.
+    perimeter_view : (3,) float, optional
+        The direction (target frame, any length) the perimeters are compared along: the table's
+        normal, or the direction the scan was taken from.  Default: the target's area-weighted
+        mean normal when it is at least :data:`PERIMETER_VIEW` long (a target seen from one side;
+        else the perimeter is not used).  A scan that holds its table's sides and fixtures tilts
+        that mean a few degrees, and the perimeters' in-plane match moves with it (6 mm on the
+        bezier pair for 6 deg): give the table's normal when it is known.
     rng : numpy.random.Generator or int, optional
         Randomness for subsampling (seed for repeatable results).
 
     Returns
     -------
     Registration
-        ``matrix`` maps source to target coordinates (``cad2scan``).
+        ``matrix`` maps source to target coordinates (``cad2scan``); ``warnings`` says when the
+        answer is poor (few inliers, a large rms) or ambiguous (another pose fits almost as well,
+        or the pose is poorly determined).
 
     Raises
     ------
@@ -125,9 +147,18 @@ def register_rigid(source, target, *, source_normals=None, target_normals=None, 
         (a plane, sphere or cylinder slides on itself), or no convergence.
     """
     _check_options(trim, max_iterations, tolerance, min_inlier_fraction, max_points, inlier_distance)
+    if not (np.isfinite(perimeter_weight) and perimeter_weight >= 0):
+        raise InputError(f"perimeter_weight must be >= 0, got {perimeter_weight!r}")
     rng = np.random.default_rng(rng)
-    src = _Source.build(source, source_normals, max_points, rng)
-    tgt = _Target.build(target, target_normals)
+    view = None
+    if perimeter_weight > 0 and isinstance(source, Surface) and isinstance(target, Surface):
+        view = _view_direction(target) if perimeter_view is None else _unit(perimeter_view, "perimeter_view")
+    src = _Source.build(source, source_normals, max_points, rng, perimeter=view is not None)
+    tgt = _Target.build(target, target_normals, table_normal=view)
+    boundary = None
+    if view is not None and len(src.boundary) and tgt.boundary_tree is not None:
+        boundary = (view, float(perimeter_weight))
+        log.info("registration: perimeters matched as seen along %s", np.round(view, 3).tolist())
     init = _check_matrix(initial)
     basis = np.eye(6)
     starts = [init]
@@ -137,7 +168,25 @@ def register_rigid(source, target, *, source_normals=None, target_normals=None, 
     return _register(src, tgt, np.array(starts), basis, trim=trim, max_iterations=max_iterations,
                      tolerance=tolerance, inlier_distance=inlier_distance,
                      min_inlier_fraction=min_inlier_fraction, max_normal_angle=max_normal_angle,
-                     require_convergence=require_convergence, boundary=None, rng=rng)
+                     require_convergence=require_convergence, boundary=boundary, rng=rng)
+
+
+def _unit(vector, name: str) -> np.ndarray:
+    k = np.asarray(vector, dtype=float).reshape(-1)
+    if k.shape != (3,) or not np.isfinite(k).all() or np.linalg.norm(k) == 0:
+        raise InputError(f"{name} must be a non-zero 3-vector, got {vector!r}")
+    return k / np.linalg.norm(k)
+
+
+def _view_direction(target) -> np.ndarray | None:
+    """The unit area-weighted mean normal ``(3,)`` of a target surface when it is at least
+    :data:`PERIMETER_VIEW` long (the target faces one way), else None (bare points, a closed or
+    wrapped-round target)."""
+    if not target.boundary_loops:
+        return None
+    mean = target.face_areas @ target.face_normals / target.area
+    norm = float(np.linalg.norm(mean))
+    return mean / norm if norm >= PERIMETER_VIEW else None
 
 
 def register_on_table(source, target, *, table_normal=(0.0, 0.0, 1.0), boundary_weight: float = 10.0,
@@ -194,10 +243,7 @@ def register_on_table(source, target, *, table_normal=(0.0, 0.0, 1.0), boundary_
         As :func:`register_rigid`; a flat part without perimeter weight is unconstrained.
     """
     _check_options(trim, max_iterations, tolerance, min_inlier_fraction, max_points, inlier_distance)
-    k = np.asarray(table_normal, dtype=float).reshape(-1)
-    if k.shape != (3,) or not np.isfinite(k).all() or np.linalg.norm(k) == 0:
-        raise InputError(f"table_normal must be a non-zero 3-vector, got {table_normal!r}")
-    k = k / np.linalg.norm(k)
+    k = _unit(table_normal, "table_normal")
     if not (np.isfinite(boundary_weight) and boundary_weight >= 0):
         raise InputError(f"boundary_weight must be >= 0, got {boundary_weight!r}")
     rng = np.random.default_rng(rng)

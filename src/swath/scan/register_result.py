@@ -57,6 +57,9 @@ class Registration:
         that differs in shape from the scan is less certain than this says.
     weakest_motion : str
         The least-determined motion, in words (what a nearly symmetric part slides along).
+    warnings : tuple of str
+        What makes the answer poor (few inliers, a large rms) or ambiguous (a second pose that
+        fits almost as well, a poorly determined pose); empty when nothing does.
     """
 
     matrix: np.ndarray
@@ -77,6 +80,7 @@ class Registration:
     sigma_rotation: float = 0.0
     sigma_translation: float = 0.0
     weakest_motion: str = ""
+    warnings: tuple[str, ...] = ()
 
     @property
     def rotation(self) -> np.ndarray:
@@ -124,6 +128,7 @@ class Registration:
             "runner_up_rotation_deg": (None if self.runner_up_angle is None
                                        else float(np.degrees(self.runner_up_angle))),
             "runner_up_shift_m": None if self.runner_up_shift is None else float(self.runner_up_shift),
+            "warnings": list(self.warnings),
         }
 
 

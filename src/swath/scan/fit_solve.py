@@ -1,4 +1,4 @@
-"""Penalised least squares of :func:`swath.surface.fit.fit_patch`: design matrices, the
+"""Penalised least squares of :func:`swath.scan.fit.fit_patch`: design matrices, the
 third-order thin-plate penalty, and the smoothing lengths chosen by generalised cross-validation."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import math
 import numpy as np
 
 from ..errors import InfeasibleError
-from .bspline import BSplinePatch
-from .bspline_basis import basis_derivatives
+from ..surface.bspline import BSplinePatch
+from ..surface.bspline_basis import basis_derivatives
 
 #: Exponent of the knot-spacing weights of the smoothness penalty (see :func:`_gram`): the local
 #: smoothing length scales as ``(h / h̄)^(γ/6)`` with the knot span ``h``.

@@ -1,4 +1,4 @@
-"""Knot placement of :func:`swath.surface.fit.fit_patch`: the curvature-based distribution of
+"""Knot placement of :func:`swath.scan.fit.fit_patch`: the curvature-based distribution of
 Jaeger's thesis, read off a pilot fit."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from .bspline import BSplinePatch
-from .bspline_basis import clamped_knots, span_samples
-from .geometry import normalize
+from ..surface.bspline import BSplinePatch
+from ..surface.bspline_basis import clamped_knots, span_samples
+from ..surface.geometry import normalize
 
 #: Total turning (rad) of a direction below which curvature hardly moves the knots.
 TURN_SIGNIFICANT = 0.2

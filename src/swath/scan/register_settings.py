@@ -1,4 +1,4 @@
-"""Tuning constants of rigid registration (:mod:`swath.surface.register`), in one place."""
+"""Tuning constants of rigid registration (:mod:`swath.scan.register`), in one place."""
 
 from __future__ import annotations
 
@@ -57,7 +57,16 @@ POLISH_FROM = 1e-5
 #: Largest rotation (rad, about the weighted centroid) of one ICP step.
 MAX_STEP_ANGLE = 0.3
 #: A distinct pose whose score is within this factor of the best makes the answer ambiguous.
-AMBIGUOUS_SCORE = 1.1
+AMBIGUOUS_SCORE = 1.15
+#: A registration is reported poor when fewer source points than this are inliers, or when the
+#: inlier rms exceeds this fraction of the source size (the two differ in shape, or cover
+#: different parts).
+POOR_INLIERS = 0.8
+POOR_RMS = 2e-3
+#: Weight of a perimeter point in general rigid registration, and the least length of the
+#: target's area-weighted mean normal for its perimeter to be matched (a target seen from one side).
+PERIMETER_WEIGHT = 10.0
+PERIMETER_VIEW = 0.5
 #: Relative eigenvalue of the normal equations below which a motion counts as unconstrained.
 DEGENERATE_EIGENVALUE = 1e-10
 

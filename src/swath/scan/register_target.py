@@ -1,5 +1,5 @@
 """Registration data: the sampled source points and the target (points, normals, KD-tree,
-perimeter, exact closest points on triangles) of :mod:`swath.surface.register`."""
+perimeter, exact closest points on triangles) of :mod:`swath.scan.register`."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ import logging
 import numpy as np
 
 from ..errors import InputError
-from .geometry import normalize
+from ..surface.geometry import normalize
+from ..surface.surface import Surface
 from .register_settings import MIN_LOOP_VERTICES, MIN_POINTS, NORMAL_NEIGHBOURS
-from .surface import Surface
 
-log = logging.getLogger("swath.surface")
+log = logging.getLogger("swath.scan")
 class _Source:
     """Source points (subsampled), optional normals and weights, perimeter indices."""
 
@@ -295,7 +295,7 @@ def _check_normals(normals, n: int, what: str) -> np.ndarray | None:
 
 
 def _right_handed_axes(points, weights):
-    from .geometry import principal_axes
+    from ..surface.geometry import principal_axes
 
     c, axes = principal_axes(points, weights)
     if np.linalg.det(axes) < 0:
