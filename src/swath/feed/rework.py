@@ -175,7 +175,7 @@ def register_excluding_excess(cad, scan_points, *, cad2scan=None, radius: float 
     A registration over the whole scan fits through the proud areas and tilts or lifts the CAD by
     a fraction of the excess (a 400 x 300 mm panel under a 10 µm dome of excess: the map 2.8 µm too
     shallow on average, 3.1 µm RMS off).  After a global registration
-    (:func:`swath.surface.register_rigid`, unless ``cad2scan`` is given) each round maps the excess
+    (:func:`swath.scan.register_rigid`, unless ``cad2scan`` is given) each round maps the excess
     and registers again on the CAD vertices whose scan height is below ``clean_below`` (the part at
     its nominal surface, where the dome tapers out); on that panel three rounds bring the map within
     0.6 µm RMS of the truth and 0.1 µm on average.
@@ -203,7 +203,7 @@ def register_excluding_excess(cad, scan_points, *, cad2scan=None, radius: float 
     (4, 4) float
         ``cad2scan``: CAD coordinates to scan coordinates.
     """
-    from ..surface import register_rigid
+    from ..scan import register_rigid
 
     pts = np.asarray(scan_points, float)
     if cad2scan is None:
