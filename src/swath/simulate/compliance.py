@@ -65,7 +65,7 @@ def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, fa
     e_soft = min(factor * e, MAX_DEPRESSION_SHARE * tool.pad_radius)
     if not e_soft > e * (1 + 1e-9):
         return None
-    soft = dataclasses.replace(tool, depression=e_soft, stiffness=None)
+    soft = dataclasses.replace(tool, depression=None, stiffness=tool.force / (e_soft * tool.pad_area))
     spacing = removal.metrics.get("removal_sample_spacing_m")
     other = simulate_removal(trajectory, surface, soft, sample_spacing=spacing, sampling=sampling, force=force)
     return {"pad_depression_m": float(e), "softer_pad_depression_m": float(e_soft),

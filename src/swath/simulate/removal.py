@@ -115,7 +115,7 @@ def contact_dwell(trajectory) -> np.ndarray:
 
 def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float | None = None,
                      chunk: int = 1500, progress=None, force=None, engine: str = "auto",
-                     sampling: str = "mesh") -> RemovalMap:
+                     sampling: str = "mesh", rate_scale=None) -> RemovalMap:
     """Integrate Preston removal of ``trajectory`` over ``surface``.
 
     Parameters
@@ -144,6 +144,9 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         :func:`swath.contact.mesh_contact` in float32 (the earlier path, 10-20 times slower);
         ``"auto"``: compiled when numba is installed.  Both evaluate the same model; their depths
         differ by the numpy path's float32 rounding (about 1e-5 relative).
+    rate_scale : (n,) float, optional
+        Factor on the removal rate per trajectory sample, e.g. the pad wear ``exp(−λ a)`` of
+        :func:`swath.process.media.media_schedule` (default 1 everywhere).
     sampling : {"lattice", "mesh"}
         ``"lattice"``: :func:`swath.simulate.samples.removal_samples`, samples at most
         ``sample_spacing`` apart along and across every triangle (a sliver gets one row), normals
@@ -182,6 +185,9 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     local = samples.vertices - origin
     positions = trajectory.position - origin
     idx, dwell = _integration_poses(trajectory, INTEGRATION_STEP * spacing)
+    if rate_scale is not None:
+        # removal is linear in the rate: a factor on the rate is the same factor on the dwell
+        dwell = dwell * np.asarray(rate_scale, float)[idx]
     pose_force = None
     if force is not None:
         pose_force = _pose_force(trajectory, force, idx)
