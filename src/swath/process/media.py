@@ -248,3 +248,29 @@ def changes_before(trajectory, idx) -> np.ndarray:
         return np.zeros(len(idx), int)
     m = np.asarray(media, float)[idx].round().astype(int)
     return np.concatenate([[m[0]], np.diff(m)])
+
+
+def media_stops(fmt: str, trajectory, idx, indent: str = "  ") -> dict:
+    """Kept-sample position ``k`` -> the statements a program in ``fmt`` runs before moving to
+    ``idx[k]`` (a media change happened in between); empty without a ``media`` column."""
+    counts = changes_before(trajectory, idx)
+    media = np.cumsum(counts)
+    out: dict = {}
+    for k in np.flatnonzero(counts > 0):
+        lines: list[str] = []
+        for n in range(int(media[k] - counts[k]) + 1, int(media[k]) + 1):
+            lines += program_lines(fmt, n, indent)
+        out[int(k)] = lines
+    return out
+
+
+def media_header(trajectory, comment: str = "#") -> str:
+    """Comment lines naming the media changes (time and count) for a file that cannot hold
+    statements (the ROS 2 JointTrajectory YAML); empty without changes."""
+    media = trajectory.extra.get("media") if hasattr(trajectory, "extra") else None
+    if media is None:
+        return ""
+    m = np.asarray(media, float).round().astype(int)
+    steps = np.flatnonzero(np.diff(m) > 0) + 1
+    return "".join(f"{comment} media change {int(m[i])} at t = {float(trajectory.t[i]):.3f} s: stop, retracted, and "
+                   f"let the operator change the abrasive\n" for i in steps)

@@ -41,6 +41,7 @@ FACTOR_ALIASES = {
     "orbit": ("orbit_radius_m", "length"),
     "orbit_radius": ("orbit_radius_m", "length"),
     "pad_radius": ("pad_radius_m", "length"),
+    "pad_age": ("pad_age_s", "time"),
 }
 
 
@@ -61,7 +62,7 @@ def parse_factor(text: str) -> tuple[str, list]:
     if kind is None and column in TRIAL_COLUMNS and column not in ("grit", "trial", "passes"):
         kind = {"force_N": "force", "spindle_speed_rpm": "frequency", "feed_m_per_s": "speed",
                 "orbit_radius_m": "length", "pad_radius_m": "length", "depth_m": "length",
-                "hardness_Pa": None}.get(column)
+                "hardness_Pa": None, "pad_age_s": "time"}.get(column)
     values: list
     if kind is None:
         values = raw if column != "passes" else [_int(v, name) for v in raw]
@@ -202,6 +203,7 @@ def write_doe(path, factors: dict, *, generators: dict | None = None, replicates
     for col, value in tool_columns(tool if tool is not None else Tool()).items():
         if col not in factors and col not in fixed:
             fixed[col] = value
-    fixed.setdefault("pad_age_s", "")
+    if "pad_age_s" not in factors:
+        fixed.setdefault("pad_age_s", "")
     write_text_atomic(path, doe_csv_text(runs, fixed=fixed))
     return path
