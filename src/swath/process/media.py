@@ -37,12 +37,15 @@ to a fixed point (a few rounds; the factor changes by ``λ·Δa`` per round).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import InputError
+
+log = logging.getLogger(__name__)
 
 #: What the programs tell the operator at a media change.
 OPERATOR_MESSAGE = "swath: change the abrasive (media change {n}), then continue"
@@ -107,7 +110,7 @@ def _contact_steps(trajectory) -> np.ndarray:
 
 
 def media_schedule(trajectory, wear_rate: float = 0.0, *, every: float | None = None,
-                   loss: float | None = None) -> MediaSchedule:
+                   loss: float | None = None, changes=None) -> MediaSchedule:
     """The media's age and changes along ``trajectory`` (module docstring).
 
     Parameters
@@ -120,6 +123,9 @@ def media_schedule(trajectory, wear_rate: float = 0.0, *, every: float | None = 
         Change the media at this age, s of contact.
     loss : float, optional
         Change the media when its removal rate has fallen by this fraction.
+    changes : sequence of int, optional
+        Change the media at these sample indices instead (off contact, between passes): the
+        ages along a schedule already decided.
 
     Returns
     -------
@@ -135,12 +141,19 @@ def media_schedule(trajectory, wear_rate: float = 0.0, *, every: float | None = 
     ends = np.flatnonzero(steps & ~np.concatenate([steps[1:], [False]])) + 1        # last sample of each run
     media = np.zeros(n, int)
     age = np.zeros(n)
-    changes: list[int] = []
+    fixed = None if changes is None else sorted(int(c) for c in changes)
+    changes = []
     current, prev_end = 0.0, None
     cum = np.concatenate([[0.0], np.cumsum(dt)])
     for s, e in zip(starts, ends):
         length = cum[e] - cum[s]
-        if current > 0 and current + length > limit * (1 + 1e-12):
+        if fixed is not None:
+            lo = -1 if prev_end is None else prev_end
+            due = [c for c in fixed if lo < c <= s]
+            if due:
+                changes.append(due[-1])
+                current = 0.0
+        elif current > 0 and current + length > limit * (1 + 1e-12):
             # in the middle of the air move between the two passes (retracted, clear of the part)
             at = (prev_end + 1 + s) // 2 if prev_end is not None else s
             changes.append(int(at))
@@ -174,7 +187,7 @@ def trajectory_with_media(trajectory, schedule: MediaSchedule):
 
 
 def compensate_wear(trajectory, wear_rate: float, *, every: float | None = None, loss: float | None = None,
-                    rounds: int = 8):
+                    rounds: int = 20):
     """Slow the feed as the media wears so that the removal stays as planned (module docstring).
 
     Parameters
@@ -186,7 +199,7 @@ def compensate_wear(trajectory, wear_rate: float, *, every: float | None = None,
     every, loss : optional
         The media change rule of :func:`media_schedule`.
     rounds : int
-        Fixed-point rounds (ages, changes and feed).
+        Fixed-point rounds of the ages and the feed (after three that place the changes).
 
     Returns
     -------
@@ -200,26 +213,40 @@ def compensate_wear(trajectory, wear_rate: float, *, every: float | None = None,
     t0 = np.asarray(trajectory.t, float)
     dt0 = np.diff(t0)
     steps = _contact_steps(trajectory)
-    out = trajectory
-    for _ in range(max(1, rounds)):
-        f = sched.factor
-        mid = 0.5 * (f[1:] + f[:-1])
-        dt = np.where(steps, dt0 / mid, dt0)
-        t = np.concatenate([[t0[0]], t0[0] + np.cumsum(dt)])
-        scale = np.where(np.asarray(trajectory.contact, bool), f, 1.0)
-        extra = dict(trajectory.extra)
-        for k in ("wx", "wy", "wz"):
-            if k in extra:
-                extra[k] = np.asarray(extra[k], float) * scale
+    contact = np.asarray(trajectory.contact, bool)
+
+    def retimed(factor):
+        mid = 0.5 * (factor[1:] + factor[:-1])
+        t = np.concatenate([[t0[0]], t0[0] + np.cumsum(np.where(steps, dt0 / mid, dt0))])
+        scale = np.where(contact, factor, 1.0)
+        extra = {k: (np.asarray(v, float) * scale if k in ("wx", "wy", "wz") else v)
+                 for k, v in trajectory.extra.items()}
         meta = dict(trajectory.metadata)
         meta["wear_compensation"] = True
-        out = replace(trajectory, t=t, feed=np.asarray(trajectory.feed, float) * scale, extra=extra, metadata=meta)
-        new = media_schedule(out, wear_rate, every=every, loss=loss)
-        converged = np.max(np.abs(new.factor - sched.factor)) < 1e-9 if len(f) else True
-        sched = new
-        if converged:
-            break
-    return out, sched
+        return replace(trajectory, t=t, feed=np.asarray(trajectory.feed, float) * scale, extra=extra, metadata=meta)
+
+    # The changes follow the ages, which follow the feed.  With the changes kept, the ages and the
+    # feed iterate to their fixed point; then the changes are placed again on the slower trajectory,
+    # until they stay where they are.
+    out = trajectory
+    for _ in range(6):
+        keep = sched.change_index
+        for _ in range(max(1, rounds)):
+            out = retimed(sched.factor)
+            new = media_schedule(out, wear_rate, every=every, loss=loss, changes=keep)
+            converged = np.max(np.abs(new.factor - sched.factor)) < 1e-10 if len(sched.factor) else True
+            sched = new
+            if converged:
+                break
+        out = retimed(sched.factor)
+        again = media_schedule(out, wear_rate, every=every, loss=loss)
+        if np.array_equal(again.change_index, sched.change_index):
+            return out, sched
+        settled, sched = sched, again
+    # The changes alternate between two placements: keep the last one the feed was fitted to.
+    log.info("the media changes alternate with the compensated feed; a media runs up to %.1f s of contact against the "
+             "%.1f s limit", float(settled.age.max()), settled.limit)
+    return retimed(settled.factor), settled
 
 
 def program_lines(fmt: str, n: int, indent: str = "  ") -> list[str]:
