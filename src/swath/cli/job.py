@@ -315,8 +315,12 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
                                sampling=settings.removal_sampling, force=None if force is None else force.force,
                                progress=lambda d, n: say("simulating removal", d, n),
-                               rate_scale=process_stage.removal_rate_scale(trajectory, tool, settings))
+                               rate_scale=process_stage.removal_rate_scale(trajectory, tool, settings),
+                               holds=None if force is None else force.holds)
     timings["simulate_s"] = time.perf_counter() - t0
+    if force is not None and len(force.holds.get("dwell", ())):
+        # the marks the landings and lifts leave, each on its own
+        extra_metrics.update(process_stage.transient_metrics(trajectory, surface, tool, force, settings, removal))
     if worth_a_study(removal.metrics):
         # Uneven removal: would a softer pad, running the same programme, have removed more evenly?
         t0 = time.perf_counter()

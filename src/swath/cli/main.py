@@ -148,6 +148,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                                           "for the operator in the programs, between passes")
     w.add_argument("--media-change-loss", help="change the abrasive when its removal rate has fallen by this much, "
                                                "e.g. 20%% (needs a wear rate)")
+    w.add_argument("--pad-damping", help="the pad's viscous relaxation time, e.g. 10ms: with --force-control it "
+                                         "resists the landing at every pass start and lets go late on the lift "
+                                         "(default 0: elastic)")
     w.add_argument("--wear-compensation", action=argparse.BooleanOptionalAction, default=None,
                    help="slow the feed as the pad wears so that the removal stays as planned (default on when the "
                         "pad wears)")

@@ -42,3 +42,30 @@ def removal_rate_scale(trajectory, tool, settings):
 
     return media_schedule(trajectory, tool.wear_rate, every=settings.media_change,
                           loss=settings.media_change_loss).factor
+
+
+def transient_metrics(trajectory, surface, tool, trace, settings, removal) -> dict:
+    """Depth the landings and the lifts of a force-controlled run add on their own (m), from
+    ``trace.holds`` simulated on the job's removal samples: ``landing_depth_excess_m`` (deepest),
+    ``lift_depth_excess_m``, and the landing's share of the mean removal."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from ..simulate import simulate_removal
+
+    holds = trace.holds
+    out = {}
+    idle = replace(trajectory, contact=np.zeros(len(trajectory), bool))
+    spacing = removal.metrics.get("removal_sample_spacing_m")
+    for name, sel in (("landing", ~holds["lift"]), ("lift", holds["lift"])):
+        part = {k: np.asarray(v)[sel] for k, v in holds.items()}
+        if not len(part["dwell"]):
+            out[f"{name}_depth_excess_m"] = 0.0
+            continue
+        rm = simulate_removal(idle, surface, tool, sample_spacing=spacing, sampling=settings.removal_sampling,
+                              holds=part)
+        out[f"{name}_depth_excess_m"] = float(rm.depth.max())
+    mean = removal.metrics.get("removal_mean_m") or 0.0
+    out["landing_depth_excess_fraction"] = out["landing_depth_excess_m"] / mean if mean > 0 else math.nan
+    return out

@@ -115,6 +115,7 @@ class JobSettings:
     media_change: float | None = None          # s of contact per media
     media_change_loss: float | None = None     # change when the removal rate has fallen by this fraction
     wear_compensation: bool = True
+    pad_damping: float = 0.0                   # the pad's viscous relaxation time, s (force-control landings)
 
     def tool(self):
         """The job's tool from the settings alone (no calibration: see :func:`swath.cli.stages.job_tool`).
@@ -131,7 +132,8 @@ class JobSettings:
         return Tool(pad_radius=self.pad_radius, force=self.force, depression=self.depression,
                     stiffness=self.stiffness, motion=self.motion or "orbital",
                     reference_force=20.0 if self.depression_force is None else self.depression_force,
-                    pad_thickness=self.pad_thickness, wear_rate=self.wear_rate or 0.0, **kw)
+                    pad_thickness=self.pad_thickness, wear_rate=self.wear_rate or 0.0,
+                    damping_time=self.pad_damping, **kw)
 
     def constraints(self) -> list:
         """The trajectory constraints: the feed and whichever limits are on (by default all three of
@@ -286,6 +288,7 @@ SCHEMA: dict[str, Key] = {
     "media_change": Key("time", positive=True, off=True, hint="s, e.g. 300s"),
     "media_change_loss": Key("fraction", lo=0.01, hi=0.99, off=True),
     "wear_compensation": Key("bool"),
+    "pad_damping": Key("time", lo=0.0, hi=1.0, bare_max=1.0, hint="ms, e.g. 10ms"),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job

@@ -35,6 +35,10 @@ class Tool:
     pad_thickness : float or None
         Thickness of the compliant layer, m; when given, the pad must not press through it
         (``e < thickness``).
+    damping_time : float
+        The pad's viscous relaxation time ``η / k``, s (default 0: purely elastic): pressed at the
+        rate ``ḣ`` the pad carries ``k·(h + damping_time·ḣ)``, so it resists a fast landing and
+        lets go late on a fast lift (:mod:`swath.simulate.force`).
     wear_rate : float
         Pad (abrasive) wear, 1/s: the Preston coefficient falls as ``k_p(a) = preston · exp(−wear_rate · a)``
         with ``a`` the media's time in contact since it was fitted, s (default 0: no wear).
@@ -59,6 +63,7 @@ class Tool:
     reference_force: float = 20.0
     pad_thickness: float | None = None
     wear_rate: float = 0.0
+    damping_time: float = 0.0
     _k: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -70,6 +75,9 @@ class Tool:
                 raise InputError(f"tool {name} must be a positive finite number, got {value!r}")
         if not (isinstance(self.wear_rate, (int, float)) and math.isfinite(self.wear_rate) and self.wear_rate >= 0):
             raise InputError(f"pad wear rate must be a non-negative number (1/s), got {self.wear_rate!r}")
+        if not (isinstance(self.damping_time, (int, float)) and math.isfinite(self.damping_time)
+                and self.damping_time >= 0):
+            raise InputError(f"pad damping time must be a non-negative number (s), got {self.damping_time!r}")
         if self.motion not in ("orbital", "rotary"):
             raise InputError(f"tool motion must be 'orbital' or 'rotary', got {self.motion!r}")
         if self.stiffness is not None:
