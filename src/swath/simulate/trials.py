@@ -94,7 +94,7 @@ def _trial_track(R: float, feed: float, passes: int, sample_spacing: float, trac
     x0, x1, y = R, R + 2 * half, width / 2
     normal = np.array([[0.0, 0.0, 1.0]] * 2)
     forward = Pass(np.array([[x0, y, 0.0], [x1, y, 0.0]]), normal)
-    track = [forward if k % 2 == 0 else forward.reversed() for k in range(passes)]
+    track = tuple(forward if k % 2 == 0 else forward.reversed() for k in range(passes))
     return plate, time_path(ToolPath(plate, track, "trial"), [FeedLimit(feed)]), (x0, x1, y)
 
 
