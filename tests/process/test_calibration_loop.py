@@ -135,3 +135,34 @@ def test_closed_loop_on_simulated_trials_recovers_preston_and_wear(tmp_path, mot
         errors.append(pred.depth / truth.depth - 1)
     assert np.max(np.abs(errors)) < 0.05, errors
     assert math.isfinite(read_trials(filled).pad_age.sum())
+
+
+def test_make_plan_plans_with_the_tool_it_is_given():
+    """run_job builds the job's tool once (with the calibration) and make_plan plans with it: a
+    smaller pad given to make_plan lays more raster passes than the settings' own pad would."""
+    from swath.cli.job import make_plan
+    from swath.examples import flat_plate
+
+    settings = settings_from_mapping({"part": "example:plate", "out": "/tmp/unused"})
+    plate = flat_plate()
+    own = make_plan(plate, settings)
+    small = make_plan(plate, settings, tool=Tool(pad_radius=0.02))
+    assert len(small.passes) > len(own.passes)
+
+
+def test_swath_doe_refuses_an_existing_out_and_writes_the_tool_columns(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "trials.csv"
+    cmd = [sys.executable, "-m", "swath.cli", "doe", "--factor", "force=10N,20N,30N", "--factor",
+           "feed_m_per_s=0.02,0.05", "--fixed", "passes=3", "--out", str(out)]
+    assert subprocess.run(cmd, capture_output=True, text=True).returncode == 0
+    header = out.read_text().splitlines()[0].split(",")
+    assert {"spindle_speed_rpm", "orbit_radius_m", "pad_radius_m", "pad_age_s"} <= set(header)
+    out.write_text(out.read_text().replace(",,", ",2.1e-6,", 1))
+    measured = out.read_text()
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode != 0 and "--overwrite" in r.stderr and out.read_text() == measured
+    assert subprocess.run(cmd + ["--overwrite"], capture_output=True, text=True).returncode == 0
+    assert out.read_text() != measured
