@@ -107,6 +107,7 @@ def test_a_job_with_a_media_schedule_stops_every_program_for_the_operator(tmp_pa
                         "--wear-rate", "0.002/s", "--media-change", "10s", "--out", str(out)],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+    assert "without a unit suffix" not in r.stderr          # every new metric names its unit
     m = json.loads((out / "metrics.json").read_text())["metrics"]
     n = m["media_changes"]
     assert n >= 3 and len(m["media_change_times_s"]) == n and m["wear_compensation"]

@@ -59,6 +59,7 @@ def test_a_force_controlled_job_reports_the_landing_marks(tmp_path):
     r = subprocess.run([sys.executable, "-m", "swath.cli", "plan", "example:plate", "--spacing", "100mm",
                         "--force-control", "--pad-damping", "10ms", "--out", str(out)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+    assert "without a unit suffix" not in r.stderr          # every new metric names its unit
     m = json.loads((out / "metrics.json").read_text())["metrics"]
     assert m["landing_hold_time_s"] > 0 and m["lift_hold_time_s"] > 0
     assert 0 < m["landing_depth_excess_m"] < m["removal_max_m"]

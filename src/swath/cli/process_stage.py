@@ -28,7 +28,7 @@ def wear_stage(trajectory, tool, settings):
                "media_change_times_s": [float(t) for t in schedule.change_time],
                "media_change_limit_s": schedule.limit if math.isfinite(schedule.limit) else None,
                "media_age_max_s": float(schedule.age.max()) if len(schedule.age) else 0.0,
-               "wear_factor_min": float(schedule.factor.min()) if len(schedule.factor) else 1.0,
+               "wear_removal_rate_min_fraction": float(schedule.factor.min()) if len(schedule.factor) else 1.0,
                "wear_compensation": bool(compensate),
                "wear_compensation_added_time_s": float(trajectory.duration - before)}
     return trajectory, schedule, metrics
