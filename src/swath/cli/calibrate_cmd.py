@@ -55,10 +55,13 @@ def run_calibrate(args) -> int:
         write_calibration(tmp / "calibration.json", cal)
         write_force_plots(tmp, calibration=cal, trials=trials)
     if not args.quiet:
+        tool = cal.metadata.get("tool", {})
         for fit in cal.fits.values():
+            wear = (f", pad wear {fit.wear_rate:.4g} 1/s ({fit.wear_rate_interval[0]:.4g} .. "
+                    f"{fit.wear_rate_interval[1]:.4g}), k_p of fresh media" if fit.error_model == "wear" else "")
             print(f"grit {fit.grit}: k_p = {fit.preston:.4g} 1/Pa ({100 * confidence:.0f} % interval "
-                  f"{fit.preston_low:.4g} .. {fit.preston_high:.4g}) from {fit.n_trials} trials "
-                  f"-> {Path(args.out) / 'calibration.json'}")
+                  f"{fit.preston_low:.4g} .. {fit.preston_high:.4g}){wear} from {fit.n_trials} trials "
+                  f"({tool.get('motion', 'unstated')} pad) -> {Path(args.out) / 'calibration.json'}")
     return 0
 
 
