@@ -312,11 +312,11 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["force_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    wear_and_holds = {"rate_scale": process_stage.removal_rate_scale(trajectory, tool, settings),
+                      "holds": None if force is None else force.holds}
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
                                sampling=settings.removal_sampling, force=None if force is None else force.force,
-                               progress=lambda d, n: say("simulating removal", d, n),
-                               rate_scale=process_stage.removal_rate_scale(trajectory, tool, settings),
-                               holds=None if force is None else force.holds)
+                               progress=lambda d, n: say("simulating removal", d, n), **wear_and_holds)
     timings["simulate_s"] = time.perf_counter() - t0
     if force is not None and len(force.holds.get("dwell", ())):
         # the marks the landings and lifts leave, each on its own
@@ -326,7 +326,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         t0 = time.perf_counter()
         say("comparing with a softer pad", 0, 1)
         study = softer_pad_study(trajectory, surface, tool, removal, sampling=settings.removal_sampling,
-                                 force=None if force is None else force.force)
+                                 force=None if force is None else force.force, **wear_and_holds)
         if study is not None:
             extra_metrics.update(study)
         timings["pad_study_s"] = time.perf_counter() - t0
