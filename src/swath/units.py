@@ -32,7 +32,9 @@ _KINDS: dict[str, dict[str, float]] = {
     "angular_speed": {"rad/s": 1.0, "deg/s": math.pi / 180.0},
     "stiffness": {"Pa/m": 1.0, "N/m3": 1.0, "MPa/m": 1e6, "kPa/m": 1e3, "N/mm3": 1e9},
     "fraction": {"%": 0.01, "": 1.0},
-    "frequency": {"Hz": 1.0, "rpm": 1.0 / 60.0},
+    "frequency": {"Hz": 1.0, "rpm": 1.0 / 60.0, "1/s": 1.0, "/s": 1.0, "1/min": 1.0 / 60.0, "/min": 1.0 / 60.0,
+                  "1/h": 1.0 / 3600.0, "/h": 1.0 / 3600.0},
+    "time": {"s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0},
     "mass": {"kg": 1.0, "g": 1e-3, "lb": 0.45359237},
 }
 
@@ -120,5 +122,5 @@ def _example(kind: str) -> str:
     return {
         "length": "'38.1mm'", "force": "'20N'", "speed": "'50mm/s'", "acceleration": "'2m/s2'",
         "angle": "'15deg'", "angular_speed": "'1rad/s'", "stiffness": "'4.4MPa/m'", "fraction": "'10%'",
-        "frequency": "'6000rpm'",
+        "frequency": "'6000rpm'", "time": "'300s'",
     }[kind]

@@ -50,20 +50,26 @@ def _warning_texts() -> list[tuple[str, str]]:
         rel = path.relative_to(SRC.parent)
         for fn in [n for n in ast.walk(tree) if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))]:
             names: dict[str, str] = {}
+            every: dict[str, list[str]] = {}        # a name given different messages on different branches
             for node in ast.walk(fn):
                 if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
                     text = _skeleton(node.value, {})
                     if text is not None:
                         names[node.targets[0].id] = text
+                        every.setdefault(node.targets[0].id, []).append(text)
             lists_of_warnings = fn.name.endswith("warnings")
             for node in ast.walk(fn):
                 where = f"{rel}:{getattr(node, 'lineno', 0)}"
                 if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "warning"
                         and isinstance(node.func.value, ast.Name) and node.func.value.id in LOGGERS and node.args):
                     text = _skeleton(node.args[0], names)
+                    message = node.args[0]
                     if text is not None and re.fullmatch(r"[\w ]*:?\s*%s", text) and len(node.args) > 1:
-                        text = _skeleton(node.args[1], names)       # "%s" passes a message on
-                    if text is not None:
+                        message = node.args[1]                      # "%s" passes a message on
+                        text = _skeleton(message, names)
+                    if isinstance(message, ast.Name) and len(every.get(message.id, [])) > 1:
+                        found += [(where, alt) for alt in every[message.id]]
+                    elif text is not None:
                         found.append((where, text))
                 elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
                         and node.func.attr == "append" and node.args and (lists_of_warnings or (

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -11,7 +12,8 @@ from ..errors import InputError
 
 def add_calibrate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("trials", help="trials CSV (columns: trial, grit, force_N, spindle_speed_rpm, orbit_radius_m, "
-                                  "pad_radius_m, feed_m_per_s, passes, depth_m; see swath.simulate.calibrate)")
+                                  "pad_radius_m, feed_m_per_s, passes, depth_m, pad_age_s; see "
+                                  "swath.simulate.calibrate)")
     p.add_argument("--fit-exponents", action="store_true", help="also fit the pressure and speed exponents")
     p.add_argument("--error-model", default="relative", choices=["relative", "absolute"],
                    help="how the depth measurement error scales")
@@ -29,7 +31,13 @@ def add_doe_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", help="shuffle the run order with this seed (default: standard order)")
     p.add_argument("--fixed", action="append", default=[],
                    help="a column every run shares, e.g. passes=3 or feed_m_per_s=0.05")
-    p.add_argument("--out", required=True, help="the trials template to write (CSV)")
+    p.add_argument("--out", required=True, help="the trials template to write (CSV); an existing file is refused")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing file at --out")
+    p.add_argument("--motion", default="orbital", choices=["orbital", "rotary"],
+                   help="the pad motion of the trials (as swath plan --motion)")
+    p.add_argument("--spindle-speed", default="10000rpm", help="pad (or orbit) speed of the trials, unless a factor")
+    p.add_argument("--orbit-radius", default="2.5mm", help="orbit of an orbital pad, unless a factor")
+    p.add_argument("--pad-radius", default="38.1mm", help="pad radius of the trials, unless a factor")
 
 
 def run_calibrate(args) -> int:
@@ -47,10 +55,13 @@ def run_calibrate(args) -> int:
         write_calibration(tmp / "calibration.json", cal)
         write_force_plots(tmp, calibration=cal, trials=trials)
     if not args.quiet:
+        tool = cal.metadata.get("tool", {})
         for fit in cal.fits.values():
+            wear = (f", pad wear {fit.wear_rate:.4g} 1/s ({fit.wear_rate_interval[0]:.4g} .. "
+                    f"{fit.wear_rate_interval[1]:.4g}), k_p of fresh media" if fit.error_model == "wear" else "")
             print(f"grit {fit.grit}: k_p = {fit.preston:.4g} 1/Pa ({100 * confidence:.0f} % interval "
-                  f"{fit.preston_low:.4g} .. {fit.preston_high:.4g}) from {fit.n_trials} trials "
-                  f"-> {Path(args.out) / 'calibration.json'}")
+                  f"{fit.preston_low:.4g} .. {fit.preston_high:.4g}){wear} from {fit.n_trials} trials "
+                  f"({tool.get('motion', 'unstated')} pad) -> {Path(args.out) / 'calibration.json'}")
     return 0
 
 
@@ -71,8 +82,14 @@ def run_doe(args) -> int:
     except ValueError:
         raise InputError(f"--replicates and --seed must be whole numbers, got {args.replicates!r}, {args.seed!r}") \
             from None
+    from ..contact import Tool
+    from ..units import parse_quantity
+
+    tool = Tool(pad_radius=parse_quantity(args.pad_radius, "length"), motion=args.motion,
+                spindle_speed=parse_quantity(args.spindle_speed, "frequency", default_unit="rpm") * 2 * math.pi,
+                orbit_radius=parse_quantity(args.orbit_radius, "length"))
     path = write_doe(args.out, factors, generators=generators or None, replicates=replicates, seed=seed,
-                     fixed=fixed or None)
+                     fixed=fixed or None, tool=tool, overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {path}: fill in depth_m for each run, then: swath calibrate {path} --out cal/", file=sys.stdout)
     return 0

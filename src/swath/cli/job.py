@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 import json
 import logging
+import math
 import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
@@ -177,24 +178,27 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     return options
 
 
-def make_plan(surface, settings: JobSettings, *, progress=None):
+def make_plan(surface, settings: JobSettings, *, progress=None, tool=None):
     """Run the job's planner on ``surface`` and order its passes; returns a ToolPath.
-    ``progress(stage, done, total)`` hears about long planning steps."""
+    ``progress(stage, done, total)`` hears about long planning steps; ``tool`` is the job's tool
+    (default :func:`swath.cli.stages.job_tool`, built from the settings and the calibration)."""
     from ..order import order_toolpath, route_links
     from ..plan import get_planner
+    from .stages import job_tool
 
+    tool = job_tool(settings) if tool is None else tool
     planner = get_planner(settings.planner)
     arguments = planner_arguments(settings, progress=progress)
     if settings.optimise_spacing:
         from .stages import spacing_plan
 
-        toolpath = spacing_plan(surface, settings.tool(), planner, settings, arguments)
+        toolpath = spacing_plan(surface, tool, planner, settings, arguments)
     elif settings.segment == "auto":
         from .stages import segmented_plan
 
-        toolpath = segmented_plan(surface, settings.tool(), planner, settings, arguments)
+        toolpath = segmented_plan(surface, tool, planner, settings, arguments)
     else:
-        toolpath = planner(surface, settings.tool(), **arguments)
+        toolpath = planner(surface, tool, **arguments)
     ordered = order_toolpath(toolpath, method=order_method(toolpath, settings), **order_options(toolpath, settings))
     return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius)
 
@@ -256,7 +260,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
     from ..trajectory.timing import describe_lead
-    from . import stages
+    from . import process_stage, stages
     from .guard import check_budget
 
     say = progress or (lambda stage, done, total: None)
@@ -277,7 +281,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     say(f"planning ({settings.planner})", 0, 1)
-    toolpath = make_plan(surface, settings, progress=say)
+    toolpath = make_plan(surface, settings, progress=say, tool=tool)
     timings["plan_s"] = time.perf_counter() - t0
     log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
 
@@ -293,6 +297,12 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory, surface, progress=say)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
+    if process_stage.wants_wear_stage(tool, settings):
+        t0 = time.perf_counter()
+        say("pad wear and media changes", 0, 1)
+        trajectory, _, wear_metrics = process_stage.wear_stage(trajectory, tool, settings)
+        extra_metrics.update(wear_metrics)
+        timings["wear_s"] = time.perf_counter() - t0
     if settings.robot or settings.cell:
         t0 = time.perf_counter()
         say(f"robot: inverse kinematics for {settings.robot or 'the cell file robot'}", 0, 1)
@@ -308,16 +318,21 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["force_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    wear_and_holds = {"rate_scale": process_stage.removal_rate_scale(trajectory, tool, settings),
+                      "holds": None if force is None else force.holds}
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
                                sampling=settings.removal_sampling, force=None if force is None else force.force,
-                               progress=lambda d, n: say("simulating removal", d, n))
+                               progress=lambda d, n: say("simulating removal", d, n), **wear_and_holds)
     timings["simulate_s"] = time.perf_counter() - t0
+    if force is not None and len(force.holds.get("dwell", ())):
+        # the marks the landings and lifts leave, each on its own
+        extra_metrics.update(process_stage.transient_metrics(trajectory, surface, tool, force, settings, removal))
     if worth_a_study(removal.metrics):
         # Uneven removal: would a softer pad, running the same programme, have removed more evenly?
         t0 = time.perf_counter()
         say("comparing with a softer pad", 0, 1)
         study = softer_pad_study(trajectory, surface, tool, removal, sampling=settings.removal_sampling,
-                                 force=None if force is None else force.force)
+                                 force=None if force is None else force.force, **wear_and_holds)
         if study is not None:
             extra_metrics.update(study)
         timings["pad_study_s"] = time.perf_counter() - t0
@@ -330,6 +345,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics.update(extra_metrics)
     if settings.calibration:
         metrics["preston_coefficient_per_Pa"] = tool.preston
+    metrics.update(tool_motion=tool.motion, spindle_speed_rpm=tool.spindle_speed * 60 / (2 * math.pi),
+                   orbit_radius_m=tool.orbit_radius if tool.motion == "orbital" else 0.0,
+                   pad_depression_on_flat_m=tool.flat_depression)
     # FORMATS.md: a deliberate tilt of the tool is stated in the job's metadata
     metrics["lead_angle_rad"] = settings.lead()
     metrics["tool_tilt"] = describe_lead(settings.lead())
@@ -343,6 +361,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     for w in metrics["warnings"]:
         log.warning("%s", w)
     record = settings.as_record()
+    record.update(motion=tool.motion, spindle_speed_rad_per_s=tool.spindle_speed, orbit_radius_m=tool.orbit_radius,
+                  preston_coefficient_per_Pa=tool.preston, wear_rate_per_s=tool.wear_rate)
     record["plan"] = dict(toolpath.metadata)
 
     say("writing report", 0, 1)

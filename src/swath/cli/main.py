@@ -51,9 +51,12 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--pad-radius", default="38.1mm", help="pad radius, e.g. 38.1mm (default: 3-inch pad)")
     p.add_argument("--force", default="20N", help="normal force, e.g. 20N")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--depression", help="pad depression on a flat surface at the set force (default 1mm)")
+    g.add_argument("--depression", help="the pad's depression on a flat surface at a stated force, e.g. 1mm@20N; a "
+                                        "bare 1mm is at 20 N, and the set --force then presses this pad deeper or "
+                                        "shallower (default 1mm@20N)")
     g.add_argument("--stiffness", help="pad foundation stiffness, e.g. 4.4MPa/m")
-    p.add_argument("--motion", default="orbital", choices=["orbital", "rotary"], help="pad motion")
+    p.add_argument("--motion", choices=["orbital", "rotary"],
+                   help="pad motion (default orbital, or the motion the --calibration was measured with)")
     p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s")
     p.add_argument("--spacing", help="pass spacing, e.g. 60mm (default: full coverage from the contact model)")
     p.add_argument("--direction", "--angle", dest="direction", default="auto",
@@ -145,6 +148,25 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="with --force-control: do not subtract the tool's weight from the measured force")
     f.add_argument("--calibration", help="a Preston calibration file written by swath calibrate (sets k_p)")
     f.add_argument("--grit", help="with --calibration: which grit's fit to use (default: the only or first)")
+    w = p.add_argument_group("process: pad, kinematics, wear and media changes")
+    w.add_argument("--pad-thickness", help="thickness of the pad's compliant layer, e.g. 10mm: refuses a force that "
+                                           "presses through it")
+    w.add_argument("--spindle-speed", help="pad (or orbit) speed, e.g. 10000rpm (default 10000rpm, or the "
+                                           "calibration's)")
+    w.add_argument("--orbit-radius", help="orbit eccentricity of an orbital pad, e.g. 2.5mm (default 2.5mm, or the "
+                                          "calibration's)")
+    w.add_argument("--wear-rate", help="pad wear: the removal rate falls as exp(-rate * time in contact), e.g. "
+                                       "0.001/s (default 0, or the calibration's)")
+    w.add_argument("--media-change", help="change the abrasive every this much time in contact, e.g. 300s: a pause "
+                                          "for the operator in the programs, between passes")
+    w.add_argument("--media-change-loss", help="change the abrasive when its removal rate has fallen by this much, "
+                                               "e.g. 20%% (needs a wear rate)")
+    w.add_argument("--pad-damping", help="the pad's viscous relaxation time, e.g. 10ms: with --force-control it "
+                                         "resists the landing at every pass start and lets go late on the lift "
+                                         "(default 0: elastic)")
+    w.add_argument("--wear-compensation", action=argparse.BooleanOptionalAction, default=None,
+                   help="slow the feed as the pad wears so that the removal stays as planned (default on when the "
+                        "pad wears)")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):

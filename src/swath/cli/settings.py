@@ -50,7 +50,7 @@ class JobSettings:
     force: float = 20.0
     depression: float | None = None
     stiffness: float | None = None
-    motion: str = "orbital"
+    motion: str | None = None                  # None: orbital, or the motion the calibration was measured with
     feed: float = 0.05
     spacing: float | None = None
     direction: float | None = None
@@ -113,12 +113,35 @@ class JobSettings:
     allow_collisions: bool = False
     tip: str | None = None
     keep_out: float | None = None
+    # process model: the pad as a shop knows it (depression at a stated force, thickness), its
+    # kinematics, wear and media changes (swath.process)
+    depression_force: float | None = None      # the force `depression` was measured at (None: 20 N)
+    pad_thickness: float | None = None
+    spindle_speed: float | None = None         # rad/s; None: 10 000 rpm or the calibration's
+    orbit_radius: float | None = None          # m; None: 2.5 mm or the calibration's
+    wear_rate: float | None = None             # 1/s; None: no wear, or the calibration's
+    media_change: float | None = None          # s of contact per media
+    media_change_loss: float | None = None     # change when the removal rate has fallen by this fraction
+    wear_compensation: bool = True
+    pad_damping: float = 0.0                   # the pad's viscous relaxation time, s (force-control landings)
 
     def tool(self):
+        """The job's tool from the settings alone (no calibration: see :func:`swath.cli.stages.job_tool`).
+
+        A bare ``depression`` is the pad's depression at the reference force 20 N (or at
+        ``depression_force``); the set ``force`` then presses that pad deeper or shallower."""
         from ..contact import Tool
 
+        kw = {}
+        if self.spindle_speed is not None:
+            kw["spindle_speed"] = self.spindle_speed
+        if self.orbit_radius is not None:
+            kw["orbit_radius"] = self.orbit_radius
         return Tool(pad_radius=self.pad_radius, force=self.force, depression=self.depression,
-                    stiffness=self.stiffness, motion=self.motion)
+                    stiffness=self.stiffness, motion=self.motion or "orbital",
+                    reference_force=20.0 if self.depression_force is None else self.depression_force,
+                    pad_thickness=self.pad_thickness, wear_rate=self.wear_rate or 0.0,
+                    damping_time=self.pad_damping, **kw)
 
     def constraints(self) -> list:
         """The trajectory constraints: the feed and whichever limits are on (by default all three of
@@ -154,7 +177,10 @@ class JobSettings:
             "segment": self.segment, "removal_sampling": self.removal_sampling,
             "pad_radius_m": self.pad_radius, "force_N": self.force,
             "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
-            "motion": self.motion, "feed_m_per_s": self.feed, "spacing_m": self.spacing,
+            "pad_depression_m": tool.depression_at(tool.reference_force),
+            "pad_depression_reference_force_N": tool.reference_force, "pad_thickness_m": self.pad_thickness,
+            "spindle_speed_rad_per_s": tool.spindle_speed, "orbit_radius_m": tool.orbit_radius,
+            "motion": tool.motion, "feed_m_per_s": self.feed, "spacing_m": self.spacing,
             "direction_rad": self.direction, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
             "max_centripetal_m_per_s2": self.max_centripetal, "max_angular_rad_per_s": self.max_angular,
             "max_accel_m_per_s2": self.max_accel, "overlap_fraction": self.overlap,
@@ -172,6 +198,9 @@ class JobSettings:
             record.update(optimise_feed=self.optimise_feed, optimise_spacing=self.optimise_spacing,
                           target_depth_m=self.target_depth, target_map=self.target_map,
                           depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
+        if self.wear_rate or self.media_change or self.media_change_loss:
+            record.update(wear_rate_per_s=self.wear_rate, media_change_s=self.media_change,
+                          media_change_loss_fraction=self.media_change_loss, wear_compensation=self.wear_compensation)
         if self.robot:
             record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
                           place=self.place, table_z_m=self.table_z, cell=self.cell,
@@ -263,6 +292,15 @@ SCHEMA: dict[str, Key] = {
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
     "cell": Key("path"), "allow_collisions": Key("bool"),
     "tip": Key("str"), "keep_out": Key("length", lo=0.0, hi=5.0, bare_max=5.0, hint="mm, e.g. 400mm"),
+    "depression_force": Key("force", positive=True, hi=1e4, bare_max=1e4),
+    "pad_thickness": Key("length", positive=True, hi=0.5, bare_max=0.5, hint="mm, e.g. 10mm"),
+    "spindle_speed": Key("frequency", positive=True, bare_max=0.0, hint="rpm, e.g. 10000rpm"),
+    "orbit_radius": Key("length", lo=0.0, hi=0.1, bare_max=0.1, hint="mm, e.g. 2.5mm"),
+    "wear_rate": Key("frequency", lo=0.0, hint="1/s, e.g. 0.001/s"),
+    "media_change": Key("time", positive=True, off=True, hint="s, e.g. 300s"),
+    "media_change_loss": Key("fraction", lo=0.01, hi=0.99, off=True),
+    "wear_compensation": Key("bool"),
+    "pad_damping": Key("time", lo=0.0, hi=1.0, bare_max=1.0, hint="ms, e.g. 10ms"),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job
@@ -369,6 +407,12 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
             continue
         name = str(key).replace("-", "_")
         name = ALIASES.get(name, name)
+        if name == "depression" and isinstance(value, str) and "@" in value:
+            # "1mm@20N": the pad's depression on flat at a stated force
+            value, _, at = value.partition("@")
+            if "depression_force" in values or "depression-force" in values:
+                raise InputError(f"{key} states its force after '@' and depression_force is given too; give it once")
+            kwargs["depression_force"] = parse_value(f"{key} (the force after '@')", at.strip(), SCHEMA["depression_force"])
         spec = SCHEMA.get(name)
         if spec is None:
             close = difflib.get_close_matches(name, list(SCHEMA) + list(ALIASES), n=1)
@@ -384,6 +428,8 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
                 kwargs[k] = str(base_dir / p)
     if "units" in kwargs:
         kwargs["units"] = canonical_length_unit(kwargs["units"])
+    if kwargs.get("spindle_speed") is not None:
+        kwargs["spindle_speed"] *= 2.0 * math.pi          # revolutions per second -> rad/s
     if kwargs.get("order") is not None and kwargs["order"] not in _orders():
         raise InputError(f"unknown order {kwargs['order']!r}; choose one of {', '.join(_orders())}")
     if kwargs.get("join_gap") is not None and kwargs.get("order") in ("snake", "zigzag", "index"):

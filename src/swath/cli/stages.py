@@ -14,12 +14,21 @@ log = logging.getLogger(__name__)
 
 
 def job_tool(settings):
-    """The job's Tool, with the Preston coefficient of ``settings.calibration`` when one is given."""
+    """The job's Tool, built once: the pad and force of the settings, with the Preston coefficient,
+    wear rate and the kinematics (motion, spindle speed, orbit) of ``settings.calibration`` where
+    the user did not give them (:func:`swath.simulate.calibrate.calibrated_tool`)."""
+    from ..errors import InputError
+
     tool = settings.tool()
     if settings.calibration:
-        from ..simulate.calibrate import tool_with_calibration
+        from ..simulate.calibrate import calibrated_tool
 
-        tool = tool_with_calibration(tool, settings.calibration, grit=settings.grit)
+        tool = calibrated_tool(tool, settings.calibration, grit=settings.grit, motion=settings.motion,
+                               spindle_speed=settings.spindle_speed, orbit_radius=settings.orbit_radius,
+                               wear_rate=settings.wear_rate)
+    if settings.media_change_loss is not None and not tool.wear_rate > 0:
+        raise InputError("--media-change-loss needs a pad that wears: give --wear-rate, or a --calibration fitted "
+                         "from trials with pad_age_s")
     return tool
 
 

@@ -123,15 +123,19 @@ def calibration_figure(calibration, trials, *, confidence: float | None = None):
         colour = f"C{c % 10}"
         level = fit.confidence if confidence is None else confidence
         if fit.linear:
-            order = np.argsort(X[sel])
+            # a fit with pad wear: the exposure of each trial at its media's cut, X · exp(−λ a)
+            Xs = X[sel] * (np.exp(-fit.wear_rate * np.nan_to_num(sub.pad_age)) if fit.error_model == "wear" else 1.0)
+            order = np.argsort(Xs)
             grid = sub.subset(order)
             d, lo, hi, plo, phi = fit.predict(grid, confidence=level)
-            xs = X[sel][order]
+            xs = Xs[order]
+            wear = f", wear {fit.wear_rate:.3g} 1/s" if fit.error_model == "wear" else ""
             ax.plot(xs, d * 1e6, color=colour, lw=1.2,
-                    label=f"grit {grit}: k_p = {fit.preston:.3g} 1/Pa [{fit.preston_low:.3g}, {fit.preston_high:.3g}]")
+                    label=f"grit {grit}: k_p = {fit.preston:.3g} 1/Pa [{fit.preston_low:.3g}, {fit.preston_high:.3g}]"
+                          + wear)
             ax.fill_between(xs, lo * 1e6, hi * 1e6, color=colour, alpha=0.25, lw=0)
             ax.fill_between(xs, plo * 1e6, phi * 1e6, color=colour, alpha=0.08, lw=0)
-            ax.plot(X[sel], sub.depth * 1e6, "o", ms=4, color=colour)
+            ax.plot(Xs, sub.depth * 1e6, "o", ms=4, color=colour)
         else:
             d, lo, hi, plo, phi = fit.predict(sub, confidence=level)
             ax.errorbar(X[sel], d * 1e6, yerr=[(d - plo) * 1e6, (phi - d) * 1e6], fmt="none", ecolor=colour,
@@ -140,7 +144,8 @@ def calibration_figure(calibration, trials, *, confidence: float | None = None):
                     label=f"grit {grit}: k_p = {fit.preston:.3g}, a = {fit.pressure_exponent:.2f}, "
                           f"b = {fit.speed_exponent:.2f}")
             ax.plot(X[sel], d * 1e6, "x", ms=4, color=colour)
-    ax.set_xlabel("Preston exposure  passes · p · ∫v dt  (Pa·m)")
+    worn = any(f.error_model == "wear" for f in calibration.fits.values())
+    ax.set_xlabel("Preston exposure  passes · p · ∫v dt" + ("  · exp(−λ · pad age)" if worn else "") + "  (Pa·m)")
     ax.set_ylabel("centre-line depth (µm)")
     level = next(iter(calibration.fits.values())).confidence if confidence is None else confidence
     ax.set_title(f"Preston fit: line, {100 * level:.0f} % confidence band (dark) and prediction band (light)",

@@ -65,6 +65,7 @@ _SUFFIXES: dict[tuple[str, ...], tuple[str, str, str | None]] = {
     ("n", "per", "m"): ("N/m", "plain", None),
     ("m3", "per", "s"): ("m³/s", "plain", None),
     ("per", "pa"): ("1/Pa", "plain", None),
+    ("per", "s"): ("1/s", "plain", None),           # a rate, e.g. the pad's wear rate
     ("m",): ("m", "length", None),
     ("m2",): ("m²", "area", None),
     ("m3",): ("m³", "volume", None),

@@ -95,13 +95,26 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-REGISTER-ILL-POSED", r"pose is poorly determined",
           "The surface can nearly slide on itself (a plane, a cylinder): the pose is uncertain along that motion.",
           "Use `--table` (the perimeter fixes the slide) or check the pose against features.", "fit"),
-    entry("W-REGISTER-AMBIGUOUS", r"another pose .* fits almost as well",
+    entry("W-REGISTER-FEW-INLIERS", r"of the CAD points lie within",
+          "Fewer than 80 % of the CAD points lie near the scan after registration: the scan covers only part of "
+          "the CAD, or the two differ in shape.",
+          "Check `residuals.csv`; scan the whole part, or trust the pose only where the residuals are small.", "fit"),
+    entry("W-REGISTER-RMS", r"inlier rms .* of the part's size",
+          "The registered CAD and scan differ by more than 0.2 % of the part's size: the pose is a compromise "
+          "between two different shapes.",
+          "Check the residuals; when `--table` and the rigid mode disagree, trust the table answer.", "fit"),
+    entry("W-REGISTER-AMBIGUOUS", r"another pose .* fits (almost as well|within)",
           "A second, different pose fits the scan almost as well: the part may be symmetric.",
           "Check the pose in `register.html`; constrain it (`--table`) or give a closer initial pose.", "fit"),
     entry("W-REWORK-UNMEASURED", r"the scan measured only",
           "The rework scan covers less than half of the CAD: the unmeasured rest is taken as nominal.",
           "Check the placement (`--placement`, `--scan-units`) or scan the whole area to finish.", "fit"),
     # --- planning and ordering ------------------------------------------------------------------
+    entry("W-SPACING-GAP", r"the given spacing .* leaves .* untouched",
+          "The spacing you gave is kept (no fill passes are added), and it leaves this share of the part "
+          "untouched by the pressed pad.",
+          "Lower `--spacing`, leave it out for the full-coverage default, or add fill passes (`fill_gaps = true` "
+          "under `[planner_options]`).", "plan"),
     entry("W-RASTER-GAP", r"predicted to stay untouched",
           "The raster's planes and fill passes still leave part of the surface untouched.",
           "Lower `--spacing`, choose another `--direction`, or plan in regions (`--segment auto`).", "plan"),
@@ -215,6 +228,17 @@ CODES: dict[str, WarningCode] = dict([
           "The simulated tool found no contact within the search depth: the part is not where the plan "
           "expects it; the pass is skipped.",
           "Register the part (`swath register`) or check `--part-offset`.", "simulate"),
+    entry("W-CALIBRATION-NO-TOOL", r"does not state the tool its trials were run with",
+          "The calibration file was written before swath recorded the tool of the trials: the job's own tool is "
+          "used as it is, unchecked against the trials.",
+          "Calibrate again (`swath calibrate`) so the file states the tool.", "simulate"),
+    entry("W-CALIBRATION-OUTSIDE", r"lies outside the calibration's|differs from the calibration's trials",
+          "The job's spindle speed, orbit or pad radius lies outside what the calibration trials used: removal is "
+          "extrapolated by the model there.",
+          "Run trials at the job's settings (`swath doe`), or set the job to the calibrated tool.", "simulate"),
+    entry("W-CALIBRATION-AGE-IGNORED", r"pad_age_s is ignored",
+          "The trials record pad age, but a fit of the pressure and speed exponents does not fit wear too.",
+          "Fit with the exponents fixed to have the wear rate fitted.", "simulate"),
     entry("W-CALIBRATION-EXPONENTS", r"calibration exponents",
           "The calibration fits pressure and speed exponents; the removal model is linear and uses a Preston "
           "coefficient exact only at the nominal pressure and speed.",

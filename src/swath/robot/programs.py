@@ -21,6 +21,10 @@ Units and frames per format (the readers in :mod:`swath.robot.readers` parse the
 * ROS ``trajectory_msgs/JointTrajectory`` YAML — joint names, positions (rad), velocities (rad/s),
   ``time_from_start`` {secs, nsecs}.
 * ``joints.csv`` — ``t,q1..q6,contact,pass,branch`` (s, rad).
+
+Media changes (a ``media`` column on the trajectory, :mod:`swath.process.media`) stop the vendor
+programs for the operator (URScript ``popup``, RAPID ``TPWrite`` + ``Stop``, KRL ``HALT``, each after a
+comment); the ROS YAML lists them in comment lines at its top.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ import numpy as np
 
 from ..cell import Cell
 from ..io.atomic import write_text_atomic
+from ..process.media import media_header, media_stops
 from .models import RobotModel
 from .pose import (
     make_transform,
@@ -158,7 +163,9 @@ def urscript_text(data: ProgramInput) -> str:
     lines.append(f"  movej([{_fmt(sol.q[idx[0]], 8)}], a=0.5, v=0.3)")
     in_force = False
     ends = {s for s, e, p in segments(tr) if p} | {e - 1 for s, e, p in segments(tr) if p}
+    stops = media_stops("urscript", tr, idx)           # media changes (swath.process.media)
     for k, i in enumerate(idx):
+        lines += stops.get(k, [])
         c = bool(tr.contact[i]) and tr.pass_index[i] >= 0
         if k and sol.branch[i] != sol.branch[idx[k - 1]]:
             lines.append(f"  movej([{_fmt(sol.q[i], 8)}], a=0.5, v=0.3)  # branch switch")
@@ -219,7 +226,9 @@ def rapid_text(data: ProgramInput) -> str:
         lines.append(f"  CONST robtarget p{k} := [[{_fmt(tcp2part[k, :3, 3] * 1e3, 4)}],[{_fmt(quat[k], 9)}],"
                      f"[{','.join(str(int(c)) for c in conf[k])}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
     body = ["    MoveJ p0, v100, fine, tSwath\\WObj:=wSwath;"]
+    stops = media_stops("rapid", tr, idx, indent="    ")   # media changes (swath.process.media)
     for k, i in enumerate(idx[1:], start=1):
+        body += stops.get(k, [])
         v = round(max(float(tr.feed[i]), 1e-3) * 1e3, 1)
         name = speeds.setdefault(v, f"vSw{len(speeds)}")
         zone = "fine" if (i in ends or k == len(idx) - 1) else "z1"
@@ -270,7 +279,9 @@ def krl_texts(data: ProgramInput, name: str = "swath_job") -> tuple[str, str]:
     src = ["&ACCESS RVP", f"DEF {name}()", "  $BASE=BASE_SWATH", "  $TOOL=TOOL_SWATH", f"  $APO.CDIS={data.blend * 1e3:.3f}",
            "  PTP XP1"]
     last_v = None
+    stops = media_stops("krl", tr, idx)                # media changes (swath.process.media)
     for k, i in enumerate(idx[1:], start=2):
+        src += stops.get(k - 1, [])
         v = max(float(tr.feed[i]), 1e-3)
         if last_v is None or abs(v - last_v) > 1e-6:
             src.append(f"  $VEL.CP={v:.5f}")
@@ -297,7 +308,7 @@ def ros_yaml_text(data: ProgramInput) -> str:
         points.append({"positions": [float(v) for v in qi], "velocities": [float(v) for v in vi],
                        "time_from_start": {"secs": secs, "nsecs": round((ti - secs) * 1e9)}})
     msg = {"header": {"frame_id": "base_link"}, "joint_names": joint_names(data.model), "points": points}
-    return yaml.safe_dump(msg, sort_keys=False, default_flow_style=None)
+    return media_header(tr) + yaml.safe_dump(msg, sort_keys=False, default_flow_style=None)
 
 
 def joint_csv_text(data: ProgramInput) -> str:

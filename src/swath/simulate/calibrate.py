@@ -21,6 +21,8 @@ column                 required  meaning
 ``depth_m``            yes       measured centre-line depth after all passes, m (a blank cell marks
                                  a trial not yet run: the row is skipped)
 ``hardness_Pa``        no        hardness of the material, Pa (for Archard's dimensionless coefficient)
+``pad_age_s``          no        the media's time in contact at the middle of the trial, s (fresh
+                                 media: 0); given on every row, the pad wear rate is fitted too
 =====================  ========  ==================================================================
 
 Model
@@ -42,6 +44,21 @@ and its interval the Student-t interval (exact for normal errors proportional to
 ``"absolute"``: least squares through the origin, ``k_p = Σ X d / Σ X²``, Student-t interval with
 ``n − 1`` degrees of freedom (exact for normal errors of constant size).  Exponent fits: Gauss–Newton
 covariance ``s² (JᵀJ)⁻¹`` of the log-model, Student-t with ``n − 3`` degrees of freedom.
+
+Pad wear
+--------
+Abrasive cuts less as it wears: ``k_p(a) = k_p0 · exp(−λ a)`` with ``a`` the media's time in
+contact (:attr:`swath.contact.Tool.wear_rate` is ``λ``, 1/s).  With ``pad_age_s`` on every trial
+(and at least two distinct ages) the fit is ``log(d / X) = log k_p0 − λ a`` by least squares
+(relative errors), ``k_p0`` the fresh media's coefficient; its interval and ``λ``'s are Student-t
+with ``n − 2`` degrees of freedom.  A trial's depth is the mean of ``exp(−λ a)`` over the passes,
+which the age at its middle matches to ``(λ T)² / 24`` (``T`` the trial's time in contact).
+
+Tool record
+-----------
+The calibration file states the tool the trials were run with (``metadata["tool"]``: motion,
+spindle speed, orbit radius, pad radius, the force and feed ranges); :func:`calibrated_tool`
+builds a job's tool from it, refusing a job that runs the pad in another motion.
 
 Archard's wear law ``h = K/H · p · s`` (``s`` the sliding distance ``∫ v dτ``) gives the same
 profile under the same uniform pressure (Jaeger 6.2.2), so its dimensional wear coefficient
@@ -77,6 +94,7 @@ TRIAL_COLUMNS = {
     "passes": "passes over the same track",
     "depth_m": "measured centre-line depth after all passes, m",
     "hardness_Pa": "material hardness, Pa (optional, for Archard's coefficient)",
+    "pad_age_s": "the media's time in contact at the middle of the trial, s (optional, to fit pad wear)",
 }
 _REQUIRED = ("force_N", "spindle_speed_rpm", "feed_m_per_s", "passes", "depth_m")
 CALIBRATION_FORMAT = "swath-preston-calibration"
@@ -97,6 +115,7 @@ class Trials:
     passes : (n,) float
     depth : (n,) float          m
     hardness : (n,) float       Pa (NaN where not given)
+    pad_age : (n,) float        the media's time in contact at the trial's middle, s (NaN where not given)
     """
 
     grit: np.ndarray
@@ -108,6 +127,7 @@ class Trials:
     passes: np.ndarray
     depth: np.ndarray
     hardness: np.ndarray
+    pad_age: np.ndarray
 
     def __len__(self) -> int:
         return len(self.depth)
@@ -122,7 +142,7 @@ class Trials:
 
 
 def make_trials(*, force, spindle_speed, feed, passes, depth, pad_radius=0.0381, orbit_radius=0.0,
-                grit="all", hardness=math.nan) -> Trials:
+                grit="all", hardness=math.nan, pad_age=math.nan) -> Trials:
     """Trials from SI arrays (broadcast to a common length).
 
     Parameters
@@ -136,14 +156,16 @@ def make_trials(*, force, spindle_speed, feed, passes, depth, pad_radius=0.0381,
     orbit_radius : (n,) float     m (0 = rotary pad)
     grit : (n,) str               group label
     hardness : (n,) float         Pa
+    pad_age : (n,) float          the media's time in contact at the trial's middle, s
     """
     arrs: list[np.ndarray] = list(np.broadcast_arrays(np.asarray(force, float), np.asarray(spindle_speed, float), np.asarray(feed, float),
                                np.asarray(passes, float), np.asarray(depth, float), np.asarray(pad_radius, float),
-                               np.asarray(orbit_radius, float), np.asarray(hardness, float)))
+                               np.asarray(orbit_radius, float), np.asarray(hardness, float),
+                               np.asarray(pad_age, float)))
     n = arrs[0].shape[0] if arrs[0].ndim else 1
     arrs = [np.atleast_1d(a).astype(float).copy() for a in arrs]
     g = np.broadcast_to(np.asarray(grit, dtype=object), (n,)).astype(str)
-    t = Trials(g, arrs[0], arrs[1], arrs[6], arrs[5], arrs[2], arrs[3], arrs[4], arrs[7])
+    t = Trials(g, arrs[0], arrs[1], arrs[6], arrs[5], arrs[2], arrs[3], arrs[4], arrs[7], arrs[8])
     _validate(t)
     return t
 
@@ -158,6 +180,9 @@ def _validate(t: Trials) -> None:
             i = int(np.flatnonzero(bad)[0])
             raise InputError(f"trial {i + 1}: {name} must be a {'non-negative' if zero_ok else 'positive'} number, "
                              f"got {a[i]!r}")
+    bad = np.isfinite(t.pad_age) & (t.pad_age < 0)
+    if bad.any():
+        raise InputError(f"trial {int(np.flatnonzero(bad)[0]) + 1}: pad_age_s must be a time in contact >= 0 s")
     if np.any(t.orbit_radius >= t.pad_radius):
         raise InputError("orbit_radius_m must be smaller than the pad radius")
 
@@ -209,7 +234,8 @@ def read_trials(path, *, pad_radius: float = 0.0381) -> Trials:
     grit = np.array([(r.get("grit") or "").strip() or "all" for r in done], dtype=str)
     t = Trials(grit, col("force_N", math.nan), col("spindle_speed_rpm", math.nan) * (2 * math.pi / 60),
                col("orbit_radius_m", 0.0), col("pad_radius_m", pad_radius), col("feed_m_per_s", math.nan),
-               col("passes", math.nan), col("depth_m", math.nan), col("hardness_Pa", math.nan))
+               col("passes", math.nan), col("depth_m", math.nan), col("hardness_Pa", math.nan),
+               col("pad_age_s", math.nan))
     _validate(t)
     return t
 
@@ -264,6 +290,11 @@ class PrestonFit:
         Covariance of the fitted parameters (``k_p`` alone, or ``log k_p, a, b``).
     hardness : float
         Mean material hardness of the group, Pa (NaN if not given).
+    wear_rate : float
+        Pad wear ``λ``, 1/s (0 unless fitted from ``pad_age_s``); ``preston`` is then the fresh
+        media's ``k_p0``.
+    wear_rate_interval : (2,) float
+        Its interval at ``confidence`` (NaN unless fitted).
     """
 
     grit: str
@@ -281,6 +312,8 @@ class PrestonFit:
     dof: int = 0
     covariance: tuple = ()
     hardness: float = math.nan
+    wear_rate: float = 0.0
+    wear_rate_interval: tuple = (math.nan, math.nan)
 
     @property
     def linear(self) -> bool:
@@ -306,6 +339,14 @@ class PrestonFit:
         level = self.confidence if confidence is None else confidence
         tq = stats.t.ppf(0.5 + level / 2, self.dof) if self.dof > 0 else math.inf
         cov = np.asarray(self.covariance, float)
+        if self.error_model == "wear":
+            age = np.where(np.isfinite(trials.pad_age), trials.pad_age, 0.0)
+            J = np.column_stack([np.ones(len(trials)), -age])
+            mu = math.log(self.preston) - self.wear_rate * age + np.log(exposure(trials))
+            var = np.einsum("ij,jk,ik->i", J, cov, J)
+            sd, sp = np.sqrt(var), np.sqrt(var + self.residual_std**2)
+            d = np.exp(mu)
+            return d, np.exp(mu - tq * sd), np.exp(mu + tq * sd), np.exp(mu - tq * sp), np.exp(mu + tq * sp)
         if self.error_model == "log":
             theta = np.array([math.log(self.preston), self.pressure_exponent, self.speed_exponent])
             mu = _log_model(theta, trials)
@@ -396,11 +437,38 @@ def calibrate(trials, *, fit_exponents: bool = False, error_model: str = "relati
     fits = {}
     for grit in sorted(set(trials.grit.tolist()), key=_grit_key):
         sub = trials.subset(trials.grit == grit)
-        fits[grit] = (_fit_log(sub, grit, confidence) if fit_exponents
-                      else _fit_linear(sub, grit, confidence, error_model))
+        aged = bool(np.all(np.isfinite(sub.pad_age))) and len(np.unique(np.round(sub.pad_age, 6))) >= 2
+        if fit_exponents:
+            if aged:
+                log.warning("grit %s: pad_age_s is ignored when the exponents are fitted (no wear fit)", grit)
+            fits[grit] = _fit_log(sub, grit, confidence)
+        elif aged:
+            fits[grit] = _fit_wear(sub, grit, confidence)
+        else:
+            fits[grit] = _fit_linear(sub, grit, confidence, error_model)
     meta = {"source": source, "n_trials": len(trials), "fit_exponents": bool(fit_exponents),
-            "error_model": "log" if fit_exponents else error_model, "confidence": confidence}
+            "error_model": "log" if fit_exponents else error_model, "confidence": confidence,
+            "tool": trials_tool_record(trials)}
     return Calibration(fits, meta)
+
+
+def trials_tool_record(trials: Trials) -> dict:
+    """The tool the trials were run with, for the calibration file (units in the key names).
+
+    ``motion`` is ``"orbital"`` (every trial has an orbit radius), ``"rotary"`` (none has) or
+    ``"mixed"``; the speeds, orbits and pad radii are the distinct values met; force and feed their
+    ranges."""
+    orbital = trials.orbit_radius > 0
+    motion = "orbital" if orbital.all() else "rotary" if not orbital.any() else "mixed"
+    uniq = lambda a: sorted({round(float(v), 12) for v in a})
+    return {"motion": motion,
+            "spindle_speed_rpm": uniq(trials.omega * 60.0 / (2 * math.pi)),
+            "orbit_radius_m": uniq(trials.orbit_radius[orbital]) if orbital.any() else [],
+            "pad_radius_m": uniq(trials.pad_radius),
+            "force_N": [float(trials.force.min()), float(trials.force.max())],
+            "feed_m_per_s": [float(trials.feed.min()), float(trials.feed.max())],
+            "pad_age_s": ([float(np.nanmin(trials.pad_age)), float(np.nanmax(trials.pad_age))]
+                          if np.isfinite(trials.pad_age).any() else None)}
 
 
 def _grit_key(g: str):
@@ -431,6 +499,30 @@ def _fit_linear(t: Trials, grit: str, level: float, model: str) -> PrestonFit:
         resid = s
     return PrestonFit(grit, k, k - tq * se, k + tq * se, level, n_trials=n, error_model=model, residual_std=resid,
                       dof=n - 1, covariance=((se * se,),), hardness=_mean_hardness(t))
+
+
+def _fit_wear(t: Trials, grit: str, level: float) -> PrestonFit:
+    """Fresh-media ``k_p0`` and wear rate ``λ`` from ``log(d / X) = log k_p0 − λ a`` (module docstring)."""
+    from scipy import stats
+
+    n = len(t)
+    if n < 3:
+        raise InputError(f"grit {grit}: fitting the pad wear needs at least 3 measured trials, got {n}")
+    y = np.log(t.depth / exposure(t))
+    A = np.column_stack([np.ones(n), -t.pad_age])
+    theta, *_ = np.linalg.lstsq(A, y, rcond=None)
+    r = y - A @ theta
+    dof = n - 2
+    s2 = float(r @ r) / dof
+    cov = s2 * np.linalg.inv(A.T @ A)
+    tq = stats.t.ppf(0.5 + level / 2, dof)
+    se = np.sqrt(np.diag(cov))
+    k = math.exp(theta[0])
+    return PrestonFit(grit, k, math.exp(theta[0] - tq * se[0]), math.exp(theta[0] + tq * se[0]), level,
+                      n_trials=n, error_model="wear", residual_std=math.sqrt(s2), dof=dof,
+                      covariance=tuple(map(tuple, cov.tolist())), hardness=_mean_hardness(t),
+                      wear_rate=float(theta[1]),
+                      wear_rate_interval=(float(theta[1] - tq * se[1]), float(theta[1] + tq * se[1])))
 
 
 def _fit_log(t: Trials, grit: str, level: float) -> PrestonFit:
@@ -499,6 +591,7 @@ def calibration_to_json(cal: Calibration) -> dict:
             hardness_pa=_finite(f.hardness),
             archard_wear_coefficient_m3_per_n_m=f.preston if f.linear else None,
             archard_coefficient=_finite(f.archard_coefficient),
+            wear_rate_per_s=f.wear_rate, wear_rate_interval_per_s=[_finite(v) for v in f.wear_rate_interval],
         )
         fits.append(entry)
     return {"format": CALIBRATION_FORMAT, "version": 1, "metadata": cal.metadata, "fits": fits}
@@ -535,7 +628,8 @@ def load_calibration(path) -> Calibration:
                 n_trials=int(e["n_trials"]), error_model=str(e["error_model"]), dof=int(e["dof"]),
                 covariance=tuple(tuple(float(x) for x in r) for r in e["covariance"]),
                 residual_std=float(e.get("residual_std_m", e.get("residual_std_relative", math.nan))),
-                hardness=nan(e.get("hardness_pa")))
+                hardness=nan(e.get("hardness_pa")), wear_rate=float(e.get("wear_rate_per_s", 0.0)),
+                wear_rate_interval=tuple(nan(v) for v in e.get("wear_rate_interval_per_s", [None, None])))
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"calibration {path} is malformed: {exc!r}") from exc
     if not fits or any(not (f.preston > 0) for f in fits.values()):
@@ -559,7 +653,60 @@ def tool_with_calibration(tool: Tool, calibration, *, grit: str | None = None) -
         k = f.preston * p0 ** (f.pressure_exponent - 1) * v0 ** (f.speed_exponent - 1)
         log.warning("calibration exponents a=%.3g, b=%.3g: removal uses k_p = %.4g 1/Pa, exact at %.4g Pa and %.4g m/s "
                     "only", f.pressure_exponent, f.speed_exponent, k, p0, v0)
-    return replace(tool, preston=float(k))
+    return replace(tool, preston=float(k), wear_rate=float(f.wear_rate) if f.wear_rate > 0 else tool.wear_rate)
+
+
+def calibrated_tool(tool: Tool, calibration, *, grit: str | None = None, motion: str | None = None,
+                    spindle_speed: float | None = None, orbit_radius: float | None = None,
+                    wear_rate: float | None = None) -> Tool:
+    """A job's tool built once from its settings and the calibration's tool record.
+
+    ``tool`` carries the job's pad and force; ``motion``, ``spindle_speed`` (rad/s),
+    ``orbit_radius`` (m) and ``wear_rate`` (1/s) are what the user gave (None: not given).  What
+    the user did not give comes from the calibration's tool (when its trials share one value), else
+    from ``tool``.  A job that runs the pad in another motion than the trials is refused (the
+    Preston coefficient of a rotary pad is not that of an orbital one in practice); a spindle speed
+    or orbit outside the trials' is accepted, converted by the model (removal ∝ relative speed),
+    with a warning that it extrapolates.
+    """
+    cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
+    rec = cal.metadata.get("tool")
+    kw: dict = {}
+    if not isinstance(rec, dict):
+        log.warning("the calibration file does not state the tool its trials were run with (written before swath "
+                    "recorded it): the job's own tool is used as is; recalibrate to have it checked")
+    else:
+        cal_motion = rec.get("motion")
+        if cal_motion == "mixed":
+            raise InputError("the calibration mixes orbital and rotary trials in one fit; calibrate each motion from "
+                             "its own trials")
+        if motion is not None and motion != cal_motion:
+            raise InputError(f"the calibration was measured with a {cal_motion} pad and the job runs it {motion}: "
+                             f"drop --motion (the job then runs {cal_motion}), or calibrate from {motion} trials")
+        kw["motion"] = cal_motion
+        speeds = [v * 2 * math.pi / 60.0 for v in rec.get("spindle_speed_rpm", [])]
+        orbits = list(rec.get("orbit_radius_m", []))
+        if spindle_speed is None and len(speeds) == 1:
+            kw["spindle_speed"] = speeds[0]
+        elif spindle_speed is not None and speeds and not min(speeds) * 0.999 <= spindle_speed <= max(speeds) * 1.001:
+            log.warning("spindle speed %.0f rpm lies outside the calibration's %.0f..%.0f rpm: removal scales with "
+                        "the relative speed by the model, untested there", spindle_speed * 60 / (2 * math.pi),
+                        min(speeds) * 60 / (2 * math.pi), max(speeds) * 60 / (2 * math.pi))
+        if cal_motion == "orbital":
+            if orbit_radius is None and len(orbits) == 1:
+                kw["orbit_radius"] = orbits[0]
+            elif orbit_radius is not None and orbits and not min(orbits) * 0.999 <= orbit_radius <= max(orbits) * 1.001:
+                log.warning("orbit radius %.3g mm lies outside the calibration's %.3g..%.3g mm: removal scales with "
+                            "the orbit by the model, untested there", orbit_radius * 1e3, min(orbits) * 1e3,
+                            max(orbits) * 1e3)
+        radii = rec.get("pad_radius_m", [])
+        if radii and not min(radii) * 0.999 <= tool.pad_radius <= max(radii) * 1.001:
+            log.warning("pad radius %.4g mm differs from the calibration's trials (%s mm)", tool.pad_radius * 1e3,
+                        ", ".join(f"{r * 1e3:.4g}" for r in radii))
+    out = tool_with_calibration(replace(tool, **kw), cal, grit=grit)
+    if wear_rate is not None:
+        out = replace(out, wear_rate=float(wear_rate))
+    return out
 
 
 @dataclass(frozen=True)
@@ -609,8 +756,11 @@ def predict_job_depth(depth, *, calibration: Calibration, preston_used: float, g
     tq = stats.t.ppf(0.5 + level / 2, f.dof)
     d = np.asarray(depth, float) * (f.preston / preston_used)
     se = math.sqrt(f.covariance[0][0])
-    rel = tq * se / f.preston
-    if f.error_model == "relative":
+    # a wear fit's covariance is of log k_p0: its standard error is already relative
+    rel = tq * (se if f.error_model == "wear" else se / f.preston)
+    if f.error_model == "wear":
+        relp = tq * math.sqrt(se**2 + f.residual_std**2)
+    elif f.error_model == "relative":
         relp = tq * math.sqrt((se / f.preston) ** 2 + f.residual_std**2)
     else:
         relp = rel

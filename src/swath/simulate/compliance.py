@@ -34,7 +34,7 @@ WARN_BELOW_SHARE = 0.8
 
 
 def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, factor: float = SOFTER_FACTOR,
-                     force=None, sampling: str = "mesh") -> dict | None:
+                     force=None, sampling: str = "mesh", rate_scale=None, holds=None) -> dict | None:
     """The removal CoV of ``trajectory`` run with a pad ``factor`` times as compliant.
 
     Parameters
@@ -53,6 +53,8 @@ def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, fa
         As given to :func:`simulate_removal` for the job.
     sampling : str
         As given to :func:`simulate_removal` for the job.
+    rate_scale, holds : optional
+        As given to :func:`simulate_removal` for the job (pad wear; landings and lifts).
 
     Returns
     -------
@@ -65,9 +67,10 @@ def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, fa
     e_soft = min(factor * e, MAX_DEPRESSION_SHARE * tool.pad_radius)
     if not e_soft > e * (1 + 1e-9):
         return None
-    soft = dataclasses.replace(tool, depression=e_soft, stiffness=None)
+    soft = dataclasses.replace(tool, depression=None, stiffness=tool.force / (e_soft * tool.pad_area))
     spacing = removal.metrics.get("removal_sample_spacing_m")
-    other = simulate_removal(trajectory, surface, soft, sample_spacing=spacing, sampling=sampling, force=force)
+    other = simulate_removal(trajectory, surface, soft, sample_spacing=spacing, sampling=sampling, force=force,
+                             rate_scale=rate_scale, holds=holds)
     return {"pad_depression_m": float(e), "softer_pad_depression_m": float(e_soft),
             "softer_pad_removal_cov": float(other.metrics["removal_cov"]),
             "softer_pad_removal_mean_m": float(other.metrics["removal_mean_m"])}

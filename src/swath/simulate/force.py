@@ -15,7 +15,16 @@ The planned trajectory puts the TCP on the planned surface; the robot runs it wi
 * an **initial contact phase** at the start of every pass: the tool starts ``clearance`` above the
   nominal sink and descends at ``approach_speed`` until the measured force passes a small
   threshold, then the set point ramps up to the set force over ``ramp_time``; the tool starts along
-  the pass only when the force has settled (Jaeger 5.3.2).
+  the pass only when the force has settled (Jaeger 5.3.2);
+* a **lift** at the end of every pass: the tool stops at the pass's last pose and retracts along
+  its axis at ``lift_speed`` until the pad lets go;
+* a **damped pad** (``Tool.damping_time`` ``τ_d``): pressed at the rate ``δ̇`` the pad carries
+  ``F(δ) + τ_d · F'(δ) · δ̇`` (Kelvin–Voigt over the contact patch, never pulling), which resists
+  the landing and lets go late on the lift.
+
+Both transients hold the tool still on one spot while the force builds up and dies away: the
+removal they cause (the mark where a pad lands) is in :attr:`ForceTrace.holds`, poses with a
+dwell and a force each that :func:`swath.simulate.simulate_removal` adds (``holds=``).
 
 The plant is the tool model on the **real** part (:mod:`.force_contact`): the planned part moved
 by a rigid registration error, with the part's own stiffness in series with the pad.  The
@@ -103,6 +112,8 @@ class ForceController:
         Required gain margin of both loops, factor (default 2 = 6 dB).
     min_phase_margin : float
         Required phase margin of both loops, rad (default 30°).
+    lift_speed : float
+        Retract speed along the tool axis at the end of a pass, m/s (default 5 mm/s).
     """
 
     mode: str = "hybrid"
@@ -125,12 +136,13 @@ class ForceController:
     max_hold: float = 2.0
     min_gain_margin: float = 2.0
     min_phase_margin: float = math.radians(30.0)
+    lift_speed: float = 5e-3
 
     def __post_init__(self):
         if self.mode not in ("hybrid", "position"):
             raise InputError(f"controller mode must be 'hybrid' or 'position', got {self.mode!r}")
         positive = ("rate", "search_depth", "time_constant", "position_gain", "approach_speed", "max_normal_speed",
-                    "contact_threshold", "start_tolerance", "max_hold", "min_gain_margin")
+                    "contact_threshold", "start_tolerance", "max_hold", "min_gain_margin", "lift_speed")
         for name in positive:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -262,6 +274,11 @@ class ForceTrace:
         Figures with units in their keys (see :func:`simulate_force`).
     stability : dict of str -> LoopStability
         ``"force"`` (hybrid mode) and ``"position"`` loop figures.
+    holds : dict of str -> array
+        The tool standing still in contact at the landing and the lift of every pass, as poses
+        for the removal simulation: ``position`` (h, 3) m, ``axis`` (h, 3), ``dwell`` (h,) s,
+        ``force`` (h,) N (the ticks of one transient grouped by force), ``run`` (h,) int and
+        ``lift`` (h,) bool (False: landing).
     """
 
     t: np.ndarray
@@ -277,6 +294,7 @@ class ForceTrace:
     nominal_offset: np.ndarray
     metrics: dict = field(default_factory=dict)
     stability: dict = field(default_factory=dict)
+    holds: dict = field(default_factory=dict)
 
 
 def contact_stiffness(tool: Tool, *, part_stiffness: float = math.inf) -> float:
@@ -334,7 +352,10 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
         ``max_abs_force_error_n``, ``mean_force_n``, ``contact_loss_fraction`` (moving ticks with no
         force), ``rms_tangential_error_m``, ``hold_time_s`` (total contact-phase wait),
         ``force_gain_m_per_s_per_n``, ``force_integral_gain_m_per_s2_per_n``, ``force_gain_margin``, ``force_phase_margin_deg``,
-        ``force_time_constant_s`` and ``position_phase_margin_deg``.
+        ``force_time_constant_s`` and ``position_phase_margin_deg``; of the transients
+        ``landing_hold_time_s`` and ``lift_hold_time_s`` (time in contact standing still at the
+        pass starts and ends) and ``landing_force_overshoot_fraction`` (peak landing force over
+        the set force, minus 1).
 
     Raises
     ------
@@ -422,9 +443,47 @@ def simulate_force(trajectory, surface, tool: Tool, *, controller: ForceControll
     force = np.zeros(len(trajectory))
     force[cidx] = _per_sample_force(runs, t_plan, cat)
     metrics = _metrics(cat, tool.force, kp, ki, stability)
+    holds = _holds(cat, runs, cidx, trajectory.position, axes, 1.0 / c.rate)
+    metrics.update(_transient_metrics(cat, tool.force, holds))
     return ForceTrace(cat["t"], cat["progress"], cat["set"], cat["contact"], cat["measured"], cat["command"],
                       cat["actual"], cat["moving"].astype(bool), cat["run"].astype(int), force, nominal_full,
-                      metrics, stability)
+                      metrics, stability, holds)
+
+
+#: Force levels each landing or lift is split into for the removal simulation.
+HOLD_LEVELS = 6
+
+
+def _holds(cat: dict, runs, cidx: np.ndarray, position: np.ndarray, axes: np.ndarray, dt: float) -> dict:
+    """The landing and lift ticks in contact as removal poses (:attr:`ForceTrace.holds`): at the
+    run's first (landing) or last (lift) sample, the ticks grouped into :data:`HOLD_LEVELS` force
+    levels, each with its dwell and mean force."""
+    pos, ax, dwell, force, run_of, lift = [], [], [], [], [], []
+    for r, run in enumerate(runs):
+        for is_lift, phase, sample in ((False, 0, cidx[run[0]]), (True, 2, cidx[run[-1]])):
+            f = cat["contact"][(cat["run"] == r) & (cat["phase"] == phase)]
+            f = np.sort(f[f > 0])
+            if len(f) == 0:
+                continue
+            for part in np.array_split(f, min(HOLD_LEVELS, len(f))):
+                pos.append(position[sample])
+                ax.append(axes[sample])
+                dwell.append(len(part) * dt)
+                force.append(float(part.mean()))
+                run_of.append(r)
+                lift.append(is_lift)
+    return {"position": np.asarray(pos, float).reshape(-1, 3), "axis": np.asarray(ax, float).reshape(-1, 3),
+            "dwell": np.asarray(dwell, float), "force": np.asarray(force, float), "run": np.asarray(run_of, int),
+            "lift": np.asarray(lift, bool)}
+
+
+def _transient_metrics(cat: dict, F: float, holds: dict) -> dict:
+    """Figures of the landings and lifts: time in contact standing still, force overshoot."""
+    landing = cat["phase"] == 0
+    peak = float(cat["contact"][landing].max()) if landing.any() else 0.0
+    return {"landing_hold_time_s": float(holds["dwell"][~holds["lift"]].sum()),
+            "lift_hold_time_s": float(holds["dwell"][holds["lift"]].sum()),
+            "landing_force_overshoot_fraction": max(0.0, peak / F - 1.0)}
 
 
 class _Run:
@@ -432,14 +491,15 @@ class _Run:
 
     def __init__(self, c: ForceController, *, kp, ki, tool, curves: ContactCurves, part_stiffness, rng, noise):
         self.c, self.kp, self.ki, self.F = c, kp, ki, tool.force
+        self.damping = tool.damping_time
         self.curves, self.kpart = curves, part_stiffness
         self.rng, self.noise = rng, noise
         self.dt = 1.0 / c.rate
         self.delay = int(round(c.latency * c.rate))
 
-    def pad_force(self, i0: int, i1: int, lam: float, delta: float, x0: float) -> tuple[float, float]:
-        """Contact force (N) at robot offset ``delta`` between poses ``i0, i1`` (weight ``lam`` on
-        ``i1``), with the part in series; returns (force, pad offset)."""
+    def pad_force(self, i0: int, i1: int, lam: float, delta: float, x0: float) -> tuple[float, float, float]:
+        """Elastic contact force (N) at robot offset ``delta`` between poses ``i0, i1`` (weight
+        ``lam`` on ``i1``), with the part in series; returns (force, pad offset, pad slope dF/dx N/m)."""
         cv = self.curves
 
         def f(x):
@@ -450,8 +510,10 @@ class _Run:
             return (1 - lam) * f0 + lam * f1, (1 - lam) * k0 + lam * k1
 
         if math.isinf(self.kpart):
-            return f(delta)[0], delta
+            fd, kd = f(delta)
+            return fd, delta, kd
         x = min(x0, delta)
+        kx = 0.0
         for _ in range(30):                       # Newton on the convex f(x) + k_part x
             fx, kx = f(x)
             r = fx - self.kpart * (delta - x)
@@ -459,7 +521,7 @@ class _Run:
             x -= step
             if abs(step) < 1e-12:
                 break
-        return self.kpart * (delta - x), x
+        return self.kpart * (delta - x), x, kx
 
     def run(self, base: int, T: np.ndarray, nominal: np.ndarray, weight_share: np.ndarray, *,
             start_time: float, index: int) -> dict:
@@ -477,8 +539,11 @@ class _Run:
         nrm = Servo(nom[0] - c.clearance, dt=dt, servo_lag=c.servo_lag, delay=self.delay)
         ref, moving, seen, t_seen, integ, held = T0, False, False, 0.0, 0.0, 0.0
         x_pad = nrm.actual
-        out: dict[str, list] = {k: [] for k in ("progress", "set", "contact", "measured", "command", "actual", "moving", "ref")}
-        max_ticks = int(((T1 - T0) + c.max_hold + 2.0 + 10 * c.clearance / c.approach_speed) * c.rate) + 10
+        out: dict[str, list] = {k: [] for k in ("progress", "set", "contact", "measured", "command", "actual", "moving",
+                                                "ref", "phase")}
+        lift_time = (max(nom) + c.search_depth + c.clearance) / c.lift_speed
+        max_ticks = int(((T1 - T0) + c.max_hold + 2.0 + 10 * c.clearance / c.approach_speed + lift_time) * c.rate) + 10
+        lifting, free_ticks = False, 0
         noise = self.rng.standard_normal(max_ticks) * self.noise if self.noise > 0 else None
         settled = 0
         for k in range(max_ticks):
@@ -486,12 +551,18 @@ class _Run:
             i = max(0, min(bisect.bisect_right(Tl, tau) - 1, n - 2)) if n > 1 else 0
             lam = 0.0 if n == 1 or Tl[i + 1] <= Tl[i] else (tau - Tl[i]) / (Tl[i + 1] - Tl[i])
             i1 = i + 1 if n > 1 else i
-            fc, x_pad = self.pad_force(base + i, base + i1, lam, nrm.actual, x_pad)
+            x_before = x_pad
+            fc, x_pad, k_pad = self.pad_force(base + i, base + i1, lam, nrm.actual, x_pad)
+            if self.damping > 0 and k > 0 and fc > 0:
+                # Kelvin–Voigt pad: k·(h + τ_d ḣ) over the patch, i.e. F(x) + τ_d F'(x) ẋ, never pulling
+                fc = max(0.0, fc + self.damping * k_pad * (x_pad - x_before) / dt)
             share = (1 - lam) * wsh[i] + lam * wsh[i1]
             fm = fc + share + (noise[k] if noise is not None else 0.0)
             nom_here = (1 - lam) * nom[i] + lam * nom[i1]
             ff_rate = 1.0 if (moving and ref < T1) else 0.0
-            if c.mode == "position":
+            if lifting:
+                sp, v = 0.0, -c.lift_speed
+            elif c.mode == "position":
                 sp = F
                 target = nom_here
                 if not moving:
@@ -532,10 +603,17 @@ class _Run:
             out["measured"].append(fm)
             out["command"].append(nrm.command)
             out["actual"].append(nrm.actual)
-            out["moving"].append(moving)
+            out["moving"].append(moving and not lifting)
             out["ref"].append(ref)
+            out["phase"].append(2 if lifting else 1 if moving else 0)
             if not moving:
                 held += dt
+            if lifting:
+                free_ticks = free_ticks + 1 if fc <= 0.0 else 0
+                if free_ticks >= 2:
+                    break
+                nrm.step(v)
+                continue
             # tangential loop: feed-forward of the plan's progress rate plus the position gain
             u = (ff_rate + c.position_gain * (ref - tan.actual)) if moving else 0.0
             if moving:
@@ -543,7 +621,7 @@ class _Run:
             nrm.step(v)
             tan.step(u)
             if moving and ref >= T1 and T1 - tan.actual < 0.5 * dt:
-                break
+                lifting = True          # the pass is done: stop and retract along the tool axis
             if not seen and c.mode == "hybrid" and nrm.command > nom[0] + c.search_depth:
                 log.warning("contact run %d: no contact within %.3g mm beyond the nominal sink; the pass is "
                             "skipped (is the part where the plan expects it?)", index, 1e3 * c.search_depth)

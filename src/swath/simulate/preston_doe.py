@@ -41,6 +41,7 @@ FACTOR_ALIASES = {
     "orbit": ("orbit_radius_m", "length"),
     "orbit_radius": ("orbit_radius_m", "length"),
     "pad_radius": ("pad_radius_m", "length"),
+    "pad_age": ("pad_age_s", "time"),
 }
 
 
@@ -61,7 +62,7 @@ def parse_factor(text: str) -> tuple[str, list]:
     if kind is None and column in TRIAL_COLUMNS and column not in ("grit", "trial", "passes"):
         kind = {"force_N": "force", "spindle_speed_rpm": "frequency", "feed_m_per_s": "speed",
                 "orbit_radius_m": "length", "pad_radius_m": "length", "depth_m": "length",
-                "hardness_Pa": None}.get(column)
+                "hardness_Pa": None, "pad_age_s": "time"}.get(column)
     values: list
     if kind is None:
         values = raw if column != "passes" else [_int(v, name) for v in raw]
@@ -166,17 +167,43 @@ def _fmt(v) -> str:
     return str(v)
 
 
+def tool_columns(tool) -> dict:
+    """The trials columns that state the tool (:class:`swath.contact.Tool`): spindle speed (rpm),
+    orbit radius (m, 0 for a rotary pad) and pad radius (m)."""
+    return {"spindle_speed_rpm": tool.spindle_speed * 60.0 / (2.0 * math.pi),
+            "orbit_radius_m": tool.orbit_radius if tool.motion == "orbital" else 0.0,
+            "pad_radius_m": tool.pad_radius}
+
+
 def write_doe(path, factors: dict, *, generators: dict | None = None, replicates: int = 1, seed: int | None = None,
-              fixed: dict | None = None) -> Path:
+              fixed: dict | None = None, tool=None, overwrite: bool = False) -> Path:
     """Write the trials template of :func:`factorial_design` to ``path`` atomically.
 
     ``fixed`` holds the columns every run shares (e.g. ``{"pad_radius_m": 0.0381, "passes": 3,
-    "feed_m_per_s": 0.05}``); ``depth_m`` stays blank for the user to fill in.  Returns the path.
+    "feed_m_per_s": 0.05}``); ``tool`` (a :class:`swath.contact.Tool`, default the plan's default
+    tool: an orbital 3-inch pad at 10 000 rpm on a 2.5 mm orbit) fills the tool's columns that are
+    neither factors nor fixed (:func:`tool_columns`), so that ``swath calibrate`` reads the template
+    back and the calibration states the tool ``swath plan`` runs.  ``depth_m`` and ``pad_age_s``
+    stay blank for the user to fill in.  An existing file (it may hold measurements) is refused
+    unless ``overwrite``.  Returns the path.
     """
+    from ..contact import Tool
+
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a folder; give the trials template a file name, e.g. {path / 'trials.csv'}")
+    if path.exists() and not overwrite:
+        raise InputError(f"{path} exists and may hold measurements: write the template under another name, or add "
+                         "--overwrite to replace it")
     runs = factorial_design(factors, generators=generators, replicates=replicates, seed=seed)
     overlap = set(fixed or {}) & set(factors)
     if overlap:
         raise InputError(f"{', '.join(sorted(overlap))} is both a factor and fixed; give it once")
-    path = Path(path)
+    fixed = dict(fixed or {})
+    for col, value in tool_columns(tool if tool is not None else Tool()).items():
+        if col not in factors and col not in fixed:
+            fixed[col] = value
+    if "pad_age_s" not in factors:
+        fixed.setdefault("pad_age_s", "")
     write_text_atomic(path, doe_csv_text(runs, fixed=fixed))
     return path

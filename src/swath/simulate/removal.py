@@ -115,7 +115,7 @@ def contact_dwell(trajectory) -> np.ndarray:
 
 def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float | None = None,
                      chunk: int = 1500, progress=None, force=None, engine: str = "auto",
-                     sampling: str = "mesh") -> RemovalMap:
+                     sampling: str = "mesh", rate_scale=None, holds: dict | None = None) -> RemovalMap:
     """Integrate Preston removal of ``trajectory`` over ``surface``.
 
     Parameters
@@ -144,6 +144,13 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
         :func:`swath.contact.mesh_contact` in float32 (the earlier path, 10-20 times slower);
         ``"auto"``: compiled when numba is installed.  Both evaluate the same model; their depths
         differ by the numpy path's float32 rounding (about 1e-5 relative).
+    rate_scale : (n,) float, optional
+        Factor on the removal rate per trajectory sample, e.g. the pad wear ``exp(−λ a)`` of
+        :func:`swath.process.media.media_schedule` (default 1 everywhere).
+    holds : dict, optional
+        Poses where the tool stands still in contact (the landings and lifts of
+        :attr:`swath.simulate.force.ForceTrace.holds`: ``position``, ``axis``, ``dwell``,
+        ``force``), added to the trajectory's integration poses.
     sampling : {"lattice", "mesh"}
         ``"lattice"``: :func:`swath.simulate.samples.removal_samples`, samples at most
         ``sample_spacing`` apart along and across every triangle (a sliver gets one row), normals
@@ -182,12 +189,22 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     local = samples.vertices - origin
     positions = trajectory.position - origin
     idx, dwell = _integration_poses(trajectory, INTEGRATION_STEP * spacing)
+    if rate_scale is not None:
+        # removal is linear in the rate: a factor on the rate is the same factor on the dwell
+        dwell = dwell * np.asarray(rate_scale, float)[idx]
     pose_force = None
     if force is not None:
         pose_force = _pose_force(trajectory, force, idx)
     axes = trajectory.tool_z()
+    pose_pos, pose_axes = positions[idx], axes[idx]
+    if holds is not None and len(holds["dwell"]):
+        pose_pos = np.concatenate([pose_pos, np.asarray(holds["position"], float) - origin])
+        pose_axes = np.concatenate([pose_axes, np.asarray(holds["axis"], float)])
+        dwell = np.concatenate([dwell, np.asarray(holds["dwell"], float)])
+        own = np.full(len(idx), tool.force) if pose_force is None else pose_force
+        pose_force = np.concatenate([own, np.asarray(holds["force"], float)])
     run = _depth_numpy if engine == "numpy" or not kernels.AVAILABLE else _depth_compiled
-    depth = run(local, samples.normals, samples.vertex_areas, positions[idx], axes[idx], dwell, tool,
+    depth = run(local, samples.normals, samples.vertex_areas, pose_pos, pose_axes, dwell, tool,
                 pose_force=pose_force, chunk=chunk, progress=progress)
     removal = RemovalMap(samples, depth)
     metrics = plan_metrics(trajectory, surface, tool, removal)
