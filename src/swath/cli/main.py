@@ -44,6 +44,13 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
         p.add_argument("--surface-spacing",
                        help="triangle size of a fitted or saved patch to plan on, e.g. 3mm "
                             "(default: the patch's extent / 150, within 2..5 mm)")
+        p.add_argument("--faces", help="the area to finish: face ids, names or colours (3,5 / tube_outer / #0000ff) "
+                                       "or box:xmin,ymin,zmin,xmax,ymax,zmax; terms separated by ';' (default all)")
+        p.add_argument("--keep-out", help="faces or boxes the pad must not touch, as --faces")
+        p.add_argument("--keep-out-margin", help="clearance beyond the pad radius from the keep-outs (default 2mm)")
+        p.add_argument("--edge-margin", help="distance the pad centre keeps in from the area's open edges (default 0)")
+        p.add_argument("--chordal-tol", help="STEP/IGES tessellation: largest distance from the exact faces "
+                                             "(default 0.1mm)")
     p.add_argument("--planner", default="raster",
                    help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
                         "or equidistant (geodesic-parallel passes)")

@@ -105,6 +105,11 @@ class JobSettings:
     place: bool = False
     table_z: float = 0.0
     robot_strict: bool = False
+    faces: str | None = None
+    keep_out: str | None = None
+    keep_out_margin: float = 2e-3
+    edge_margin: float = 0.0
+    chordal_tol: float = 1e-4
 
     def tool(self):
         from ..contact import Tool
@@ -251,6 +256,10 @@ SCHEMA: dict[str, Key] = {
     "feed_simulate_check": Key("bool"),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
+    "faces": Key("str"), "keep_out": Key("str"),
+    "keep_out_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 2mm"),
+    "edge_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 5mm"),
+    "chordal_tol": Key("length", positive=True, hi=1e-2, bare_max=1e-2, hint="mm, e.g. 0.1mm"),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job
