@@ -284,9 +284,11 @@ def tessellate(shape, *, chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE,
     xyz = np.vstack(verts)
     normal = np.vstack(norms)
     tri = np.vstack(tris)
-    xyz, tri, normal = _weld(xyz, tri, normal)
-    surface = ExactNormalSurface(xyz, tri, exact_normals=normal, name=name)
-    return Part(surface, np.concatenate(ids), tuple(faces), closed=not surface.boundary_loops, source=name,
+    xyz, tri, normal, kept = _weld(xyz, tri, normal)
+    used, tri = np.unique(tri, return_inverse=True)
+    tri = tri.reshape(-1, 3)
+    surface = ExactNormalSurface(xyz[used], tri, exact_normals=normal[used], name=name)
+    return Part(surface, np.concatenate(ids)[kept], tuple(faces), closed=not surface.boundary_loops, source=name,
                 chordal_tolerance=chordal_tolerance)
 
 
@@ -362,7 +364,8 @@ def _agree_winding(xyz, tri, normal):
 
 
 def _weld(xyz, tri, normal):
-    """Merge the copies of a shared edge's vertices; a merged vertex takes the mean normal."""
+    """Merge the copies of a shared edge's vertices; a merged vertex takes the mean normal.
+    Returns the vertices, the triangles left, the normals and which triangles were kept."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
@@ -380,7 +383,6 @@ def _weld(xyz, tri, normal):
     merged = summed / np.maximum(length, 1e-300)
     new_tri = label[tri]
     keep = (new_tri[:, 0] != new_tri[:, 1]) & (new_tri[:, 1] != new_tri[:, 2]) & (new_tri[:, 0] != new_tri[:, 2])
-    if not keep.all():
-        raise InputError(f"{int((~keep).sum())} triangles collapsed when welding the faces' edges; "
-                         "re-export the part or tessellate with a finer chordal tolerance")
-    return xyz[first], new_tri, merged
+    if not keep.all():      # a sphere's pole or a cone's apex: triangles with two corners at one point
+        log.debug("%d degenerate triangles (two corners at one point) left out", int((~keep).sum()))
+    return xyz[first], new_tri[keep], merged, keep
