@@ -322,6 +322,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from . import stages
     from .guard import check_budget
 
+    if settings.side == "all":
+        from .setups import run_setups
+
+        return run_setups(settings, progress=progress)
     say = progress or (lambda stage, done, total: None)
     timings = {}
     check_output_dir(settings.out, overwrite=settings.overwrite)

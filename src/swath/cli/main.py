@@ -34,7 +34,8 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     if with_part_options:
         p.add_argument("--units", default="m", help="unit of a unitless mesh file: m, mm, cm or in (or their names, "
                                                     "e.g. millimetres, inch)")
-        p.add_argument("--side", help="for a closed solid: the direction the tool comes from, e.g. +z")
+        p.add_argument("--side", help="for a closed solid: the direction the tool comes from, e.g. +z, or all "
+                                      "(finish it all round, in setups)")
         p.add_argument("--all-pieces", action="store_true", help="keep every piece of a multi-piece mesh")
         p.add_argument("--force-units", action="store_true", help="accept a part size outside 5 mm .. 20 m")
         p.add_argument("--fit", action="store_true",
@@ -405,6 +406,12 @@ def _register_summary(settings, doc: dict) -> str:
 
 
 def _summary(settings, m: dict) -> str:
+    if "n_setups" in m:
+        return (f"wrote {settings.out}/metrics.json and setup_1..{m['n_setups']}/trajectory.csv\n"
+                f"  {m['n_setups']} setups, passes {m['n_passes']}, contact path {m['contact_length_m']:.3f} m, "
+                f"cycle time {m['cycle_time_s']:.1f} s\n"
+                f"  coverage of the whole outer surface {100 * m['coverage_fraction']:.2f} %, removal CoV "
+                f"{m['removal_cov']:.3f}")
     inner = m.get("interior_removal_cov")
     # the CoV away from the edge band, where the pad hangs over (what --optimise-feed evens out)
     inside = f" ({inner:.3f} a pad radius in from the edges)" if inner is not None and math.isfinite(inner) else ""

@@ -397,7 +397,7 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
 
 def check_side(side, key: str) -> None:
     """Refuse a tool side (``--side``) that is no direction, naming ``key``; None passes."""
-    if side is not None:
+    if side is not None and side != "all":      # "all": a closed part all round, in setups
         from ..io.mesh import parse_side
 
         try:
