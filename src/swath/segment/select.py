@@ -23,6 +23,7 @@ import numpy as np
 from ..core.toolpath import Pass, ToolPath
 from ..errors import InputError
 from ..io.part import Part
+from ..surface.surface import farther_from_boundary
 from ..units import parse_quantity
 
 log = logging.getLogger(__name__)
@@ -174,8 +175,7 @@ def keep_clear(toolpath: ToolPath, part: Part, pad_radius: float, *, point_spaci
             _, distance, _ = keep_out_surface.closest_points(p.points)
             keep &= distance >= clearance
         if work is not None:
-            keep &= work.farther_from_boundary(p.points, part.edge_margin) if point_spacing is None else \
-                _farther(work, p.points, part.edge_margin, point_spacing)
+            keep &= farther_from_boundary(p.points, work, part.edge_margin, step=point_spacing)
         if keep.all():
             passes.append(p)
             continue
@@ -191,12 +191,6 @@ def keep_clear(toolpath: ToolPath, part: Part, pad_radius: float, *, point_spaci
     metadata = dict(toolpath.metadata, keep_out_clearance_m=clearance if keep_out_surface is not None else 0.0,
                     edge_margin_m=part.edge_margin, passes_cut=cut)
     return toolpath.replace(passes=tuple(passes), metadata=metadata)
-
-
-def _farther(surface, points, margin, step):
-    from ..surface.surface import farther_from_boundary
-
-    return farther_from_boundary(points, surface, margin, step=step)
 
 
 def _runs(keep: np.ndarray) -> list[np.ndarray]:
