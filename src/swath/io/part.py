@@ -24,39 +24,50 @@ from ..surface import geometry as _geometry
 class ExactNormalSurface(Surface):
     """A :class:`~swath.surface.Surface` whose smooth normals are given, not estimated.
 
+    The normals are given per triangle corner (each triangle carries the exact normal of its own
+    CAD face at its corners); a vertex's normal is the mean of its corners' normals, so a vertex on
+    a sharp edge between two faces takes the bevel between them, and the same vertex in a
+    :meth:`sub_surface` of one face only takes that face's exact normal.
+
     Parameters
     ----------
     vertices : (n, 3) float
         Vertex positions, m.
     faces : (m, 3) int
-        Triangles; their winding must agree with ``exact_normals``.
-    exact_normals : (n, 3) float
-        Unit normals at the vertices toward the tool, e.g. evaluated on a CAD face's exact
-        surface (where faces meet at a sharp edge: the mean of their normals there).
+        Triangles; their winding must agree with the normals.
+    corner_normals : (m, 3, 3) float
+        Unit normal toward the tool at each corner of each triangle, e.g. evaluated on the
+        triangle's CAD face at that vertex.
     **kwargs
         As :class:`~swath.surface.Surface`.
     """
 
-    def __init__(self, vertices, faces, *, exact_normals, **kwargs):
+    def __init__(self, vertices, faces, *, corner_normals, **kwargs):
         super().__init__(vertices, faces, **kwargs)
-        n = np.array(exact_normals, dtype=float)
-        if n.shape != self.vertices.shape or not np.isfinite(n).all():
-            raise InputError(f"expected finite exact normals of shape {self.vertices.shape}, got {n.shape}")
-        n = _geometry.normalize(n)
-        n.setflags(write=False)
-        self._exact_normals = n
+        c = np.array(corner_normals, dtype=float)
+        if c.shape != (len(self.faces), 3, 3) or not np.isfinite(c).all():
+            raise InputError(f"expected finite corner normals of shape ({len(self.faces)}, 3, 3), got {c.shape}")
+        c.setflags(write=False)
+        self.corner_normals = c
 
     @cached_property
     def normals(self) -> np.ndarray:
-        """(n, 3) the given exact unit vertex normals (no smoothing, no facet estimate)."""
-        return self._exact_normals
+        """(n, 3) exact unit vertex normals: the mean of the vertex's corner normals."""
+        acc = np.zeros_like(self.vertices)
+        for k in range(3):
+            np.add.at(acc, self.faces[:, k], self.corner_normals[:, k])
+        n = _geometry.normalize(acc)
+        n.setflags(write=False)
+        return n
 
     def sub_surface(self, face_index, *, name: str | None = None) -> ExactNormalSurface:
-        """The surface of the triangles ``face_index`` ``(k,) int`` only, keeping the exact normals."""
-        faces = self.faces[np.asarray(face_index, np.int64)]
+        """The surface of the triangles ``face_index`` ``(k,) int`` only, keeping their exact normals."""
+        face_index = np.asarray(face_index, np.int64)
+        faces = self.faces[face_index]
         used, inverse = np.unique(faces, return_inverse=True)
-        return ExactNormalSurface(self.vertices[used], inverse.reshape(-1, 3), exact_normals=self.normals[used],
-                                  name=name or self.name, normal_smoothing=self.normal_smoothing,
+        return ExactNormalSurface(self.vertices[used], inverse.reshape(-1, 3),
+                                  corner_normals=self.corner_normals[face_index], name=name or self.name,
+                                  normal_smoothing=self.normal_smoothing,
                                   curvature_neighbours=self.curvature_neighbours)
 
     def subdivided(self, max_edge: float, *, method: str = "long_edges") -> Surface:
@@ -65,15 +76,11 @@ class ExactNormalSurface(Surface):
         fine = super().subdivided(max_edge, method=method)
         if fine is self:
             return self
-        n_old = len(self.vertices)
-        normals = np.empty_like(fine.vertices)
-        normals[:n_old] = self.normals if method == "long_edges" else 0.0
-        start = n_old if method == "long_edges" else 0
-        new = fine.vertices[start:]
-        if len(new):
-            _, _, tri = self.closest_points(new)
-            normals[start:] = self.interpolate_normals(new, tri)
-        return ExactNormalSurface(fine.vertices, fine.faces, exact_normals=normals, name=self.name,
+        _, _, tri = self.closest_points(fine.vertices)
+        normals = self.interpolate_normals(fine.vertices, tri)
+        if method == "long_edges":
+            normals[:len(self.vertices)] = self.normals
+        return ExactNormalSurface(fine.vertices, fine.faces, corner_normals=normals[fine.faces], name=self.name,
                                   normal_smoothing=self.normal_smoothing,
                                   curvature_neighbours=self.curvature_neighbours)
 

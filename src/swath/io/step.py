@@ -219,7 +219,8 @@ def tessellate(shape, *, chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE,
     Returns
     -------
     Part
-        Vertices welded along shared edges; a welded vertex takes the mean of its faces' normals.
+        Vertices welded along shared edges; every triangle keeps its own face's exact normals at its
+        corners (a vertex on a sharp edge takes the mean of its corners').
     """
     from OCP.BRep import BRep_Tool
     from OCP.BRepAdaptor import BRepAdaptor_Surface
@@ -275,19 +276,19 @@ def tessellate(shape, *, chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE,
                                                    xyz[tri[:, 2]] - xyz[tri[:, 0]]), axis=1).sum())
         faces.append(PartFace(number, names.get(key, ""), kind, colours.get(key), area))
         verts.append(xyz)
-        norms.append(normal)
+        norms.append(normal[tri])
         tris.append(tri + offset)
         ids.append(np.full(len(tri), number, np.int64))
         offset += len(xyz)
     if not tris:
         raise InputError(f"{name or 'the shape'}: no face could be tessellated")
     xyz = np.vstack(verts)
-    normal = np.vstack(norms)
+    corners = np.vstack(norms)
     tri = np.vstack(tris)
-    xyz, tri, normal, kept = _weld(xyz, tri, normal)
+    xyz, tri, kept = _weld(xyz, tri)
     used, tri = np.unique(tri, return_inverse=True)
     tri = tri.reshape(-1, 3)
-    surface = ExactNormalSurface(xyz[used], tri, exact_normals=normal[used], name=name)
+    surface = ExactNormalSurface(xyz[used], tri, corner_normals=corners[kept], name=name)
     return Part(surface, np.concatenate(ids)[kept], tuple(faces), closed=not surface.boundary_loops, source=name,
                 chordal_tolerance=chordal_tolerance)
 
@@ -363,9 +364,9 @@ def _agree_winding(xyz, tri, normal):
     return tri
 
 
-def _weld(xyz, tri, normal):
-    """Merge the copies of a shared edge's vertices; a merged vertex takes the mean normal.
-    Returns the vertices, the triangles left, the normals and which triangles were kept."""
+def _weld(xyz, tri):
+    """Merge the copies of a shared edge's vertices.  Returns the vertices, the triangles left
+    and which triangles were kept."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
@@ -377,12 +378,8 @@ def _weld(xyz, tri, normal):
     _, label = connected_components(graph, directed=False)
     first = np.full(label.max() + 1, -1)
     first[label[::-1]] = np.arange(n)[::-1]
-    summed = np.zeros((label.max() + 1, 3))
-    np.add.at(summed, label, normal)
-    length = np.linalg.norm(summed, axis=1, keepdims=True)
-    merged = summed / np.maximum(length, 1e-300)
     new_tri = label[tri]
     keep = (new_tri[:, 0] != new_tri[:, 1]) & (new_tri[:, 1] != new_tri[:, 2]) & (new_tri[:, 0] != new_tri[:, 2])
     if not keep.all():      # a sphere's pole or a cone's apex: triangles with two corners at one point
         log.debug("%d degenerate triangles (two corners at one point) left out", int((~keep).sum()))
-    return xyz[first], new_tri[keep], merged, keep
+    return xyz[first], new_tri[keep], keep
