@@ -15,6 +15,7 @@ import json
 import logging
 import time
 from pathlib import PurePath
+from typing import Any
 
 import numpy as np
 
@@ -49,11 +50,11 @@ def _closed_mesh(path, settings: JobSettings):
     """A closed mesh with its triangles wound outward (positive enclosed volume)."""
     from pathlib import Path
 
+    from ..io.checks import check_file
     from ..io.mesh import MESH_EXTENSIONS, check_extent
     from ..io.mesh_pieces import orient_faces
     from ..io.mesh_read import read_mesh_file
     from ..io.mesh_repair import degenerate_faces, face_areas, merge_vertices, remove_unreferenced
-    from ..io.checks import check_file
     from ..surface import Surface
     from ..units import length_unit_factor
 
@@ -122,8 +123,8 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
                   keep_out_margin=settings.keep_out_margin, edge_margin=settings.edge_margin)
     setups = plan_setups(part, overlap=settings.pad_radius)
     say(f"{len(setups)} setups expose the part", 0, 1)
-    total_depth = None
-    samples = None
+    total_depth: Any = None
+    samples: Any = None
     per_setup, outputs = [], []
     totals = {"n_passes": 0, "contact_length_m": 0.0, "air_length_m": 0.0, "cycle_time_s": 0.0,
               "coverage_lower_bound_m": 0.0}

@@ -19,9 +19,24 @@ from ..errors import InputError
 
 
 def _ocp():
-    from ..io.step import require_ocp
+    """Import OCP or refuse, naming the extra to install."""
+    try:
+        import OCP  # noqa: F401
+    except ImportError as exc:
+        raise InputError("the CAD examples are built with Open CASCADE: install the cad extra "
+                         "(pip install 'swath[cad]')") from exc
 
-    require_ocp()
+
+def _faces(shape) -> list:
+    """The distinct faces of ``shape`` in Open CASCADE's order (as :func:`swath.io.step.load_step` numbers them)."""
+    from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp
+    from OCP.TopoDS import TopoDS
+
+    found = IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher()
+    TopExp.MapShapes_s(shape, TopAbs_FACE, found)
+    return [TopoDS.Face(found.FindKey(i)) for i in range(1, found.Extent() + 1)]
 
 
 def _mm(x: float) -> float:
@@ -96,8 +111,6 @@ def tube_face_names(shape, *, length: float = 0.3, radius: float = 0.05, wall: f
     ``tube_outer``, ``bore``, ``flange_rim``, ``flange_top``, ``flange_bottom``, ``tube_end``."""
     from OCP.BRepAdaptor import BRepAdaptor_Surface
 
-    from ..io.step import _faces
-
     names = []
     for face in _faces(shape):
         s = BRepAdaptor_Surface(face)
@@ -133,8 +146,6 @@ def write_step(shape, path, *, names=None, colours=None) -> Path:
     from OCP.TCollection import TCollection_ExtendedString, TCollection_HAsciiString
     from OCP.TDocStd import TDocStd_Document
     from OCP.XCAFDoc import XCAFDoc_ColorSurf, XCAFDoc_DocumentTool
-
-    from ..io.step import _faces
 
     faces = _faces(shape)
     doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))

@@ -11,7 +11,7 @@ are per-triangle masks set by :mod:`swath.segment.select`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -148,8 +148,8 @@ class Part:
     surface: Surface
     face_ids: np.ndarray
     faces: tuple[PartFace, ...]
-    selected: np.ndarray = field(default=None)  # type: ignore[assignment]
-    keep_out: np.ndarray = field(default=None)  # type: ignore[assignment]
+    selected: np.ndarray = None  # type: ignore[assignment]  # None: all (set in __post_init__)
+    keep_out: np.ndarray = None  # type: ignore[assignment]  # None: none (set in __post_init__)
     keep_out_margin: float = 0.0
     edge_margin: float = 0.0
     closed: bool = False
