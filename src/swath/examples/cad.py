@@ -25,6 +25,13 @@ def _ocp():
     except ImportError as exc:
         raise InputError("the CAD examples are built with Open CASCADE: install the cad extra "
                          "(pip install 'swath[cad]')") from exc
+    from OCP.Message import Message
+
+    messenger = Message.DefaultMessenger_s()       # no translator statistics on the console
+    printers = messenger.Printers()
+    while printers.Size():
+        messenger.RemovePrinter(printers.First())
+        printers = messenger.Printers()
 
 
 def _faces(shape) -> list:

@@ -163,20 +163,42 @@ def _read(path: Path, step: bool):
     from OCP.XCAFDoc import XCAFDoc_ColorGen, XCAFDoc_ColorSurf
 
     names, colours = {}, {}
-    transfer = reader.Reader().WS().TransferReader() if step else None
     for key, face in enumerate(faces):
         colour = Quantity_Color()
         if colour_tool.GetColor(face, XCAFDoc_ColorSurf, colour) or colour_tool.GetColor(face, XCAFDoc_ColorGen,
                                                                                          colour):
             colours[key] = "#{:02x}{:02x}{:02x}".format(*(int(round(255 * c)) for c in
                                                           (colour.Red(), colour.Green(), colour.Blue())))
-        if transfer is not None:
-            entity = transfer.EntityFromShapeResult(face, 1)
-            if entity is not None and hasattr(entity, "Name") and entity.Name() is not None:
-                text = entity.Name().ToCString()
-                if text and text not in ("NONE", "''"):
-                    names[key] = text
+    if step:
+        names = _step_face_names(reader.Reader().WS(), faces)
     return compound, names, colours
+
+
+def _step_face_names(session, faces) -> dict:
+    """Names of the STEP ``ADVANCED_FACE`` entities of ``faces``, keyed by the face's 0-based index.
+
+    One pass over the file's entities first finds whether any face is named at all (most exports
+    name none); only then is each face's entity looked up (a search per face).
+    """
+    model, transfer = session.Model(), session.TransferReader()
+    named = False
+    for k in range(1, model.NbEntities() + 1):
+        entity = model.Value(k)
+        if entity.DynamicType().Name() == "StepShape_AdvancedFace" and entity.Name() is not None:
+            text = entity.Name().ToCString()
+            if text and text != "NONE":
+                named = True
+                break
+    names: dict = {}
+    if not named:
+        return names
+    for key, face in enumerate(faces):
+        entity = transfer.EntityFromShapeResult(face, 1)
+        if entity is not None and hasattr(entity, "Name") and entity.Name() is not None:
+            text = entity.Name().ToCString()
+            if text and text != "NONE":
+                names[key] = text
+    return names
 
 
 def _faces(shape) -> list:
