@@ -210,7 +210,7 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     given = {"spacing": settings.spacing, "direction": settings.direction, "overlap": settings.overlap}
     own = {}
     for k, v in settings.planner_options.items():
-        spec = SCHEMA.get(k) or PLANNER_OPTION_SCHEMA.get(k)
+        spec = PLANNER_OPTION_SCHEMA.get(k) or SCHEMA.get(k)   # a planner's own option first (edge_margin)
         if spec is None and k in takes:
             # a library-only option (the job's cost and progress, a direction vector): no text form
             raise InputError(f"planner_options.{k} cannot be set from a job; the options a job may give the "
