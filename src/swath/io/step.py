@@ -14,6 +14,8 @@ Open CASCADE comes from the optional extra ``swath[cad]`` (``cadquery-ocp-novtk`
 from __future__ import annotations
 
 import logging
+import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +35,8 @@ CAD_EXTENSIONS = STEP_EXTENSIONS + IGES_EXTENSIONS
 DEFAULT_CHORDAL_TOLERANCE = 1e-4
 #: Default angular tolerance of the tessellation (largest angle between neighbouring facets), rad.
 DEFAULT_ANGULAR_TOLERANCE = 0.25
+#: A STEP face entity with a name (``ADVANCED_FACE('tube_outer', ...)``; unnamed ones are ``''`` or ``'NONE'``).
+_NAMED_FACE = re.compile(rb"ADVANCED_FACE\s*\(\s*'(?!'|NONE')")
 #: Default longest triangle edge of the tessellation, m.
 DEFAULT_MAX_EDGE = 1e-2
 #: Tessellation vertices of different faces closer than this (m) are the same point of a shared edge.
@@ -170,25 +174,18 @@ def _read(path: Path, step: bool):
             colours[key] = "#{:02x}{:02x}{:02x}".format(*(int(round(255 * c)) for c in
                                                           (colour.Red(), colour.Green(), colour.Blue())))
     if step:
-        names = _step_face_names(reader.Reader().WS(), faces)
+        names = _step_face_names(path, reader.Reader().WS(), faces)
     return compound, names, colours
 
 
-def _step_face_names(session, faces) -> dict:
+def _step_face_names(path: Path, session, faces) -> dict:
     """Names of the STEP ``ADVANCED_FACE`` entities of ``faces``, keyed by the face's 0-based index.
 
-    One pass over the file's entities first finds whether any face is named at all (most exports
-    name none); only then is each face's entity looked up (a search per face).
+    The file's text is searched first for a named face at all (most exports name none); only then
+    is each face's entity looked up (a search per face).
     """
-    model, transfer = session.Model(), session.TransferReader()
-    named = False
-    for k in range(1, model.NbEntities() + 1):
-        entity = model.Value(k)
-        if entity.DynamicType().Name() == "StepShape_AdvancedFace" and entity.Name() is not None:
-            text = entity.Name().ToCString()
-            if text and text != "NONE":
-                named = True
-                break
+    transfer = session.TransferReader()
+    named = _NAMED_FACE.search(path.read_bytes()) is not None
     names: dict = {}
     if not named:
         return names
@@ -272,15 +269,18 @@ def tessellate(shape, *, chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE,
         normal = np.full((n_nodes, 3), np.nan)
         props = BRepLProp_SLProps(adaptor, 1, 1e-9)
         has_uv = triangulation.HasUVNodes()
+        plane = kind == "plane"                      # one normal: evaluated once
         for i in range(1, n_nodes + 1):
             p = triangulation.Node(i).Transformed(trsf)
             xyz[i - 1] = (p.X(), p.Y(), p.Z())
-            if has_uv:
+            if has_uv and (not plane or i == 1):
                 uv = triangulation.UVNode(i)
                 props.SetParameters(uv.X(), uv.Y())
                 if props.IsNormalDefined():
                     d = props.Normal()
                     normal[i - 1] = (d.X(), d.Y(), d.Z())
+        if plane:
+            normal[:] = normal[0]
         n_tri = triangulation.NbTriangles()
         tri = np.empty((n_tri, 3), np.int64)
         for i in range(1, n_tri + 1):
@@ -292,11 +292,9 @@ def tessellate(shape, *, chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE,
             normal = -normal
             tri = tri[:, ::-1]
         xyz *= scale
-        normal = _fill_normals(xyz, tri, normal)
-        tri = _agree_winding(xyz, tri, normal)
-        area = float(0.5 * np.linalg.norm(np.cross(xyz[tri[:, 1]] - xyz[tri[:, 0]],
-                                                   xyz[tri[:, 2]] - xyz[tri[:, 0]]), axis=1).sum())
-        faces.append(PartFace(number, names.get(key, ""), kind, colours.get(key), area))
+        if np.isnan(normal).any():
+            normal = _fill_normals(xyz, tri, normal)
+        faces.append(PartFace(number, names.get(key, ""), kind, colours.get(key), 0.0))
         verts.append(xyz)
         norms.append(normal[tri])
         tris.append(tri + offset)
@@ -307,11 +305,16 @@ def tessellate(shape, *, chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE,
     xyz = np.vstack(verts)
     corners = np.vstack(norms)
     tri = np.vstack(tris)
+    face_id = np.concatenate(ids)
+    tri, corners = _agree_winding(xyz, tri, corners)
+    areas = 0.5 * np.linalg.norm(_facet_normals(xyz, tri), axis=1)
+    per_face = np.bincount(face_id, weights=areas, minlength=len(faces) + 1)
+    faces = [replace(f, area=float(per_face[f.id])) for f in faces]
     xyz, tri, kept = _weld(xyz, tri)
     used, tri = np.unique(tri, return_inverse=True)
     tri = tri.reshape(-1, 3)
     surface = ExactNormalSurface(xyz[used], tri, corner_normals=corners[kept], name=name)
-    return Part(surface, np.concatenate(ids)[kept], tuple(faces), closed=not surface.boundary_loops, source=name,
+    return Part(surface, face_id[kept], tuple(faces), closed=not surface.boundary_loops, source=name,
                 chordal_tolerance=chordal_tolerance)
 
 
@@ -375,15 +378,16 @@ def _fill_normals(xyz, tri, normal):
     return normal / np.maximum(length, 1e-300)
 
 
-def _agree_winding(xyz, tri, normal):
-    """Flip the triangles whose winding disagrees with the exact normals at their corners."""
+def _agree_winding(xyz, tri, corners):
+    """Flip the triangles whose winding disagrees with the exact normals ``(m, 3, 3)`` at their corners."""
     fn = _facet_normals(xyz, tri)
-    agree = np.einsum("ij,ij->i", fn, normal[tri].sum(axis=1))
+    agree = np.einsum("ij,ij->i", fn, corners.sum(axis=1))
     flip = agree < 0
     if flip.any():
-        tri = tri.copy()
+        tri, corners = tri.copy(), corners.copy()
         tri[flip] = tri[flip][:, ::-1]
-    return tri
+        corners[flip] = corners[flip][:, ::-1]
+    return tri, corners
 
 
 def _weld(xyz, tri):
