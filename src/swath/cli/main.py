@@ -407,7 +407,7 @@ def _register_summary(settings, doc: dict) -> str:
 
 def _summary(settings, m: dict) -> str:
     if "n_setups" in m:
-        return (f"wrote {settings.out}/metrics.json and setup_1..{m['n_setups']}/trajectory.csv\n"
+        return (f"wrote {settings.out}/metrics.json and setup_1..{m['n_setups']}/trajectory.csv, report.html\n"
                 f"  {m['n_setups']} setups, passes {m['n_passes']}, contact path {m['contact_length_m']:.3f} m, "
                 f"cycle time {m['cycle_time_s']:.1f} s\n"
                 f"  coverage of the whole outer surface {100 * m['coverage_fraction']:.2f} %, removal CoV "

@@ -3,8 +3,8 @@
 :func:`run_setups` reads the closed part (STEP/IGES or a closed mesh), picks the setups
 (:func:`swath.segment.setups.plan_setups`), plans, times and simulates each on its own faces
 (widened by a pad radius so that neighbouring setups overlap), and judges the removal of all setups
-together on the whole outer surface.  It writes ``setup_1/trajectory.csv``, ``setup_1/metrics.json``
-... and a top-level ``metrics.json`` with every setup's faces, up direction and ``part2table``
+together on the whole outer surface.  It writes ``setup_1/trajectory.csv``, ``setup_1/metrics.json``,
+``setup_1/report.html`` ... and a top-level ``metrics.json`` with every setup's faces, up direction and ``part2table``
 transform, and the coverage of the whole surface.  The output directory appears complete or not at
 all.  A rotary positioner (one program with coordinated motion) is not planned here.
 """
@@ -107,6 +107,7 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
         coverage; plus ``warnings``.
     """
     from ..io.atomic import atomic_directory, check_output_dir
+    from ..report import write_report
     from ..segment.select import area_metrics, select
     from ..segment.setups import plan_setups
     from ..simulate import simulate_removal
@@ -157,7 +158,7 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
         totals["n_passes"] += len(toolpath.passes)
         totals["coverage_lower_bound_m"] += m.get("coverage_lower_bound_m", 0.0)
         per_setup.append(record)
-        outputs.append((setup.index, trajectory, record))
+        outputs.append((setup.index, trajectory, record, toolpath, removal))
     judged = area_metrics(part, samples.vertices, samples.vertex_areas, total_depth)
     touched = total_depth > 0
     a = samples.vertex_areas
@@ -181,10 +182,13 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
     doc = {"metrics": metrics, "settings": settings.as_record()}
     say("writing setups", 0, 1)
     with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
-        for index, trajectory, record in outputs:
+        for index, trajectory, record, toolpath, removal in outputs:
             folder = tmp / f"setup_{index}"
             folder.mkdir()
             trajectory.write_csv(folder / "trajectory.csv")
-            (folder / "metrics.json").write_text(json.dumps(_jsonable(record), indent=2), encoding="utf-8")
+            say(f"setup {index}: writing its report", 0, 1)
+            write_report(folder, surface=part.surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
+                         metrics={**removal.metrics, **record}, settings=_jsonable(settings.as_record()),
+                         title=f"swath plan — {part.surface.name}, setup {index} of {len(outputs)}")
         (tmp / "metrics.json").write_text(json.dumps(_jsonable(doc), indent=2), encoding="utf-8")
     return metrics

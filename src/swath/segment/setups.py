@@ -6,7 +6,8 @@ the tool comes from above.  A triangle is *exposed* in a setup when its outward 
 ``max_angle`` of ``up`` and it stands at least ``table_clearance`` above the table (the lowest
 point of the part along ``up``).  :func:`plan_setups` picks setups among the 26 directions of the
 part's principal frame (cube faces, edges and corners) by greedy set cover of the area, assigns each
-triangle to the chosen setup facing it best, and widens each setup's area by a band of exposed
+triangle to the chosen setup facing it best (the greedy count is then improved by an exhaustive
+search over all combinations of up to four directions), and widens each setup's area by a band of exposed
 triangles around it (``overlap``) so that the passes of neighbouring setups overlap at their seams.
 """
 
@@ -81,6 +82,38 @@ def exposure(part: Part, up: np.ndarray, *, max_angle: float = DEFAULT_MAX_ANGLE
     return facing
 
 
+#: Largest number of setups searched exhaustively (all combinations of the candidates) for a
+#: smaller cover than the greedy one.
+EXACT_SEARCH_UP_TO = 4
+
+
+def _fewest(exposed: np.ndarray, normals: np.ndarray, area: np.ndarray, dirs: np.ndarray, below: int):
+    """The smallest set of candidate directions (at most ``min(below, EXACT_SEARCH_UP_TO)``) that
+    exposes every triangle, best aligned (area-weighted mean of each triangle's best cosine) among
+    the smallest; None when no such set exists.
+
+    ``exposed`` is ``(k, m)`` bool over the triangles to cover.  Triangles are grouped by exposure
+    pattern (a group is covered when its pattern has a chosen direction), so the search runs over
+    the distinct patterns, not the triangles.
+    """
+    patterns, inverse = np.unique(exposed.T, axis=0, return_inverse=True)      # (g, k)
+    inverse = inverse.ravel()
+    for size in range(1, min(below, EXACT_SEARCH_UP_TO) + 1):
+        best, best_score = None, -np.inf
+        combos = np.array(list(itertools.combinations(range(len(dirs)), size)), dtype=np.int64)
+        for chunk in np.array_split(combos, max(1, len(combos) // 2048)):
+            covers = patterns[:, chunk].any(axis=2).all(axis=0)                  # (c,)
+            for combo in chunk[covers]:
+                cosine = (normals @ dirs[combo].T).max(axis=1)
+                score = float(cosine @ area)
+                if score > best_score:
+                    best, best_score = [int(i) for i in combo], score
+        if best is not None:
+            del inverse
+            return best
+    return None
+
+
 def plan_setups(part: Part, *, max_angle: float = DEFAULT_MAX_ANGLE, table_clearance: float = 0.0,
                 overlap: float = 0.0, max_setups: int = 8, directions=None) -> list[Setup]:
     """Setups that together expose the part's selected triangles, few of them.
@@ -136,6 +169,9 @@ def plan_setups(part: Part, *, max_angle: float = DEFAULT_MAX_ANGLE, table_clear
         left &= ~exposed[best]
         if len(chosen) > max_setups:
             raise InfeasibleError(f"the part needs more than {max_setups} setups to expose every selected face")
+    fewer = _fewest(exposed[:, todo], s.face_normals[todo], area[todo], dirs, len(chosen) - 1)
+    if fewer is not None:
+        chosen = fewer
     # each triangle to the chosen setup that faces it best
     score = np.where(exposed[chosen], (s.face_normals @ dirs[chosen].T).T, -np.inf)
     owner = np.argmax(score, axis=0)
