@@ -122,7 +122,7 @@ def _selected_part(settings: JobSettings, say):
                                                                          part.face_ids[part.work_triangles]})}
     if part.chordal_tolerance is not None:
         metrics["chordal_tolerance_m"] = part.chordal_tolerance
-    return work_surface(part), {"part": part, "metrics": metrics}
+    return work_surface(part, settings.pad_radius), {"part": part, "metrics": metrics}
 
 
 def _facing(part, side) -> str:

@@ -108,7 +108,7 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
     """
     from ..io.atomic import atomic_directory, check_output_dir
     from ..report import write_report
-    from ..segment.select import area_metrics, select
+    from ..segment.select import area_metrics, clear_triangles, select
     from ..segment.setups import plan_setups
     from ..simulate import simulate_removal
     from ..trajectory import time_path
@@ -123,6 +123,7 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
     part = select(load_closed_part(settings), faces=settings.faces, keep_out=settings.keep_out,
                   keep_out_margin=settings.keep_out_margin, edge_margin=settings.edge_margin)
     setups = plan_setups(part, overlap=settings.pad_radius)
+    clear = clear_triangles(part, settings.pad_radius)
     say(f"{len(setups)} setups expose the part", 0, 1)
     total_depth: Any = None
     samples: Any = None
@@ -133,7 +134,7 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
     for setup in setups:
         say(f"setup {setup.index}: planning ({settings.planner}) on faces "
             f"{', '.join(str(i) for i in setup.faces)}", 0, 1)
-        surface = part.surface.sub_surface(np.flatnonzero(setup.planned), name=f"{part.surface.name} setup "
+        surface = part.surface.sub_surface(np.flatnonzero(setup.planned & clear), name=f"{part.surface.name} setup "
                                                                                f"{setup.index}")
         toolpath = make_plan(surface, settings, progress=say, part=part)
         trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())

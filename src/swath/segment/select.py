@@ -129,13 +129,35 @@ def select(part: Part, *, faces: str | None = None, keep_out: str | None = None,
     return out
 
 
-def work_surface(part: Part):
+def work_surface(part: Part, pad_radius: float | None = None):
     """The sub-surface to plan on: the selected triangles minus the keep-outs (the whole surface
-    when everything is selected)."""
+    when everything is selected).
+
+    With ``pad_radius`` (m), the triangles with a corner closer than ``pad_radius +
+    part.keep_out_margin`` to a keep-out are left out too (:func:`clear_triangles`): the planners
+    then lay their edge passes along the clearance line instead of having passes cut there.
+    """
     work = part.work_triangles
+    if pad_radius is not None:
+        work = work & clear_triangles(part, pad_radius)
+        if not work.any():
+            raise InputError(f"no triangle of the area to finish lies {(pad_radius + part.keep_out_margin) * 1e3:.3g} mm "
+                             "(pad radius + keep-out margin) from the keep-outs; select a larger area")
     if work.all():
         return part.surface
     return part.surface.sub_surface(np.flatnonzero(work), name=part.surface.name)
+
+
+def clear_triangles(part: Part, pad_radius: float) -> np.ndarray:
+    """(m,) bool: triangles whose corners all lie at least ``pad_radius + part.keep_out_margin`` (m)
+    from every keep-out triangle (all True without keep-outs)."""
+    clear = np.ones(len(part.face_ids), bool)
+    if not part.keep_out.any():
+        return clear
+    keep_out_surface = part.surface.sub_surface(np.flatnonzero(part.keep_out))
+    _, distance, _ = keep_out_surface.closest_points(part.surface.vertices)
+    near = distance < float(pad_radius) + part.keep_out_margin
+    return ~near[part.surface.faces].any(axis=1)
 
 
 def keep_clear(toolpath: ToolPath, part: Part, pad_radius: float, *, point_spacing: float | None = None) -> ToolPath:
