@@ -96,8 +96,7 @@ def _fewest(exposed: np.ndarray, normals: np.ndarray, area: np.ndarray, dirs: np
     pattern (a group is covered when its pattern has a chosen direction), so the search runs over
     the distinct patterns, not the triangles.
     """
-    patterns, inverse = np.unique(exposed.T, axis=0, return_inverse=True)      # (g, k)
-    inverse = inverse.ravel()
+    patterns = np.unique(exposed.T, axis=0)      # (g, k): the distinct exposure patterns
     for size in range(1, min(below, EXACT_SEARCH_UP_TO) + 1):
         best, best_score = None, -np.inf
         combos = np.array(list(itertools.combinations(range(len(dirs)), size)), dtype=np.int64)
@@ -109,7 +108,6 @@ def _fewest(exposed: np.ndarray, normals: np.ndarray, area: np.ndarray, dirs: np
                 if score > best_score:
                     best, best_score = [int(i) for i in combo], score
         if best is not None:
-            del inverse
             return best
     return None
 
