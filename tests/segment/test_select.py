@@ -112,11 +112,9 @@ def test_area_metrics_split_removal_between_selection_keep_out_and_the_rest():
     assert m["keep_out_touched_area_m2"] > 0
 
 
-pytest.importorskip("OCP")
-
-
 @pytest.fixture(scope="module")
 def tube_step(tmp_path_factory):
+    pytest.importorskip("OCP")
     from swath.examples import cad
 
     shape = cad.tube_with_flange()
