@@ -122,6 +122,7 @@ def tube_step(tmp_path_factory):
     return cad.write_step(shape, path, names=cad.tube_face_names(shape))
 
 
+@pytest.mark.slow
 def test_keep_out_face_gets_no_removal_while_its_neighbour_is_covered(tube_step):
     """The must-show: tube_outer finished, the flange's top face kept out; the simulation on the
     whole part (every face present) finds zero removal on the flange top and the tube covered
