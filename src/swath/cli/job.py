@@ -31,6 +31,11 @@ def load_part(settings: JobSettings):
 def load_part_info(settings: JobSettings, *, progress=None):
     """The job's part as ``(Surface, info)``.
 
+    A STEP/IGES file is read as a :class:`~swath.io.part.Part` (:func:`swath.io.step.load_step`);
+    with ``faces``/``keep_out``/``edge_margin`` set (any part), ``info["part"]`` holds the part
+    with its selection and the Surface returned is the area to finish
+    (:func:`swath.segment.select.work_surface`).
+
     ``info`` is empty for a mesh or an example; for a patch (``patch.json``, or a scan fitted
     with ``settings.fit``) it holds ``"patch"`` (the BSplinePatch), ``"footprint"`` (the scanned
     area the surface is trimmed to, or None) and ``"metrics"`` (fit figures and the triangulation
@@ -45,6 +50,9 @@ def load_part_info(settings: JobSettings, *, progress=None):
 
     say = progress or (lambda stage, done, total: None)
     part = settings.part
+    selecting = settings.faces is not None or settings.keep_out is not None or settings.edge_margin > 0
+    if PurePath(part).suffix.lower() in (".step", ".stp", ".iges", ".igs") or (selecting and not settings.fit):
+        return _selected_part(settings, say)
     if part.startswith("example:"):
         from ..examples import example_part
 
@@ -82,6 +90,56 @@ def load_part_info(settings: JobSettings, *, progress=None):
     metrics = {"fit_rms_m": report.rms, "fit_max_error_m": report.max_error, "n_fit_points": report.n_points,
                "n_fit_dropped": report.n_dropped, "fit_time_s": report.time, "surface_spacing_m": spacing}
     return surface, {"patch": patch, "footprint": footprint, "metrics": metrics}
+
+
+def _selected_part(settings: JobSettings, say):
+    """``(work surface, {"part": Part})`` of a CAD file, or of a mesh / example with a selection."""
+    from pathlib import PurePath
+
+    from ..io.part import Part
+    from ..segment.select import select, work_surface
+
+    name = settings.part
+    if PurePath(name).suffix.lower() in (".step", ".stp", ".iges", ".igs"):
+        from ..io.step import load_step
+
+        part = load_step(name, chordal_tolerance=settings.chordal_tol, force_units=settings.force_units)
+        say(f"read {len(part.faces)} CAD faces, tessellated to {settings.chordal_tol * 1e3:.3g} mm", 0, 1)
+        faces = settings.faces
+        if faces is None and part.closed:
+            if settings.side is None:
+                raise InputError(f"{PurePath(name).name} is a closed solid; pick the area to finish with --faces "
+                                 "(ids, names or colours) or pass --side +z to finish the faces facing that side")
+            faces = _facing(part, settings.side)
+    else:
+        from dataclasses import replace
+
+        surface = load_part_info(replace(settings, faces=None, keep_out=None, edge_margin=0.0))[0]
+        part = Part.from_surface(surface, source=name)
+        faces = settings.faces
+    part = select(part, faces=faces, keep_out=settings.keep_out, keep_out_margin=settings.keep_out_margin,
+                  edge_margin=settings.edge_margin)
+    metrics = {"n_part_faces": len(part.faces), "selected_faces": sorted({int(i) for i in
+                                                                         part.face_ids[part.work_triangles]})}
+    if part.chordal_tolerance is not None:
+        metrics["chordal_tolerance_m"] = part.chordal_tolerance
+    return work_surface(part, settings.pad_radius), {"part": part, "metrics": metrics}
+
+
+def _facing(part, side) -> str:
+    """The ids (as a --faces text) of the faces of a closed CAD part whose mean normal faces ``side``."""
+    import numpy as np
+
+    from ..io.mesh import SIDE_DOT, parse_side
+
+    direction = parse_side(side)
+    s = part.surface
+    weighted = np.zeros((max(f.id for f in part.faces) + 1, 3))
+    np.add.at(weighted, part.face_ids, s.face_normals * s.face_areas[:, None])
+    facing = [f.id for f in part.faces if weighted[f.id] @ direction > SIDE_DOT * np.linalg.norm(weighted[f.id])]
+    if not facing:
+        raise InputError(f"no face of the part faces --side {side}; pick faces with --faces")
+    return ",".join(str(i) for i in facing)
 
 
 @dataclass(frozen=True)
@@ -153,7 +211,7 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     given = {"spacing": settings.spacing, "direction": settings.direction, "overlap": settings.overlap}
     own = {}
     for k, v in settings.planner_options.items():
-        spec = SCHEMA.get(k) or PLANNER_OPTION_SCHEMA.get(k)
+        spec = PLANNER_OPTION_SCHEMA.get(k) or SCHEMA.get(k)   # a planner's own option first (edge_margin)
         if spec is None and k in takes:
             # a library-only option (the job's cost and progress, a direction vector): no text form
             raise InputError(f"planner_options.{k} cannot be set from a job; the options a job may give the "
@@ -178,10 +236,12 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     return options
 
 
-def make_plan(surface, settings: JobSettings, *, progress=None, tool=None):
+def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=None):
     """Run the job's planner on ``surface`` and order its passes; returns a ToolPath.
     ``progress(stage, done, total)`` hears about long planning steps; ``tool`` is the job's tool
-    (default :func:`swath.cli.stages.job_tool`, built from the settings and the calibration)."""
+    (default :func:`swath.cli.stages.job_tool`, built from the settings and the calibration).  With a
+    ``part`` (its selection set), the passes are cut where the pad would touch a keep-out or cross
+    the edge margin (:func:`swath.segment.select.keep_clear`) before they are ordered."""
     from ..order import order_toolpath, route_links
     from ..plan import get_planner
     from .stages import job_tool
@@ -199,6 +259,10 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None):
         toolpath = segmented_plan(surface, tool, planner, settings, arguments)
     else:
         toolpath = planner(surface, tool, **arguments)
+    if part is not None and (part.keep_out.any() or part.edge_margin > 0):
+        from ..segment.select import keep_clear
+
+        toolpath = keep_clear(toolpath, part, settings.pad_radius)
     ordered = order_toolpath(toolpath, method=order_method(toolpath, settings), **order_options(toolpath, settings))
     return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius)
 
@@ -263,6 +327,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from . import process_stage, stages
     from .guard import check_budget
 
+    if settings.side == "all":
+        from .setups import run_setups
+
+        return run_setups(settings, progress=progress)
     say = progress or (lambda stage, done, total: None)
     timings = {}
     check_output_dir(settings.out, overwrite=settings.overwrite)
@@ -281,7 +349,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
     t0 = time.perf_counter()
     say(f"planning ({settings.planner})", 0, 1)
-    toolpath = make_plan(surface, settings, progress=say, tool=tool)
+    toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"))
     timings["plan_s"] = time.perf_counter() - t0
     log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
 
@@ -338,6 +406,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["pad_study_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)
+    if part_info.get("part") is not None:
+        extra_metrics.update(_judge_on_part(part_info["part"], trajectory, tool, settings, force, say))
     metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float))
                     and not isinstance(v, bool) and k.endswith(("_m", "_rad", "_s")) and k not in metrics})
     metrics.update(timings)
@@ -357,6 +427,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         metrics["warnings"].insert(0, facing)
     if robot is not None:
         metrics["warnings"] += robot.warnings
+    if "keep_out_warning" in metrics:
+        metrics["warnings"].append(metrics.pop("keep_out_warning"))
     metrics["warnings"] = [tagged(w) for w in metrics["warnings"]]        # "... [W-CODE]", docs: Warnings
     for w in metrics["warnings"]:
         log.warning("%s", w)
@@ -392,6 +464,25 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
                      extra_figures=figures,
                      scene_traces=None if robot is None else stages.cell_scene(robot, metrics, surface) + (traces or []))
     say("done", 1, 1)
+    return metrics
+
+
+def _judge_on_part(part, trajectory, tool, settings, force, say) -> dict:
+    """The removal of the job's trajectory simulated on the whole part (every face, not only the
+    area planned on), judged by :func:`swath.segment.select.area_metrics`; a warning when a
+    keep-out receives removal."""
+    from ..segment.select import area_metrics
+    from ..simulate import simulate_removal
+
+    whole = simulate_removal(trajectory, part.surface, tool, sample_spacing=settings.sample_spacing,
+                             sampling=settings.removal_sampling, force=None if force is None else force.force,
+                             progress=lambda d, n: say("simulating removal on the whole part", d, n))
+    metrics = area_metrics(part, whole.surface.vertices, whole.surface.vertex_areas, whole.depth)
+    metrics["part_faces"] = part.faces_table()
+    if metrics["keep_out_max_removal_m"] > 0:
+        metrics["keep_out_warning"] = (f"the pad removes material on the keep-outs: up to "
+                                       f"{metrics['keep_out_max_removal_m'] * 1e6:.3g} um over "
+                                       f"{metrics['keep_out_touched_area_m2'] * 1e4:.3g} cm²; raise --keep-out-margin")
     return metrics
 
 

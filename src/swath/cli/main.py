@@ -35,7 +35,8 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     if with_part_options:
         p.add_argument("--units", default="m", help="unit of a unitless mesh file: m, mm, cm or in (or their names, "
                                                     "e.g. millimetres, inch)")
-        p.add_argument("--side", help="for a closed solid: the direction the tool comes from, e.g. +z")
+        p.add_argument("--side", help="for a closed solid: the direction the tool comes from, e.g. +z, or all "
+                                      "(finish it all round, in setups)")
         p.add_argument("--all-pieces", action="store_true", help="keep every piece of a multi-piece mesh")
         p.add_argument("--force-units", action="store_true", help="accept a part size outside 5 mm .. 20 m")
         p.add_argument("--fit", action="store_true",
@@ -45,6 +46,13 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
         p.add_argument("--surface-spacing",
                        help="triangle size of a fitted or saved patch to plan on, e.g. 3mm "
                             "(default: the patch's extent / 150, within 2..5 mm)")
+        p.add_argument("--faces", help="the area to finish: face ids, names or colours (3,5 / tube_outer / #0000ff) "
+                                       "or box:xmin,ymin,zmin,xmax,ymax,zmax; terms separated by ';' (default all)")
+        p.add_argument("--keep-out", help="faces or boxes the pad must not touch, as --faces")
+        p.add_argument("--keep-out-margin", help="clearance beyond the pad radius from the keep-outs (default 2mm)")
+        p.add_argument("--edge-margin", help="distance the pad centre keeps in from the area's open edges (default 0)")
+        p.add_argument("--chordal-tol", help="STEP/IGES tessellation: largest distance from the exact faces "
+                                             "(default 0.1mm)")
     p.add_argument("--planner", default="raster",
                    help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
                         "or equidistant (geodesic-parallel passes)")
@@ -134,7 +142,7 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="write the robot programs even when the collision check finds a collision (a warning "
                         "then; default: refuse with exit status 2)")
     r.add_argument("--tip", help="with --robot path/to/robot.urdf: the URDF frame the tool is mounted on (default tool0)")
-    r.add_argument("--keep-out", help="with --place: radius of the cylinder about the robot's base axis the part "
+    r.add_argument("--robot-keep-out", help="with --place: radius of the cylinder about the robot's base axis the part "
                                       "must stay out of, e.g. 400mm (default 0.2 m + 0.1 x reach)")
     f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
     f.add_argument("--force-control", action="store_true",
@@ -500,6 +508,12 @@ def _register_summary(settings, doc: dict) -> str:
 
 
 def _summary(settings, m: dict) -> str:
+    if "n_setups" in m:
+        return (f"wrote {settings.out}/metrics.json and setup_1..{m['n_setups']}/trajectory.csv, report.html\n"
+                f"  {m['n_setups']} setups, passes {m['n_passes']}, contact path {m['contact_length_m']:.3f} m, "
+                f"cycle time {m['cycle_time_s']:.1f} s\n"
+                f"  coverage of the whole outer surface {100 * m['coverage_fraction']:.2f} %, removal CoV "
+                f"{m['removal_cov']:.3f}")
     inner = m.get("interior_removal_cov")
     # the CoV away from the edge band, where the pad hangs over (what --optimise-feed evens out)
     inside = f" ({inner:.3f} a pad radius in from the edges)" if inner is not None and math.isfinite(inner) else ""

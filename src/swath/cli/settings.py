@@ -112,7 +112,7 @@ class JobSettings:
     cell: str | None = None
     allow_collisions: bool = False
     tip: str | None = None
-    keep_out: float | None = None
+    robot_keep_out: float | None = None
     # process model: the pad as a shop knows it (depression at a stated force, thickness), its
     # kinematics, wear and media changes (swath.process)
     depression_force: float | None = None      # the force `depression` was measured at (None: 20 N)
@@ -124,6 +124,11 @@ class JobSettings:
     media_change_loss: float | None = None     # change when the removal rate has fallen by this fraction
     wear_compensation: bool = True
     pad_damping: float = 0.0                   # the pad's viscous relaxation time, s (force-control landings)
+    faces: str | None = None
+    keep_out: str | None = None
+    keep_out_margin: float = 2e-3
+    edge_margin: float = 0.0
+    chordal_tol: float = 1e-4
 
     def tool(self):
         """The job's tool from the settings alone (no calibration: see :func:`swath.cli.stages.job_tool`).
@@ -291,7 +296,7 @@ SCHEMA: dict[str, Key] = {
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
     "cell": Key("path"), "allow_collisions": Key("bool"),
-    "tip": Key("str"), "keep_out": Key("length", lo=0.0, hi=5.0, bare_max=5.0, hint="mm, e.g. 400mm"),
+    "tip": Key("str"), "robot_keep_out": Key("length", lo=0.0, hi=5.0, bare_max=5.0, hint="mm, e.g. 400mm"),
     "depression_force": Key("force", positive=True, hi=1e4, bare_max=1e4),
     "pad_thickness": Key("length", positive=True, hi=0.5, bare_max=0.5, hint="mm, e.g. 10mm"),
     "spindle_speed": Key("frequency", positive=True, bare_max=0.0, hint="rpm, e.g. 10000rpm"),
@@ -301,6 +306,10 @@ SCHEMA: dict[str, Key] = {
     "media_change_loss": Key("fraction", lo=0.01, hi=0.99, off=True),
     "wear_compensation": Key("bool"),
     "pad_damping": Key("time", lo=0.0, hi=1.0, bare_max=1.0, hint="ms, e.g. 10ms"),
+    "faces": Key("str"), "keep_out": Key("str"),
+    "keep_out_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 2mm"),
+    "edge_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 5mm"),
+    "chordal_tol": Key("length", positive=True, hi=1e-2, bare_max=1e-2, hint="mm, e.g. 0.1mm"),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job
@@ -446,7 +455,7 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
 
 def check_side(side, key: str) -> None:
     """Refuse a tool side (``--side``) that is no direction, naming ``key``; None passes."""
-    if side is not None:
+    if side is not None and side != "all":      # "all": a closed part all round, in setups
         from ..io.mesh import parse_side
 
         try:

@@ -97,8 +97,8 @@ def robot_options(settings) -> dict:
               "robot_strict": settings.robot_strict}
     if settings.tip:
         values["tip"] = settings.tip
-    if settings.keep_out is not None:
-        values["keep_out"] = settings.keep_out
+    if settings.robot_keep_out is not None:
+        values["keep_out"] = settings.robot_keep_out
     options = robot_options_from_mapping(values)
     options["cell"] = cell
     return options

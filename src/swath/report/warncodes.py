@@ -109,6 +109,15 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-REWORK-UNMEASURED", r"the scan measured only",
           "The rework scan covers less than half of the CAD: the unmeasured rest is taken as nominal.",
           "Check the placement (`--placement`, `--scan-units`) or scan the whole area to finish.", "fit"),
+    entry("W-STEP-FACE-SKIPPED", r"could not be tessellated",
+          "Open CASCADE could not mesh one face of the CAD file; that face is left out of the part.",
+          "Check the face in a CAD tool (a sliver or a broken trim), or lower `--chordal-tol`.", "input"),
+    entry("W-SETUPS-COVERAGE", r"the setups together cover",
+          "The setups chosen for a closed part (`--side all`) together leave part of its outer surface untouched.",
+          "Lower the spacing (or raise the overlap) so each setup reaches its edges, or add a setup.", "plan"),
+    entry("W-KEEP-OUT-TOUCHED", r"the pad removes material on the keep-outs",
+          "The simulated removal reaches into a keep-out area.",
+          "Raise `--keep-out-margin` (the clearance beyond the pad radius), or plan a smaller area.", "simulate"),
     # --- planning and ordering ------------------------------------------------------------------
     entry("W-SPACING-GAP", r"the given spacing .* leaves .* untouched",
           "The spacing you gave is kept (no fill passes are added), and it leaves this share of the part "
