@@ -318,6 +318,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["pad_study_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)
+    from ..simulate.ripple import removal_ripple
+
+    metrics.update(removal_ripple(removal, trajectory, tool))      # the mid-spatial ripple across the passes
     metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float))
                     and not isinstance(v, bool) and k.endswith(("_m", "_rad", "_s")) and k not in metrics})
     metrics.update(timings)
