@@ -263,6 +263,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     timings = {}
     check_output_dir(settings.out, overwrite=settings.overwrite)
     tool = stages.job_tool(settings)
+    if settings.target_cov is not None:
+        from .target_cov import check_target_cov
+
+        check_target_cov(settings)            # below the plane's floor: refused before the part is loaded
 
     t0 = time.perf_counter()
     say("loading part", 0, 1)
@@ -271,16 +275,27 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     check_budget(surface, settings)
     timings["load_s"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    say(f"planning ({settings.planner})", 0, 1)
-    toolpath = make_plan(surface, settings, progress=say)
-    timings["plan_s"] = time.perf_counter() - t0
-    log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
+    searched, target_cov = None, settings.target_cov
+    settings_target = target_cov or 0.0
+    if target_cov is not None:
+        from .target_cov import search_target_cov
 
-    t0 = time.perf_counter()
-    say("timing trajectory", 0, 1)
-    trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
-    timings["trajectory_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        searched = search_target_cov(surface, tool, settings, progress=say)
+        settings = searched.chosen.settings               # the job goes on with the chosen candidate
+        toolpath, trajectory = searched.chosen.toolpath, searched.chosen.trajectory
+        timings["target_cov_search_s"] = time.perf_counter() - t0
+    else:
+        t0 = time.perf_counter()
+        say(f"planning ({settings.planner})", 0, 1)
+        toolpath = make_plan(surface, settings, progress=say)
+        timings["plan_s"] = time.perf_counter() - t0
+        log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
+
+        t0 = time.perf_counter()
+        say("timing trajectory", 0, 1)
+        trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+        timings["trajectory_s"] = time.perf_counter() - t0
 
     extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
     if settings.optimise_feed:
@@ -303,9 +318,12 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["force_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
-                               sampling=settings.removal_sampling, force=None if force is None else force.force,
-                               progress=lambda d, n: say("simulating removal", d, n))
+    if searched is not None and trajectory is searched.chosen.trajectory and force is None:
+        removal = searched.chosen.removal           # the search simulated this very trajectory
+    else:
+        removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
+                                   sampling=settings.removal_sampling, force=None if force is None else force.force,
+                                   progress=lambda d, n: say("simulating removal", d, n))
     timings["simulate_s"] = time.perf_counter() - t0
     if worth_a_study(removal.metrics):
         # Uneven removal: would a softer pad, running the same programme, have removed more evenly?
@@ -318,6 +336,14 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["pad_study_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)
+    warnings: list[str] = []                     # the job's own warnings (the others come from plan_warnings)
+    if searched is not None:
+        metrics.update(searched.metrics(settings_target))
+        if not metrics["interior_removal_cov"] <= settings_target:      # a later stage (robot, force) changed it
+            warnings.append(
+                f"--target-cov: the chosen plan reached {float(searched.chosen.interior_removal_cov or 0.0) * 100:.1f} %, but the "
+                f"job's final trajectory removes with an interior CoV of {metrics['interior_removal_cov'] * 100:.1f} % "
+                f"(> {settings_target * 100:.1f} %): the robot or force stage changed the timing [W-TARGET-COV-MISSED]")
     from ..simulate.ripple import removal_ripple
 
     metrics.update(removal_ripple(removal, trajectory, tool))      # the mid-spatial ripple across the passes
@@ -334,11 +360,14 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
     if robot is not None:
         metrics["warnings"] += robot.warnings
+    metrics["warnings"] += warnings
     metrics["warnings"] = [tagged(w) for w in metrics["warnings"]]        # "... [W-CODE]", docs: Warnings
     for w in metrics["warnings"]:
         log.warning("%s", w)
     record = settings.as_record()
     record["plan"] = dict(toolpath.metadata)
+    if target_cov is not None:
+        record["target_cov"] = target_cov
 
     say("writing report", 0, 1)
     with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
@@ -353,6 +382,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             from ..report.feed_plots import write_feed_plots
 
             figures.update(write_feed_plots(tmp, feed))
+        if searched is not None:
+            from ..report.target_cov_plot import write_target_cov_plot
+
+            figures.update(write_target_cov_plot(tmp, metrics["target_cov_candidates"], settings_target))
         if force is not None:
             from ..report.force_plots import write_force_plots
 
