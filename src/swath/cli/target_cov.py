@@ -138,7 +138,8 @@ def check_target_cov(settings) -> None:
             f"{math.ceil(floor * 1000) / 10:.1f} % or more (the least reachable on the part is found by the search)")
 
 
-def search_target_cov(surface, tool, settings, *, candidates=None, progress=None) -> SearchResult:
+def search_target_cov(surface, tool, settings, *, candidates=None, progress=None,
+                      plan_options: dict | None = None) -> SearchResult:
     """The candidate with the shortest cycle time whose simulated interior removal CoV is at most
     ``settings.target_cov`` (module notes).
 
@@ -153,6 +154,9 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
         The candidates (default :func:`candidate_settings`).
     progress : callable, optional
         ``progress(stage, done, total)``.
+    plan_options : dict, optional
+        More keyword arguments of :func:`swath.cli.job.make_plan` for every candidate (the job's
+        own, e.g. its tool and selected part).
 
     Raises
     ------
@@ -172,7 +176,7 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
     for i, (label, cand) in enumerate(pool):
         say(f"--target-cov: planning candidate {i + 1} of {len(pool)} ({label})", i, len(pool))
         try:
-            toolpath = make_plan(surface, cand)
+            toolpath = make_plan(surface, cand, **(plan_options or {}))
         except SwathError as exc:               # e.g. no direction the uniform planner can lay at that overlap
             log.warning("--target-cov: candidate %s cannot be planned on %s (%s); left out [W-TARGET-COV-CANDIDATE]",
                         label, surface.name, exc)
