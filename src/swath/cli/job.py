@@ -335,6 +335,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     timings = {}
     check_output_dir(settings.out, overwrite=settings.overwrite)
     tool = stages.job_tool(settings)
+    if settings.target_cov is not None:
+        from .target_cov import check_target_cov
+
+        check_target_cov(settings)            # below the plane's floor: refused before the part is loaded
 
     from ..io.facing import facing_warning
 
@@ -347,16 +351,28 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    say(f"planning ({settings.planner})", 0, 1)
-    toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"))
-    timings["plan_s"] = time.perf_counter() - t0
-    log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
+    searched, target_cov = None, settings.target_cov
+    settings_target = target_cov or 0.0
+    if target_cov is not None:
+        from .target_cov import search_target_cov
 
-    t0 = time.perf_counter()
-    say("timing trajectory", 0, 1)
-    trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
-    timings["trajectory_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        searched = search_target_cov(surface, tool, settings, progress=say,
+                                     plan_options={"tool": tool, "part": part_info.get("part")})
+        settings = searched.chosen.settings               # the job goes on with the chosen candidate
+        toolpath, trajectory = searched.chosen.toolpath, searched.chosen.trajectory
+        timings["target_cov_search_s"] = time.perf_counter() - t0
+    else:
+        t0 = time.perf_counter()
+        say(f"planning ({settings.planner})", 0, 1)
+        toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"))
+        timings["plan_s"] = time.perf_counter() - t0
+        log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
+
+        t0 = time.perf_counter()
+        say("timing trajectory", 0, 1)
+        trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+        timings["trajectory_s"] = time.perf_counter() - t0
 
     extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
     if settings.optimise_feed:
@@ -388,9 +404,13 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     t0 = time.perf_counter()
     wear_and_holds = {"rate_scale": process_stage.removal_rate_scale(trajectory, tool, settings),
                       "holds": None if force is None else force.holds}
-    removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
-                               sampling=settings.removal_sampling, force=None if force is None else force.force,
-                               progress=lambda d, n: say("simulating removal", d, n), **wear_and_holds)
+    if searched is not None and trajectory is searched.chosen.trajectory and force is None \
+            and wear_and_holds["rate_scale"] is None:
+        removal = searched.chosen.removal           # the search simulated this very trajectory
+    else:
+        removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
+                                   sampling=settings.removal_sampling, force=None if force is None else force.force,
+                                   progress=lambda d, n: say("simulating removal", d, n), **wear_and_holds)
     timings["simulate_s"] = time.perf_counter() - t0
     if force is not None and len(force.holds.get("dwell", ())):
         # the marks the landings and lifts leave, each on its own
@@ -408,6 +428,17 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics = dict(removal.metrics)
     if part_info.get("part") is not None:
         extra_metrics.update(_judge_on_part(part_info["part"], trajectory, tool, settings, force, say))
+    warnings: list[str] = []                     # the job's own warnings (the others come from plan_warnings)
+    if searched is not None:
+        metrics.update(searched.metrics(settings_target))
+        if not metrics["interior_removal_cov"] <= settings_target:      # a later stage (robot, force) changed it
+            warnings.append(
+                f"--target-cov: the chosen plan reached {float(searched.chosen.interior_removal_cov or 0.0) * 100:.1f} %, but the "
+                f"job's final trajectory removes with an interior CoV of {metrics['interior_removal_cov'] * 100:.1f} % "
+                f"(> {settings_target * 100:.1f} %): the robot or force stage changed the timing [W-TARGET-COV-MISSED]")
+    from ..simulate.ripple import removal_ripple
+
+    metrics.update(removal_ripple(removal, trajectory, tool))      # the mid-spatial ripple across the passes
     metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float))
                     and not isinstance(v, bool) and k.endswith(("_m", "_rad", "_s")) and k not in metrics})
     metrics.update(timings)
@@ -429,6 +460,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         metrics["warnings"] += robot.warnings
     if "keep_out_warning" in metrics:
         metrics["warnings"].append(metrics.pop("keep_out_warning"))
+    metrics["warnings"] += warnings
     metrics["warnings"] = [tagged(w) for w in metrics["warnings"]]        # "... [W-CODE]", docs: Warnings
     for w in metrics["warnings"]:
         log.warning("%s", w)
@@ -436,6 +468,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     record.update(motion=tool.motion, spindle_speed_rad_per_s=tool.spindle_speed, orbit_radius_m=tool.orbit_radius,
                   preston_coefficient_per_Pa=tool.preston, wear_rate_per_s=tool.wear_rate)
     record["plan"] = dict(toolpath.metadata)
+    if target_cov is not None:
+        record["target_cov"] = target_cov
 
     say("writing report", 0, 1)
     with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
@@ -450,6 +484,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             from ..report.feed_plots import write_feed_plots
 
             figures.update(write_feed_plots(tmp, feed))
+        if searched is not None:
+            from ..report.target_cov_plot import write_target_cov_plot
+
+            figures.update(write_target_cov_plot(tmp, metrics["target_cov_candidates"], settings_target))
         if force is not None:
             from ..report.force_plots import write_force_plots
 

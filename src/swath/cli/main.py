@@ -126,6 +126,10 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     e.add_argument("--feed-simulate-check", action=argparse.BooleanOptionalAction, default=None,
                    help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "
                         "simulator finds more than the target plus the tolerance (up to 6 rounds; default on)")
+    e.add_argument("--target-cov",
+                   help="the interior removal CoV to reach, e.g. 6%%: swath plans, times and simulates a stated set "
+                        "of candidates (spacing, lead) and keeps the one with the shortest cycle time that reaches "
+                        "it, or refuses with the least reachable CoV and its cycle time")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
     r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120, or a URDF file "
                                    "(path/to/robot.urdf, with --tip)")

@@ -101,6 +101,8 @@ class JobSettings:
     target_floor: str = "none"
     # the contact length a spacing optimisation may use, in multiples of the coverage bound L*
     length_budget: float = 1.5
+    # the interior removal CoV asked for (a fraction): the shortest candidate plan that reaches it
+    target_cov: float | None = None
     # robot stage
     robot: str | None = None
     base: str | None = None
@@ -293,6 +295,7 @@ SCHEMA: dict[str, Key] = {
     "optimise_spacing": Key("str", choices=("ripple", "greedy", "joint"), off=True),
     "feed_simulate_check": Key("bool"), "target_floor": Key("str", choices=("none", "fastest")),
     "length_budget": Key("fraction", lo=1.0, hi=4.0),
+    "target_cov": Key("fraction", positive=True, hi=1.0, off=True),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
     "cell": Key("path"), "allow_collisions": Key("bool"),
@@ -508,6 +511,17 @@ def check_settings(settings: JobSettings) -> None:
                              "force-controlled run it simulates); add --force-control")
     if settings.grit is not None and not settings.calibration:
         raise InputError("--grit picks a grit from a calibration file: add --calibration FILE (from `swath calibrate`)")
+    if settings.target_cov is not None:
+        given = [flag for flag, on in (("--optimise-spacing", settings.optimise_spacing is not None),
+                                       ("--spacing", settings.spacing is not None),
+                                       ("--overlap", settings.overlap is not None),
+                                       ("--optimise-feed", settings.optimise_feed),
+                                       ("--segment auto", settings.segment == "auto")) if on]
+        if given:
+            raise InputError(f"--target-cov chooses the spacing, lead and feed itself: drop {', '.join(given)}")
+        if settings.planner not in ("raster", "uniform"):
+            raise InputError(f"--target-cov searches raster or uniform plans, not {settings.planner}: use "
+                             "--planner raster (default) or --planner uniform")
     if settings.target_map and settings.target_depth:
         raise InputError("give either target_depth (a uniform depth) or target_map (a depth per vertex), not both")
 

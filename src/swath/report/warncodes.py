@@ -164,6 +164,16 @@ CODES: dict[str, WarningCode] = dict([
           "Even at the slowest allowed feed the plan removes clearly less than the target depth on average.",
           "Lower the target or raise the tolerance, raise the force, plan the passes closer, or run the job "
           "more than once.", "feed"),
+    entry("W-TARGET-COV-MISSED", r"--target-cov: the chosen plan reached",
+          "The plan --target-cov chose reached the asked interior removal CoV in the search, but the job's final "
+          "trajectory (re-timed by the robot stage, or run under force control) removes less evenly.",
+          "Ask for a somewhat lower CoV so that the search keeps a margin, or relax the joint limits that re-time the "
+          "path.", "feed"),
+    entry("W-TARGET-COV-CANDIDATE", r"--target-cov: candidate .* cannot be planned",
+          "One of the candidate plans --target-cov tries could not be planned on this part (for instance no "
+          "direction lets the uniform planner lay passes at that overlap); the search goes on without it.",
+          "Nothing, if another candidate reaches the target; otherwise try the other planner (--planner raster or "
+          "uniform).", "feed"),
     # --- robot ---------------------------------------------------------------------------------------------
     entry("W-ROBOT-UNREACHABLE", r"poses are unreachable for|The programs leave these samples out",
           "Some poses of the trajectory are out of the robot's reach or joint limits, or near a singularity; "

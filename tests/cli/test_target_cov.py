@@ -1,0 +1,106 @@
+"""``--target-cov``: the shortest candidate plan that reaches an asked interior removal CoV."""
+
+import json
+import math
+import re
+
+import numpy as np
+import pytest
+
+from swath.cli.job import JobSettings, make_plan, run_job
+from swath.cli.settings import check_settings, settings_from_mapping
+from swath.cli.target_cov import check_target_cov, plane_floor, search_target_cov
+from swath.errors import InfeasibleError, InputError
+from swath.examples import example_part
+from swath.feed import ripple_cov
+from swath.simulate import simulate_removal
+from swath.trajectory import read_csv
+
+COARSE = 4e-3          # removal samples 4 mm apart: the plate's figures within a point of the 2 mm ones
+
+
+def test_a_plan_reaching_10_percent_on_the_plate_is_the_shortest_that_does(tmp_path, monkeypatch):
+    import swath.cli.target_cov as search
+
+    # a smaller candidate set keeps the test short: covering, least-ripple flat and led by half the pad
+    monkeypatch.setattr(search, "LEADS", (0.0, None))
+    monkeypatch.setattr(search, "BUDGETS", (1.5,))
+    settings = JobSettings(part="example:plate", out=str(tmp_path / "out"), target_cov=0.10, sample_spacing=COARSE)
+    metrics = run_job(settings)
+    assert metrics["interior_removal_cov"] <= 0.10
+    rows = metrics["target_cov_candidates"]
+    simulated = [r for r in rows if r["simulated"]]
+    # simulated cheapest first, every one before the chosen missed the target, the chosen reached it
+    times = [r["cycle_time_s"] for r in simulated]
+    assert times == sorted(times)
+    assert all(not r["reached"] and r["interior_removal_cov"] > 0.10 for r in simulated[:-1])
+    assert simulated[-1]["reached"] and simulated[-1]["label"] == metrics["target_cov_choice"]
+    assert metrics["cycle_time_s"] == pytest.approx(simulated[-1]["cycle_time_s"])
+    # the plain covering raster (the shortest path) is far from 10 %: the search had to go further
+    assert simulated[0]["spacing_rule"] == "cover" and simulated[0]["interior_removal_cov"] > 0.2
+    # the written trajectory, simulated afresh, confirms the figure
+    out = tmp_path / "out"
+    trajectory = read_csv(out / "trajectory.csv")
+    removal = simulate_removal(trajectory, example_part("plate"), settings.tool(), sample_spacing=COARSE,
+                               sampling="lattice")
+    assert removal.metrics["interior_removal_cov"] == pytest.approx(metrics["interior_removal_cov"], abs=0.005)
+    assert removal.metrics["interior_removal_cov"] <= 0.10 + 0.005
+    doc = json.loads((out / "metrics.json").read_text())
+    assert doc["settings"]["target_cov"] == 0.10
+    assert len(doc["metrics"]["target_cov_candidates"]) == len(rows)
+    assert (out / "target_cov_candidates.png").stat().st_size > 10_000
+    assert len(rows) == 3
+    assert "target cov candidates" in (out / "report.html").read_text()
+
+
+def test_out_of_reach_is_refused_with_the_least_reachable_cov_and_its_cost():
+    settings = JobSettings(part="example:plate", out="unused", target_cov=0.06, sample_spacing=COARSE)
+    surface, tool = example_part("plate"), settings.tool()
+    base = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE)
+    ripple = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE, optimise_spacing="ripple")
+    with pytest.raises(InfeasibleError) as err:
+        search_target_cov(surface, tool, settings, candidates=[("cover", base), ("ripple", ripple)])
+    text = str(err.value)
+    found = re.search(r"least reachable ([0-9.]+) % at ([0-9.]+) L\*, ([0-9]+) s \(ripple", text)
+    assert found, text
+    # the figures are the ripple candidate's own, simulated independently
+    trajectory_settings = ripple
+    from swath.trajectory import time_path
+
+    toolpath = make_plan(surface, trajectory_settings)
+    timed = time_path(toolpath, ripple.constraints(), links=ripple.links())
+    m = simulate_removal(timed, surface, tool, sample_spacing=COARSE, sampling="lattice").metrics
+    assert float(found.group(1)) == pytest.approx(m["interior_removal_cov"] * 100, abs=0.06)
+    assert float(found.group(2)) == pytest.approx(m["contact_length_m"] / m["coverage_lower_bound_m"], abs=0.006)
+    assert int(found.group(3)) == pytest.approx(timed.duration, abs=1)
+
+
+def test_the_plane_floor_is_the_least_ripple_over_the_candidates():
+    tool = JobSettings(part="example:plate", out="unused").tool()
+    floor, lead, spacing = plane_floor(tool, budget=2.0)
+    # straight passes within 2 L* (FORMATS.md contact model): about 3.8 % with the pad led by 15°
+    assert floor == pytest.approx(0.038, abs=0.003)
+    assert math.degrees(lead) == pytest.approx(15.0)
+    assert 2 * tool.pad_radius / spacing <= 2.0 + 1e-9
+    assert floor == pytest.approx(ripple_cov(tool, spacing, lead_angle=lead), rel=1e-9)
+    # a flat pad does worse at any spacing within the budget
+    d = np.linspace(tool.pad_radius, 2 * tool.pad_radius, 9)
+    assert min(ripple_cov(tool, x) for x in d) > floor
+
+
+def test_below_the_floor_is_refused_before_any_work(tmp_path):
+    settings = JobSettings(part="/nonexistent/part.stl", out=str(tmp_path / "out"), target_cov=0.01)
+    with pytest.raises(InfeasibleError, match=r"below the floor of straight passes on a plane: 1\.[0-9] %"):
+        check_target_cov(settings)
+    with pytest.raises(InfeasibleError, match="below the floor"):
+        run_job(settings)                  # refused before the (missing) part is read
+    assert not (tmp_path / "out").exists()
+
+
+def test_target_cov_refuses_settings_it_chooses_itself():
+    settings = settings_from_mapping({"part": "example:plate", "out": "x", "target_cov": "6%"})
+    assert settings.target_cov == pytest.approx(0.06)
+    check_settings(settings)
+    for key, value, flag in (("spacing", "50mm", "--spacing"), ("optimise_spacing", "ripple", "--optimise-spacing")):
+        with pytest.raises(InputError, match=f"drop {flag}"):
+            settings_from_mapping({"part": "example:plate", "out": "x", "target_cov": "6%", key: value})
