@@ -288,26 +288,44 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-class _Progress:
-    """Progress lines on stderr: a line per stage, percentages for long steps."""
+#: A step running longer than this (s) gets an estimate of its time left on its percentage lines.
+ESTIMATE_AFTER_S = 5.0
 
-    def __init__(self, quiet: bool):
+
+def _time_left(elapsed: float, done: int, total: int) -> str:
+    """``", about 12 s left"``: the rest of a step at the rate of its first ``done`` of ``total``
+    units (``elapsed`` s); ``""`` before the first unit, once done, or before :data:`ESTIMATE_AFTER_S`."""
+    if done <= 0 or done >= total or elapsed < ESTIMATE_AFTER_S:
+        return ""
+    left = elapsed * (total - done) / done
+    return f", about {left:.0f} s left" if left < 120 else f", about {left / 60:.0f} min left"
+
+
+class _Progress:
+    """Progress lines on stderr: a line per stage, percentages for long steps, and for a step
+    running over :data:`ESTIMATE_AFTER_S` an estimate of its time left."""
+
+    def __init__(self, quiet: bool, *, clock=time.perf_counter):
         self.quiet = quiet
+        self.clock = clock
         self.stage: str | None = None
-        self.t0 = time.perf_counter()
+        self.t0 = clock()
         self.last = 0.0
+        self.stage_t0 = self.t0
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if self.quiet:
             return
-        now = time.perf_counter()
+        now = self.clock()
         if stage != self.stage:
             self.stage = stage
-            self.last = now
+            self.last = self.stage_t0 = now
             print(f"[{now - self.t0:6.1f} s] {stage}", file=sys.stderr, flush=True)
         elif total > 1 and (now - self.last > 2.0 or done == total):
             self.last = now
-            print(f"[{now - self.t0:6.1f} s]   {stage}: {100.0 * done / total:5.1f} %", file=sys.stderr, flush=True)
+            left = _time_left(now - self.stage_t0, done, total)
+            print(f"[{now - self.t0:6.1f} s]   {stage}: {100.0 * done / total:5.1f} %{left}", file=sys.stderr,
+                  flush=True)
 
 
 def _settings_from_args(args):

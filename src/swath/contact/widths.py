@@ -43,8 +43,10 @@ plane near the end of the cross extent misses a boundary that curves away from i
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import weakref
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -169,14 +171,35 @@ def lower_bound_density(samples: PadSamples, tool) -> np.ndarray:
     return samples.areas / np.maximum(w, 1e-9)
 
 
+#: The last few :func:`unique_patches` results, newest last, by tool, ray count and a digest of the
+#: rounded curvature pairs.
+_PATCHES: OrderedDict = OrderedDict()
+PATCH_MEMO_ENTRIES = 8
+
+
 def unique_patches(k1, k2, tool, n_rays):
     """Solve the local model once per distinct rounded curvature pair; returns the patch of the
-    distinct pairs and the row of each input point."""
+    distinct pairs and the row of each input point.
+
+    The answer depends on the rounded pairs, the tool and ``n_rays`` only, and a plan asks for it
+    many times with the same pad-scale samples (the spacing and the coverage check of every
+    candidate direction): the last :data:`PATCH_MEMO_ENTRIES` answers are kept (the patch is
+    frozen; each caller gets its own copy of the rows).
+    """
     step = CURVATURE_STEP / tool.pad_radius
     key = np.round(np.stack([np.asarray(k1, float), np.asarray(k2, float)], axis=1) / step)
-    uniq, inverse = np.unique(key, axis=0, return_inverse=True)
-    patch = local_patch(uniq[:, 0] * step, uniq[:, 1] * step, tool, n_rays=n_rays)
-    return patch, inverse.ravel()
+    memo_key = (tool, int(n_rays), step, key.shape, hashlib.blake2b(np.ascontiguousarray(key).tobytes(),
+                                                                     digest_size=20).digest())
+    hit = _PATCHES.get(memo_key)
+    if hit is None:
+        uniq, inverse = np.unique(key, axis=0, return_inverse=True)
+        hit = (local_patch(uniq[:, 0] * step, uniq[:, 1] * step, tool, n_rays=n_rays), inverse.ravel())
+        _PATCHES[memo_key] = hit
+        while len(_PATCHES) > PATCH_MEMO_ENTRIES:
+            _PATCHES.popitem(last=False)
+    else:
+        _PATCHES.move_to_end(memo_key)
+    return hit[0], hit[1].copy()
 
 
 def widths_across(patch: LocalPatch, rows: np.ndarray, psi: np.ndarray) -> np.ndarray:

@@ -189,12 +189,18 @@ def halve_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
         raise InputError(f"max_edge must be a positive length in m, got {max_edge!r}")
     xyz = np.array(vertices, dtype=np.float64, copy=True)
     faces = np.array(faces, dtype=np.int64, copy=True).reshape(-1, 3)
+    # A face with no long edge is final: its edges are shared only with faces that see them equally
+    # short, so no later round splits it.  The final faces are set aside in the order each round
+    # leaves them untouched, and only the faces just made go into the next round; the output order
+    # is the one of splitting every face every round (untouched faces first, round after round).
+    done: list[np.ndarray] = []
     for round_ in range(HALVING_MAX_ROUNDS + 1):
         following = faces[:, [1, 2, 0]]
         d = xyz[faces] - xyz[following]
         lengths = ((d * d).sum(axis=2)) ** 0.5
         long_corner = lengths > max_edge
         if not long_corner.any():
+            done.append(faces)
             break
         if round_ >= HALVING_MAX_ROUNDS:
             raise InputError(f"halving to {max_edge * 1e3:.3g} mm still had long edges after "
@@ -210,7 +216,8 @@ def halve_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
         pair = np.stack([lo[first], hi[first]], axis=1)
         xyz = np.vstack((xyz, xyz[pair].mean(axis=1)))
         count = long_corner.sum(axis=1)
-        pieces = [faces[count == 0]]
+        done.append(faces[count == 0])
+        pieces = []
 
         one = count == 1
         j = np.argmax(long_corner[one], axis=1)
@@ -236,4 +243,4 @@ def halve_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
         m0, m1, m2 = face_mid[three].T
         pieces.append(np.column_stack((v0, m0, m2, m0, v1, m1, m2, m1, v2, m0, m1, m2)).reshape(-1, 3))
         faces = np.vstack(pieces).astype(np.int64)
-    return xyz, faces
+    return xyz, np.vstack(done).astype(np.int64)

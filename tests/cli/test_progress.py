@@ -1,0 +1,31 @@
+"""Progress lines: percentages, and an estimate of the time left once a step runs over 5 s."""
+
+from __future__ import annotations
+
+import pytest
+
+from swath.cli.main import ESTIMATE_AFTER_S, _Progress, _time_left
+
+
+def test_time_left_extrapolates_the_rate_so_far():
+    # a quarter done in 10 s: three quarters left at that rate is 30 s
+    assert _time_left(10.0, 25, 100) == ", about 30 s left"
+    assert _time_left(60.0, 1, 4) == ", about 3 min left"
+
+
+@pytest.mark.parametrize("elapsed, done, total", [(ESTIMATE_AFTER_S - 0.1, 10, 100), (20.0, 0, 100),
+                                                  (20.0, 100, 100)])
+def test_no_estimate_early_before_the_first_unit_or_when_done(elapsed, done, total):
+    assert _time_left(elapsed, done, total) == ""
+
+
+def test_progress_lines_carry_the_estimate(capsys):
+    clock = iter([0.0, 0.0, 8.0, 16.0])            # start, stage begins, 20 % at 8 s, 50 % at 16 s
+    progress = _Progress(quiet=False, clock=lambda: next(clock))
+    progress("simulating removal", 0, 10)
+    progress("simulating removal", 2, 10)
+    progress("simulating removal", 5, 10)
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0].endswith("simulating removal")
+    assert lines[1].endswith("20.0 %, about 32 s left")           # 8 s for 2 of 10: 8 left at 4 s each
+    assert lines[2].endswith("50.0 %, about 16 s left")

@@ -1,0 +1,51 @@
+"""The benchmark table's page (benchmarks/run_all.py writes docs/BENCHMARKS.md): rows, ratios and the
+plan stage's budget verdict."""
+
+from __future__ import annotations
+
+import sys
+
+from conftest import REPO
+
+sys.path.insert(0, str(REPO / "benchmarks"))
+import run_all  # noqa: E402
+
+INFO = {"version": "9.9", "command": "python benchmarks/run_all.py", "cpus": 2, "machine": "x86_64",
+        "python": "3.11", "load_before": 0.5, "load_after": 0.7, "minutes": 3.0}
+
+
+def _row(part, faces, plan_warm_s, slice_s, **kw):
+    row = {"part": part, "planner": "raster", "faces": faces, "n_passes": 12, "coverage_fraction": 1.0,
+           "removal_cov": 0.25, "cycle_time_s": 100.0, "load_s": 0.1, "plan_s": plan_warm_s + 1.0,
+           "trajectory_s": 0.5, "simulate_s": 0.5, "report_s": 2.0, "job_s": 6.0, "job_cpu_s": 5.0,
+           "peak_MB": 400.0, "plan_warm_s": plan_warm_s, "slice_s": slice_s,
+           "plan_over_slice": plan_warm_s / slice_s, "process_s": 8.0, "process_cpu_s": 6.0}
+    row.update(kw)
+    return row
+
+
+def _plan_row(text, part):
+    section = text.split("## Raster plan stage")[1].split("##")[0]
+    return next(line for line in section.splitlines() if line.startswith(f"| {part} |"))
+
+
+def test_budget_verdict_takes_the_slicing_ratio_only_over_10k_faces():
+    rows = [_row("small", 5_000, 0.5, 0.001),            # 500x slicing, but a small mesh: within budget
+            _row("big_ok", 20_000, 0.5, 0.1),            # 5x
+            _row("big_slow", 20_000, 0.9, 0.1),          # 9x > 7x
+            _row("over_1s", 5_000, 1.2, 1.0)]            # 1.2 s > 1 s
+    text = run_all.markdown(rows, [], INFO)
+    assert _plan_row(text, "small").endswith("| 500 | yes |")
+    assert _plan_row(text, "big_ok").endswith("| 5 | yes |")
+    assert _plan_row(text, "big_slow").endswith("| 9 | no |")
+    assert _plan_row(text, "over_1s").endswith("| no |")
+    assert "swath 9.9" in text and "2 CPUs" in text and "load average 0.50" in text
+
+
+def test_uniform_ratio_and_failed_rows():
+    rows = [_row("crs", 997, 0.5, 0.01), {"part": "bad.ply", "planner": "raster", "failed": "over 900 s"}]
+    uniform = [dict(_row("crs", 997, 0.5, 0.01), planner="uniform", process_s=20.0, process_cpu_s=15.0)]
+    text = run_all.markdown(rows, uniform, INFO)
+    line = next(ln for ln in text.split("## Uniform")[1].splitlines() if ln.startswith("| crs |"))
+    assert "| 8.0 | 20.0 | 2.50 | 6.0 | 15.0 | 2.50 |" in line
+    assert "| bad.ply | FAILED: over 900 s |" in text
