@@ -17,6 +17,7 @@ left behind.
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
 import math
 import sys
@@ -47,13 +48,14 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--planner", default="raster",
                    help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
                         "or equidistant (geodesic-parallel passes)")
-    p.add_argument("--pad-radius", default="38.1mm", help="pad radius, e.g. 38.1mm (default: 3-inch pad)")
-    p.add_argument("--force", default="20N", help="normal force, e.g. 20N")
+    p.add_argument("--pad-radius", default="38.1mm",
+                   help="pad radius, e.g. 38.1mm, within 5–150 mm (default: 3-inch pad)")
+    p.add_argument("--force", default="20N", help="normal force, e.g. 20N, within 1–500 N")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--depression", help="pad depression on a flat surface at the set force (default 1mm)")
     g.add_argument("--stiffness", help="pad foundation stiffness, e.g. 4.4MPa/m")
     p.add_argument("--motion", default="orbital", choices=["orbital", "rotary"], help="pad motion")
-    p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s")
+    p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s, within 1–500 mm/s")
     p.add_argument("--spacing", help="pass spacing, e.g. 60mm (default: full coverage from the contact model)")
     p.add_argument("--direction", "--angle", dest="direction", default="auto",
                    help="pass direction: an angle from the part's principal axis, e.g. 30deg, or auto (default: "
@@ -132,6 +134,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="with --force-control: do not subtract the tool's weight from the measured force")
     f.add_argument("--calibration", help="a Preston calibration file written by swath calibrate (sets k_p)")
     f.add_argument("--grit", help="with --calibration: which grit's fit to use (default: the only or first)")
+    p.add_argument("--allow-unusual-process", action="store_true", default=None,
+                   help="plan a feed, force or pad radius outside what a sanding robot does (feed 1–500 mm/s, "
+                        "force 1–500 N, pad radius 5–150 mm), with a warning instead of a refusal")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -263,6 +268,29 @@ def _join_negative_values(argv: list[str]) -> list[str]:
     return out
 
 
+def _check_option_names(parser: argparse.ArgumentParser, argv: list[str]) -> None:
+    """Refuse a mistyped ``--option`` before argparse does, naming the nearest option of the
+    subcommand it was given to: argparse alone prints the top-level usage and "unrecognized
+    arguments" (or a missing required option, when the typo was in that option's name)."""
+    subcommands = next((a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction)), {})
+    current = parser
+    for tok in argv:
+        if tok == "--":
+            break
+        if current is parser and not tok.startswith("-") and tok in subcommands:
+            current = subcommands[tok]
+            continue
+        if not tok.startswith("--") or tok == "--":
+            continue
+        name = tok.split("=", 1)[0]
+        known = [o for o in current._option_string_actions if o.startswith("--")]
+        if name in known or (current.allow_abbrev and any(o.startswith(name) for o in known)):
+            continue                        # an option or a prefix of some (argparse handles ambiguity)
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+        current.error(f"unknown option {name}; " + (f"did you mean {close[0]}?" if close else
+                                                     f"{current.prog} --help lists the options"))
+
+
 def _exit_on_sigterm(signum, frame):
     """SIGTERM (a job killed by a scheduler, ``kill``) unwinds like an interrupt, so the output
     folder being built is removed on the way out."""
@@ -279,6 +307,7 @@ def main(argv=None) -> int:
             pass
     parser = build_parser()
     argv = _join_negative_values(list(sys.argv[1:] if argv is None else argv))
+    _check_option_names(parser, argv)
     args = parser.parse_args(argv)
     level = logging.ERROR if args.quiet else (logging.DEBUG if args.verbose else logging.WARNING)
     logging.basicConfig(level=level, format="swath: %(levelname)s: %(message)s")
