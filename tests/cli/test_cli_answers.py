@@ -97,3 +97,130 @@ def test_every_subcommand_option_is_known_and_a_prefix_is_left_to_argparse(capsy
     with pytest.raises(SystemExit):
         main(["plan", "example:plate", "--fe", "50mm/s", "--out", "o"])
     assert "ambiguous option: --fe could match --feed, --feed-simulate-check" in capsys.readouterr().err
+
+
+# --- cosmetics -------------------------------------------------------------------------------------
+def test_the_summary_names_files_without_a_doubled_separator():
+    from types import SimpleNamespace
+
+    from swath.cli.main import _in_folder, _summary
+
+    assert _in_folder("out_p1/", "trajectory.csv") == "out_p1/trajectory.csv"
+    assert _in_folder("out_p1", "trajectory.csv") == "out_p1/trajectory.csv"
+    metrics = dict(n_passes=4, contact_length_m=1.6, air_length_m=0.365, cycle_time_s=16.2, coverage_fraction=1.0,
+                   removal_cov=0.2, coverage_lower_bound_m=1.575, efficiency=0.984)
+    text = _summary(SimpleNamespace(out="out_p1/"), metrics)
+    assert text.startswith("wrote out_p1/trajectory.csv, metrics.json, report.html") and "//" not in text
+
+
+def test_a_unit_slip_names_inches_in_words():
+    from swath.io.checks import check_extent
+
+    # 10.5 units across read in mm is a slip that inches explain (0.267 m)
+    with pytest.raises(InputError) as exc:
+        check_extent(10.5, "mm", False, "wavy.ply")
+    text = str(exc.value)
+    assert "read in inches it would be 0.267 m" in text and " in in " not in text and "--units in" in text
+
+
+def test_the_help_lists_every_built_in_example():
+    from swath.examples import PARTS
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if hasattr(a, "choices") and isinstance(a.choices, dict))
+    plan_help = " ".join(sub.choices["plan"].format_help().split())
+    demo_help = " ".join(sub.choices["demo"].format_help().split())
+    assert "hub" in PARTS
+    assert f"example:NAME ({', '.join(PARTS)})" in plan_help
+    assert ", ".join(f"example:{name}" for name in PARTS) in demo_help
+
+
+def test_a_scan_fit_warning_has_no_function_name_prefix(caplog):
+    import numpy as np
+
+    from swath.examples import flat_plate
+    try:
+        from swath.scan import fit_patch  # where the scan stage will hold it
+    except ImportError:
+        from swath.surface.fit import fit_patch
+
+    a = flat_plate(size_x=0.1, size_y=0.1, spacing=5e-3).vertices
+    with caplog.at_level(logging.WARNING):
+        _, report = fit_patch(np.concatenate([a, [[1.0, 1.0, 1.0], [1.0, 1.0, 1.001]]]))
+    assert report.n_dropped == 2
+    messages = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert any("drops 2 stray points that lie apart from the patch" in m for m in messages)
+    assert not any(m.startswith("fit_patch") for m in messages)
+
+
+def test_the_local_ray_keeps_its_token_notice_out_of_the_sweep(monkeypatch, caplog):
+    import importlib.util
+
+    ray = pytest.importorskip("ray")
+    from swath.cli import batch_ray
+
+    if importlib.util.find_spec(batch_ray.AUTH_NOTICE_LOGGER) is not None:   # Rays with token authentication
+        module = importlib.import_module(batch_ray.AUTH_NOTICE_LOGGER)
+        assert module.logger.name == batch_ray.AUTH_NOTICE_LOGGER
+    notice = logging.getLogger(batch_ray.AUTH_NOTICE_LOGGER)
+    before = notice.level
+    seen = {}
+
+    def fake_init(**options):
+        seen.update(options)
+        notice.warning("Token authentication is enabled for this Ray cluster.")
+        notice.error("a real failure is still shown")
+
+    monkeypatch.setattr(ray, "init", fake_init)
+    notice.addHandler(caplog.handler)                  # Ray's loggers do not propagate to the root
+    try:
+        with caplog.at_level(logging.WARNING):
+            batch_ray.start_local_ray(2, warm=False)
+    finally:
+        notice.removeHandler(caplog.handler)
+    assert seen["num_cpus"] == 2 and seen["address"] == "local"
+    assert "Token authentication" not in caplog.text and "a real failure is still shown" in caplog.text
+    assert notice.level == before
+
+
+# --- air routes: the kept plan only, in the user's unit --------------------------------------------
+def _sandwich():
+    import numpy as np
+
+    from swath.core import Pass, ToolPath
+    from swath.examples import flat_plate
+    from swath.surface import Surface
+
+    floor, roof = flat_plate(size_x=0.2, size_y=0.1, spacing=0.01), flat_plate(size_x=0.2, size_y=0.1, spacing=0.01)
+    v = np.vstack([floor.vertices, roof.vertices + [0.0, 0.0, 0.02]])
+    surface = Surface(v, np.vstack([floor.faces, roof.faces + len(floor.vertices)]), name="sandwich")
+    up = np.tile([0.0, 0.0, 1.0], (2, 1))
+    passes = [Pass(np.array([[0.05, y, 0.0], [0.15, y, 0.0]]), up) for y in (0.04, 0.06)]
+    return ToolPath(surface, passes, "test")
+
+
+def test_a_blocked_air_route_is_not_a_warning_until_it_is_in_the_kept_plan(caplog):
+    import numpy as np
+
+    from swath.order.routing import AirGuard
+
+    tp = _sandwich()
+    guard = AirGuard(tp.surface, 0.02)
+    up = np.array([0.0, 0.0, 1.0])
+    with caplog.at_level(logging.WARNING):
+        guard.route(np.array([0.15, 0.04, 0.0]), up, np.array([0.05, 0.06, 0.0]), up)   # a candidate's link
+    assert len(guard.near_part) == 1 and not caplog.records
+
+
+@pytest.mark.parametrize("units,ends", [
+    ("mm", "after pass 1: (150.00, 40.00, 0.00) to (50.00, 60.00, 0.00); part coordinates in mm"),
+    ("m", "after pass 1: (0.15000, 0.04000, 0.00000) to (0.05000, 0.06000, 0.00000); part coordinates in m"),
+    ("inches", "after pass 1: (5.9055, 1.5748, 0.0000) to (1.9685, 2.3622, 0.0000); part coordinates in inches"),
+])
+def test_the_kept_plans_blocked_air_routes_are_one_warning_in_the_users_unit(units, ends):
+    from swath.order import route_links
+
+    tp = route_links(_sandwich(), clearance=0.02, units=units)
+    (warning,) = tp.metadata["warnings"]
+    assert warning.startswith("1 of 1 air moves pass closer than half the clearance (10 mm)")
+    assert ends in warning

@@ -22,6 +22,7 @@ import logging
 import math
 import sys
 import time
+from pathlib import Path
 
 from ..errors import InputError, SwathError
 
@@ -165,8 +166,11 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, formatter_class=_DefaultsFormatter, **kw)
 
     p = add_parser("plan", help="plan a part: trajectory.csv, metrics.json, report.html")
-    p.add_argument("part", help="mesh file (STL, PLY, OBJ), patch.json from swath fit, example:NAME (blade, "
-                                "plate, panel), or with --fit a scan (point cloud PLY/XYZ/PCD or mesh)")
+    from ..examples import PARTS
+
+    examples = ", ".join(PARTS)                     # the registry's names, so a new example is listed
+    p.add_argument("part", help=f"mesh file (STL, PLY, OBJ), patch.json from swath fit, example:NAME ({examples}), "
+                                "or with --fit a scan (point cloud PLY/XYZ/PCD or mesh)")
     _add_plan_options(p)
 
     f = add_parser("fit", help="fit a B-spline patch to a scan: patch.json, surface.ply, fit.json, fit.html")
@@ -205,7 +209,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--overwrite", action="store_true", help="replace an existing non-empty folder swath did not write")
 
     d = add_parser("demo", help="plan the built-in helicopter-blade section with the uniform planner")
-    d.add_argument("--part", default="example:blade", help="built-in part (example:blade, example:plate, example:panel)")
+    d.add_argument("--part", default="example:blade",
+                   help=f"built-in part ({', '.join('example:' + name for name in PARTS)})")
     _add_plan_options(d, with_part_options=False)
     d.set_defaults(planner="uniform")
 
@@ -404,11 +409,16 @@ def _register_settings_from_args(args):
                             overwrite=args.overwrite)
 
 
+def _in_folder(folder, name: str) -> str:
+    """``folder/name`` as the user typed the folder, without a doubled separator (``out/`` + name)."""
+    return str(Path(folder) / name)
+
+
 def _fit_summary(settings, doc: dict) -> str:
     f = doc["figures"]
     dropped = f" ({f['n_dropped']} stray points dropped)" if f["n_dropped"] else ""
     return (
-        f"wrote {settings.out}/patch.json, surface.ply, fit.json, fit.html\n"
+        f"wrote {_in_folder(settings.out, 'patch.json')}, surface.ply, fit.json, fit.html\n"
         f"  {doc['parameterization']} parameterisation, control net {f['n_ctrl_u']}x{f['n_ctrl_v']}; "
         f"rms {f['rms_m'] * 1e3:.3g} mm, max {f['max_error_m'] * 1e3:.3g} mm over {f['n_points']} points{dropped}; "
         f"surface {doc['surface']['n_vertices']} vertices at {doc['surface']['spacing_m'] * 1e3:.3g} mm"
@@ -423,7 +433,7 @@ def _register_summary(settings, doc: dict) -> str:
     return (f"cad2scan ({doc['method']}): rotation {q['rotation_deg']:.3f} deg, translation "
             f"{np.round(m[:3, 3] * 1e3, 2).tolist()} mm; rms {doc['rms_m'] * 1e3:.3g} mm, inliers "
             f"{100 * doc['inlier_fraction']:.1f} %, {doc['iterations']} iterations, "
-            f"{'converged' if doc['converged'] else 'NOT converged'} -> {settings.out}/transform.json")
+            f"{'converged' if doc['converged'] else 'NOT converged'} -> {_in_folder(settings.out, 'transform.json')}")
 
 
 def _summary(settings, m: dict) -> str:
@@ -431,7 +441,7 @@ def _summary(settings, m: dict) -> str:
     # the CoV away from the edge band, where the pad hangs over (what --optimise-feed evens out)
     inside = f" ({inner:.3f} a pad radius in from the edges)" if inner is not None and math.isfinite(inner) else ""
     return (
-        f"wrote {settings.out}/trajectory.csv, metrics.json, report.html\n"
+        f"wrote {_in_folder(settings.out, 'trajectory.csv')}, metrics.json, report.html\n"
         f"  passes {m.get('n_passes')}, contact path {m['contact_length_m']:.3f} m, air {m['air_length_m']:.3f} m, "
         f"cycle time {m['cycle_time_s']:.1f} s\n"
         f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f}{inside}, "
