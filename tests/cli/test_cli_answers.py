@@ -224,3 +224,46 @@ def test_the_kept_plans_blocked_air_routes_are_one_warning_in_the_users_unit(uni
     (warning,) = tp.metadata["warnings"]
     assert warning.startswith("1 of 1 air moves pass closer than half the clearance (10 mm)")
     assert ends in warning
+
+
+# --- the report -------------------------------------------------------------------------------------
+@pytest.mark.parametrize("key,value,shown", [
+    ("fk_position_error_m", 1.635e-15, "< 1 nm"),          # round-off of a forward-kinematics check
+    ("fk_position_error_m", 3.2e-8, "32 nm"),
+    ("removal_mean_m", 2.5e-6, "2.5 µm"),
+    ("depth_change_m", -3e-10, "> −1 nm"),
+    ("fk_angle_error_rad", 2e-12, "< 0.001°"),
+    ("direction_rad", 0.5, "28.65°"),
+])
+def test_small_lengths_and_angles_are_shown_in_units_a_user_reads(key, value, shown):
+    from swath.report.metrics import format_value
+
+    assert format_value(key, value) == shown
+
+
+def test_the_report_summary_shows_the_headline_and_folds_the_rest():
+    import re
+
+    from swath.examples import flat_plate
+    from swath.report.html import HEADLINE, report_html_text
+
+    metrics = dict(coverage_fraction=0.995, interior_removal_cov=0.134, removal_cov=0.151, cycle_time_s=85.21,
+                   contact_length_m=3.341, air_length_m=0.5413, coverage_lower_bound_m=2.944, efficiency=0.8812,
+                   n_passes=6, plan_s=27.9, simulate_s=1.6, softer_pad_removal_cov=0.14,
+                   warnings=["a warning"])
+    settings = {"part": "example:plate", "plan": {"candidates": [{"direction_deg": float(d), "cost": 100.0 + d}
+                                                                 for d in range(0, 180, 30)]}}
+    text = report_html_text(surface=flat_plate(spacing=0.02), metrics=metrics, settings=settings)
+    summary = text[text.index("<section><h2>Summary</h2>"):text.index("<section><h2>3D view</h2>")]
+    headline, folded = summary.split("<details>", 1)
+    for label, key, _ in HEADLINE:
+        assert label in headline, label
+    assert "99.5 %" in headline and "13.4 %" in headline and "85.21 s" in headline and "3.341 m" in headline
+    assert re.search(r"L / L\*</td><td class='num'><b>1\.135</b>", headline)            # 3.341 / 2.944
+    assert re.search(r"warnings</td><td class='num'><b>1</b>", headline)
+    # internal timings and the rest are folded, with the settings
+    assert "plan_s" not in headline and "plan_s" in folded and "softer_pad_removal_cov" in folded
+    assert folded.startswith("<summary>All metrics (12) and settings</summary>") and "example:plate" in folded
+    # long values wrap inside their box instead of widening the page
+    assert "overflow-wrap:anywhere" in text and "white-space:nowrap}" not in text.replace(
+        "table.headline td.num{white-space:nowrap}", "")
