@@ -243,8 +243,9 @@ def route_links(toolpath: ToolPath, *, clearance: float, pad_radius: float = DEF
     if near:
         # into the job's warnings (and its report), not only the log
         where = ", ".join(str(i) for i in near[:10]) + (", ..." if len(near) > 10 else "")
-        digits = max(0, 4 - int(np.floor(np.log10(max(float(np.ptp(toolpath.surface.vertices, axis=0).max())
-                                                          / per_unit, 1e-12)))))
+        # four significant figures of the part's extent in the user's unit
+        extent = float(np.ptp(guard.box, axis=0).max()) - 2 * guard.margin
+        digits = max(0, 4 - int(np.floor(np.log10(max(extent / per_unit, 1e-12)))))
 
         def point(p) -> str:
             return "(" + ", ".join(f"{x / per_unit:.{digits}f}" for x in p) + ")"
