@@ -267,3 +267,11 @@ def test_the_report_summary_shows_the_headline_and_folds_the_rest():
     # long values wrap inside their box instead of widening the page
     assert "overflow-wrap:anywhere" in text and "white-space:nowrap}" not in text.replace(
         "table.headline td.num{white-space:nowrap}", "")
+
+
+def test_an_option_of_swath_itself_after_the_subcommand_says_where_it_goes(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["plan", "example:plate", "--quiet", "--out", "o"])
+    assert exc.value.code == 2
+    assert "--quiet is an option of swath itself: give it before the subcommand (swath --quiet plan ...)" in \
+        capsys.readouterr().err

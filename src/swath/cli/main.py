@@ -291,6 +291,9 @@ def _check_option_names(parser: argparse.ArgumentParser, argv: list[str]) -> Non
         known = [o for o in current._option_string_actions if o.startswith("--")]
         if name in known or (current.allow_abbrev and any(o.startswith(name) for o in known)):
             continue                        # an option or a prefix of some (argparse handles ambiguity)
+        if current is not parser and name in parser._option_string_actions:
+            current.error(f"{name} is an option of swath itself: give it before the subcommand "
+                          f"(swath {name} {current.prog.split()[-1]} ...)")
         close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
         current.error(f"unknown option {name}; " + (f"did you mean {close[0]}?" if close else
                                                      f"{current.prog} --help lists the options"))
