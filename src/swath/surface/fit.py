@@ -270,7 +270,7 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
         keep = _main_piece(X)
         if not keep.all():
             n_dropped = int((~keep).sum())
-            log.warning("the scan fit drops %d stray points that lie apart from the patch", n_dropped)
+            log.warning("dropping %d stray points that lie apart from the patch", n_dropped)
             X = X[keep]
             N_in = None if N_in is None else N_in[keep]
             R_ids = None if R_ids is None else R_ids[keep]
