@@ -20,7 +20,8 @@ pytestmark = pytest.mark.skipif(LINT is None, reason='import-linter is not insta
 
 def lint(src_root: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(src_root)}
-    return subprocess.run([LINT, str(REPO / "pyproject.toml")], cwd=REPO, env=env,
+    # the contract is read from pyproject.toml in the working directory (every import-linter 2.x)
+    return subprocess.run([LINT], cwd=REPO, env=env,
                           capture_output=True, text=True, timeout=300)
 
 
