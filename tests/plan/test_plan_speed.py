@@ -16,12 +16,13 @@ TOOL = Tool()
 
 def test_raster_plan_of_the_curved_panel_is_the_one_planned_before_the_speed_ups():
     # Figures of the same call at commit 23bb1ea (before the per-surface memo and the incremental
-    # coverage test): the whole plan to round-off.
+    # coverage test): the same passes, and lengths to 1e-6 relative (well above what other CPUs, BLAS
+    # builds and library versions move, far below what a changed pass would).
     tp = raster(doubly_curved_panel(), TOOL)
     assert len(tp.passes) == 6
     assert sum(len(p.points) for p in tp.passes) == 3348
-    assert tp.contact_length == pytest.approx(3.3414986780962677, rel=1e-12)
-    assert tp.metadata["spacing_m"] == pytest.approx(0.0743374921292671, rel=1e-12)
+    assert tp.contact_length == pytest.approx(3.3414986780962677, rel=1e-6)
+    assert tp.metadata["spacing_m"] == pytest.approx(0.0743374921292671, rel=1e-6)
 
 
 def test_raster_plan_with_fill_passes_on_the_wavy_mesh_is_the_one_planned_before():
@@ -34,9 +35,9 @@ def test_raster_plan_with_fill_passes_on_the_wavy_mesh_is_the_one_planned_before
     assert len(tp.passes) == 10
     assert tp.metadata["n_fill_passes"] == 2
     assert tp.metadata["angle_rad"] == pytest.approx(np.pi / 4, rel=1e-12)
-    assert tp.contact_length == pytest.approx(1.3161942761745353, rel=1e-12)
-    assert tp.metadata["predicted_gap_fraction"] == pytest.approx(2.5696182032612117e-05, rel=1e-9)
-    assert tp.metadata["spacing_m"] == pytest.approx(0.05420538290937038, rel=1e-12)
+    assert tp.contact_length == pytest.approx(1.3161942761745353, rel=1e-6)
+    assert tp.metadata["predicted_gap_fraction"] == pytest.approx(2.5696182032612117e-05, rel=1e-4)
+    assert tp.metadata["spacing_m"] == pytest.approx(0.05420538290937038, rel=1e-6)
 
 
 def test_grid_bins_are_those_of_unique_rows(rng):
@@ -97,13 +98,20 @@ def test_uniform_candidates_in_worker_processes_give_the_serial_plan():
     assert pickle.loads(pickle.dumps(cost)) == cost              # the job's cost goes to the workers
     options = dict(work_spacing=TOOL.pad_radius / 5, cost=cost)
     serial = uniform(surface, TOOL, workers=1, **options)
-    # the plan of the same call at commit 23bb1ea (before the speed-ups), to round-off
-    assert len(serial.passes) == 3 and sum(len(p.points) for p in serial.passes) == 772
-    assert serial.contact_length == pytest.approx(0.7676265048049925, rel=1e-12)
-    assert serial.metadata["direction_rad"] == pytest.approx(2.6179938779914944, rel=1e-12)
-    assert [c["cost"] for c in serial.metadata["candidates"]] == pytest.approx(
-        [22.926508642133513, 22.926462227598655, 35.4045852611285, 35.627670295896685, 36.89510057643419,
-         22.92613282280339], rel=1e-12)
+    # the plan of the same call at commit 23bb1ea (before the speed-ups). Three directions (0°, 30°,
+    # 150°) cost the same to 2e-5 relative, closer than cycle times agree between machines and library
+    # builds (TOPP-RA's LPs, LKH tours): the costs are pinned at 1e-4, the kept direction is the
+    # cheapest of this run's candidates, and the plan is the recorded one when 150° is kept here too.
+    costs = [c["cost"] for c in serial.metadata["candidates"]]
+    assert costs == pytest.approx([22.926508642133513, 22.926462227598655, 35.4045852611285, 35.627670295896685,
+                                   36.89510057643419, 22.92613282280339], rel=1e-4)
+    kept = serial.metadata["candidates"][int(np.argmin(costs))]["direction_deg"]
+    assert np.degrees(serial.metadata["direction_rad"]) == pytest.approx(kept, abs=1e-9)
+    assert round(kept) in (0, 30, 150) and len(serial.passes) == 3
+    assert serial.contact_length == pytest.approx(0.7676265048049925, rel=2e-3)
+    if round(kept) == 150:
+        assert sum(len(p.points) for p in serial.passes) == 772
+        assert serial.contact_length == pytest.approx(0.7676265048049925, rel=1e-6)
     parallel = uniform(surface, TOOL, workers=2, **options)
     assert len(serial.metadata["candidates"]) == 6
     assert parallel.metadata["candidates"] == serial.metadata["candidates"]

@@ -17,6 +17,9 @@ from ..errors import InputError
 
 log = logging.getLogger(__name__)
 
+#: The logger of Ray's notice that a local cluster runs with token authentication (Ray >= 2.5x).
+AUTH_NOTICE_LOGGER = "ray._private.authentication.authentication_token_setup"
+
 
 def _task(job_id: str, values: dict, base_dir: str) -> dict:
     from .batch import run_batch_job
@@ -124,9 +127,16 @@ def start_local_ray(n_cpus: int, *, warm: bool = True) -> None:
     src = str(Path(_package_dir()).parent)
     before = os.environ.get("PYTHONPATH")
     os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (src, before) if p)
+    # A new Ray turns token authentication on for a local cluster and says so on the terminal, in
+    # the middle of the sweep's progress; authentication stays on, its notice is dropped (a logger
+    # that older Rays do not have is harmless to quiet).
+    notice = logging.getLogger(AUTH_NOTICE_LOGGER)
+    level = notice.level
+    notice.setLevel(logging.ERROR)
     try:
         ray.init(**local_ray_options(n_cpus))
     finally:
+        notice.setLevel(level)
         if before is None:
             os.environ.pop("PYTHONPATH", None)
         else:

@@ -264,7 +264,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
 
         toolpath = keep_clear(toolpath, part, settings.pad_radius)
     ordered = order_toolpath(toolpath, method=order_method(toolpath, settings), **order_options(toolpath, settings))
-    return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius)
+    return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius, units=settings.units)
 
 
 def order_options(toolpath, settings) -> dict:

@@ -18,10 +18,12 @@ left behind.
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
 import math
 import sys
 import time
+from pathlib import Path
 
 from ..errors import InputError, SwathError
 
@@ -56,8 +58,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     p.add_argument("--planner", default="raster",
                    help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
                         "or equidistant (geodesic-parallel passes)")
-    p.add_argument("--pad-radius", default="38.1mm", help="pad radius, e.g. 38.1mm (default: 3-inch pad)")
-    p.add_argument("--force", default="20N", help="normal force, e.g. 20N")
+    p.add_argument("--pad-radius", default="38.1mm",
+                   help="pad radius, e.g. 38.1mm, within 5–150 mm (default: 3-inch pad)")
+    p.add_argument("--force", default="20N", help="normal force, e.g. 20N, within 1–500 N")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--depression", help="the pad's depression on a flat surface at a stated force, e.g. 1mm@20N; a "
                                         "bare 1mm is at 20 N, and the set --force then presses this pad deeper or "
@@ -65,7 +68,7 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     g.add_argument("--stiffness", help="pad foundation stiffness, e.g. 4.4MPa/m")
     p.add_argument("--motion", choices=["orbital", "rotary"],
                    help="pad motion (default orbital, or the motion the --calibration was measured with)")
-    p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s")
+    p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s, within 1–500 mm/s")
     p.add_argument("--spacing", help="pass spacing, e.g. 60mm (default: full coverage from the contact model)")
     p.add_argument("--direction", "--angle", dest="direction", default="auto",
                    help="pass direction: an angle from the part's principal axis, e.g. 30deg, or auto (default: "
@@ -179,6 +182,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     w.add_argument("--wear-compensation", action=argparse.BooleanOptionalAction, default=None,
                    help="slow the feed as the pad wears so that the removal stays as planned (default on when the "
                         "pad wears)")
+    p.add_argument("--allow-unusual-process", action="store_true", default=None,
+                   help="plan a feed, force or pad radius outside what a sanding robot does (feed 1–500 mm/s, "
+                        "force 1–500 N, pad radius 5–150 mm), with a warning instead of a refusal")
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -207,8 +213,11 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, formatter_class=_DefaultsFormatter, **kw)
 
     p = add_parser("plan", help="plan a part: trajectory.csv, metrics.json, report.html")
-    p.add_argument("part", help="mesh file (STL, PLY, OBJ), patch.json from swath fit, example:NAME (blade, "
-                                "plate, panel), or with --fit a scan (point cloud PLY/XYZ/PCD or mesh)")
+    from ..examples import PARTS
+
+    examples = ", ".join(PARTS)                     # the registry's names, so a new example is listed
+    p.add_argument("part", help=f"mesh file (STL, PLY, OBJ), patch.json from swath fit, example:NAME ({examples}), "
+                                "or with --fit a scan (point cloud PLY/XYZ/PCD or mesh)")
     _add_plan_options(p)
 
     f = add_parser("fit", help="fit a B-spline patch to a scan: patch.json, surface.ply, fit.json, fit.html")
@@ -268,7 +277,8 @@ def build_parser() -> argparse.ArgumentParser:
     w.set_defaults(lead_angle="15deg", optimise_spacing="ripple", length_budget="2")
 
     d = add_parser("demo", help="plan the built-in helicopter-blade section with the uniform planner")
-    d.add_argument("--part", default="example:blade", help="built-in part (example:blade, example:plate, example:panel)")
+    d.add_argument("--part", default="example:blade",
+                   help=f"built-in part ({', '.join('example:' + name for name in PARTS)})")
     _add_plan_options(d, with_part_options=False)
     d.set_defaults(planner="uniform")
 
@@ -349,6 +359,32 @@ def _join_negative_values(argv: list[str]) -> list[str]:
     return out
 
 
+def _check_option_names(parser: argparse.ArgumentParser, argv: list[str]) -> None:
+    """Refuse a mistyped ``--option`` before argparse does, naming the nearest option of the
+    subcommand it was given to: argparse alone prints the top-level usage and "unrecognized
+    arguments" (or a missing required option, when the typo was in that option's name)."""
+    subcommands = next((a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction)), {})
+    current = parser
+    for tok in argv:
+        if tok == "--":
+            break
+        if current is parser and not tok.startswith("-") and tok in subcommands:
+            current = subcommands[tok]
+            continue
+        if not tok.startswith("--") or tok == "--":
+            continue
+        name = tok.split("=", 1)[0]
+        known = [o for o in current._option_string_actions if o.startswith("--")]
+        if name in known or (current.allow_abbrev and any(o.startswith(name) for o in known)):
+            continue                        # an option or a prefix of some (argparse handles ambiguity)
+        if current is not parser and name in parser._option_string_actions:
+            current.error(f"{name} is an option of swath itself: give it before the subcommand "
+                          f"(swath {name} {current.prog.split()[-1]} ...)")
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
+        current.error(f"unknown option {name}; " + (f"did you mean {close[0]}?" if close else
+                                                     f"{current.prog} --help lists the options"))
+
+
 def _exit_on_sigterm(signum, frame):
     """SIGTERM (a job killed by a scheduler, ``kill``) unwinds like an interrupt, so the output
     folder being built is removed on the way out."""
@@ -365,6 +401,7 @@ def main(argv=None) -> int:
             pass
     parser = build_parser()
     argv = _join_negative_values(list(sys.argv[1:] if argv is None else argv))
+    _check_option_names(parser, argv)
     args = parser.parse_args(argv)
     level = logging.ERROR if args.quiet else (logging.DEBUG if args.verbose else logging.WARNING)
     logging.basicConfig(level=level, format="swath: %(levelname)s: %(message)s")
@@ -472,11 +509,16 @@ def _register_settings_from_args(args):
                             overwrite=args.overwrite)
 
 
+def _in_folder(folder, name: str) -> str:
+    """``folder/name`` as the user typed the folder, without a doubled separator (``out/`` + name)."""
+    return str(Path(folder) / name)
+
+
 def _fit_summary(settings, doc: dict) -> str:
     f = doc["figures"]
     dropped = f" ({f['n_dropped']} stray points dropped)" if f["n_dropped"] else ""
     return (
-        f"wrote {settings.out}/patch.json, surface.ply, fit.json, fit.html\n"
+        f"wrote {_in_folder(settings.out, 'patch.json')}, surface.ply, fit.json, fit.html\n"
         f"  {doc['parameterization']} parameterisation, control net {f['n_ctrl_u']}x{f['n_ctrl_v']}; "
         f"rms {f['rms_m'] * 1e3:.3g} mm, max {f['max_error_m'] * 1e3:.3g} mm over {f['n_points']} points{dropped}; "
         f"surface {doc['surface']['n_vertices']} vertices at {doc['surface']['spacing_m'] * 1e3:.3g} mm"
@@ -526,7 +568,7 @@ def _register_summary(settings, doc: dict) -> str:
     return (f"cad2scan ({doc['method']}): rotation {q['rotation_deg']:.3f} deg, translation "
             f"{np.round(m[:3, 3] * 1e3, 2).tolist()} mm; rms {doc['rms_m'] * 1e3:.3g} mm, inliers "
             f"{100 * doc['inlier_fraction']:.1f} %, {doc['iterations']} iterations, "
-            f"{'converged' if doc['converged'] else 'NOT converged'} -> {settings.out}/transform.json")
+            f"{'converged' if doc['converged'] else 'NOT converged'} -> {_in_folder(settings.out, 'transform.json')}")
 
 
 def _summary(settings, m: dict) -> str:
@@ -540,7 +582,7 @@ def _summary(settings, m: dict) -> str:
     # the CoV away from the edge band, where the pad hangs over (what --optimise-feed evens out)
     inside = f" ({inner:.3f} a pad radius in from the edges)" if inner is not None and math.isfinite(inner) else ""
     return (
-        f"wrote {settings.out}/trajectory.csv, metrics.json, report.html\n"
+        f"wrote {_in_folder(settings.out, 'trajectory.csv')}, metrics.json, report.html\n"
         f"  passes {m.get('n_passes')}, contact path {m['contact_length_m']:.3f} m, air {m['air_length_m']:.3f} m, "
         f"cycle time {m['cycle_time_s']:.1f} s\n"
         f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f}{inside}, "

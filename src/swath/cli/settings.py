@@ -9,6 +9,7 @@ and names the key in every refusal.
 from __future__ import annotations
 
 import difflib
+import logging
 import math
 import re
 from dataclasses import dataclass, field
@@ -16,6 +17,8 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..units import canonical_length_unit, parse_quantity
+
+log = logging.getLogger(__name__)
 
 #: Robot-realistic limits every trajectory is timed under unless the user turns them off ("none"):
 #: tool angular speed (rad/s), centripetal and tangential acceleration (m/s²).
@@ -131,6 +134,8 @@ class JobSettings:
     keep_out_margin: float = 2e-3
     edge_margin: float = 0.0
     chordal_tol: float = 1e-4
+    # plan with a feed, force, pad or spindle speed outside PROCESS_RANGES
+    allow_unusual_process: bool = False
 
     def tool(self):
         """The job's tool from the settings alone (no calibration: see :func:`swath.cli.stages.job_tool`).
@@ -313,7 +318,64 @@ SCHEMA: dict[str, Key] = {
     "keep_out_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 2mm"),
     "edge_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 5mm"),
     "chordal_tol": Key("length", positive=True, hi=1e-2, bare_max=1e-2, hint="mm, e.g. 0.1mm"),
+    "allow_unusual_process": Key("bool"),
 }
+
+
+@dataclass(frozen=True)
+class ProcessRange:
+    """What a sanding or polishing robot does with one process setting: the range (SI) a job is
+    refused outside unless ``allow_unusual_process`` is set, shown in ``unit`` (SI value × ``scale``)."""
+
+    lo: float
+    hi: float
+    unit: str
+    scale: float
+    why: str
+
+    def text(self) -> str:
+        """The range in the user's unit, e.g. ``1–500 mm/s``."""
+        return f"{self.lo * self.scale:g}–{self.hi * self.scale:g} {self.unit}"
+
+
+#: Plausible ranges of the process settings (SI), checked before any work. Robotic sanding and
+#: polishing feeds run at 5–200 mm/s: below 1 mm/s a pass is a dwell (minutes per metre), above
+#: 0.5 m/s the arm cannot hold a contact path; normal forces of sanding and polishing heads are
+#: 5–150 N, grinding up to a few hundred, and below 1 N a pad does not stay in contact; pads are
+#: 10–300 mm across; orbital sanders and polishers turn at 1 000–12 000 rpm, grinders up to about
+#: 20 000, and under 60 rpm the pad barely turns.
+PROCESS_RANGES: dict[str, ProcessRange] = {
+    "feed": ProcessRange(1e-3, 0.5, "mm/s", 1e3, "the feed of a sanding robot"),
+    "force": ProcessRange(1.0, 500.0, "N", 1.0, "the normal force of a sanding or polishing head"),
+    "pad_radius": ProcessRange(5e-3, 0.15, "mm", 1e3, "the radius of a sanding or polishing pad"),
+    "spindle_speed": ProcessRange(2 * math.pi, 20000 * 2 * math.pi / 60, "rpm", 60 / (2 * math.pi),
+                                  "the speed of a sanding or polishing spindle"),
+}
+
+
+def check_process_ranges(values: dict, *, allow: bool) -> list[str]:
+    """Check the process settings in ``values`` (key -> SI value) against :data:`PROCESS_RANGES`.
+
+    Returns the messages of the values outside their range when ``allow`` (to warn about);
+    otherwise refuses the first one.
+
+    Raises
+    ------
+    InputError
+        Naming the key, the value in the range's unit, the range and the way out (a unit, or
+        ``--allow-unusual-process``), when a value is out of range and ``allow`` is False.
+    """
+    out = []
+    for key, rng in PROCESS_RANGES.items():
+        value = values.get(key)
+        if value is None or rng.lo <= value <= rng.hi:
+            continue
+        message = (f"{key} = {value * rng.scale:.4g} {rng.unit} is outside {rng.why} ({rng.text()})")
+        if not allow:
+            raise InputError(f"{message}; check the value and its unit, or add --allow-unusual-process (allow_unusual_process "
+                             "= true in a job file) to plan it anyway")
+        out.append(message)
+    return out
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job
 #: sets ``cost`` and ``progress`` itself; ``cross_direction`` is for the library only.
@@ -451,6 +513,8 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
         raise InputError(f"unknown planner {kwargs['planner']!r}; choose one of {', '.join(_planners())}")
     if kwargs.get("memory_budget") is not None:
         kwargs["memory_budget"] = parse_bytes(kwargs["memory_budget"], "memory_budget")
+    for message in check_process_ranges(kwargs, allow=bool(kwargs.get("allow_unusual_process"))):
+        log.warning("%s; planning it as asked (--allow-unusual-process)", message)
     settings = JobSettings(**kwargs)
     check_settings(settings)
     return settings

@@ -43,6 +43,11 @@ def check_file(path: Path, extensions, what: str) -> str:
     return ext
 
 
+def _unit_words(unit: str) -> str:
+    """A length unit as prose reads it after "in": ``mm``, but ``inches`` (not "read in in")."""
+    return "inches" if unit == "in" else unit
+
+
 def check_extent(extent_file_units: float, units: str, force_units: bool, label: str) -> None:
     """Refuse or warn about an implausible part size (largest extent in the file's unit)."""
     units = canonical_length_unit(units)
@@ -51,26 +56,29 @@ def check_extent(extent_file_units: float, units: str, force_units: bool, label:
     guess = likely_unit(extent_file_units, exclude=units)
     hint = ""
     if guess is not None:
-        hint = f"; in {guess} it would be {extent_file_units * length_unit_factor(guess):.3g} m"
+        hint = (f"; read in {_unit_words(guess)} it would be "
+                f"{extent_file_units * length_unit_factor(guess):.3g} m")
     if not lo <= size <= hi:
         if force_units:
             log.warning("%s: part is %.4g m across read in %s (outside %g mm .. %g m); accepted because "
-                        "units were forced%s", label, size, units, lo * 1e3, hi, hint)
+                        "units were forced%s", label, size, _unit_words(units), lo * 1e3, hi, hint)
             return
-        fix = (f"it is probably in {guess} ({extent_file_units * length_unit_factor(guess):.3g} m): pass "
+        fix = (f"it is probably in {_unit_words(guess)} ({extent_file_units * length_unit_factor(guess):.3g} m): "
+               "pass "
                f"--units {guess}, or --force-units to keep {units}" if guess is not None else
                f"no unit among {', '.join(SUGGESTED_UNITS)} gives a plausible size: check the file, or pass "
                f"--force-units to keep {units}")
-        raise InputError(f"{label}: part is {size:.4g} m across when read in {units}, outside "
+        raise InputError(f"{label}: part is {size:.4g} m across when read in {_unit_words(units)}, outside "
                          f"{lo * 1e3:g} mm .. {hi:g} m; {fix}")
     if size > LARGE_PART or size < SMALL_PART:
         comfortable = guess is not None and PREFERRED_SIZE[0] <= extent_file_units * length_unit_factor(guess) \
             <= PREFERRED_SIZE[1]
         if comfortable and not force_units:
-            raise InputError(f"{label}: part is {size:.4g} m across when read in {units}, which looks like a unit "
+            raise InputError(f"{label}: part is {size:.4g} m across when read in {_unit_words(units)}, "
+                             "which looks like a unit "
                              f"slip{hint}; pass --units {guess}, or --force-units to keep {units}")
-        log.warning("%s: part is %.4g m across read in %s; the file may not be in %s%s%s", label, size, units,
-                    "metres" if units == "m" else units, hint,
+        log.warning("%s: part is %.4g m across read in %s; the file may not be in %s%s%s", label, size,
+                    _unit_words(units), "metres" if units == "m" else _unit_words(units), hint,
                     f" (pass --units {guess})" if guess is not None else "")
 
 

@@ -188,9 +188,11 @@ class AirGuard:
         route = np.vstack([[p_end, up_a], arc, [up_b, p_start]])
         if not self._clear(route[1:-1]):
             self.near_part.append((np.array(p_end, float), np.array(p_start, float)))
-            log.warning("no air route found within %.0f mm of the part's bounding box between (%s) and (%s); "
-                        "the link may pass closer than half the clearance", 1e3 * self.margin,
-                        np.round(p_end, 3).tolist(), np.round(p_start, 3).tolist())
+            # debug only: planners and the order stage route links of plans they do not keep;
+            # route_links warns about the kept plan's, in the user's unit
+            log.debug("no air route found within %.0f mm of the part's bounding box between (%s) and (%s) m; "
+                      "the link may pass closer than half the clearance", 1e3 * self.margin,
+                      np.round(p_end, 4).tolist(), np.round(p_start, 4).tolist())
         return route
 
     def _sphere_arc(self, a, b) -> np.ndarray:
@@ -211,31 +213,49 @@ class AirGuard:
         return self.center + self.radius * dirs
 
 
-def route_links(toolpath: ToolPath, *, clearance: float, pad_radius: float = DEFAULT_PAD_RADIUS) -> ToolPath:
+def route_links(toolpath: ToolPath, *, clearance: float, pad_radius: float = DEFAULT_PAD_RADIUS,
+                units: str = "m") -> ToolPath:
     """``toolpath`` with an air route (:class:`~swath.core.Link`) between every two consecutive passes:
     up ``clearance`` (m) along the surface normal, across clear of the part and inside its bounding
     box grown by ``pad_radius + clearance``, and down (:class:`AirGuard`).  The metadata gains
-    ``air_route_length_m``, ``air_route_clearance_m`` and ``air_moves_near_part_count`` (routes that
-    pass closer than half the clearance: each also a warning naming the pass it leaves)."""
+    ``air_route_length_m``, ``air_route_clearance_m`` and ``air_moves_near_part_count``; routes that
+    pass closer than half the clearance make one warning (in the metadata's ``warnings``, which
+    the job logs and reports) naming the passes they leave and the ends of the first few, in ``units`` (the length unit
+    the part was read in: m, mm, cm or in)."""
+    from ..units import canonical_length_unit, length_unit_factor
+
     if not (np.isfinite(clearance) and clearance > 0):
         raise InputError(f"clearance must be a positive length in m, got {clearance!r}")
+    units = canonical_length_unit(units)
+    per_unit = length_unit_factor(units)
     guard = AirGuard(toolpath.surface, clearance, pad_radius=pad_radius)
     passes = toolpath.passes
-    links, near = [], []
+    links, near, ends = [], [], []
     for i, (a, b) in enumerate(zip(passes[:-1], passes[1:])):
         known = len(guard.near_part)
         links.append(Link(guard.route(a.points[-1], a.normals[-1] / np.linalg.norm(a.normals[-1]),
                                       b.points[0], b.normals[0] / np.linalg.norm(b.normals[0]))))
         if len(guard.near_part) > known:
             near.append(i + 1)                            # the pass it leaves, counted from 1
+            ends.append((a.points[-1], b.points[0]))
     meta = dict(toolpath.metadata, air_route_length_m=float(sum(link.length for link in links)),
                 air_route_clearance_m=float(clearance), air_moves_near_part_count=len(near))
     if near:
         # into the job's warnings (and its report), not only the log
         where = ", ".join(str(i) for i in near[:10]) + (", ..." if len(near) > 10 else "")
-        meta["warnings"] = [*meta.get("warnings", []),
-                            f"{len(near)} of {len(links)} air moves pass closer than half the clearance "
-                            f"({0.5e3 * clearance:.0f} mm) to the part (after passes {where}): a pass ends in a fold "
-                            "or under an overhang the tool cannot lift clear of; check those moves in the cell (the log "
-                            "gives their ends), or plan another direction (--direction) so the passes end elsewhere"]
+        # four significant figures of the part's extent in the user's unit
+        extent = float(np.ptp(guard.box, axis=0).max()) - 2 * guard.margin
+        digits = max(0, 4 - int(np.floor(np.log10(max(extent / per_unit, 1e-12)))))
+
+        def point(p) -> str:
+            return "(" + ", ".join(f"{x / per_unit:.{digits}f}" for x in p) + ")"
+
+        shown = "; ".join(f"after pass {i}: {point(p)} to {point(q)}" for i, (p, q) in zip(near[:3], ends[:3]))
+        message = (f"{len(near)} of {len(links)} air moves pass closer than half the clearance "
+                   f"({0.5e3 * clearance:.0f} mm) to the part (after passes {where}): a pass ends in a fold "
+                   "or under an overhang the tool cannot lift clear of; check those moves in the cell "
+                   f"({shown}{'; ...' if len(near) > 3 else ''}; part coordinates in "
+                   f"{'inches' if units == 'in' else units}), or plan another direction (--direction) so the "
+                   "passes end elsewhere")
+        meta["warnings"] = [*meta.get("warnings", []), message]   # the job logs and reports them
     return toolpath.replace(links=tuple(links), metadata=meta)

@@ -303,8 +303,43 @@ def _table(values: dict, caption: str) -> str:
         raw = json.dumps(to_jsonable(value), ensure_ascii=False)
         rows.append(f"<tr><td>{esc(label)}</td><td class='num'>{esc(format_value(key.rsplit('.', 1)[-1], value))}"
                     f"</td><td><code title='{esc(str(raw))}'>{esc(key)}</code></td></tr>")
-    return (f"<table><caption>{esc(caption)}</caption><thead><tr><th>quantity</th><th>value</th>"
-            f"<th>key (unit in the name)</th></tr></thead><tbody>{''.join(rows)}</tbody></table>")
+    return (f"<div class='scroll'><table><caption>{esc(caption)}</caption><thead><tr><th>quantity</th><th>value</th>"
+            f"<th>key (unit in the name)</th></tr></thead><tbody>{''.join(rows)}</tbody></table></div>")
+
+
+#: What a user reads first, in this order: (label, metric key, explanation). The rest of the
+#: metrics and the settings are folded below them.
+HEADLINE = (
+    ("coverage", "coverage_fraction", "share of the part's area the pad touches"),
+    ("interior removal CoV", "interior_removal_cov",
+     "evenness of removal a pad radius in from the edges (std / mean; lower is more even)"),
+    ("removal CoV", "removal_cov", "evenness of removal over the covered area, edges included"),
+    ("cycle time", "cycle_time_s", "contact passes and air moves, as timed under the speed limits"),
+    ("contact path L", "contact_length_m", "length of the passes in contact"),
+    ("air path", "air_length_m", "length of the moves between passes"),
+    ("shortest covering path L*", "coverage_lower_bound_m", "area / widest swath: no path can be shorter"),
+    ("efficiency L*/L", "efficiency", "how close the path comes to the bound (100 % cannot be beaten)"),
+    ("passes", "n_passes", ""),
+)
+
+
+def _headline_html(metrics: dict) -> str:
+    """The figures a user reads first, one row each, with the warnings count."""
+    esc = _html.escape
+    rows = []
+    for label, key, why in HEADLINE:
+        if key not in metrics:
+            continue
+        rows.append(f"<tr><td>{esc(label)}</td><td class='num'><b>{esc(format_value(key, metrics[key]))}</b></td>"
+                    f"<td class='why'>{esc(why)}</td></tr>")
+        if key == "contact_length_m" and metrics.get("coverage_lower_bound_m"):
+            ratio = float(metrics[key]) / float(metrics["coverage_lower_bound_m"])
+            rows.append(f"<tr><td>L / L*</td><td class='num'><b>{ratio:.3f}</b></td>"
+                        "<td class='why'>contact path over the shortest covering path</td></tr>")
+    n_warn = len(metrics.get("warnings") or [])
+    rows.append(f"<tr><td>warnings</td><td class='num'><b>{n_warn}</b></td>"
+                f"<td class='why'>{'listed at the top of the report' if n_warn else 'none'}</td></tr>")
+    return f"<table class='headline'><tbody>{''.join(rows)}</tbody></table>"
 
 
 def _png_data_uri(data: bytes) -> str:
@@ -323,11 +358,17 @@ main{max-width:1400px;margin:0 auto;padding:10px 28px 40px}
 section{background:#fff;border:1px solid #e2e2e2;border-radius:6px;margin:18px 0;padding:14px 18px}
 h2{font-size:1.15em;margin:4px 0 10px 0}
 p.note{color:#555;font-size:.93em;max-width:70em;margin:4px 0 10px 0}
-table{border-collapse:collapse;font-size:.92em;min-width:40em}
+table{border-collapse:collapse;font-size:.92em;max-width:100%}
+.scroll{overflow-x:auto;max-width:100%;min-width:0;flex:1 1 34em}
 caption{text-align:left;font-weight:600;padding:4px 0}
 th,td{border-bottom:1px solid #eee;padding:4px 12px 4px 0;text-align:left}
-td.num{font-variant-numeric:tabular-nums;white-space:nowrap}
-code{color:#666;font-size:.9em}
+td.num{font-variant-numeric:tabular-nums;overflow-wrap:anywhere;max-width:28em}
+td.why{color:#555;font-size:.93em}
+table.headline td{padding:5px 18px 5px 0}
+table.headline td.num{white-space:nowrap}
+details{margin-top:14px}
+details>summary{cursor:pointer;font-weight:600;padding:4px 0}
+code{color:#666;font-size:.9em;overflow-wrap:anywhere}
 .tables{display:flex;flex-wrap:wrap;gap:30px}
 figure{margin:0}
 img{max-width:min(100%,1100px);height:auto;border:1px solid #eee}
@@ -403,6 +444,7 @@ def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, m
             ("faces", f"{len(surface.faces):,}"), ("date", now.strftime("%Y-%m-%d %H:%M UTC"))]
     meta_html = "".join(f"<span>{esc(k)}: <b>{esc(str(v))}</b></span>" for k, v in meta if v is not None)
     shown = f"{max_faces:,}"
+    rest = {k: v for k, v in metrics.items() if k != "warnings"}
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
@@ -412,18 +454,21 @@ def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, m
 <header><h1>{esc(title)}</h1><div class="meta">{meta_html}</div></header>
 <main>
 {_warnings_html(metrics)}
-<section><h2>3D view</h2><p class="note">{esc(_EXPLAIN["view3d"])} Large parts are shown coarsened to at
-most {shown} faces for display; the figures and metrics use the full sampling.</p>
-{plot_div}</section>
 <section><h2>Summary</h2>
+{_headline_html(metrics)}
+<details><summary>All metrics ({len(rest)}) and settings</summary>
 <p class="note">Each figure's unit is part of its key name (m, s, fraction, …); values are shown here in
 handier units. Fractions are shown in per cent; "CoV" is the standard deviation of the removal depth
 divided by its mean over the covered area, "interior removal CoV" the same over the part more than a pad
 radius in from its edge (untouched points included; the band where the pad hangs over is left out); the
 coverage lower bound is the surface area divided by the
 widest swath the pad can make, the shortest contact path that could cover the part, and "efficiency" relates
-it to the path actually run (100 % cannot be beaten).</p>
-<div class="tables">{_table({k: v for k, v in metrics.items() if k != "warnings"}, "Metrics")}{_table(settings, "Settings")}</div></section>
+it to the path actually run (100 % cannot be beaten). Times named after a stage (plan_s, simulate_s, …) are
+how long swath took to compute it.</p>
+<div class="tables">{_table(rest, "Metrics")}{_table(settings, "Settings")}</div></details></section>
+<section><h2>3D view</h2><p class="note">{esc(_EXPLAIN["view3d"])} Large parts are shown coarsened to at
+most {shown} faces for display; the figures and metrics use the full sampling.</p>
+{plot_div}</section>
 {''.join(figures)}
 </main>
 <footer>Generated by swath {esc(__version__)} on {esc(now.isoformat())}. This file is self-contained and

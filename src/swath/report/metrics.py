@@ -236,7 +236,9 @@ def _num(v: float, digits: int = 4) -> str:
 def format_value(key: str, value) -> str:
     """A value formatted for people from the unit in its key's name.
 
-    Lengths under 1 mm are shown in µm, under 1 m in mm, else in m; areas in m² or mm²; times
+    Lengths under 1 µm are shown in nm (under 1 nm, round-off such as a forward-kinematics check's
+    error, as "< 1 nm"), under 1 mm in µm, under 1 m in mm, else in m; angles in degrees (under
+    0.001°, "< 0.001°"); areas in m² or mm²; times
     over two minutes also in min:s; fractions (``_fraction``, ``_cov``, ``efficiency``) in %;
     ``None``/NaN as ``"–"``.  Unrecognised names show the bare number.
     """
@@ -259,6 +261,10 @@ def format_value(key: str, value) -> str:
     if ku.kind == "length":
         if a == 0:
             return "0 mm"
+        if a < 1e-9:
+            return "< 1 nm" if v > 0 else "> −1 nm"
+        if a < 1e-6:
+            return f"{_num(v * 1e9)} nm"
         if a < 1e-3:
             return f"{_num(v * 1e6)} µm"
         if a < 1.0:
@@ -280,6 +286,8 @@ def format_value(key: str, value) -> str:
     if ku.kind == "count":
         return f"{int(v):,}" if v == int(v) else _num(v)
     if ku.unit == "rad":
+        if 0 < a and math.degrees(a) < 1e-3:
+            return "< 0.001°" if v > 0 else "> −0.001°"
         return f"{_num(math.degrees(v))}°"
     return f"{_num(v)} {ku.unit}".strip()
 

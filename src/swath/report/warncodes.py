@@ -109,6 +109,10 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-REWORK-UNMEASURED", r"the scan measured only",
           "The rework scan covers less than half of the CAD: the unmeasured rest is taken as nominal.",
           "Check the placement (`--placement`, `--scan-units`) or scan the whole area to finish.", "fit"),
+    entry("W-PROCESS-RANGE", r"planning it as asked \(--allow-unusual-process\)",
+          "A feed, force, pad radius or spindle speed lies outside what a sanding robot does; with "
+          "`--allow-unusual-process` it is planned as asked.",
+          "Check the value and its unit; the ranges are in `swath plan --help`.", "input"),
     entry("W-STEP-FACE-SKIPPED", r"could not be tessellated",
           "Open CASCADE could not mesh one face of the CAD file; that face is left out of the part.",
           "Check the face in a CAD tool (a sliver or a broken trim), or lower `--chordal-tol`.", "input"),

@@ -270,7 +270,7 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
         keep = _main_piece(X)
         if not keep.all():
             n_dropped = int((~keep).sum())
-            log.warning("fit_patch: dropping %d stray points that lie apart from the patch", n_dropped)
+            log.warning("dropping %d stray points that lie apart from the patch", n_dropped)
             X = X[keep]
             N_in = None if N_in is None else N_in[keep]
             R_ids = None if R_ids is None else R_ids[keep]
@@ -315,7 +315,7 @@ def _fit_patch(points, *, normals, mesh_faces, rows, parameterization, degree, n
     _, _, dist = patch.project(X, initial=(u, v))
     warnings = _residual_warnings(dist, tolerance)
     for w in warnings:
-        log.warning("fit_patch: %s", w)
+        log.warning("%s", w)
     report = FitReport(rms=float(np.sqrt(np.mean(dist**2))), max_error=float(dist.max()), n_points=len(X),
                        n_dropped=n_dropped, n_ctrl=patch.shape, degree=patch.degree,
                        knots_u=np.array(patch.knots_u), knots_v=np.array(patch.knots_v),
