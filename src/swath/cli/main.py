@@ -120,6 +120,10 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     r.add_argument("--place", action="store_true", default=None,
                    help="search where to put the part so the whole job is reachable (x, y, yaw on the table)")
     r.add_argument("--table-z", help="with --place: height of the part's lowest point in the base frame, e.g. 0mm")
+    r.add_argument("--force-program", choices=("native", "position"),
+                   help="how the urscript/rapid/krl programs press the pad: native (the controller's force control "
+                        "along the tool axis: UR force_mode, ABB Force Control, KUKA.ForceTorqueControl; default) or "
+                        "position (position only, for a compliant tool; the program and a warning say so)")
     f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
     f.add_argument("--force-control", action="store_true",
                    help="simulate hybrid position/force control along the trajectory: a force column, a force plot, "

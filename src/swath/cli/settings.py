@@ -105,6 +105,7 @@ class JobSettings:
     place: bool = False
     table_z: float = 0.0
     robot_strict: bool = False
+    force_program: str = "native"
 
     def tool(self):
         from ..contact import Tool
@@ -166,7 +167,7 @@ class JobSettings:
                           depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
         if self.robot:
             record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
-                          place=self.place, table_z_m=self.table_z)
+                          place=self.place, table_z_m=self.table_z, force_program=self.force_program)
         return record
 
 
@@ -251,6 +252,7 @@ SCHEMA: dict[str, Key] = {
     "feed_simulate_check": Key("bool"),
     "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
     "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
+    "force_program": Key("str", choices=("native", "position")),
 }
 
 #: Planner options (``[planner_options]``) that are not job settings: what each holds.  The job

@@ -5,7 +5,9 @@ CLI flags / job keys the stage reads (the lead wires them; see :func:`robot_opti
 ``--robot ur10e`` (a name from :data:`swath.robot.ROBOTS`), ``--base "x,y,z,rx,ry,rz"`` (part placement
 in the robot base frame; mm/m and deg/rad suffixes, bare numbers m and deg), ``--tcp "x,y,z,rx,ry,rz"``
 (TCP in the flange frame), ``--program urscript,rapid,krl,ros,csv``, ``--place`` (search the
-placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fail on any unreachable pose).
+placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fail on any unreachable pose),
+``--force-program native|position`` (the controller's force control presses the pad, or a
+position-only program that states the compliance it relies on).
 """
 
 from __future__ import annotations
@@ -22,9 +24,9 @@ from .cell import Cell, parse_pose
 from .models import RobotModel, get_robot
 from .placement import Placement, search_placement
 from .pose import pose_error, poses_from_trajectory
-from .programs import ProgramInput, write_programs
-from .retime import joint_speed_ratio, retime_trajectory
-from .solve import JointSolution, Margins, flips_inside_passes, solve_trajectory
+from .programs import ProgramInput, check_program_formats, write_programs
+from .retime import joint_speed_ratio, resample_contact, retime_trajectory
+from .solve import JointSolution, Margins, flips_inside_passes, insert_joint_moves, solve_trajectory
 
 log = logging.getLogger(__name__)
 
@@ -80,7 +82,8 @@ def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell
 def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell | None = None,
                     programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
                     margins: Margins | None = None, strict: bool = False, force: float = 20.0,
-                    surface=None, reach_vertices: int = 1500, warn: bool = True) -> RobotResult:
+                    surface=None, reach_vertices: int = 1500, warn: bool = True,
+                    force_program: str = "native") -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -111,6 +114,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         At most this many vertices in the reachability map.
     warn : bool
         Log the result's warnings (default); they are the result's ``warnings`` either way.
+    force_program : str
+        ``native`` (force control of the controller) or ``position`` (position-only programs).
 
     Returns
     -------
@@ -121,6 +126,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     cell = Cell() if cell is None else cell
     if not len(trajectory):
         raise InputError("the robot stage needs a trajectory with at least one sample")
+    check_program_formats(model, programs or (), force_program)
     placement = None
     t0 = time.perf_counter()
     if place:
@@ -130,19 +136,20 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     t0 = time.perf_counter()
     solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
     t_ik = time.perf_counter() - t0
-    retimed, rt = retime_trajectory(trajectory, solution, model)
+    retimed, solution, rt = retime_and_resample(trajectory, solution, model, cell)
     dp, da = fk_errors(retimed, solution, model, cell)
     idx = np.flatnonzero(solution.reachable)
     speed_ratio = joint_speed_ratio(retimed.t[idx], solution.q[idx], model.max_speed) if len(idx) > 1 else np.zeros(1)
     meas = solution.measures
     metrics = {
+        **continuity_metrics(retimed, solution),
         "robot": model.name, "n_poses": len(trajectory), "ik_time_s": t_ik, "placement_time_s": t_place,
         "reachable_fraction": solution.reachable_fraction, "n_unreachable_stretches": len(solution.stretches),
         "n_branch_switches": len(solution.switches),
-        "configuration_flips_in_passes": flips_inside_passes(solution, trajectory),
+        "configuration_flips_in_passes": flips_inside_passes(solution, retimed),
         "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
         "max_joint_speed_ratio": float(np.max(speed_ratio, initial=0.0)), "max_joint_accel_ratio": rt.max_accel_ratio,
-        "retime_added_s": rt.added_time, "retime_stretched_steps": rt.stretched_steps,
+        "retime_added_s": retimed.duration - trajectory.duration, "retime_stretched_steps": rt.stretched_steps,
         "duration_s": retimed.duration,
         "min_manipulability": float(np.nanmin(meas["manipulability"])) if len(idx) else float("nan"),
         "min_joint_limit_margin_rad": float(np.nanmin(meas["joint_limit_margin_rad"])) if len(idx) else float("nan"),
@@ -151,7 +158,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     }
     if placement is not None:
         metrics.update(placement.as_record())
-    warnings = robot_warnings(solution, metrics)
+    metrics["force_program"] = force_program
+    warnings = robot_warnings(solution, metrics, programs=programs, cell=cell)
     if warn:
         for w in warnings:
             log.warning("%s", w)
@@ -165,16 +173,87 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     if out_dir is not None and programs:
         if not len(idx):
             raise InputError(f"no pose of the trajectory is reachable for {model.name}; no program written")
-        files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
+        files = write_programs(ProgramInput(retimed, solution, model, cell, force=force, force_program=force_program),
+                               Path(out_dir), programs)
     return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
                        reach_map=reach_map, files=files, metrics=metrics, warnings=warnings)
 
 
-def robot_warnings(solution: JointSolution, metrics: dict) -> list[str]:
+def retime_and_resample(trajectory, solution: JointSolution, model: RobotModel, cell: Cell, *, rounds: int = 3):
+    """Joint moves interpolated, re-timed to the joint limits, contact steps resampled to ≤ 20 ms.
+
+    :func:`insert_joint_moves` puts the swept joints of every joint move on the trajectory;
+    :func:`retime_trajectory` stretches time where a joint limit binds; :func:`resample_contact`
+    then splits the contact steps that became longer than FORMATS.md's 20 ms (or turn a joint more
+    than 0.045 rad), and the re-timing runs again on the new samples, up to ``rounds`` times.
+
+    Returns
+    -------
+    (Trajectory, JointSolution, Retiming)
+        The re-timed trajectory, the solution on its samples, the first re-timing's figures.
+    """
+    tr, sol = insert_joint_moves(trajectory, solution, model, cell)
+    retimed, rt = retime_trajectory(tr, sol, model)
+    for _ in range(rounds):
+        n_before = len(retimed)
+        retimed, sol = resample_contact(retimed, sol, model, cell)
+        if len(retimed) == n_before:
+            break
+        retimed, _ = retime_trajectory(retimed, sol, model)
+    return retimed, sol, rt
+
+
+def continuity_metrics(trajectory, solution: JointSolution) -> dict:
+    """What the configuration and timing rules promise, measured on the final samples.
+
+    Keys: ``max_contact_dt_s`` (longest step between contact samples of one pass, s),
+    ``max_contact_joint_step_rad`` (largest joint change between them), ``n_joint_moves`` (joint
+    moves written as such, each a branch change or a large turn on an air link),
+    ``branch_changes_in_contact`` (steps inside a pass whose branch changes),
+    ``min_switch_clearance_m`` (smallest distance from the part at which the branch changes; NaN
+    without a change).
+    """
+    tr, sol = trajectory, solution
+    n = len(tr)
+    out = {"max_contact_dt_s": 0.0, "max_contact_joint_step_rad": 0.0, "n_joint_moves": 0,
+           "branch_changes_in_contact": 0, "min_switch_clearance_m": float("nan")}
+    if n < 2:
+        return out
+    same = (tr.contact[1:] & tr.contact[:-1] & (tr.pass_index[1:] == tr.pass_index[:-1]) & (tr.pass_index[1:] >= 0)
+            & sol.reachable[1:] & sol.reachable[:-1])
+    if same.any():
+        out["max_contact_dt_s"] = float(np.diff(tr.t)[same].max())
+        out["max_contact_joint_step_rad"] = float(np.abs(np.diff(sol.q, axis=0))[same].max())
+    jm = sol.joint_moves
+    out["n_joint_moves"] = int(np.sum(jm[1:] & ~jm[:-1]) + int(jm[0]))
+    b = sol.branch
+    change = (b[1:] != b[:-1]) & (b[1:] >= 0) & (b[:-1] >= 0)
+    out["branch_changes_in_contact"] = int(np.sum(change & same))
+    if change.any() and sol.clearance is not None:
+        c = sol.clearance
+        out["min_switch_clearance_m"] = float(np.min(np.minimum(c[1:], c[:-1])[change]))
+    return out
+
+
+def robot_warnings(solution: JointSolution, metrics: dict, *, programs=(), cell: Cell | None = None) -> list[str]:
     """The robot stage's warnings: unreachable poses (the solution's sentence; the programs skip
-    those samples, so the robot would move straight across them) and branch changes inside a
-    contact pass (the arm reconfigures with the pad on the part)."""
+    those samples, so the robot would move straight across them), branch changes inside a contact
+    pass (the arm reconfigures with the pad on the part), position-only vendor programs (the
+    compliance they rely on), and a TCP on the flange face (no tool given)."""
     out = []
+    vendor = [p for p in (str(x).strip().lower() for x in programs) if p in ("urscript", "rapid", "krl")]
+    if vendor and metrics.get("force_program") == "position":
+        out.append(f"robot: the {', '.join(vendor)} program(s) are position only (--force-program position): they hold "
+                   "the pad face on the nominal surface and rely on a compliant tool (active contact flange or spring "
+                   "mount) to press with the planned force; with a rigid tool the force is whatever the part's "
+                   "placement errors make")
+    if cell is not None and np.allclose(cell.flange2tcp, np.eye(4)):
+        out.append("robot: no tool given (--tcp), so the TCP is the flange face: the programs put the flange, not a "
+                   "pad, on the part; give the pad face's pose in the flange frame with --tcp x,y,z,rx,ry,rz")
+    n_mid = metrics.get("branch_changes_in_contact", 0)
+    if n_mid:
+        out.append(f"robot: {n_mid} configuration change(s) would fall between contact samples; the pass cannot be "
+                   "done on one arm configuration: move the part (--base, or --place)")
     if solution.warning:
         out.append(f"robot: {solution.warning} The programs leave these samples out, so the robot moves straight "
                    "across them.")
@@ -189,11 +268,13 @@ def robot_options_from_mapping(values: dict) -> dict:
     """Keyword arguments of :func:`run_robot_stage` from CLI/TOML text values.
 
     Keys: ``robot``, ``base``, ``tcp``, ``program`` (comma list), ``place`` (``auto`` or absent),
-    ``table_z`` (length), ``robot_strict`` (bool).
+    ``table_z`` (length), ``robot_strict`` (bool), ``force_program`` (``native`` or ``position``).
+    Program formats the robot's controller would not take are refused here, before any work.
     """
     from ..units import parse_quantity
 
-    known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict"}
+    known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict",
+             "force_program", "force-program"}
     unknown = set(values) - known
     if unknown:
         raise InputError(f"unknown robot setting(s) {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
@@ -205,9 +286,12 @@ def robot_options_from_mapping(values: dict) -> dict:
     base = values.get("base")
     tcp = values.get("tcp")
     table = values.get("table_z", values.get("table-z"))
+    force_program = str(values.get("force_program", values.get("force-program")) or "native").strip().lower()
+    check_program_formats(get_robot(values.get("robot", "ur10e")), programs, force_program)
     return {"robot": values.get("robot", "ur10e"),
             "cell": Cell(base2part=np.eye(4) if base is None else parse_pose(base),
                          flange2tcp=np.eye(4) if tcp is None else parse_pose(tcp)),
             "programs": programs, "place": place == "auto",
             "table_z": 0.0 if table is None else parse_quantity(table, "length"),
-            "strict": bool(values.get("robot_strict", values.get("robot-strict", False)))}
+            "strict": bool(values.get("robot_strict", values.get("robot-strict", False))),
+            "force_program": force_program}
