@@ -205,7 +205,7 @@ def test_a_partly_unreachable_robot_cell_is_a_job_warning_said_once(tmp_path):
     doc = json.loads((out / "metrics.json").read_text())
     m = doc["metrics"]
     assert 0 < m["robot_reachable_fraction"] < 1
-    robot = [w for w in m["warnings"] if w.startswith("robot: ")]
+    robot = [w for w in m["warnings"] if w.startswith("robot: ") and "unreachable" in w]
     n_bad = round((1 - m["robot_reachable_fraction"]) * m["robot_n_poses"])
     assert len(robot) == 1 and f"{n_bad} of {m['robot_n_poses']} poses are unreachable for ur3e" in robot[0]
     assert r.stderr.count("poses are unreachable") == 1

@@ -6,20 +6,42 @@ the vendor programs (Cartesian moves) carry the samples kept by :func:`decimate`
 pass's and link's first and last sample and drops a sample only where the straight line between
 its kept neighbours stays within ``tol_position`` (m) and ``tol_angle`` (rad) of every dropped one.
 
+Which formats a robot gets: URScript only for Universal Robots arms, RAPID only for ABB arms, KRL
+only for KUKA arms (each encodes its maker's configuration rules); ROS YAML and CSV for every arm
+(:func:`check_program_formats`, called before any work).
+
+Configurations: a linear move never changes the arm's configuration; a change of branch (and any
+large joint turn on an air link) is a *joint move* at the air move's highest point
+(:attr:`JointSolution.joint_move`), written as ``movej`` / ``MoveAbsJ`` / ``PTP`` with the new
+configuration, its target reached at rest (no blend before it).
+
+Force (``force_program``): ``native`` presses the pad along the tool z-axis with the controller's
+force control in every contact pass — URScript ``force_mode`` re-issued before every move of the
+pass with the tool frame of the move's start (type 2, the frame not transformed), decimation keeping
+a target wherever the tool axis has turned ``max_force_turn`` (2°) since the last one, so the
+commanded force stays within 2° of the pad axis (:func:`commanded_force_angles`); RAPID through ABB
+Force Control (``FCCalib``, ``FCPress1LStart`` … ``FCPressL`` … ``FCPressEnd`` with
+``FC_REFFRAME_TOOL``); KRL through KUKA.ForceTorqueControl, started and stopped per pass by the
+cell's ``SWATH_FTC_ON(force)`` / ``SWATH_FTC_OFF()``.  ``position`` writes position-only programs whose
+header states the compliance they rely on.
+
 Units and frames per format (the readers in :mod:`swath.robot.readers` parse them back):
 
 * URScript — ``p[x, y, z, rx, ry, rz]`` TCP poses in the robot base frame, m and rotation vector
-  (rad); ``set_tcp`` from ``flange2tcp``; ``movej`` to the first configuration and at every branch
-  switch; ``force_mode`` along the tool z-axis around each contact pass; ``movel`` with blend
-  radius ``r`` (0 at pass ends) and speed ``v`` = the timed feed (m/s).
+  (rad); ``set_tcp`` from ``flange2tcp``; ``movej`` to the first configuration and at every joint
+  move (``t`` = its re-timed duration, s); ``movel`` with blend radius ``r`` (0 at pass ends) and
+  speed ``v`` = the timed feed (m/s).
 * RAPID — TCP poses in the part frame (``wobjdata`` user frame = the part placement), mm and
   quaternions; ``confdata [cf1, cf4, cf6, cfx]`` from the joint values (ABB's quadrant and cfx
-  rules); ``MoveL`` with a ``speeddata`` per feed and ``z1`` (``fine`` at pass ends).
+  rules); ``ConfL\\On``; ``MoveL`` with a ``speeddata`` per feed and ``z1`` (``fine`` at pass ends);
+  ``MoveAbsJ`` to a ``jointtarget`` (deg) with ``\\T`` its duration at a joint move.
 * KRL — ``.dat`` with ``FRAME`` base/tool and ``E6POS`` points (X, Y, Z mm; A, B, C deg, ``Rz(A)
   Ry(B) Rx(C)``; S status, T turn); ``.src`` sets ``$BASE``, ``$TOOL``, ``$VEL.CP`` (m/s) and runs
-  ``LIN … C_DIS``.  KUKA's flange frame has x out of the flange: ``$TOOL = Ry(90°) · flange2tcp``.
-* ROS ``trajectory_msgs/JointTrajectory`` YAML — joint names, positions (rad), velocities (rad/s),
-  ``time_from_start`` {secs, nsecs}.
+  ``LIN … C_DIS``, ``PTP`` at a joint move.  KUKA's flange frame has x out of the flange:
+  ``$TOOL = Ry(90°) · flange2tcp``.
+* ROS 2 ``trajectory_msgs/JointTrajectory`` YAML — joint names, positions (rad), velocities (rad/s;
+  0 at the first and last point), ``time_from_start`` ``{sec, nanosec}``
+  (``builtin_interfaces/Duration``).
 * ``joints.csv`` — ``t,q1..q6,contact,pass,branch`` (s, rad).
 """
 
@@ -192,7 +214,7 @@ def decimate(trajectory, keep, *, tol_position: float = 1e-4, tol_angle: float =
     for s, e, is_pass in segments(trajectory):
         idx = np.flatnonzero(keep[s:e]) + s
         # split at gaps (unreachable samples, interpolated joint moves) and at joint-move targets
-        cut = np.flatnonzero((np.diff(idx) > 1) | jm[idx[1:]]) + 1 if len(idx) else []
+        cut = np.flatnonzero((np.diff(idx) > 1) | jm[idx[1:]]) + 1 if len(idx) else np.zeros(0, int)
         for run in np.split(idx, cut):
             if len(run):
                 kept = _douglas_peucker(run, pos, zax, tol_position, tol_angle)
@@ -344,7 +366,7 @@ def urscript_text(data: ProgramInput) -> str:
                          "[0.005,0.005,0.1,0.0873,0.0873,0.0873])" + ("" if in_force else f"  # pass {tr.pass_index[i]}"))
             in_force = True
         v = max(float(tr.feed[i]), 1e-3)
-        r = 0.0 if (i in ends or k == len(idx) - 1) else data.blend
+        r = 0.0 if (i in ends or k == len(idx) - 1 or jm[idx[k + 1]]) else data.blend
         lines.append(f"  movel(p[{_fmt(base2tcp[k, :3, 3], 7)},{_fmt(rv[k], 9)}], a=1.0, v={v:.5f}, r={r:.4f})")
         nxt_c = k + 1 < len(idx) and bool(on[idx[k + 1]]) and tr.pass_index[idx[k + 1]] == tr.pass_index[i]
         if in_force and not nxt_c:
@@ -425,7 +447,7 @@ def rapid_text(data: ProgramInput) -> str:
             continue
         v = round(max(float(tr.feed[i]), 1e-3) * 1e3, 1)
         name = speeds.setdefault(v, f"vSw{len(speeds)}")
-        zone = "fine" if (i in ends or k == len(idx) - 1) else "z1"
+        zone = "fine" if (i in ends or k == len(idx) - 1 or jm[idx[k + 1]]) else "z1"
         wobj = "tSwath\\WObj:=wSwath;"
         if native and on[i] and not pressing:
             body.append(f"    FCPress1LStart p{k}, {name}, \\Fz:={data.force:.1f}, {0.5 * data.force:.1f}, "
@@ -509,7 +531,7 @@ def krl_texts(data: ProgramInput, name: str = "swath_job") -> tuple[str, str]:
         if last_v is None or abs(v - last_v) > 1e-6:
             src.append(f"  $VEL.CP={v:.5f}")
             last_v = v
-        approx = "" if (i in ends or k == len(idx)) else " C_DIS"
+        approx = "" if (i in ends or k == len(idx) or jm[idx[k]]) else " C_DIS"
         src.append(f"  LIN XP{k}{approx}")
         nxt_on = k < len(idx) and bool(on[idx[k]]) and tr.pass_index[idx[k]] == tr.pass_index[i]
         if native and pressing and not nxt_on:
@@ -523,9 +545,8 @@ def krl_texts(data: ProgramInput, name: str = "swath_job") -> tuple[str, str]:
 def ros_yaml_text(data: ProgramInput) -> str:
     """ROS 2 ``trajectory_msgs/JointTrajectory`` as YAML: ``time_from_start`` a ``builtin_interfaces/Duration``
     (``sec``, ``nanosec``); velocities by central differences, zero at the first and last point (the
-    motion starts and ends at rest)."""
-    import yaml
-
+    motion starts and ends at rest).  Written line by line (block style, flow lists; numbers as
+    Python's shortest round-trip repr), which any YAML 1.1/1.2 reader parses."""
     tr, sol = data.trajectory, data.solution
     idx = np.flatnonzero(sol.reachable)
     t = tr.t[idx] - tr.t[idx[0]]
@@ -534,17 +555,20 @@ def ros_yaml_text(data: ProgramInput) -> str:
     vel = np.where(np.isfinite(vel), vel, 0.0)
     vel[0] = 0.0
     vel[-1] = 0.0
-    points = []
+
+    def flow(values) -> str:
+        return "[" + ", ".join(repr(float(v)) for v in values) + "]"
+
+    lines = ["header:", "  stamp: {sec: 0, nanosec: 0}", "  frame_id: base_link",
+             "joint_names: [" + ", ".join(joint_names(data.model)) + "]", "points:"]
     for ti, qi, vi in zip(t, q, vel):
         sec = math.floor(ti)
         nanosec = round((ti - sec) * 1e9)
         if nanosec >= 1_000_000_000:
             sec, nanosec = sec + 1, nanosec - 1_000_000_000
-        points.append({"positions": [float(v) for v in qi], "velocities": [float(v) for v in vi],
-                       "time_from_start": {"sec": int(sec), "nanosec": int(nanosec)}})
-    msg = {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": "base_link"}, "joint_names": joint_names(data.model),
-           "points": points}
-    return yaml.safe_dump(msg, sort_keys=False, default_flow_style=None)
+        lines += [f"- positions: {flow(qi)}", f"  velocities: {flow(vi)}",
+                  f"  time_from_start: {{sec: {int(sec)}, nanosec: {int(nanosec)}}}"]
+    return "\n".join(lines) + "\n"
 
 
 def joint_csv_text(data: ProgramInput) -> str:

@@ -45,7 +45,14 @@ def read_urscript(path) -> dict:
     """
     text = Path(path).read_text(encoding="utf-8")
     tcp = None
-    poses, blend, speed, in_force, movej, forces, frames, movej_after = [], [], [], [], [], [], [], []
+    poses: list = []
+    blend: list = []
+    speed: list = []
+    in_force: list = []
+    movej: list = []
+    forces: list = []
+    frames: list = []
+    movej_after: list = []
     force = False
     frame = np.full((4, 4), np.nan)
     for line in text.splitlines():
@@ -200,14 +207,34 @@ def read_krl(src_path, dat_path) -> dict:
 
 def read_ros_yaml(path) -> dict:
     """Parse a ROS 2 JointTrajectory YAML (``time_from_start`` as ``sec``/``nanosec``): ``joint_names``,
-    ``t`` (m,) s, ``q`` (m, 6) rad, ``qd`` (m, 6) rad/s."""
-    import yaml
+    ``t`` (m,) s, ``q`` (m, 6) rad, ``qd`` (m, 6) rad/s, ``durations`` list of the ``time_from_start``
+    mappings as written.
 
-    msg = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    pts = msg["points"]
-    t = np.array([p["time_from_start"]["sec"] + p["time_from_start"]["nanosec"] * 1e-9 for p in pts])
-    return {"joint_names": msg["joint_names"], "t": t, "q": np.array([p["positions"] for p in pts]),
-            "qd": np.array([p["velocities"] for p in pts])}
+    The line layout :func:`swath.robot.programs.ros_yaml_text` writes is read directly (fast on long
+    files); any other layout goes through a YAML parser.
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    pos = re.findall(r"^- positions: \[(.*)\]$", text, flags=re.M)
+    vel = re.findall(r"^  velocities: \[(.*)\]$", text, flags=re.M)
+    dur = re.findall(r"^  time_from_start: \{(.*)\}$", text, flags=re.M)
+    names = re.search(r"^joint_names: \[(.*)\]$", text, flags=re.M)
+    if names and pos and len(pos) == len(vel) == len(dur):
+        durations = [{k.strip(): int(v) for k, v in (kv.split(":") for kv in d.split(","))} for d in dur]
+        joint_names = [x.strip() for x in names.group(1).split(",")]
+        q = np.array([[float(x) for x in p.split(",")] for p in pos])
+        qd = np.array([[float(x) for x in v.split(",")] for v in vel])
+    else:
+        import yaml
+
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+        msg = yaml.load(text, Loader=loader)
+        pts = msg["points"]
+        durations = [p["time_from_start"] for p in pts]
+        joint_names = msg["joint_names"]
+        q = np.array([p["positions"] for p in pts])
+        qd = np.array([p["velocities"] for p in pts])
+    t = np.array([d["sec"] + d["nanosec"] * 1e-9 for d in durations])
+    return {"joint_names": joint_names, "t": t, "q": q, "qd": qd, "durations": durations}
 
 
 def read_joint_csv(path) -> dict:

@@ -164,7 +164,7 @@ def _slerp(qa, qb, w) -> np.ndarray:
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def resample_contact(trajectory, solution, model, cell, *, max_dt: float = 0.9 * MAX_CONTACT_DT,
+def resample_contact(trajectory, solution, model, cell, *, max_dt: float = 0.8 * MAX_CONTACT_DT,
                      max_joint_step: float = 0.045):
     """Insert samples into contact steps longer than ``max_dt`` or turning a joint by more than ``max_joint_step``.
 
@@ -184,7 +184,7 @@ def resample_contact(trajectory, solution, model, cell, *, max_dt: float = 0.9 *
     model : RobotModel
     cell : Cell
     max_dt : float
-        Longest contact step after resampling, s (default 18 ms, 10 % under the format's 20 ms so a
+        Longest contact step after resampling, s (default 16 ms, 20 % under the format's 20 ms so a
         later re-timing pass that stretches a step slightly stays within it).
     max_joint_step : float
         Largest joint change between contact samples, rad.

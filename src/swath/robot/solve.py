@@ -360,12 +360,12 @@ def align_turns(q, lower, upper, breaks) -> np.ndarray:
     start = np.asarray(breaks, bool) | (step > math.pi)
     start[1:] |= finite[1:] & ~finite[:-1]
     start[0] = True
-    runs = []
-    for a in np.flatnonzero(start & finite):
-        b = a + 1
-        while b < n and finite[b] and not start[b]:
-            b += 1
-        runs.append((int(a), int(b)))
+    runs: list[tuple[int, int]] = []
+    for first_row in np.flatnonzero(start & finite):
+        end = int(first_row) + 1
+        while end < n and finite[end] and not start[end]:
+            end += 1
+        runs.append((int(first_row), end))
     if not runs:
         return q
     mid = 0.5 * (lower + upper)
@@ -587,20 +587,35 @@ def insert_samples(trajectory, solution: JointSolution, model: RobotModel, at, *
     return new_tr, new_sol
 
 
+def _trapezoid_fraction(duration: float, tau) -> np.ndarray:
+    """Path fraction s(τ) in [0, 1] of a symmetric trapezoidal profile (ramps a quarter of the time each)."""
+    tau = np.asarray(tau, dtype=float) / duration
+    r = 0.25
+    peak = 1.0 / (1.0 - r)                    # speed (per unit time) at cruise
+    up = 0.5 * peak / r * tau ** 2
+    mid = 0.5 * peak * r + peak * (tau - r)
+    down = 1.0 - 0.5 * peak / r * (1.0 - tau) ** 2
+    return np.where(tau < r, up, np.where(tau <= 1 - r, mid, down))
+
+
 def insert_joint_moves(trajectory, solution: JointSolution, model: RobotModel, cell: Cell, *,
-                       max_joint_step: float = math.radians(2.0)):
+                       max_joint_step: float = math.radians(2.0), limit_fraction: float = 0.9):
     """Interpolate every joint move in joint space so no joint turns more than ``max_joint_step``
-    between samples.
+    between samples, timed as a rest-to-rest move.
 
     The new samples lie on the straight line in joint space between the move's two ends (what a
     controller's joint move does); their TCP poses are the forward kinematics of those joint values,
-    out of contact, on no pass, flagged as joint moves, with times spread evenly over the step (the
-    re-timing sets the real duration).
+    out of contact, on no pass, flagged as joint moves.  The move lasts the trapezoidal profile's
+    duration at ``limit_fraction`` of the joint speed and acceleration limits (ramps of a quarter of
+    the time, so the ramps need 4/3 of the cruise speed over a quarter: the duration is stretched
+    until both fit); later samples move later by the time added.
 
     Returns
     -------
     (Trajectory, JointSolution)
     """
+    from dataclasses import replace
+
     from .pose import matrix_to_quat
 
     jm = solution.joint_moves
@@ -608,24 +623,43 @@ def insert_joint_moves(trajectory, solution: JointSolution, model: RobotModel, c
     if not len(idx):
         return trajectory, solution
     q = solution.q
-    at, w, qs, br = [], [], [], []
+    vmax = model.max_speed * limit_fraction
+    amax = model.max_accel * limit_fraction
+    at: list[int] = []
+    w: list[float] = []
+    br: list[int] = []
+    tau: list[float] = []
+    added = np.zeros(len(trajectory))
     for i in idx:
         dq = q[i] - q[i - 1]
-        k = int(math.ceil(float(np.max(np.abs(dq))) / max_joint_step))
+        k = max(int(math.ceil(float(np.max(np.abs(dq))) / max_joint_step)), 1)
+        # profile with ramps of T/4 at peak speed 4/3·d/T: T = max over joints of the larger of
+        # 4/3·d/v and sqrt(16/3·d/a) (ramp acceleration 16/3·d/T²)
+        d = np.abs(dq)
+        dur = float(max(np.max(4.0 / 3.0 * d / vmax), np.max(np.sqrt(16.0 / 3.0 * d / amax)),
+                        trajectory.t[i] - trajectory.t[i - 1]))
+        added[i] = dur - (trajectory.t[i] - trajectory.t[i - 1])
         for j in range(1, k):
-            at.append(i)
+            at.append(int(i))
             w.append(j / k)
-            qs.append(q[i - 1] + dq * (j / k))
-            br.append(solution.branch[i])
+            br.append(int(solution.branch[i]))
+            tau.append(dur)
+    t_shift = trajectory.t + np.cumsum(added)
+    shifted = replace(trajectory, t=t_shift)
     if not at:
-        return trajectory, solution
-    qs_arr = np.array(qs)
-    part2tcp = cell.part2tcp(model.fk(qs_arr))
+        return shifted, solution
     at_arr = np.array(at)
     w_arr = np.array(w)
-    t = trajectory.t[at_arr - 1] * (1 - w_arr) + trajectory.t[at_arr] * w_arr
-    m = len(at_arr)
-    return insert_samples(trajectory, solution, model, at_arr, t=t, position=part2tcp[:, :3, 3],
-                          quaternion=matrix_to_quat(part2tcp[:, :3, :3]), contact=np.zeros(m, bool),
-                          pass_index=np.full(m, -1), q=qs_arr, joint_move=np.ones(m, bool), branch=np.array(br),
-                          fraction=w_arr)
+    dur_arr = np.array(tau)
+    # time of each new row: the profile's time at which the joint fraction w is reached
+    grid = np.linspace(0.0, 1.0, 2001)
+    t_new = np.empty(len(at_arr))
+    for m, (i, wj, dur) in enumerate(zip(at_arr, w_arr, dur_arr)):
+        t_new[m] = t_shift[i - 1] + np.interp(wj, _trapezoid_fraction(1.0, grid), grid) * dur
+    qs_arr = q[at_arr - 1] + (q[at_arr] - q[at_arr - 1]) * w_arr[:, None]
+    part2tcp = cell.part2tcp(model.fk(qs_arr))
+    n_new = len(at_arr)
+    return insert_samples(shifted, solution, model, at_arr, t=t_new, position=part2tcp[:, :3, 3],
+                          quaternion=matrix_to_quat(part2tcp[:, :3, :3]), contact=np.zeros(n_new, bool),
+                          pass_index=np.full(n_new, -1), q=qs_arr, joint_move=np.ones(n_new, bool),
+                          branch=np.array(br), fraction=w_arr)

@@ -136,6 +136,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     t0 = time.perf_counter()
     solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
     t_ik = time.perf_counter() - t0
+    reachable_fraction = solution.reachable_fraction       # of the poses asked for, before samples are added
     retimed, solution, rt = retime_and_resample(trajectory, solution, model, cell)
     dp, da = fk_errors(retimed, solution, model, cell)
     idx = np.flatnonzero(solution.reachable)
@@ -144,7 +145,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     metrics = {
         **continuity_metrics(retimed, solution),
         "robot": model.name, "n_poses": len(trajectory), "ik_time_s": t_ik, "placement_time_s": t_place,
-        "reachable_fraction": solution.reachable_fraction, "n_unreachable_stretches": len(solution.stretches),
+        "reachable_fraction": reachable_fraction, "n_unreachable_stretches": len(solution.stretches),
         "n_branch_switches": len(solution.switches),
         "configuration_flips_in_passes": flips_inside_passes(solution, retimed),
         "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
@@ -179,7 +180,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
                        reach_map=reach_map, files=files, metrics=metrics, warnings=warnings)
 
 
-def retime_and_resample(trajectory, solution: JointSolution, model: RobotModel, cell: Cell, *, rounds: int = 3):
+def retime_and_resample(trajectory, solution: JointSolution, model: RobotModel, cell: Cell, *, rounds: int = 6):
     """Joint moves interpolated, re-timed to the joint limits, contact steps resampled to ≤ 20 ms.
 
     :func:`insert_joint_moves` puts the swept joints of every joint move on the trajectory;
@@ -200,6 +201,8 @@ def retime_and_resample(trajectory, solution: JointSolution, model: RobotModel, 
         if len(retimed) == n_before:
             break
         retimed, _ = retime_trajectory(retimed, sol, model)
+    else:
+        retimed, sol = resample_contact(retimed, sol, model, cell)     # the last word: no step over 16 ms
     return retimed, sol, rt
 
 
@@ -241,6 +244,13 @@ def robot_warnings(solution: JointSolution, metrics: dict, *, programs=(), cell:
     pass (the arm reconfigures with the pad on the part), position-only vendor programs (the
     compliance they rely on), and a TCP on the flange face (no tool given)."""
     out = []
+    if solution.warning:
+        out.append(f"robot: {solution.warning} The programs leave these samples out, so the robot moves straight "
+                   "across them.")
+    flips = int(metrics.get("configuration_flips_in_passes", 0))
+    if flips:
+        out.append(f"robot: the arm changes configuration {flips} time(s) inside a contact pass ({metrics['robot']}), "
+                   "with the pad on the part; move the part (--base, or --place) or choose another robot")
     vendor = [p for p in (str(x).strip().lower() for x in programs) if p in ("urscript", "rapid", "krl")]
     if vendor and metrics.get("force_program") == "position":
         out.append(f"robot: the {', '.join(vendor)} program(s) are position only (--force-program position): they hold "
@@ -250,17 +260,6 @@ def robot_warnings(solution: JointSolution, metrics: dict, *, programs=(), cell:
     if cell is not None and np.allclose(cell.flange2tcp, np.eye(4)):
         out.append("robot: no tool given (--tcp), so the TCP is the flange face: the programs put the flange, not a "
                    "pad, on the part; give the pad face's pose in the flange frame with --tcp x,y,z,rx,ry,rz")
-    n_mid = metrics.get("branch_changes_in_contact", 0)
-    if n_mid:
-        out.append(f"robot: {n_mid} configuration change(s) would fall between contact samples; the pass cannot be "
-                   "done on one arm configuration: move the part (--base, or --place)")
-    if solution.warning:
-        out.append(f"robot: {solution.warning} The programs leave these samples out, so the robot moves straight "
-                   "across them.")
-    flips = int(metrics.get("configuration_flips_in_passes", 0))
-    if flips:
-        out.append(f"robot: the arm changes configuration {flips} time(s) inside a contact pass ({metrics['robot']}), "
-                   "with the pad on the part; move the part (--base, or --place) or choose another robot")
     return out
 
 
