@@ -297,3 +297,16 @@ def test_flange_tcp_is_warned(plate_trajectory):
     assert any("TCP is the flange" in w for w in res.warnings)
     res = run_robot_stage(plate_trajectory, robot="ur10e", cell=CELLS["ur10e"], programs=[], warn=False)
     assert not any("TCP is the flange" in w for w in res.warnings)
+
+
+def test_no_needless_wrist_spin_between_passes(plate_trajectory):
+    """The plate's raster turns the tool half a turn about its axis on every link; followed the
+    nearest way each time, wrist 3 of a UR10e climbed past +360° on the fourth link and spun back a
+    whole turn (351°) in the air.  Aligned by least joint travel, the job starts a turn lower and no
+    joint moves more than the link's own rotation."""
+    res = run_robot_stage(plate_trajectory, robot="ur10e", cell=CELLS["ur10e"], programs=[], warn=False)
+    q, model = res.solution.q, res.model
+    assert res.metrics["n_joint_moves"] == 0 and not res.solution.joint_moves.any()
+    assert np.abs(np.diff(q, axis=0)).max() < math.radians(10.0)
+    assert np.all(q >= model.lower) and np.all(q <= model.upper)
+    assert np.ptp(q[:, 5]) > math.pi                 # the wrist does turn over the job, continuously

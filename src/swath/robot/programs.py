@@ -514,7 +514,7 @@ def krl_texts(data: ProgramInput, name: str = "swath_job") -> tuple[str, str]:
                  "part) in every pass; the force frame is the tool, so it turns with the tool along the surface.",
                  "  ; SWATH_FTC_ON(force N) and SWATH_FTC_OFF() must start and stop the cell's ForceTorqueControl "
                  "path task (force-controlled $TOOL z, other axes position-controlled)",
-                 "  EXT SWATH_FTC_ON(REAL:IN)", "  EXT SWATH_FTC_OFF()"]
+                 "  EXT SWATH_FTC_ON(REAL :IN)", "  EXT SWATH_FTC_OFF()"]
     else:
         head.append(f"  ; {_position_only_note(data)}")
     src = head + ["  $BASE=BASE_SWATH", "  $TOOL=TOOL_SWATH", f"  $APO.CDIS={data.blend * 1e3:.3f}", "  PTP XP1"]
