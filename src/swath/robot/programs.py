@@ -354,6 +354,9 @@ def urscript_text(data: ProgramInput) -> str:
     for k, i in enumerate(idx):
         c = bool(on[i])
         if k and jm[i]:
+            if in_force:                    # (a joint move straight off a pass: lift the force first)
+                lines.append("  end_force_mode()")
+                in_force = False
             dur = float(t[i] - t[idx[k - 1]])
             lines.append(f"  movej([{_fmt(sol.q[i], 8)}], a=1.0, v=1.0, t={dur:.4f}, r=0)  # joint move"
                          + (" (configuration change)" if sol.branch[i] != sol.branch[idx[k - 1]] else ""))
@@ -441,6 +444,9 @@ def rapid_text(data: ProgramInput) -> str:
     pressing = False
     for k, i in enumerate(idx[1:], start=1):
         if jm[i]:
+            if pressing:                    # (a joint move straight off a pass: lift off where the pass ended)
+                body.append(f"    FCPressEnd p{k - 1}, v100, tSwath\\WObj:=wSwath;")
+                pressing = False
             dur = float(tr.t[i] - tr.t[idx[k - 1]])
             body.append(f"    MoveAbsJ j{k}, v1000\\T:={dur:.3f}, fine, tSwath\\WObj:=wSwath;"
                         + ("  ! configuration change" if sol.branch[i] != sol.branch[idx[k - 1]] else ""))
@@ -522,6 +528,9 @@ def krl_texts(data: ProgramInput, name: str = "swath_job") -> tuple[str, str]:
     pressing = False
     for k, i in enumerate(idx[1:], start=2):
         if jm[i]:
+            if pressing:
+                src.append("  SWATH_FTC_OFF()")
+                pressing = False
             src.append(f"  PTP XP{k}" + ("  ; configuration change" if sol.branch[i] != sol.branch[idx[k - 2]] else ""))
             continue
         if native and on[i] and not pressing:
