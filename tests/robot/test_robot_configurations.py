@@ -310,3 +310,24 @@ def test_no_needless_wrist_spin_between_passes(plate_trajectory):
     assert np.abs(np.diff(q, axis=0)).max() < math.radians(10.0)
     assert np.all(q >= model.lower) and np.all(q <= model.upper)
     assert np.ptp(q[:, 5]) > math.pi                 # the wrist does turn over the job, continuously
+
+
+def test_force_frame_is_renewed_after_an_unreachable_gap(blade_trajectory):
+    """The blade 0.3 m farther from a UR10e: stretches of both passes are out of reach, and the
+    programs leave them out.  The pass resumes after a gap with a force frame of its own first
+    sample, not the one from before the gap (on the IRB 4600 placed by the search that one was 92°
+    off the normal)."""
+    cell = Cell.from_text("878.5687mm,132.6232mm,44.0028mm,0,0,0", "0,0,150mm,0,0,0")
+    res = run_robot_stage(blade_trajectory, robot="ur10e", cell=cell, programs=[], warn=False)
+    sol, tr = res.solution, res.trajectory
+    resumes = [st.stop for st in sol.stretches
+               if st.pass_index >= 0 and st.stop < len(tr) and tr.pass_index[st.stop] == st.pass_index
+               and tr.contact[st.stop]]
+    assert resumes                                          # a pass resumes after a gap
+    frame = force_frame_samples(ProgramInput(tr, sol, res.model, res.cell))
+    np.testing.assert_array_equal(frame[resumes], resumes)
+    ang = commanded_force_angles(ProgramInput(tr, sol, res.model, res.cell))
+    on = tr.contact & (tr.pass_index >= 0)
+    assert np.isnan(ang[~sol.reachable]).all()
+    assert np.isfinite(ang[on & sol.reachable]).all()
+    assert np.degrees(np.nanmax(ang)) <= 5.0

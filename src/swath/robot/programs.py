@@ -247,28 +247,39 @@ def force_frame_samples(data: ProgramInput) -> np.ndarray:
 
     The URScript writer issues ``force_mode`` before every move to a contact target, with the tool
     frame of the target before it in the same pass (of the pass's first target on the move onto
-    it); a sample between two targets is pressed along the frame issued for the move that reaches
-    the later one.
+    it, or after an unreachable gap in the pass); a sample between two targets is pressed along the
+    frame issued for the move that reaches the later one.
     """
     tr = data.trajectory
     idx = data.kept()
     n = len(tr)
     out = np.full(n, -1)
     on = tr.contact & (tr.pass_index >= 0)
+    reach = data.solution.reachable
     for k, i in enumerate(idx):
         if not on[i]:
             continue
         prev = idx[k - 1] if k else -1
-        same = k > 0 and on[prev] and tr.pass_index[prev] == tr.pass_index[i]
-        frame = prev if same else i
+        frame = prev if _pressed_from(data, prev, i) else i
         lo = prev + 1 if k else 0
-        out[lo:i + 1] = np.where(on[lo:i + 1], frame, -1)
+        out[lo:i + 1] = np.where(on[lo:i + 1] & reach[lo:i + 1], frame, -1)
     return out
+
+
+def _pressed_from(data: ProgramInput, prev: int, i: int) -> bool:
+    """True when the move from kept sample ``prev`` to ``i`` runs along one contact pass without a gap
+    (then the force frame for it is ``prev``'s tool frame; else ``i``'s own)."""
+    tr, reach = data.trajectory, data.solution.reachable
+    if prev < 0:
+        return False
+    on = tr.contact & (tr.pass_index >= 0)
+    return bool(on[prev] and tr.pass_index[prev] == tr.pass_index[i] and reach[prev:i + 1].all())
 
 
 def commanded_force_angles(data: ProgramInput) -> np.ndarray:
     """(n,) angle between each contact sample's tool z (the pad axis, minus the surface normal without
-    a lead angle) and the force direction the program commands there, rad; NaN off contact.
+    a lead angle) and the force direction the program commands there, rad; NaN off contact and on
+    unreachable samples (the programs leave those out).
 
     URScript: the tool z of the re-issued force frame (:func:`force_frame_samples`); RAPID and KRL
     with native force control press along the tool z of the interpolated path (the force frame is
@@ -362,8 +373,7 @@ def urscript_text(data: ProgramInput) -> str:
                          + (" (configuration change)" if sol.branch[i] != sol.branch[idx[k - 1]] else ""))
             continue
         if c and native:
-            prev = idx[k - 1] if k else -1
-            frame_k = k - 1 if (k and on[prev] and tr.pass_index[prev] == tr.pass_index[i]) else k
+            frame_k = k - 1 if (k and _pressed_from(data, idx[k - 1], i)) else k
             frame = f"p[{_fmt(base2tcp[frame_k, :3, 3], 7)},{_fmt(rv[frame_k], 9)}]"
             lines.append(f"  force_mode({frame}, [0,0,1,0,0,0], [0,0,{data.force:.3f},0,0,0], 2, "
                          "[0.005,0.005,0.1,0.0873,0.0873,0.0873])" + ("" if in_force else f"  # pass {tr.pass_index[i]}"))
