@@ -73,12 +73,16 @@ def stage_row(name, trajectory, robot: str, out: Path, surface=None) -> dict:
 
     cell = Cell(tcp2flange=parse_pose("0,0,150mm,0,0,0"))
     t0 = time.perf_counter()
-    res = run_robot_stage(trajectory, robot=robot, cell=cell, programs=["csv", "urscript", "rapid", "krl", "ros"],
+    from swath.robot import get_robot
+    from swath.robot.programs import FORMAT_VENDOR, robot_vendor
+
+    own = [f for f, v in FORMAT_VENDOR.items() if v == robot_vendor(get_robot(robot))]   # the maker's program only
+    res = run_robot_stage(trajectory, robot=robot, cell=cell, programs=["csv", "ros", *own],
                           out_dir=out, place=True, surface=surface)
     wall = time.perf_counter() - t0
     rows = read_joint_csv(out / "joints.csv")
     idx = np.flatnonzero(res.solution.reachable)
-    dp, da = pose_error(res.cell.tcp2part(res.model.fk(rows["q"])), poses_from_trajectory(trajectory)[idx])
+    dp, da = pose_error(res.cell.tcp2part(res.model.fk(rows["q"])), poses_from_trajectory(res.trajectory)[idx])
     v = np.abs(np.diff(rows["q"], axis=0)) / np.diff(rows["t"])[:, None] / res.model.max_speed
     # rows either side of an unreachable gap are not consecutive motion; leave those steps out
     consecutive = np.diff(idx) == 1
@@ -86,7 +90,7 @@ def stage_row(name, trajectory, robot: str, out: Path, surface=None) -> dict:
     return {"part": name, "robot": res.model.name, "poses": len(trajectory),
             "reach_%": 100 * res.solution.reachable_fraction,
             "surf_reach_%": 100 * res.metrics.get("surface_reachable_fraction", float("nan")), "stretches": len(res.solution.stretches),
-            "switches": len(res.solution.switches), "flips_in_pass": flips_inside_passes(res.solution, trajectory),
+            "switches": len(res.solution.switches), "flips_in_pass": flips_inside_passes(res.solution, res.trajectory),
             "fk_err_mm": 1e3 * float(dp.max(initial=0)), "fk_err_deg": float(np.degrees(da.max(initial=0))),
             "max_qd/limit": float(v[consecutive].max(initial=0)),
             "place_xyz_mm": f"{p.x * 1e3:.0f},{p.y * 1e3:.0f},{p.z * 1e3:.0f}", "yaw_deg": math.degrees(p.yaw),

@@ -26,6 +26,8 @@ from swath.robot.readers import (
 CELLS = {"ur10e": Cell.from_text("0.55,-0.15,0,0,0,20", "0,0,120mm,0,0,0"),
          "irb4600": Cell.from_text("1.1,-0.15,0.3,0,0,0", "10mm,0,150mm,0,0,0"),
          "kr120": Cell.from_text("1.5,-0.15,0.4,0,0,-10", "0,0,150mm,0,0,0")}
+#: Each maker's own program beside the joint-space files.
+VENDOR = {"ur10e": "urscript", "irb4600": "rapid", "kr120": "krl"}
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +35,7 @@ def written(plate_trajectory, tmp_path_factory):
     out = {}
     for robot, cell in CELLS.items():
         d = tmp_path_factory.mktemp(robot.replace("/", "_"))
-        res = run_robot_stage(plate_trajectory, robot=robot, cell=cell, programs=["urscript", "rapid", "krl", "ros", "csv"],
+        res = run_robot_stage(plate_trajectory, robot=robot, cell=cell, programs=[VENDOR[robot], "ros", "csv"],
                               out_dir=d)
         out[robot] = (res, d)
     return out
@@ -65,11 +67,11 @@ def test_urscript_round_trip(written, plate_trajectory):
     got = read_urscript(d / "swath_job.script")
     idx = _kept(res)
     np.testing.assert_allclose(got["tcp"], res.cell.tcp2flange, atol=1e-7)
-    want = res.cell.part2base @ poses_from_trajectory(plate_trajectory)[idx]
+    want = res.cell.part2base @ poses_from_trajectory(res.trajectory)[idx]
     dp, da = pose_error(got["tcp2base"], want)
     assert dp.max() < 1e-6 and da.max() < 1e-7
     # force_mode brackets exactly the contact samples; blend 0 at pass ends
-    tr = plate_trajectory
+    tr = res.trajectory
     np.testing.assert_array_equal(got["in_force"], tr.contact[idx] & (tr.pass_index[idx] >= 0))
     assert got["force"] and all(f == pytest.approx(20.0) for f in got["force"])
     np.testing.assert_allclose(got["movej"][0], res.solution.q[idx[0]], atol=1e-8)
@@ -84,7 +86,7 @@ def test_rapid_round_trip(written, plate_trajectory):
     idx = _kept(res)
     np.testing.assert_allclose(got["tool"], res.cell.tcp2flange, atol=1e-7)
     np.testing.assert_allclose(got["wobj"], res.cell.part2base, atol=1e-7)
-    dp, da = pose_error(got["targets"], poses_from_trajectory(plate_trajectory)[idx])
+    dp, da = pose_error(got["targets"], poses_from_trajectory(res.trajectory)[idx])
     assert dp.max() < 1e-7 and da.max() < 1e-8
     np.testing.assert_array_equal(got["conf"], abb_confdata(res.model, res.solution.q[idx]))
     # the robot reaching each robtarget with its confdata lands on the written joint values:
@@ -108,7 +110,7 @@ def test_krl_round_trip(written, plate_trajectory):
     idx = _kept(res)
     np.testing.assert_allclose(got["base"], res.cell.part2base, atol=1e-7)
     np.testing.assert_allclose(FLANGE2KUKA_FLANGE @ got["tool"], res.cell.tcp2flange, atol=1e-7)
-    dp, da = pose_error(got["targets"], poses_from_trajectory(plate_trajectory)[idx])
+    dp, da = pose_error(got["targets"], poses_from_trajectory(res.trajectory)[idx])
     assert dp.max() < 1e-7 and da.max() < 1e-7
     status, turn = kuka_status_turn(res.model, res.solution.q[idx])
     np.testing.assert_array_equal(got["status"], status)
@@ -125,7 +127,7 @@ def test_joint_files_round_trip_through_forward_kinematics(written, plate_trajec
     idx = np.flatnonzero(res.solution.reachable)
     for q in (csv["q"], ros["q"]):
         got = res.cell.tcp2part(res.model.fk(q))
-        dp, da = pose_error(got, poses_from_trajectory(plate_trajectory)[idx])
+        dp, da = pose_error(got, poses_from_trajectory(res.trajectory)[idx])
         assert dp.max() < 1e-8 and da.max() < 1e-8        # 0.01 µm, far inside the 0.01 mm / 0.01° asked
     np.testing.assert_allclose(csv["t"], res.trajectory.t[idx], atol=1e-9)
     np.testing.assert_allclose(ros["t"], res.trajectory.t[idx] - res.trajectory.t[idx[0]], atol=2e-9)
@@ -134,4 +136,4 @@ def test_joint_files_round_trip_through_forward_kinematics(written, plate_trajec
         v = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
         assert np.all(v <= res.model.max_speed * (1 + 1e-6))
     assert ros["joint_names"][0] in ("shoulder_pan_joint", "joint_1", "joint_a1")
-    np.testing.assert_array_equal(csv["pass_index"], plate_trajectory.pass_index[idx])
+    np.testing.assert_array_equal(csv["pass_index"], res.trajectory.pass_index[idx])

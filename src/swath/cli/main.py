@@ -151,6 +151,10 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
     r.add_argument("--tip", help="with --robot path/to/robot.urdf: the URDF frame the tool is mounted on (default tool0)")
     r.add_argument("--robot-keep-out", help="with --place: radius of the cylinder about the robot's base axis the part "
                                       "must stay out of, e.g. 400mm (default 0.2 m + 0.1 x reach)")
+    r.add_argument("--force-program", choices=("native", "position"),
+                   help="how the urscript/rapid/krl programs press the pad: native (the controller's force control "
+                        "along the tool axis: UR force_mode, ABB Force Control, KUKA.ForceTorqueControl; default) or "
+                        "position (position only, for a compliant tool; the program and a warning say so)")
     f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
     f.add_argument("--force-control", action="store_true",
                    help="simulate hybrid position/force control along the trajectory: a force column, a force plot, "

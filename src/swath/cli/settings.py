@@ -136,6 +136,7 @@ class JobSettings:
     chordal_tol: float = 1e-4
     # plan with a feed, force, pad or spindle speed outside PROCESS_RANGES
     allow_unusual_process: bool = False
+    force_program: str = "native"
 
     def tool(self):
         """The job's tool from the settings alone (no calibration: see :func:`swath.cli.stages.job_tool`).
@@ -216,7 +217,8 @@ class JobSettings:
         if self.robot:
             record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
                           place=self.place, table_z_m=self.table_z, cell=self.cell,
-                          allow_collisions=self.allow_collisions)
+                          allow_collisions=self.allow_collisions,
+                          force_program=self.force_program)
         return record
 
 
@@ -319,6 +321,7 @@ SCHEMA: dict[str, Key] = {
     "edge_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 5mm"),
     "chordal_tol": Key("length", positive=True, hi=1e-2, bare_max=1e-2, hint="mm, e.g. 0.1mm"),
     "allow_unusual_process": Key("bool"),
+    "force_program": Key("str", choices=("native", "position")),
 }
 
 

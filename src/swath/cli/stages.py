@@ -94,7 +94,8 @@ def robot_options(settings) -> dict:
         table_z = cell.table.top_z
     values = {"robot": robot, "program": ",".join(settings.programs or ("csv",)),
               "place": "auto" if settings.place else "", "table_z": table_z,
-              "robot_strict": settings.robot_strict}
+              "robot_strict": settings.robot_strict,
+              "force_program": settings.force_program}
     if settings.tip:
         values["tip"] = settings.tip
     if settings.robot_keep_out is not None:
@@ -176,8 +177,8 @@ def write_robot_outputs(result, surface, settings, out_dir) -> dict:
     from ..robot.programs import ProgramInput, write_programs
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_programs(ProgramInput(result.trajectory, result.solution, result.model, result.cell, force=settings.force),
-                   out_dir, list(settings.programs or ("csv",)))
+    write_programs(ProgramInput(result.trajectory, result.solution, result.model, result.cell, force=settings.force,
+                                force_program=settings.force_program), out_dir, list(settings.programs or ("csv",)))
     return write_robot_plots(out_dir, result=result, surface=surface, reach_map=result.reach_map)
 
 

@@ -144,3 +144,96 @@ def retime_trajectory(trajectory, solution, model) -> tuple:
     meta["robot_retimed"] = {"stretched_steps": rt.stretched_steps, "added_time_s": rt.added_time}
     new = replace(trajectory, t=t_new, feed=trajectory.feed * scale, extra=extra, metadata=meta)
     return new, rt
+
+
+#: FORMATS.md: in-contact samples at most this far apart in time, also after re-timing, s.
+MAX_CONTACT_DT = 0.020
+
+
+def _slerp(qa, qb, w) -> np.ndarray:
+    """(m, 4) unit quaternions between ``qa`` and ``qb`` (m, 4) at fractions ``w`` (m,)."""
+    dot = np.sum(qa * qb, axis=1)
+    qb = np.where(dot[:, None] < 0, -qb, qb)
+    dot = np.abs(dot)
+    ang = np.arccos(np.clip(dot, -1.0, 1.0))
+    s = np.sin(ang)
+    small = s < 1e-9
+    wa = np.where(small, 1 - w, np.sin((1 - w) * ang) / np.where(small, 1, s))
+    wb = np.where(small, w, np.sin(w * ang) / np.where(small, 1, s))
+    out = wa[:, None] * qa + wb[:, None] * qb
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def resample_contact(trajectory, solution, model, cell, *, max_dt: float = 0.8 * MAX_CONTACT_DT,
+                     max_joint_step: float = 0.045):
+    """Insert samples into contact steps longer than ``max_dt`` or turning a joint by more than ``max_joint_step``.
+
+    After re-timing, a contact step can last longer than FORMATS.md's 20 ms (the robot slows down
+    where a joint limit binds), and near a singularity one step can turn a joint far.  Such a step
+    gets evenly spaced new samples: time, position and feed linear, orientation by slerp, and
+    joint values from the model's inverse kinematics on the step's branch (the 2π-equivalent nearest
+    the joint-space interpolation; that interpolation itself, with its forward-kinematics pose,
+    where the inverse kinematics has no solution).
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        Re-timed.
+    solution : JointSolution
+        On ``trajectory``'s samples.
+    model : RobotModel
+    cell : Cell
+    max_dt : float
+        Longest contact step after resampling, s (default 16 ms, 20 % under the format's 20 ms so a
+        later re-timing pass that stretches a step slightly stays within it).
+    max_joint_step : float
+        Largest joint change between contact samples, rad.
+
+    Returns
+    -------
+    (Trajectory, JointSolution)
+    """
+    from .pose import make_transform, matrix_to_quat, quat_to_matrix
+    from .solve import insert_samples
+
+    tr, sol = trajectory, solution
+    n = len(tr)
+    if n < 2:
+        return tr, sol
+    in_pass = (tr.contact[1:] & tr.contact[:-1] & (tr.pass_index[1:] == tr.pass_index[:-1]) & (tr.pass_index[1:] >= 0)
+               & sol.reachable[1:] & sol.reachable[:-1])
+    dt = np.diff(tr.t)
+    dq = np.max(np.abs(np.diff(sol.q, axis=0)), axis=1)
+    dq = np.where(np.isfinite(dq), dq, 0.0)
+    k = np.maximum(np.ceil(dt / max_dt - 1e-9), np.ceil(dq / max_joint_step - 1e-9)).astype(int)
+    k = np.where(in_pass, np.maximum(k, 1), 1)
+    steps = np.flatnonzero(k > 1)
+    if not len(steps):
+        return tr, sol
+    at = np.repeat(steps + 1, k[steps] - 1)
+    w = np.concatenate([np.arange(1, kk) / kk for kk in k[steps]])
+    i0 = at - 1
+    t = tr.t[i0] * (1 - w) + tr.t[at] * w
+    pos = tr.position[i0] * (1 - w)[:, None] + tr.position[at] * w[:, None]
+    quat = _slerp(tr.quaternion[i0], tr.quaternion[at], w)
+    q_lin = sol.q[i0] * (1 - w)[:, None] + sol.q[at] * w[:, None]
+    branch = sol.branch[at]
+    poses = make_transform(quat_to_matrix(quat), pos)
+    flange = cell.flange2base(poses)
+    q = q_lin.copy()
+    if model.kind == "numeric":
+        raw = np.concatenate([model.ik(f[None], seed=s)[:, 0] for f, s in zip(flange, q_lin)])
+    else:
+        raw = model.ik(flange)[np.arange(len(at)), np.clip(branch, 0, None)]
+    two_pi = 2 * np.pi
+    cand = raw + two_pi * np.round((q_lin - raw) / two_pi)
+    good = np.all(np.isfinite(cand), axis=1) & (np.max(np.abs(cand - q_lin), axis=1) < 0.25)
+    q[good] = cand[good]
+    # where no solution: the joint interpolation, its pose by forward kinematics
+    if (~good).any():
+        back = cell.tcp2part(model.fk(q_lin[~good]))
+        pos[~good] = back[:, :3, 3]
+        quat[~good] = matrix_to_quat(back[:, :3, :3])
+    m = len(at)
+    return insert_samples(tr, sol, model, at, t=t, position=pos, quaternion=quat, contact=np.ones(m, bool),
+                          pass_index=tr.pass_index[at], q=q, joint_move=np.zeros(m, bool), branch=branch, fraction=w)

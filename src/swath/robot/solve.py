@@ -10,8 +10,17 @@ Steps (:func:`solve_trajectory`):
 3. the branch is chosen at the start as the one feasible for the longest stretch; it is kept through
    every contact pass (no flips inside a pass); on an air link before a pass the current branch is
    kept when it covers that pass, otherwise the branch that reaches furthest from the pass's start
-   is taken, switching on the link (reported in :attr:`JointSolution.switches`);
-4. samples no branch can serve are reported as :class:`UnreachableStretch` with their pass and
+   is taken, switching on the link at the step farthest from the part (the middle of the air move
+   at the clearance, never on the retract or the approach; reported in
+   :attr:`JointSolution.switches`);
+4. the chosen joint values are aligned turn by turn (:func:`align_turns`): each continuous run takes
+   the 2π-equivalent per joint nearest the end of the run before it that keeps the whole run inside
+   the joint limits, so a wrist never spins a whole turn on an air move unless its limits force it;
+5. a step on an air link that changes branch or moves a joint by more than ``max_step`` is a
+   *joint move* (:attr:`JointSolution.joint_move`): the programs write it as a joint move
+   (``movej``, ``MoveAbsJ``, ``PTP``) and :func:`insert_joint_moves` interpolates it in joint space
+   (≤ 2° per step) so the swept arm is on the trajectory;
+6. samples no branch can serve are reported as :class:`UnreachableStretch` with their pass and
    position, and their joint rows are NaN.
 
 The re-timing to joint speed and acceleration limits is in :mod:`swath.robot.retime`.
@@ -108,6 +117,13 @@ class JointSolution:
     warning : str or None
         The unreachable poses in one sentence (how many, the first stretches, what to do); None
         when every pose is reached.
+    joint_move : (n,) bool or None
+        True at sample i where the step from sample i−1 to i is a joint move (interpolated in joint
+        space, not along the Cartesian path): a branch change or a large joint turn on an air link.
+        None: no joint moves.
+    clearance : (n,) float or None
+        Distance of each sample's TCP from the nearest in-contact sample, m (0 in contact); how far
+        from the part a branch change happens.
     """
 
     q: np.ndarray
@@ -118,10 +134,17 @@ class JointSolution:
     measures: dict = field(default_factory=dict)
     branch_names: tuple = ()
     warning: str | None = None
+    joint_move: np.ndarray | None = None
+    clearance: np.ndarray | None = None
 
     @property
     def reachable_fraction(self) -> float:
         return float(self.reachable.mean()) if len(self.reachable) else 1.0
+
+    @property
+    def joint_moves(self) -> np.ndarray:
+        """(n,) bool :attr:`joint_move`, all False when None."""
+        return np.zeros(len(self.q), bool) if self.joint_move is None else np.asarray(self.joint_move, bool)
 
 
 def segments(trajectory) -> list[tuple[int, int, bool]]:
@@ -222,8 +245,37 @@ def _run_lengths(feasible: np.ndarray) -> np.ndarray:
     return run[:n]
 
 
-def choose_branches(feasible: np.ndarray, segs) -> np.ndarray:
-    """(n,) branch per sample: constant inside passes, switched only on links (-1 never)."""
+def clearance_from_contact(trajectory) -> np.ndarray:
+    """(n,) distance of each sample's TCP from the nearest in-contact sample's TCP, m.
+
+    0 on contact samples; on air links it approximates the height above the part (the contact
+    samples sample the processed surface every few millimetres along each pass).  All zeros when
+    no sample is in contact.
+    """
+    pos = np.asarray(trajectory.position, dtype=float)
+    on = np.asarray(trajectory.contact, bool) & (np.asarray(trajectory.pass_index) >= 0)
+    if not on.any():
+        return np.zeros(len(pos))
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(pos[on]).query(pos)
+    return np.where(on, 0.0, dist)
+
+
+def choose_branches(feasible: np.ndarray, segs, clearance=None) -> np.ndarray:
+    """(n,) branch per sample: constant inside passes, switched only on links (-1 never).
+
+    Parameters
+    ----------
+    feasible : (n, B) bool
+    segs : list of (start, stop, is_pass)
+        :func:`segments`.
+    clearance : (n,) float, optional
+        Distance from the part, m (:func:`clearance_from_contact`).  A switch on a link is put on
+        the step whose two samples are farthest from the part among the steps where the old branch
+        serves up to it and the new one from it to the next pass; without it, at the latest such
+        step.
+    """
     n, nb = feasible.shape
     run = _run_lengths(feasible)
     branch = np.zeros(n, int)
@@ -249,14 +301,112 @@ def choose_branches(feasible: np.ndarray, segs) -> np.ndarray:
         if new == current:
             branch[s:e] = current
             continue
-        # switch at the latest point from which the new branch is feasible up to the pass start
-        j = e
-        while j > s and feasible[j - 1, new]:
-            j -= 1
+        # candidate switch steps j-1 -> j with j in [s, e]: old branch on [s, j), new on [j, e)
+        old_ok = np.concatenate([[True], np.cumprod(feasible[s:e, current]).astype(bool)])
+        new_ok = np.concatenate([np.cumprod(feasible[s:e, new][::-1]).astype(bool)[::-1], [True]])
+        cand = np.flatnonzero(old_ok & new_ok) + s
+        if len(cand) and clearance is not None:
+            lo_side = clearance[np.maximum(cand - 1, 0)]
+            hi_side = clearance[np.minimum(cand, n - 1)]
+            j = int(cand[np.argmax(np.minimum(lo_side, hi_side))])
+        elif len(cand):
+            j = int(cand[len(cand) // 2])
+        else:
+            # the old branch does not serve the link: switch where the new one starts to serve
+            j = e
+            while j > s and feasible[j - 1, new]:
+                j -= 1
         branch[s:j] = current
         branch[j:e] = new
         current = new
     return branch
+
+
+def align_turns(q, lower, upper, breaks) -> np.ndarray:
+    """Joint values with each continuous run shifted by whole turns so the joints travel least between runs.
+
+    Parameters
+    ----------
+    q : (n, 6) float
+        Joint values, rad; NaN rows are gaps.
+    lower, upper : (6,) float
+        Joint limits, rad.
+    breaks : (n,) bool
+        True at sample i where a new run starts (a branch change); runs also start after a gap
+        and where a joint turns by more than π in one step (a wrap taken by the unwrapping).
+
+    Returns
+    -------
+    (n, 6) float
+        Per run and joint, ``q + 2πk`` with integers ``k`` that keep each run inside the limits
+        and, among those, minimise the summed joint change from the end of each run to the start
+        of the next (dynamic programming over the runs, per joint; the first run nearest the middle
+        of the range breaks ties), so a wrist never spins a whole turn between runs unless every
+        choice that avoids it leaves a run outside the limits.  A run no ``k`` keeps inside is left
+        as it is.
+    """
+    q = np.array(q, dtype=float)
+    n = len(q)
+    if not n:
+        return q
+    two_pi = 2 * math.pi
+    lower = np.asarray(lower, dtype=float)
+    upper = np.asarray(upper, dtype=float)
+    finite = np.isfinite(q[:, 0])
+    step = np.zeros(n)
+    if n > 1:
+        d = np.abs(np.diff(q, axis=0))
+        step[1:] = np.where(np.isfinite(d), d, 0.0).max(axis=1)
+    start = np.asarray(breaks, bool) | (step > math.pi)
+    start[1:] |= finite[1:] & ~finite[:-1]
+    start[0] = True
+    runs: list[tuple[int, int]] = []
+    for first_row in np.flatnonzero(start & finite):
+        end = int(first_row) + 1
+        while end < n and finite[end] and not start[end]:
+            end += 1
+        runs.append((int(first_row), end))
+    if not runs:
+        return q
+    mid = 0.5 * (lower + upper)
+    for j in range(q.shape[1]):
+        options = []
+        for a, b in runs:
+            lo_k = int(np.ceil((lower[j] - q[a:b, j].min()) / two_pi - 1e-12))
+            hi_k = int(np.floor((upper[j] - q[a:b, j].max()) / two_pi + 1e-12))
+            options.append(np.arange(lo_k, hi_k + 1) if lo_k <= hi_k else np.array([0]))
+        a0 = runs[0][0]
+        cost = 1e-3 * np.abs(q[a0, j] + two_pi * options[0] - mid[j])
+        back = []
+        for r in range(1, len(runs)):
+            last = q[runs[r - 1][1] - 1, j] + two_pi * options[r - 1]
+            first = q[runs[r][0], j] + two_pi * options[r]
+            total = cost[None, :] + np.abs(first[:, None] - last[None, :])
+            back.append(np.argmin(total, axis=1))
+            cost = total.min(axis=1)
+        pick = int(np.argmin(cost))
+        for r in range(len(runs) - 1, -1, -1):
+            a, b = runs[r]
+            q[a:b, j] += two_pi * options[r][pick]
+            if r:
+                pick = int(back[r - 1][pick])
+    return q
+
+
+def joint_move_steps(q, trajectory, branch, max_step: float) -> np.ndarray:
+    """(n,) bool: the step into sample i is a joint move (air link; branch change or a joint turning
+    more than ``max_step`` rad)."""
+    n = len(q)
+    out = np.zeros(n, bool)
+    if n < 2:
+        return out
+    in_pass = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0) \
+        & trajectory.contact[1:] & trajectory.contact[:-1]
+    both = np.isfinite(q[1:, 0]) & np.isfinite(q[:-1, 0])
+    d = np.abs(np.diff(q, axis=0))
+    big = np.where(np.isfinite(d), d, 0.0).max(axis=1) > max_step
+    out[1:] = both & ~in_pass & ((branch[1:] != branch[:-1]) | big)
+    return out
 
 
 def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *, margins: Margins | None = None,
@@ -298,16 +448,21 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
     same_pass = np.zeros(n, bool)
     same_pass[1:] = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0)
     q_all, feasible, reason = branch_table(flange, model, margins, seed=seed, same_pass=same_pass)
-    branch = choose_branches(feasible, segs)
+    clearance = clearance_from_contact(trajectory)
+    branch = choose_branches(feasible, segs, clearance)
     rows = np.arange(n)
     ok = feasible[rows, branch]
     q = np.where(ok[:, None], q_all[rows, branch], np.nan)
+    change = np.zeros(n, bool)
+    change[1:] = branch[1:] != branch[:-1]
+    q = align_turns(q, model.lower + margins.joint_limit, model.upper - margins.joint_limit, change)
     names = model.branch_names
     switches = []
     for s in np.flatnonzero(np.diff(branch)) + 1:
         after = trajectory.pass_index[s:][trajectory.contact[s:]]
         switches.append({"sample": int(s), "from": names[branch[s - 1]], "to": names[branch[s]],
-                         "pass_after": int(after[0]) if len(after) else -1})
+                         "pass_after": int(after[0]) if len(after) else -1,
+                         "clearance_m": float(min(clearance[s - 1], clearance[s]))})
     stretches = []
     msg = None
     bad = ~ok
@@ -346,9 +501,10 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
         for k, v in m.items():
             measures[k][ok] = v
         measures["joint_limit_margin_rad"][ok] = model.joint_limit_margin(q[ok])
+    jm = joint_move_steps(q, trajectory, branch, margins.max_step)
     branch = np.where(ok, branch, -1)
     return JointSolution(q=q, branch=branch, reachable=ok, switches=switches, stretches=stretches,
-                         measures=measures, branch_names=names, warning=msg)
+                         measures=measures, branch_names=names, warning=msg, joint_move=jm, clearance=clearance)
 
 
 def flips_inside_passes(solution: JointSolution, trajectory) -> int:
@@ -357,3 +513,153 @@ def flips_inside_passes(solution: JointSolution, trajectory) -> int:
     same = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0)
     both = (b[1:] >= 0) & (b[:-1] >= 0)
     return int(np.sum(same & both & (b[1:] != b[:-1])))
+
+
+def insert_samples(trajectory, solution: JointSolution, model: RobotModel, at, *, t, position, quaternion, contact,
+                   pass_index, q, joint_move, branch, fraction):
+    """Trajectory and joint solution with new samples inserted.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    solution : JointSolution
+        On ``trajectory``'s samples.
+    model : RobotModel
+        For the measures of the new rows.
+    at : (m,) int
+        Each new sample goes before original sample ``at[k]`` (sorted, ties keep their order).
+    t, position, quaternion, contact, pass_index, q, joint_move, branch : arrays of m rows
+        The new samples' fields (s, m, unit quaternion, bool, int, rad, bool, int).
+    fraction : (m,) float
+        Where between samples ``at − 1`` and ``at`` each new sample lies (0..1); feed and the extra
+        columns are interpolated linearly with it.
+
+    Returns
+    -------
+    (Trajectory, JointSolution)
+        Switch samples and unreachable stretches renumbered; measures computed for the new rows.
+    """
+    from dataclasses import replace
+
+    at = np.asarray(at, dtype=int)
+    if not len(at):
+        return trajectory, solution
+    w = np.asarray(fraction, dtype=float)
+
+    def lerp(col):
+        col = np.asarray(col, dtype=float)
+        return col[at - 1] * (1 - w) + col[at] * w
+
+    feed = lerp(trajectory.feed)
+    extra = {k: np.insert(np.asarray(v, dtype=float), at, lerp(v)) for k, v in trajectory.extra.items()}
+    new_tr = replace(trajectory, t=np.insert(trajectory.t, at, t), position=np.insert(trajectory.position, at, position, axis=0),
+                     quaternion=np.insert(trajectory.quaternion, at, quaternion, axis=0),
+                     contact=np.insert(trajectory.contact, at, contact), feed=np.insert(trajectory.feed, at, feed),
+                     pass_index=np.insert(trajectory.pass_index, at, pass_index), extra=extra)
+    # old index i moves to i + (number of insertions before or at it)
+    shift = np.searchsorted(np.sort(at), np.arange(len(trajectory) + 1), side="right")
+    new_index = np.arange(len(trajectory) + 1) + shift
+    qn = np.asarray(q, dtype=float)
+    measures = {}
+    ok_new = np.isfinite(qn[:, 0])
+    m_new = {k: np.full(len(at), np.nan) for k in solution.measures}
+    if ok_new.any() and solution.measures:
+        sm = model.singularity_measures(qn[ok_new])
+        for k, v in sm.items():
+            if k in m_new:
+                m_new[k][ok_new] = v
+        if "joint_limit_margin_rad" in m_new:
+            m_new["joint_limit_margin_rad"][ok_new] = model.joint_limit_margin(qn[ok_new])
+    for k, v in solution.measures.items():
+        measures[k] = np.insert(v, at, m_new[k])
+    # a switch's sample stays the original target sample (rows inserted before it carry its branch)
+    switches = [dict(sw, sample=int(new_index[sw["sample"]])) for sw in solution.switches]
+    stretches = [replace(st, start=int(new_index[st.start]), stop=int(new_index[st.stop - 1]) + 1)
+                 for st in solution.stretches]
+    clearance = None
+    if solution.clearance is not None:
+        clearance = np.insert(solution.clearance, at, lerp(solution.clearance))
+    new_sol = replace(solution, q=np.insert(solution.q, at, qn, axis=0),
+                      branch=np.insert(solution.branch, at, branch),
+                      reachable=np.insert(solution.reachable, at, ok_new),
+                      joint_move=np.insert(solution.joint_moves, at, joint_move), switches=switches,
+                      stretches=stretches, measures=measures, clearance=clearance)
+    return new_tr, new_sol
+
+
+def _trapezoid_fraction(duration: float, tau) -> np.ndarray:
+    """Path fraction s(τ) in [0, 1] of a symmetric trapezoidal profile (ramps a quarter of the time each)."""
+    tau = np.asarray(tau, dtype=float) / duration
+    r = 0.25
+    peak = 1.0 / (1.0 - r)                    # speed (per unit time) at cruise
+    up = 0.5 * peak / r * tau ** 2
+    mid = 0.5 * peak * r + peak * (tau - r)
+    down = 1.0 - 0.5 * peak / r * (1.0 - tau) ** 2
+    return np.where(tau < r, up, np.where(tau <= 1 - r, mid, down))
+
+
+def insert_joint_moves(trajectory, solution: JointSolution, model: RobotModel, cell: Cell, *,
+                       max_joint_step: float = math.radians(2.0), limit_fraction: float = 0.9):
+    """Interpolate every joint move in joint space so no joint turns more than ``max_joint_step``
+    between samples, timed as a rest-to-rest move.
+
+    The new samples lie on the straight line in joint space between the move's two ends (what a
+    controller's joint move does); their TCP poses are the forward kinematics of those joint values,
+    out of contact, on no pass, flagged as joint moves.  The move lasts the trapezoidal profile's
+    duration at ``limit_fraction`` of the joint speed and acceleration limits (ramps of a quarter of
+    the time, so the ramps need 4/3 of the cruise speed over a quarter: the duration is stretched
+    until both fit); later samples move later by the time added.
+
+    Returns
+    -------
+    (Trajectory, JointSolution)
+    """
+    from dataclasses import replace
+
+    from .pose import matrix_to_quat
+
+    jm = solution.joint_moves
+    idx = np.flatnonzero(jm)
+    if not len(idx):
+        return trajectory, solution
+    q = solution.q
+    vmax = model.max_speed * limit_fraction
+    amax = model.max_accel * limit_fraction
+    at: list[int] = []
+    w: list[float] = []
+    br: list[int] = []
+    tau: list[float] = []
+    added = np.zeros(len(trajectory))
+    for i in idx:
+        dq = q[i] - q[i - 1]
+        k = max(int(math.ceil(float(np.max(np.abs(dq))) / max_joint_step)), 1)
+        # profile with ramps of T/4 at peak speed 4/3·d/T: T = max over joints of the larger of
+        # 4/3·d/v and sqrt(16/3·d/a) (ramp acceleration 16/3·d/T²)
+        d = np.abs(dq)
+        dur = float(max(np.max(4.0 / 3.0 * d / vmax), np.max(np.sqrt(16.0 / 3.0 * d / amax)),
+                        trajectory.t[i] - trajectory.t[i - 1]))
+        added[i] = dur - (trajectory.t[i] - trajectory.t[i - 1])
+        for j in range(1, k):
+            at.append(int(i))
+            w.append(j / k)
+            br.append(int(solution.branch[i]))
+            tau.append(dur)
+    t_shift = trajectory.t + np.cumsum(added)
+    shifted = replace(trajectory, t=t_shift)
+    if not at:
+        return shifted, solution
+    at_arr = np.array(at)
+    w_arr = np.array(w)
+    dur_arr = np.array(tau)
+    # time of each new row: the profile's time at which the joint fraction w is reached
+    grid = np.linspace(0.0, 1.0, 2001)
+    t_new = np.empty(len(at_arr))
+    for m, (i, wj, dur) in enumerate(zip(at_arr, w_arr, dur_arr)):
+        t_new[m] = t_shift[i - 1] + np.interp(wj, _trapezoid_fraction(1.0, grid), grid) * dur
+    qs_arr = q[at_arr - 1] + (q[at_arr] - q[at_arr - 1]) * w_arr[:, None]
+    tcp2part = cell.tcp2part(model.fk(qs_arr))
+    n_new = len(at_arr)
+    return insert_samples(shifted, solution, model, at_arr, t=t_new, position=tcp2part[:, :3, 3],
+                          quaternion=matrix_to_quat(tcp2part[:, :3, :3]), contact=np.zeros(n_new, bool),
+                          pass_index=np.full(n_new, -1), q=qs_arr, joint_move=np.ones(n_new, bool),
+                          branch=np.array(br), fraction=w_arr)

@@ -5,7 +5,9 @@ CLI flags / job keys the stage reads (the lead wires them; see :func:`robot_opti
 ``--robot ur10e`` (a name from :data:`swath.robot.ROBOTS`), ``--base "x,y,z,rx,ry,rz"`` (part placement
 in the robot base frame; mm/m and deg/rad suffixes, bare numbers m and deg), ``--tcp "x,y,z,rx,ry,rz"``
 (TCP in the flange frame), ``--program urscript,rapid,krl,ros,csv``, ``--place`` (search the
-placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fail on any unreachable pose).
+placement; ``--table-z`` the part's lowest point height), ``--robot-strict`` (fail on any unreachable pose),
+``--force-program native|position`` (the controller's force control presses the pad, or a
+position-only program that states the compliance it relies on).
 """
 
 from __future__ import annotations
@@ -29,9 +31,9 @@ from .placement import (  # noqa: F401  (the thresholds are the stage's too)
     search_placement,
 )
 from .pose import pose_error, poses_from_trajectory
-from .programs import ProgramInput, write_programs
-from .retime import joint_speed_ratio, retime_trajectory
-from .solve import JointSolution, Margins, flips_inside_passes, solve_trajectory
+from .programs import ProgramInput, check_program_formats, write_programs
+from .retime import joint_speed_ratio, resample_contact, retime_trajectory
+from .solve import JointSolution, Margins, flips_inside_passes, insert_joint_moves, solve_trajectory
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +93,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
                     programs=("csv",), out_dir=None, place: bool = False, table_z: float = 0.0,
                     margins: Margins | None = None, strict: bool = False, force: float = 20.0,
                     surface=None, reach_vertices: int = 1500, warn: bool = True, keep_out: float | None = None,
-                    split_gaps: bool = True, clearance: float = 0.02, progress=None) -> RobotResult:
+                    split_gaps: bool = True, clearance: float = 0.02, progress=None,
+                    force_program: str = "native") -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -132,6 +135,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         Retract/approach height at a split, m.
     progress : callable, optional
         ``progress(message, done, total)`` for the placement search and the solves.
+    force_program : str
+        ``native`` (force control of the controller) or ``position`` (position-only programs).
 
     Returns
     -------
@@ -142,6 +147,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     cell = Cell() if cell is None else cell
     if not len(trajectory):
         raise InputError("the robot stage needs a trajectory with at least one sample")
+    check_program_formats(model, programs or (), force_program)
     placement = None
     t0 = time.perf_counter()
     say = progress or (lambda message, done, total: None)
@@ -163,22 +169,23 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
         solution = solution_after_split(solution, trajectory, q_moves, src, model)
     t_ik = time.perf_counter() - t0
-    retimed, rt = retime_trajectory(trajectory, solution, model)
+    retimed, solution, rt = retime_and_resample(trajectory, solution, model, cell)
     dp, da = fk_errors(retimed, solution, model, cell)
     idx = np.flatnonzero(solution.reachable)
     speed_ratio = joint_speed_ratio(retimed.t[idx], solution.q[idx], model.max_speed) if len(idx) > 1 else np.zeros(1)
     meas = solution.measures
     metrics = {
+        **continuity_metrics(retimed, solution),
         # the planned trajectory's poses and how many the robot reaches (the split trajectory it runs has
         # n_poses_run samples, all reached)
         "robot": model.name, "n_poses": n_planned, "ik_time_s": t_ik, "placement_time_s": t_place,
         "reachable_fraction": planned_fraction, "n_unreachable_stretches": planned_stretches,
         "n_poses_run": len(trajectory),
         "n_branch_switches": len(solution.switches),
-        "configuration_flips_in_passes": flips_inside_passes(solution, trajectory),
+        "configuration_flips_in_passes": flips_inside_passes(solution, retimed),
         "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
         "max_joint_speed_ratio": float(np.max(speed_ratio, initial=0.0)), "max_joint_accel_ratio": rt.max_accel_ratio,
-        "retime_added_s": rt.added_time, "retime_stretched_steps": rt.stretched_steps,
+        "retime_added_s": retimed.duration - trajectory.duration, "retime_stretched_steps": rt.stretched_steps,
         "duration_s": retimed.duration,
         "min_manipulability": float(np.nanmin(meas["manipulability"])) if len(idx) else float("nan"),
         "min_joint_limit_margin_rad": float(np.nanmin(meas["joint_limit_margin_rad"])) if len(idx) else float("nan"),
@@ -190,7 +197,9 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     }
     if placement is not None:
         metrics.update(placement.as_record())
-    warnings = robot_warnings(solution, metrics, first_warning=first_warning, split=split_gaps)
+    metrics["force_program"] = force_program
+    warnings = robot_warnings(solution, metrics, first_warning=first_warning, split=split_gaps, programs=programs,
+                              cell=cell)
     if warn:
         for w in warnings:
             log.warning("%s", w)
@@ -204,18 +213,78 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     if out_dir is not None and programs:
         if not len(idx):
             raise InputError(f"no pose of the trajectory is reachable for {model.name}; no program written")
-        files = write_programs(ProgramInput(retimed, solution, model, cell, force=force), Path(out_dir), programs)
+        files = write_programs(ProgramInput(retimed, solution, model, cell, force=force, force_program=force_program),
+                               Path(out_dir), programs)
     return RobotResult(model=model, cell=cell, solution=solution, trajectory=retimed, placement=placement,
                        reach_map=reach_map, files=files, metrics=metrics, warnings=warnings, gaps=gaps)
 
 
+def retime_and_resample(trajectory, solution: JointSolution, model: RobotModel, cell: Cell, *, rounds: int = 6):
+    """Joint moves interpolated, re-timed to the joint limits, contact steps resampled to ≤ 20 ms.
+
+    :func:`insert_joint_moves` puts the swept joints of every joint move on the trajectory;
+    :func:`retime_trajectory` stretches time where a joint limit binds; :func:`resample_contact`
+    then splits the contact steps that became longer than FORMATS.md's 20 ms (or turn a joint more
+    than 0.045 rad), and the re-timing runs again on the new samples, up to ``rounds`` times.
+
+    Returns
+    -------
+    (Trajectory, JointSolution, Retiming)
+        The re-timed trajectory, the solution on its samples, the first re-timing's figures.
+    """
+    tr, sol = insert_joint_moves(trajectory, solution, model, cell)
+    retimed, rt = retime_trajectory(tr, sol, model)
+    for _ in range(rounds):
+        n_before = len(retimed)
+        retimed, sol = resample_contact(retimed, sol, model, cell)
+        if len(retimed) == n_before:
+            break
+        retimed, _ = retime_trajectory(retimed, sol, model)
+    else:
+        retimed, sol = resample_contact(retimed, sol, model, cell)     # the last word: no step over 16 ms
+    return retimed, sol, rt
+
+
+def continuity_metrics(trajectory, solution: JointSolution) -> dict:
+    """What the configuration and timing rules promise, measured on the final samples.
+
+    Keys: ``max_contact_dt_s`` (longest step between contact samples of one pass, s),
+    ``max_contact_joint_step_rad`` (largest joint change between them), ``n_joint_moves`` (joint
+    moves written as such, each a branch change or a large turn on an air link),
+    ``branch_changes_in_contact`` (steps inside a pass whose branch changes),
+    ``min_switch_clearance_m`` (smallest distance from the part at which the branch changes; NaN
+    without a change).
+    """
+    tr, sol = trajectory, solution
+    n = len(tr)
+    out = {"max_contact_dt_s": 0.0, "max_contact_joint_step_rad": 0.0, "n_joint_moves": 0,
+           "branch_changes_in_contact": 0, "min_switch_clearance_m": float("nan")}
+    if n < 2:
+        return out
+    same = (tr.contact[1:] & tr.contact[:-1] & (tr.pass_index[1:] == tr.pass_index[:-1]) & (tr.pass_index[1:] >= 0)
+            & sol.reachable[1:] & sol.reachable[:-1])
+    if same.any():
+        out["max_contact_dt_s"] = float(np.diff(tr.t)[same].max())
+        out["max_contact_joint_step_rad"] = float(np.abs(np.diff(sol.q, axis=0))[same].max())
+    jm = sol.joint_moves
+    out["n_joint_moves"] = int(np.sum(jm[1:] & ~jm[:-1]) + int(jm[0]))
+    b = sol.branch
+    change = (b[1:] != b[:-1]) & (b[1:] >= 0) & (b[:-1] >= 0)
+    out["branch_changes_in_contact"] = int(np.sum(change & same))
+    if change.any() and sol.clearance is not None:
+        c = sol.clearance
+        out["min_switch_clearance_m"] = float(np.min(np.minimum(c[1:], c[:-1])[change]))
+    return out
+
+
 def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str | None = None,
-                   split: bool = False) -> list[str]:
+                   split: bool = False, programs=(), cell: Cell | None = None) -> list[str]:
     """The robot stage's warnings: unreachable poses (the first solve's sentence; with ``split`` the
     passes were split there with a retract and an approach, else the programs skip those samples and
     the robot moves straight across them), branch changes inside a contact pass (the arm reconfigures
-    with the pad on the part), and manipulability, wrist sine or joint-limit margin below the
-    thresholds :data:`WARN_MANIPULABILITY`, :data:`WARN_WRIST_SIN`, :data:`WARN_JOINT_LIMIT_MARGIN`."""
+    with the pad on the part), manipulability, wrist sine or joint-limit margin below the thresholds
+    :data:`WARN_MANIPULABILITY`, :data:`WARN_WRIST_SIN`, :data:`WARN_JOINT_LIMIT_MARGIN`, position-only
+    vendor programs (the compliance they rely on), and a TCP on the flange face (no tool given)."""
     out = []
     sentence = first_warning if first_warning is not None else solution.warning
     if sentence and split and metrics.get("n_gaps"):
@@ -244,6 +313,15 @@ def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str
     if np.isfinite(margin) and margin < WARN_JOINT_LIMIT_MARGIN:
         out.append(f"robot: a joint of {name} comes within {math.degrees(margin):.2f} deg of its limit (warned below "
                    "5 deg); the controller may stop on a limit with a small path or calibration error")
+    vendor = [p for p in (str(x).strip().lower() for x in programs) if p in ("urscript", "rapid", "krl")]
+    if vendor and metrics.get("force_program") == "position":
+        out.append(f"robot: the {', '.join(vendor)} program(s) are position only (--force-program position): they hold "
+                   "the pad face on the nominal surface and rely on a compliant tool (active contact flange or spring "
+                   "mount) to press with the planned force; with a rigid tool the force is whatever the part's "
+                   "placement errors make")
+    if cell is not None and np.allclose(cell.tcp2flange, np.eye(4)):
+        out.append("robot: no tool given (--tcp), so the TCP is the flange face: the programs put the flange, not a "
+                   "pad, on the part; give the pad face's pose in the flange frame with --tcp x,y,z,rx,ry,rz")
     return out
 
 
@@ -252,12 +330,14 @@ def robot_options_from_mapping(values: dict) -> dict:
 
     Keys: ``robot`` (a catalogue name or a ``.urdf`` file, loaded here), ``base``, ``tcp``, ``program``
     (comma list), ``place`` (``auto`` or absent), ``table_z`` (length), ``robot_strict`` (bool), ``tip``
-    (the URDF's flange frame), ``keep_out`` (length: the placement's keep-out radius).
+    (the URDF's flange frame), ``keep_out`` (length: the placement's keep-out radius), ``force_program``
+    (``native`` or ``position``).  Program formats the robot's controller would not take are refused
+    here, before any work.
     """
     from ..units import parse_quantity
 
     known = {"robot", "base", "tcp", "program", "place", "table_z", "table-z", "robot_strict", "robot-strict", "tip",
-             "keep_out", "keep-out"}
+             "keep_out", "keep-out", "force_program", "force-program"}
     unknown = set(values) - known
     if unknown:
         raise InputError(f"unknown robot setting(s) {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
@@ -272,10 +352,13 @@ def robot_options_from_mapping(values: dict) -> dict:
     robot = values.get("robot", "ur10e")
     if str(robot).strip().lower().endswith(".urdf") or values.get("tip"):
         robot = get_robot(robot, tip=values.get("tip"))       # a URDF robot is loaded (and checked) here
+    force_program = str(values.get("force_program", values.get("force-program")) or "native").strip().lower()
+    check_program_formats(robot if not isinstance(robot, str) else get_robot(robot), programs, force_program)
     keep = values.get("keep_out", values.get("keep-out"))
     return {"robot": robot, "keep_out": None if keep is None else parse_quantity(keep, "length"),
             "cell": Cell(part2base=np.eye(4) if base is None else parse_pose(base),
                          tcp2flange=np.eye(4) if tcp is None else parse_pose(tcp)),
             "programs": programs, "place": place == "auto",
             "table_z": 0.0 if table is None else parse_quantity(table, "length"),
-            "strict": bool(values.get("robot_strict", values.get("robot-strict", False)))}
+            "strict": bool(values.get("robot_strict", values.get("robot-strict", False))),
+            "force_program": force_program}
