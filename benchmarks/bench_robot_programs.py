@@ -48,8 +48,8 @@ def job_trajectory(part: str, units: str):
 
 
 def program_row(name: str, trajectory, robot: str, out: Path, clearance: float) -> dict:
-    from swath.robot import Cell, get_robot, run_robot_stage
     from swath.cell import parse_pose
+    from swath.robot import Cell, get_robot, run_robot_stage
     from swath.robot.pose import pose_error, poses_from_trajectory
     from swath.robot.programs import FORMAT_VENDOR, ProgramInput, commanded_force_angles, robot_vendor
     from swath.robot.readers import read_joint_csv, read_ros_yaml
