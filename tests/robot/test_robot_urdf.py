@@ -136,7 +136,7 @@ def test_urdf_robot_from_job_settings(ur10e_urdf):
     from swath.cli.stages import robot_options
 
     s = settings_from_mapping({"part": "example:plate", "out": "unused", "robot": str(ur10e_urdf), "tip": "tool0",
-                               "keep_out": "400mm"})
+                               "robot_keep_out": "400mm"})
     opts = robot_options(s)
     assert opts["robot"].kind == "numeric" and opts["robot"].extra["tip"] == "tool0"
     assert opts["keep_out"] == pytest.approx(0.4)

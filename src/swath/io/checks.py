@@ -20,8 +20,9 @@ SMALL_PART = 0.02
 #: Units suggested when the size is implausible, in order of preference.
 SUGGESTED_UNITS = ("m", "mm", "in")
 
-def check_file(path: Path, extensions, what: str) -> str:
-    """The lower-case extension of ``path`` after checking it is one of ``extensions`` and a non-empty file.
+def check_file(path: Path, extensions, what: str, *, others: str = "") -> str:
+    """The lower-case extension of ``path`` after checking it is one of ``extensions`` and a non-empty file
+    (``others``: what else the caller's command reads, named in the refusal).
 
     Raises
     ------
@@ -33,7 +34,7 @@ def check_file(path: Path, extensions, what: str) -> str:
         raise InputError(f"{path} is a directory; give the path of a {what} file ({', '.join(extensions)}) in it")
     if ext not in extensions:
         raise InputError(f"{path.name}: unsupported {what} file type {ext or '(no extension)'!r}; "
-                         f"use one of {', '.join(extensions)}")
+                         f"use one of {', '.join(extensions)}{others}")
     if not path.exists():
         raise InputError(f"{path}: no such file; check the path")
     if not path.is_file():

@@ -158,7 +158,7 @@ def load_mesh(path, *, units: str = "m", side=None, all_pieces: bool = False, fo
     from ..surface import Surface
 
     path = Path(path)
-    ext = check_file(path, MESH_EXTENSIONS, "mesh")
+    ext = check_file(path, MESH_EXTENSIONS, "mesh", others=" (or a STEP/IGES part: .step, .stp, .iges, .igs)")
     side_vec = None if side is None else parse_side(side)
     units = canonical_length_unit(units)
     factor = length_unit_factor(units)
