@@ -200,6 +200,15 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-ROBOT-JOINT-LIMIT", r"comes within .* deg of its limit",
           "A joint comes within 5 deg of its limit: a small path or calibration error may stop the controller.",
           "Move the part (`--base`, or `--place`) or turn the tool about its axis.", "robot"),
+    entry("W-ROBOT-POSITION-ONLY", r"are position only \(--force-program position\)",
+          "The vendor programs hold the pad face on the nominal surface and rely on a compliant tool to press "
+          "with the planned force.",
+          "Use an active contact flange or a spring-mounted tool, or write force-controlled programs "
+          "(`--force-program native`).", "robot"),
+    entry("W-ROBOT-FLANGE-TCP", r"the TCP is the flange face",
+          "No tool was given, so the programs put the flange, not a pad, on the part.",
+          "Give the pad face's pose in the flange frame (`--tcp x,y,z,rx,ry,rz`) or a cell file's `[tool]`.",
+          "robot"),
     entry("W-ROBOT-FLIP", r"changes configuration .* inside a contact pass",
           "The arm changes configuration (shoulder, elbow or wrist branch) with the pad on the part.",
           "Move the part (`--base`, or `--place`) or choose another robot.", "robot"),
