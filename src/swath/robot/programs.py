@@ -602,11 +602,16 @@ def ros_yaml_text(data: ProgramInput) -> str:
 
 
 def joint_csv_text(data: ProgramInput) -> str:
+    """``joints.csv``: ``t,q1..q6,contact,pass,branch`` per reached sample, and with media changes
+    (:mod:`swath.process.media`) a ``media`` column, the abrasive in use (0 = the first): a new value
+    is a stop for the operator before that row."""
     tr, sol = data.trajectory, data.solution
     idx = np.flatnonzero(sol.reachable)
-    rows = ["t,q1,q2,q3,q4,q5,q6,contact,pass,branch"]
+    media = tr.extra.get("media") if hasattr(tr, "extra") else None
+    rows = ["t,q1,q2,q3,q4,q5,q6,contact,pass,branch" + (",media" if media is not None else "")]
     for i in idx:
-        rows.append(f"{tr.t[i]:.9f}," + _fmt(sol.q[i], 12) + f",{int(tr.contact[i])},{int(tr.pass_index[i])},{int(sol.branch[i])}")
+        rows.append(f"{tr.t[i]:.9f}," + _fmt(sol.q[i], 12) + f",{int(tr.contact[i])},{int(tr.pass_index[i])},{int(sol.branch[i])}"
+                    + (f",{int(round(float(media[i])))}" if media is not None else ""))
     return "\n".join(rows) + "\n"
 
 

@@ -238,11 +238,15 @@ def read_ros_yaml(path) -> dict:
 
 
 def read_joint_csv(path) -> dict:
-    """Parse ``joints.csv``: ``t`` (m,) s, ``q`` (m, 6) rad, ``contact``, ``pass_index``, ``branch`` (m,)."""
+    """Parse ``joints.csv``: ``t`` (m,) s, ``q`` (m, 6) rad, ``contact``, ``pass_index``, ``branch`` (m,), and
+    ``media`` (m,) int where the file has that column (else absent)."""
     path = Path(path)
     header = path.read_text(encoding="utf-8").splitlines()[0].split(",")
     if header[:7] != ["t", "q1", "q2", "q3", "q4", "q5", "q6"]:
         raise InputError(f"{path}: expected columns t,q1..q6 first, got {','.join(header[:7])}")
     data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    return {"t": data[:, 0], "q": data[:, 1:7], "contact": data[:, 7] > 0.5, "pass_index": data[:, 8].astype(int),
-            "branch": data[:, 9].astype(int)}
+    out = {"t": data[:, 0], "q": data[:, 1:7], "contact": data[:, 7] > 0.5, "pass_index": data[:, 8].astype(int),
+           "branch": data[:, 9].astype(int)}
+    if "media" in header:
+        out["media"] = data[:, header.index("media")].astype(int)
+    return out
