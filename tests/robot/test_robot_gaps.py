@@ -27,8 +27,9 @@ def test_unreachable_stretches_become_air_with_retract_and_approach(far_plate):
     assert sol.reachable.all()
     assert result.metrics["max_fk_position_error_m"] < 1e-9
     assert result.metrics["max_fk_angle_error_rad"] < 1e-9
-    # the contact samples are the reachable ones of the plan, no more
-    assert int(run.contact.sum()) == int(tr.contact.sum()) - dropped_contact
+    # the contact samples are the reachable ones of the plan (re-sampled to 20 ms where re-timing stretched
+    # them: never fewer); the contact length below says no more is sanded
+    assert int(run.contact.sum()) >= int(tr.contact.sum()) - dropped_contact
     # each gap: the last contact sample before it, then a retract 20 mm straight up its tool axis
     gaps = result.metrics["gaps"]
     assert result.metrics["n_gaps"] == len(gaps) > 0
@@ -71,7 +72,8 @@ def test_coverage_is_computed_on_what_the_robot_runs(far_plate):
 def test_no_split_keeps_the_old_behaviour(plate_trajectory):
     cell = Cell.from_text("1.0,-0.15,0,0,0,0", "0,0,150mm,0,0,0")
     r = run_robot_stage(plate_trajectory, robot="ur10e", cell=cell, programs=[], warn=False, split_gaps=False)
-    assert len(r.trajectory) == len(plate_trajectory) and not r.solution.reachable.all()
+    assert r.metrics["n_poses"] == len(plate_trajectory) and r.metrics["n_gaps"] == 0
+    assert not r.solution.reachable.all()
     assert any("moves straight across" in w for w in r.warnings)
 
 
