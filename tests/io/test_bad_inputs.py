@@ -96,8 +96,6 @@ REFUSED = {
                                   r"box\.stl is a closed solid.*--side \+z"),
     "size in wrong unit": ("plate_mm.obj", lambda p: (p.write_text(obj_text(*grid(size=(300.0, 200.0)))), p)[1],
                            r"part is 300 m across when read in m.*--units mm"),
-    "broken step": ("part.step", lambda p: (p.write_text("ISO-10303-21;\n"), p)[1],
-                    r"part\.step: Open CASCADE could not read it as a STEP file; re-export it"),
     "wrong extension": ("part.dxf", lambda p: (p.write_text("0\nSECTION\n"), p)[1],
                         r"part\.dxf: unsupported"),
     "stl bytes named ply": ("shape.ply", lambda p: (p.write_bytes(stl_binary_bytes(*grid())), p)[1],
@@ -117,6 +115,15 @@ def test_refused_by_load_mesh(tmp_path, case):
     with pytest.raises(InputError, match=message) as info:
         load_mesh(path)
     assert "\n" not in str(info.value)
+
+
+def test_a_broken_step_file_is_refused_by_the_cli(tmp_path, capsys):
+    from swath.cli import main
+
+    (tmp_path / "part.step").write_text("ISO-10303-21;\n")
+    assert main(["plan", str(tmp_path / "part.step"), "--out", str(tmp_path / "out")]) == 2
+    assert "part.step: Open CASCADE could not read it as a STEP file; re-export it" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("case", sorted(REFUSED))

@@ -248,5 +248,15 @@ def solution_after_split(solution, trajectory, q, src, model):
             if k in measures:
                 measures[k][reach] = v
         measures["joint_limit_margin_rad"][reach] = model.joint_limit_margin(q[reach])
+    # per-sample flags on the split samples: a kept sample keeps its joint-move flag (the inserted retract,
+    # joint move and approach are written as the dense FK poses they are); the distance from the part is
+    # measured again on the split trajectory
+    from .solve import clearance_from_contact
+
+    joint_move = None
+    if solution.joint_move is not None:
+        joint_move = np.zeros(m, bool)
+        joint_move[kept] = np.asarray(solution.joint_move, bool)[src[kept]]
+    clearance = None if solution.clearance is None else clearance_from_contact(trajectory)
     return replace(solution, q=q, branch=np.where(reach, branch, -1), reachable=reach, switches=switches,
-                   stretches=[], measures=measures, warning=None)
+                   stretches=[], measures=measures, warning=None, joint_move=joint_move, clearance=clearance)
