@@ -7,6 +7,7 @@ import pytest
 
 from swath.errors import InputError
 from swath.robot import Cell, get_robot, run_robot_stage
+from swath.robot.joint_moves import insert_joint_moves
 from swath.robot.pose import matrix_to_quat, pose_error, poses_from_trajectory
 from swath.robot.programs import (
     ProgramInput,
@@ -18,7 +19,7 @@ from swath.robot.programs import (
 )
 from swath.robot.readers import read_joint_csv, read_krl, read_rapid, read_ros_yaml, read_urscript
 from swath.robot.retime import MAX_CONTACT_DT, joint_accel_ratio, joint_speed_ratio
-from swath.robot.solve import JointSolution, align_turns, insert_joint_moves
+from swath.robot.solve import JointSolution, align_turns
 from swath.trajectory import Trajectory
 
 CELLS = {"ur10e": Cell.from_text("0.55,-0.15,0,0,0,20", "0,0,120mm,0,0,0"),

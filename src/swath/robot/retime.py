@@ -193,8 +193,8 @@ def resample_contact(trajectory, solution, model, cell, *, max_dt: float = 0.8 *
     -------
     (Trajectory, JointSolution)
     """
+    from .joint_moves import insert_samples
     from .pose import make_transform, matrix_to_quat, quat_to_matrix
-    from .solve import insert_samples
 
     tr, sol = trajectory, solution
     n = len(tr)

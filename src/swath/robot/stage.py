@@ -22,6 +22,7 @@ import numpy as np
 
 from ..cell import Cell, parse_pose
 from ..errors import InputError
+from .joint_moves import insert_joint_moves
 from .models import RobotModel, get_robot
 from .placement import (  # noqa: F401  (the thresholds are the stage's too)
     WARN_JOINT_LIMIT_MARGIN,
@@ -33,7 +34,7 @@ from .placement import (  # noqa: F401  (the thresholds are the stage's too)
 from .pose import pose_error, poses_from_trajectory
 from .programs import ProgramInput, check_program_formats, write_programs
 from .retime import joint_speed_ratio, resample_contact, retime_trajectory
-from .solve import JointSolution, Margins, flips_inside_passes, insert_joint_moves, solve_trajectory
+from .solve import JointSolution, Margins, flips_inside_passes, solve_trajectory
 
 log = logging.getLogger(__name__)
 
