@@ -13,12 +13,11 @@ from swath.contact import Tool
 from swath.errors import InputError
 from swath.simulate.calibrate import (
     calibrate,
-    calibrated_tool,
     load_calibration,
-    predict_depth,
     read_trials,
     write_calibration,
 )
+from swath.simulate.calibrated import calibrated_tool, predict_depth
 from swath.simulate.preston_doe import parse_factor, write_doe
 from swath.simulate.trials import fill_trials, simulate_trial, trial_tool
 

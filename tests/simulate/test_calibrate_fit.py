@@ -18,12 +18,10 @@ from swath.simulate.calibrate import (
     exposure,
     load_calibration,
     make_trials,
-    predict_depth,
-    predict_job_depth,
     read_trials,
-    tool_with_calibration,
     write_calibration,
 )
+from swath.simulate.calibrated import predict_depth, predict_job_depth, tool_with_calibration
 from swath.simulate.preston_doe import factorial_design, write_doe
 from swath.trajectory import FeedLimit, time_path
 

@@ -16,12 +16,12 @@ log = logging.getLogger(__name__)
 def job_tool(settings):
     """The job's Tool, built once: the pad and force of the settings, with the Preston coefficient,
     wear rate and the kinematics (motion, spindle speed, orbit) of ``settings.calibration`` where
-    the user did not give them (:func:`swath.simulate.calibrate.calibrated_tool`)."""
+    the user did not give them (:func:`swath.simulate.calibrated.calibrated_tool`)."""
     from ..errors import InputError
 
     tool = settings.tool()
     if settings.calibration:
-        from ..simulate.calibrate import calibrated_tool
+        from ..simulate.calibrated import calibrated_tool
 
         tool = calibrated_tool(tool, settings.calibration, grit=settings.grit, motion=settings.motion,
                                spindle_speed=settings.spindle_speed, orbit_radius=settings.orbit_radius,
