@@ -418,29 +418,12 @@ def main(argv=None) -> int:
             from .batch import run_from_args
 
             return run_from_args(args, quiet=args.quiet)
-        if args.command == "fit":
-            from .fitjob import run_fit
-
-            settings = _fit_settings_from_args(args)
-            doc = run_fit(settings, progress=progress)
+        if args.command in ("fit", "register", "rework"):
+            run, settings_of, summary = _document_job(args.command)
+            settings = settings_of(args)
+            doc = run(settings, progress=progress)
             if not args.quiet:
-                print(_fit_summary(settings, doc))
-            return 0
-        if args.command == "register":
-            from .registerjob import run_register
-
-            settings = _register_settings_from_args(args)
-            doc = run_register(settings, progress=progress)
-            if not args.quiet:
-                print(_register_summary(settings, doc))
-            return 0
-        if args.command == "rework":
-            from .reworkjob import run_rework
-
-            settings = _rework_settings_from_args(args)
-            doc = run_rework(settings, progress=progress)
-            if not args.quiet:
-                print(_rework_summary(settings, doc))
+                print(summary(settings, doc))
             return 0
         if args.command in ("calibrate", "doe"):
             from .calibrate_cmd import run_calibrate, run_doe
@@ -460,6 +443,21 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("swath: interrupted; no output was written", file=sys.stderr)
         return 130
+
+
+def _document_job(command: str):
+    """``(run, settings_from_args, summary)`` of a subcommand that writes one document: fit, register or rework."""
+    if command == "fit":
+        from .fitjob import run_fit
+
+        return run_fit, _fit_settings_from_args, _fit_summary
+    if command == "register":
+        from .registerjob import run_register
+
+        return run_register, _register_settings_from_args, _register_summary
+    from .reworkjob import run_rework
+
+    return run_rework, _rework_settings_from_args, _rework_summary
 
 
 def _no_example(path, command: str, what: str) -> None:
