@@ -57,7 +57,7 @@ def closed_loop(tmp: Path) -> None:
     from swath.contact import Tool
     from swath.simulate.calibrate import calibrate, write_calibration
     from swath.simulate.preston_doe import parse_factor, write_doe
-    from swath.simulate.trials import fill_trials, simulate_trial, trial_tool
+    from swath.simulate.trials import fill_trials, hold_back, trial_depth, trial_tool
 
     print(f"2. closed loop: k_p0 = {K_P0:.3g} 1/Pa, wear λ = {WEAR:.4g} 1/s, 8 % scatter, 54 trials fitted, 18 held back")
     factors = dict([parse_factor("force=10N,20N,30N"), parse_factor("feed_m_per_s=0.02,0.05"),
@@ -70,27 +70,22 @@ def closed_loop(tmp: Path) -> None:
         filled = fill_trials(template, d / "filled.csv", preston=K_P0, wear_rate=WEAR, noise=0.08, seed=7,
                              sample_spacing=3e-3)
         rows = list(csv.DictReader(open(filled)))
-        held = set(range(2, len(rows), 4))
+        fitted, held = hold_back(rows)
         with open(d / "fit.csv", "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=list(rows[0]))
             w.writeheader()
-            w.writerows(r for i, r in enumerate(rows) if i not in held)
+            w.writerows(fitted)
         cal = calibrate(d / "fit.csv")
         write_calibration(d / "cal.json", cal)
         fit = cal.fit_for()
         tool = job_tool(settings_from_mapping({"part": "example:plate", "out": str(d / "o"),
                                                "calibration": str(d / "cal.json")}))
         errors = []
-        for i in sorted(held):
-            r = rows[i]
+        for r in held:
             truth_tool = trial_tool(force=float(r["force_N"]), spindle_speed_rpm=10000,
                                     orbit_radius=float(r["orbit_radius_m"]), pad_radius=0.0381, preston=K_P0,
                                     wear_rate=WEAR)
-            start = float(r["pad_age_s"]) - 0.5 * 3 * (0.0381 * 4 + 0.024) / float(r["feed_m_per_s"])
-            kw = dict(feed=float(r["feed_m_per_s"]), passes=3, start_age=start, sample_spacing=3e-3)
-            truth = simulate_trial(truth_tool, **kw).depth
-            pred = simulate_trial(tool.with_force(float(r["force_N"])), **kw).depth
-            errors.append(pred / truth - 1)
+            errors.append(trial_depth(tool, r, sample_spacing=3e-3) / trial_depth(truth_tool, r, sample_spacing=3e-3) - 1)
         errors = np.abs(errors)
         print(f"   {motion:7s}: job tool {tool.motion}, k_p0 {fit.preston:.4g} ({fit.preston / K_P0 - 1:+.1%}), "
               f"λ {fit.wear_rate:.4g} 1/s ({fit.wear_rate / WEAR - 1:+.1%}, 90 % interval "

@@ -19,7 +19,7 @@ from swath.simulate.calibrate import (
 )
 from swath.simulate.calibrated import calibrated_tool, predict_depth
 from swath.simulate.preston_doe import parse_factor, write_doe
-from swath.simulate.trials import fill_trials, simulate_trial, trial_tool
+from swath.simulate.trials import fill_trials, hold_back, trial_depth, trial_tool
 
 K_P0 = 2.0e-10            # 1/Pa, the fresh media the simulated shop runs
 WEAR = 1.0 / 900.0        # 1/s: the media loses 28 % of its cut in 300 s
@@ -104,11 +104,12 @@ def test_closed_loop_on_simulated_trials_recovers_preston_and_wear(tmp_path, mot
     filled = fill_trials(template, tmp_path / "filled.csv", preston=K_P0, wear_rate=WEAR, noise=0.08, seed=7,
                          sample_spacing=3e-3)
     rows = list(csv.DictReader(open(filled)))
-    held = set(range(2, len(rows), 4))
+    fitted, held = hold_back(rows)
+    assert (len(fitted), len(held)) == (54, 18)
     with open(tmp_path / "fit.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
-        w.writerows(r for i, r in enumerate(rows) if i not in held)
+        w.writerows(fitted)
     cal = calibrate(tmp_path / "fit.csv")
     fit = cal.fit_for()
     assert fit.error_model == "wear"
@@ -121,17 +122,11 @@ def test_closed_loop_on_simulated_trials_recovers_preston_and_wear(tmp_path, mot
     tool = job_tool(settings)
     assert tool.motion == motion and tool.wear_rate == pytest.approx(fit.wear_rate)
     errors = []
-    for i in sorted(held):
-        r = rows[i]
+    for r in held:
         truth_tool = trial_tool(force=float(r["force_N"]), spindle_speed_rpm=10000,
                                 orbit_radius=float(r["orbit_radius_m"]), pad_radius=0.0381, preston=K_P0,
                                 wear_rate=WEAR)
-        start = float(r["pad_age_s"]) - 0.5 * 3 * (truth_tool.pad_radius * 4 + 0.024) / float(r["feed_m_per_s"])
-        truth = simulate_trial(truth_tool, feed=float(r["feed_m_per_s"]), passes=3, start_age=start,
-                               sample_spacing=3e-3)
-        pred = simulate_trial(tool.with_force(float(r["force_N"])), feed=float(r["feed_m_per_s"]), passes=3,
-                              start_age=start, sample_spacing=3e-3)
-        errors.append(pred.depth / truth.depth - 1)
+        errors.append(trial_depth(tool, r, sample_spacing=3e-3) / trial_depth(truth_tool, r, sample_spacing=3e-3) - 1)
     assert np.max(np.abs(errors)) < 0.05, errors
     assert math.isfinite(read_trials(filled).pad_age.sum())
 

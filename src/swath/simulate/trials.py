@@ -144,3 +144,28 @@ def fill_trials(template, out, *, preston: float, wear_rate: float = 0.0, noise:
     w.writerows(rows)
     write_text_atomic(out, buf.getvalue())
     return out
+
+
+def hold_back(rows: list, *, every: int = 4, first: int = 2) -> tuple[list, list]:
+    """Split trials rows into ``(fitted, held_back)``: every ``every``-th row from ``first`` is held
+    back to check a calibration on trials it was not fitted to."""
+    if every < 2 or not 0 <= first < every:
+        raise InputError(f"hold_back needs every >= 2 and 0 <= first < every, got {every!r}, {first!r}")
+    held = set(range(first, len(rows), every))
+    return [r for i, r in enumerate(rows) if i not in held], [r for i, r in enumerate(rows) if i in held]
+
+
+def trial_depth(tool: Tool, row: dict, *, sample_spacing: float = 1.5e-3) -> float:
+    """Depth (m) ``tool`` removes in the trial a filled trials ``row`` describes (its feed, passes,
+    force and ``pad_age_s``, the media's age at the trial's middle as :func:`fill_trials` writes it).
+
+    The trial starts half its own contact time (from its timed track) before the row's mid age.
+    """
+    from ..process import media_schedule
+
+    feed, passes = float(row["feed_m_per_s"]), int(float(row["passes"]))
+    tool = tool.with_force(float(row["force_N"]))
+    _, track, _ = _trial_track(float(tool.pad_radius), feed, passes, float(sample_spacing), 0.012)
+    contact = float(media_schedule(track, 0.0).age.max())
+    start = max(float(row.get("pad_age_s") or 0.0) - 0.5 * contact, 0.0)
+    return simulate_trial(tool, feed=feed, passes=passes, start_age=start, sample_spacing=sample_spacing).depth
