@@ -63,23 +63,10 @@ def part_args(part: str) -> list[str]:
 
 def slicing_reference(surface, toolpath) -> float:
     """CPU seconds (best of 3) trimesh takes to cut ``surface`` with the planes of the raster plan
-    ``toolpath`` (its ``cross_direction``, ``spacing_m`` and ``n_planes``)."""
-    import numpy as np
-    import trimesh
-    from trimesh.intersections import mesh_multiplane
+    ``toolpath`` (:func:`bench_plan_speed.trimesh_reference`)."""
+    from bench_plan_speed import trimesh_reference
 
-    meta = toolpath.metadata
-    cross = np.asarray(meta["cross_direction"], float)
-    spacing, n_planes = float(meta["spacing_m"]), int(meta["n_planes"])
-    h = surface.vertices @ cross
-    heights = 0.5 * (h.min() + h.max()) + (np.arange(n_planes) - 0.5 * (n_planes - 1)) * spacing
-    mesh = trimesh.Trimesh(surface.vertices, surface.faces, process=False)
-    best = np.inf
-    for _ in range(3):
-        c0 = time.process_time()
-        mesh_multiplane(mesh, cross * 0.0, cross, heights)
-        best = min(best, time.process_time() - c0)
-    return float(best)
+    return trimesh_reference(surface, toolpath)[1]
 
 
 def one(part: str, planner: str) -> dict:
