@@ -181,3 +181,15 @@ def test_stage_records_hold_the_job_values():
     assert trajectory.constraints()[0].speed == pytest.approx(0.08)
     assert [type(c).__name__ for c in settings.constraints()] == kinds
     assert settings.links().clearance == trajectory.links().clearance == pytest.approx(0.02)
+
+
+def test_the_ranges_the_help_states_are_the_ones_checked():
+    """--feed, --force and --pad-radius state the plausible range that PROCESS_RANGES refuses outside,
+    and --allow-unusual-process repeats all three."""
+    from swath.cli.settings import PROCESS_RANGES
+
+    settings = declarations(JobSettings)
+    for key in ("feed", "force", "pad_radius"):
+        text = PROCESS_RANGES[key].text()
+        assert f"within {text}" in settings[key].help_text(), key
+        assert text in settings["allow_unusual_process"].help_text(), key

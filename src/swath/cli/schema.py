@@ -156,18 +156,32 @@ class Setting:
 def setting(default, kind: str, *, stage: str, help: str = "", cli: Option | None | bool = True,
             choices: tuple | Callable[[], tuple] = (), names: Callable[[], tuple] | None = None,
             **key: Any) -> Any:
-    """A JobSettings field declared once: ``default`` (SI; :data:`REQUIRED` for none) and its
-    :class:`Setting`.
+    """A JobSettings field declared once: its default and its :class:`Setting`.
 
     Parameters
     ----------
-    default : the SI default (a dict is copied per instance).
-    kind, key : the :class:`Key` (``positive=True``, ``hi=1.0``, ``hint="mm, e.g. 5mm"``, ...).
-    stage : a key of :data:`STAGES`.
-    help : the help text of the option and the reference (argparse's ``%%`` for a literal %).
-    cli : an :class:`Option`; True: a plain ``--name VALUE`` option; False or None: a job-file key only.
-    choices : allowed values, or a registry function returning them.
-    names : a registry function whose names are shown (``{names}`` in ``help``) but checked later.
+    default
+        The SI default; :data:`REQUIRED` for none (a dict is copied for every instance).
+    kind : str
+        What the value is: a quantity kind (``"length"``, ``"speed"``, ...) or ``"bool"``,
+        ``"str"``, ``"path"``, ``"list"``, ``"table"``, ``"offset"``, ``"count"`` (see :class:`Key`).
+    stage : str
+        The pipeline stage that reads it, a key of :data:`STAGES`.
+    help : str
+        The option's help and the reference text (argparse's ``%%`` for a literal %).
+    cli : Option or bool
+        How it appears on the command line; True: a plain ``--name VALUE``; False: job files only.
+    choices : tuple or callable
+        The allowed values, or the registry function that returns them.
+    names : callable, optional
+        A registry whose names ``{names}`` in ``help`` lists; the stage checks the value.
+    **key
+        The other fields of :class:`Key` (``positive=True``, ``hi=1.0``, ``hint="mm, e.g. 5mm"``, ...).
+
+    Returns
+    -------
+    dataclasses.Field
+        The field, for a ``JobSettings`` attribute.
     """
     if stage not in STAGES:
         raise ValueError(f"unknown stage {stage!r}; one of {', '.join(STAGES)}")
