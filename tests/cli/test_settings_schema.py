@@ -193,3 +193,23 @@ def test_the_ranges_the_help_states_are_the_ones_checked():
         text = PROCESS_RANGES[key].text()
         assert f"within {text}" in settings[key].help_text(), key
         assert text in settings["allow_unusual_process"].help_text(), key
+
+
+def test_the_defaults_the_help_states_are_the_dataclass_defaults():
+    """A help text that states a number as the default ("(default 2m/s2; ...") states the field's
+    SI default: the two are written apart, and this keeps them equal."""
+    import re
+
+    checked = []
+    for name, spec in declarations(JobSettings).items():
+        default = default_of(JobSettings, name)
+        if default is None or default is REQUIRED or name == "pad_radius":
+            continue                                  # an automatic default: the help says how it is chosen
+        for m in re.finditer(r"\(default:? ([0-9.][^\s;,):]*)", spec.help_text()):
+            assert parse_value(name, m.group(1), SCHEMA[name]) == pytest.approx(default), (name, m.group(0))
+            checked.append(name)
+    assert {"max_centripetal", "max_angular", "max_accel", "keep_out_margin", "chordal_tol", "length_budget",
+            "lead_angle", "pad_damping"} <= set(checked)
+    # the pad radius's help names the pad: "(default: 3-inch pad)", 3 in across
+    assert "(default: 3-inch pad)" in declarations(JobSettings)["pad_radius"].help_text()
+    assert default_of(JobSettings, "pad_radius") == pytest.approx(3 * 0.0254 / 2)
