@@ -8,15 +8,22 @@
   ``metrics.json`` keys).
 * A fence written `````python exec`` / `````bash exec`` (run by ``tests/docs/test_tutorials.py``)
   is shown as a plain ``python`` / ``bash`` block.
+* Equations (``\\(...\\)`` inline, ``\\[...\\]`` displayed, kept whole by ``pymdownx.arithmatex``)
+  are turned into MathML when the site is built (``latex2mathml``), which browsers show natively:
+  the site needs no script and no network to show them.
 """
 
 from __future__ import annotations
 
+import html
 import re
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
 _MARKER = re.compile(r"^<!-- swath:([a-z-]+) -->$", re.M)
+#: What ``pymdownx.arithmatex`` (generic mode) leaves of an equation: inline ``\\(...\\)`` in a
+#: span, displayed ``\\[...\\]`` in a div; the TeX inside is HTML-escaped.
+_MATH = re.compile(r'<(span|div) class="arithmatex">\s*\\([(\[])(.*?)\\[)\]]\s*</\1>', re.S)
 _EXEC_FENCE = re.compile(r"^(\s*```+\s*)(python|bash|toml|text)\s+exec\b[^\n]*$", re.M)
 
 
@@ -65,3 +72,28 @@ def generated(name: str) -> str:
 def on_page_markdown(markdown, page, config, files, **kwargs):
     markdown = _EXEC_FENCE.sub(lambda m: m.group(1) + m.group(2), markdown)
     return _MARKER.sub(lambda m: generated(m.group(1)), markdown)
+
+
+def mathml(tex: str, *, display: bool) -> str:
+    """``tex`` (LaTeX math, no delimiters) as a MathML ``<math>`` element; a displayed equation
+    gets ``display="block"``.  Raises ``ValueError`` naming the equation when it cannot be read."""
+    from latex2mathml.converter import convert
+
+    try:
+        return convert(tex.strip(), display="block" if display else "inline")
+    except Exception as exc:                # latex2mathml raises its own errors for unknown commands
+        raise ValueError(f"cannot render the equation {tex.strip()!r} as MathML: {exc}") from exc
+
+
+def render_math(page_html: str) -> str:
+    """Every arithmatex equation in ``page_html`` replaced by its MathML."""
+
+    def one(m: re.Match) -> str:
+        display = m.group(2) == "["
+        return mathml(html.unescape(m.group(3)), display=display)
+
+    return _MATH.sub(one, page_html)
+
+
+def on_page_content(page_html, page, config, files, **kwargs):
+    return render_math(page_html)

@@ -148,3 +148,26 @@ def test_the_metrics_documented_are_the_ones_a_job_writes(tmp_path):
     for key in keys:
         assert key in metrics, key
         assert key == "warnings" or key_unit(key).kind != "unknown", key
+
+
+def test_equations_are_mathml_built_in_and_the_site_loads_no_script_from_the_network():
+    """arithmatex's inline and displayed TeX become MathML at build time (no MathJax, no CDN)."""
+    hooks = _hooks()
+    page = ('<p>a pad of radius <span class="arithmatex">\\(R\\)</span> and</p>\n'
+            '<div class="arithmatex">\\[\nw_i \\approx 2\\sqrt{2 s / \\kappa_i} , \\quad h &gt; 0\n\\]</div>')
+    out = hooks.render_math(page)
+    assert "arithmatex" not in out and "\\(" not in out and "\\[" not in out
+    inline, display = out.split("<math")[1:]
+    assert 'display="inline"' in inline and "<mi>R</mi>" in inline
+    assert 'display="block"' in display and "<msqrt>" in display and "<mi>&#x003BA;</mi>" in display
+    assert "<mo>&#x0003E;</mo>" in display and "&amp;" not in display      # the escaped > read back as >
+    with pytest.raises(ValueError, match="cannot render the equation"):
+        hooks.mathml("\\frac{1}{", display=False)
+    config = yaml.safe_load((REPO / "mkdocs.yml").read_text(encoding="utf-8"))
+    scripts = [str(s) for s in config.get("extra_javascript", [])]
+    assert not [s for s in scripts if "://" in s], scripts
+    math_pages = [p for p in DOCS.rglob("*.md") if "\\(" in p.read_text(encoding="utf-8")]
+    assert len(math_pages) >= 3
+    for md in math_pages:                # every equation the docs hold converts
+        for tex in re.findall(r"\\\((.+?)\\\)|\\\[(.+?)\\\]", md.read_text(encoding="utf-8"), re.S):
+            hooks.mathml(tex[0] or tex[1], display=bool(tex[1]))

@@ -29,166 +29,14 @@ from ..errors import InputError, SwathError
 
 log = logging.getLogger("swath")
 
-#: Scan parameterisations of ``--parameterization`` (as :data:`swath.scan.fit.PARAMETERIZATIONS`).
-PARAMETERIZATIONS = ("auto", "projection", "lscm", "rows")
-
 
 def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = True) -> None:
-    if with_part_options:
-        p.add_argument("--units", default="m", help="unit of a unitless mesh file: m, mm, cm or in (or their names, "
-                                                    "e.g. millimetres, inch)")
-        p.add_argument("--side", help="for a closed solid: the direction the tool comes from, e.g. +z, or all "
-                                      "(finish it all round, in setups)")
-        p.add_argument("--all-pieces", action="store_true", help="keep every piece of a multi-piece mesh")
-        p.add_argument("--force-units", action="store_true", help="accept a part size outside 5 mm .. 20 m")
-        p.add_argument("--fit", action="store_true",
-                       help="PART is a scan (point cloud or mesh): fit a B-spline patch and plan on it")
-        p.add_argument("--parameterization", choices=PARAMETERIZATIONS,
-                       help="with --fit: how the scan is parameterised (default auto)")
-        p.add_argument("--surface-spacing",
-                       help="triangle size of a fitted or saved patch to plan on, e.g. 3mm "
-                            "(default: the patch's extent / 150, within 2..5 mm)")
-        p.add_argument("--faces", help="the area to finish: face ids, names or colours (3,5 / tube_outer / #0000ff) "
-                                       "or box:xmin,ymin,zmin,xmax,ymax,zmax; terms separated by ';' (default all)")
-        p.add_argument("--keep-out", help="faces or boxes the pad must not touch, as --faces")
-        p.add_argument("--keep-out-margin", help="clearance beyond the pad radius from the keep-outs (default 2mm)")
-        p.add_argument("--edge-margin", help="distance the pad centre keeps in from the area's open edges (default 0)")
-        p.add_argument("--chordal-tol", help="STEP/IGES tessellation: largest distance from the exact faces "
-                                             "(default 0.1mm)")
-    p.add_argument("--planner", default="raster",
-                   help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
-                        "or equidistant (geodesic-parallel passes)")
-    p.add_argument("--pad-radius", default="38.1mm",
-                   help="pad radius, e.g. 38.1mm, within 5–150 mm (default: 3-inch pad)")
-    p.add_argument("--force", default="20N", help="normal force, e.g. 20N, within 1–500 N")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--depression", help="the pad's depression on a flat surface at a stated force, e.g. 1mm@20N; a "
-                                        "bare 1mm is at 20 N, and the set --force then presses this pad deeper or "
-                                        "shallower (default 1mm@20N)")
-    g.add_argument("--stiffness", help="pad foundation stiffness, e.g. 4.4MPa/m")
-    p.add_argument("--motion", choices=["orbital", "rotary"],
-                   help="pad motion (default orbital, or the motion the --calibration was measured with)")
-    p.add_argument("--feed", default="50mm/s", help="feed along contact passes, e.g. 50mm/s, within 1–500 mm/s")
-    p.add_argument("--spacing", help="pass spacing, e.g. 60mm (default: full coverage from the contact model)")
-    p.add_argument("--direction", "--angle", dest="direction", default="auto",
-                   help="pass direction: an angle from the part's principal axis, e.g. 30deg, or auto (default: "
-                        "each planner's own choice, e.g. the shortest full-coverage path)")
-    p.add_argument("--point-spacing", default="1mm", help="spacing of points along passes")
-    p.add_argument("--clearance", default="20mm", help="lift off the surface for air moves")
-    p.add_argument("--order",
-                   help="how passes are sequenced (default: the planner's own: snake for raster and equidistant, "
-                        "zigzag for uniform)")
-    p.add_argument("--join-gap", help="make step-overs up to this long in contact where the pad can slide along the "
-                                      "part, joining the passes (Wang's continuous paths; fewer air moves, more "
-                                      "contact at the ends), e.g. 76mm; orders by gtsp unless --order is given")
-    p.add_argument("--order-groups", choices=("regions", "passes"),
-                   help="what the tour orders: single passes, each choosing its direction (default), or whole "
-                        "regions, each swept as a snake from one of its corners (Wang's path types)")
-    p.add_argument("--order-objective", choices=("time", "length"),
-                   help="what the tour minimises: link and step-over time, the shortest cycle (default), or air "
-                        "length (tool turns then may cost time)")
-    p.add_argument("--overlap", help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
-    p.add_argument("--max-centripetal", help="limit on centripetal acceleration along passes (default 2m/s2; "
-                                             "'none' turns it off)")
-    p.add_argument("--max-angular", help="limit on the tool's angular speed (default 1rad/s; 'none' turns it off)")
-    p.add_argument("--max-accel", help="limit on tangential acceleration along passes (default 1m/s2; 'none' "
-                                       "turns it off)")
-    p.add_argument("--out", required=True, help="output directory (written atomically; an existing non-empty folder "
-                                                "is refused unless it is an earlier swath output or --overwrite)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an existing non-empty output folder that swath did not write")
-    p.add_argument("--removal-sampling", choices=("lattice", "mesh"),
-                   help="where removal is simulated: a lattice at the sample spacing on every triangle (default; "
-                        "much faster on CAD parts with long slivers) or the part subdivided to the sample spacing "
-                        "(mesh, the sampling of the feed optimiser's kernel)")
-    p.add_argument("--memory-budget", help="refuse work estimated to need more memory than this, e.g. 8GiB "
-                                           "(default: 3/4 of this machine's memory)")
-    p.add_argument("--segment", help="auto: split the part into regions that parallel passes cross without breaks "
-                                      "(Wang), plan each, visit them in the order with least air (gtsp); none")
-    e = p.add_argument_group("even removal (Wang §2): feed (dwell) optimisation to a target depth")
-    e.add_argument("--optimise-feed", action="store_true", default=None,
-                   help="choose the feed along every pass so removal matches the target, never more than the "
-                        "target plus the tolerance (HiGHS)")
-    e.add_argument("--target-depth", help="with --optimise-feed: uniform depth to remove, e.g. 20um")
-    e.add_argument("--target-map", help="with --optimise-feed: per-point depths (CSV x,y,z,depth in m, or PLY with a "
-                                        "vertex 'depth')")
-    e.add_argument("--depth-tolerance", help="with --optimise-feed: allowed removal above the target, e.g. 2um "
-                                             "(default 10 %% of the target depth)")
-    e.add_argument("--optimise-spacing",
-                   help="raster pass spacing for even removal: ripple (the spacing whose summed pad "
-                        "cross-profiles are flattest, path within 1.5x the coverage bound; with --planner uniform its overlap), greedy (Wang's pattern "
-                        "search, pass by pass, against the target) or joint (equal spacing and feed together)")
-    e.add_argument("--length-budget",
-                   help="with --optimise-spacing ripple: the contact length the spacing may use, in multiples of the "
-                        "coverage bound L*, e.g. 2 (default 1.5): closer passes, less ripple between them")
-    e.add_argument("--lead-angle",
-                   help="tilt the pad about the axis across the feed in contact, its leading edge lifted, e.g. "
-                        "7deg; auto: the angle at which half the pad presses on a flat part (7.0 deg for the "
-                        "default pad), which turns each pass's removal profile from a semicircle into a "
-                        "parabola and halves the ripple between passes (default 0: z along minus the normal)")
-    e.add_argument("--feed-simulate-check", action=argparse.BooleanOptionalAction, default=None,
-                   help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "
-                        "simulator finds more than the target plus the tolerance (up to 6 rounds; default on)")
-    e.add_argument("--target-cov",
-                   help="the interior removal CoV to reach, e.g. 6%%: swath plans, times and simulates a stated set "
-                        "of candidates (spacing, lead) and keeps the one with the shortest cycle time that reaches "
-                        "it, or refuses with the least reachable CoV and its cycle time")
-    r = p.add_argument_group("robot (kinematics, reachability, programs)")
-    r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120, or a URDF file "
-                                   "(path/to/robot.urdf, with --tip)")
-    r.add_argument("--base", help="the part's pose in the robot base frame, x,y,z,rx,ry,rz (e.g. 800mm,0,100mm,0,0,90deg)")
-    r.add_argument("--tcp", help="the tool (TCP) pose in the flange frame, x,y,z,rx,ry,rz (e.g. 0,0,150mm,0,0,0)")
-    r.add_argument("--program", dest="programs",
-                   help="robot programs to write: urscript, rapid, krl, ros, csv (comma-separated; default csv)")
-    r.add_argument("--place", action="store_true", default=None,
-                   help="search where to put the part so the whole job is reachable (x, y, yaw on the table)")
-    r.add_argument("--table-z", help="with --place: height of the part's lowest point in the base frame, e.g. 0mm")
-    r.add_argument("--cell", help="cell file (TOML): robot, part2base, tool (tcp2flange and body), table, fixtures; "
-                                  "the job's motion is checked for collisions in it (see docs/guide/cell.md)")
-    r.add_argument("--allow-collisions", action="store_true", default=None,
-                   help="write the robot programs even when the collision check finds a collision (a warning "
-                        "then; default: refuse with exit status 2)")
-    r.add_argument("--tip", help="with --robot path/to/robot.urdf: the URDF frame the tool is mounted on (default tool0)")
-    r.add_argument("--robot-keep-out", help="with --place: radius of the cylinder about the robot's base axis the part "
-                                      "must stay out of, e.g. 400mm (default 0.2 m + 0.1 x reach)")
-    r.add_argument("--force-program", choices=("native", "position"),
-                   help="how the urscript/rapid/krl programs press the pad: native (the controller's force control "
-                        "along the tool axis: UR force_mode, ABB Force Control, KUKA.ForceTorqueControl; default) or "
-                        "position (position only, for a compliant tool; the program and a warning say so)")
-    f = p.add_argument_group("force control and calibration (Jaeger ch. 5, 6)")
-    f.add_argument("--force-control", action="store_true",
-                   help="simulate hybrid position/force control along the trajectory: a force column, a force plot, "
-                        "removal from the simulated force")
-    f.add_argument("--part-offset", help="with --force-control: the real part's offset from the plan (registration "
-                                         "error), dx,dy,dz,rx,ry,rz, e.g. 0.5mm,0,0,0.2deg,0,0")
-    f.add_argument("--tool-mass", help="with --force-control: mass below the force sensor, e.g. 2kg (default 0)")
-    f.add_argument("--tool-tilt", help="with --force-control: tilt of the cell from tool-down, e.g. 30deg (default 0)")
-    f.add_argument("--no-gravity-compensation", dest="gravity_compensation", action="store_false", default=None,
-                   help="with --force-control: do not subtract the tool's weight from the measured force")
-    f.add_argument("--calibration", help="a Preston calibration file written by swath calibrate (sets k_p)")
-    f.add_argument("--grit", help="with --calibration: which grit's fit to use (default: the only or first)")
-    w = p.add_argument_group("process: pad, kinematics, wear and media changes")
-    w.add_argument("--pad-thickness", help="thickness of the pad's compliant layer, e.g. 10mm: refuses a force that "
-                                           "presses through it")
-    w.add_argument("--spindle-speed", help="pad (or orbit) speed, e.g. 10000rpm (default 10000rpm, or the "
-                                           "calibration's)")
-    w.add_argument("--orbit-radius", help="orbit eccentricity of an orbital pad, e.g. 2.5mm (default 2.5mm, or the "
-                                          "calibration's)")
-    w.add_argument("--wear-rate", help="pad wear: the removal rate falls as exp(-rate * time in contact), e.g. "
-                                       "0.001/s (default 0, or the calibration's)")
-    w.add_argument("--media-change", help="change the abrasive every this much time in contact, e.g. 300s: a pause "
-                                          "for the operator in the programs, between passes")
-    w.add_argument("--media-change-loss", help="change the abrasive when its removal rate has fallen by this much, "
-                                               "e.g. 20%% (needs a wear rate)")
-    w.add_argument("--pad-damping", help="the pad's viscous relaxation time, e.g. 10ms: with --force-control it "
-                                         "resists the landing at every pass start and lets go late on the lift "
-                                         "(default 0: elastic)")
-    w.add_argument("--wear-compensation", action=argparse.BooleanOptionalAction, default=None,
-                   help="slow the feed as the pad wears so that the removal stays as planned (default on when the "
-                        "pad wears)")
-    p.add_argument("--allow-unusual-process", action="store_true", default=None,
-                   help="plan a feed, force or pad radius outside what a sanding robot does (feed 1–500 mm/s, "
-                        "force 1–500 N, pad radius 5–150 mm), with a warning instead of a refusal")
+    """The options of every job setting that has one (declared once on
+    :class:`~swath.cli.jobsettings.JobSettings`; see :mod:`swath.cli.schema`)."""
+    from .jobsettings import JobSettings
+    from .schema import add_setting_options
+
+    add_setting_options(p, JobSettings, with_part_options=with_part_options)
 
 
 class _DefaultsFormatter(argparse.HelpFormatter):
@@ -227,7 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     f = add_parser("fit", help="fit a B-spline patch to a scan: patch.json, surface.ply, fit.json, fit.html")
     f.add_argument("scan", help="point cloud (XYZ/TXT/CSV/PTS, PCD, PLY without faces) or mesh (STL, OBJ, PLY)")
     f.add_argument("--units", default="m", help="unit of the scan file: m, mm, cm or in (default m)")
-    f.add_argument("--parameterization", default="auto", choices=PARAMETERIZATIONS,
+    from .jobsettings import _parameterizations  # the scan fitter's registry (swath.scan.fit)
+
+    f.add_argument("--parameterization", default="auto", choices=_parameterizations(),
                    help="auto (projection if it does not fold, else LSCM on a mesh), projection, lscm (mesh "
                         "scans; patches that wrap), rows (a cloud in scan order; rows split at jumps and turns)")
     f.add_argument("--spacing", "--surface-spacing", dest="spacing",

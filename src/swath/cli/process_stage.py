@@ -1,14 +1,21 @@
 """The job's process stage: pad wear along the trajectory, media changes and the feed that
-compensates the wear (:mod:`swath.process.media`)."""
+compensates the wear (:mod:`swath.process.media`).
+
+Each function reads the stage's own record, :class:`~swath.cli.stage_settings.ProcessSettings`
+(or :class:`~swath.cli.stage_settings.SimulateSettings`), and takes the job's settings or that record.
+"""
 
 from __future__ import annotations
 
 import math
 
+from .stage_settings import ProcessSettings, SimulateSettings
+
 
 def wants_wear_stage(tool, settings) -> bool:
     """Whether the job models pad wear or changes media."""
-    return tool.wear_rate > 0 or settings.media_change is not None or settings.media_change_loss is not None
+    process = ProcessSettings.of(settings)
+    return tool.wear_rate > 0 or process.media_change is not None or process.media_change_loss is not None
 
 
 def wear_stage(trajectory, tool, settings):
@@ -16,8 +23,9 @@ def wear_stage(trajectory, tool, settings):
     along ``trajectory``; returns ``(trajectory with media columns, MediaSchedule, metrics)``."""
     from ..process import compensate_wear, media_schedule, trajectory_with_media
 
-    rule = {"every": settings.media_change, "loss": settings.media_change_loss}
-    compensate = tool.wear_rate > 0 and settings.wear_compensation
+    process = ProcessSettings.of(settings)
+    rule = {"every": process.media_change, "loss": process.media_change_loss}
+    compensate = tool.wear_rate > 0 and process.wear_compensation
     before = trajectory.duration
     if compensate:
         trajectory, schedule = compensate_wear(trajectory, tool.wear_rate, **rule)
@@ -40,8 +48,8 @@ def removal_rate_scale(trajectory, tool, settings):
         return None
     from ..process import media_schedule
 
-    return media_schedule(trajectory, tool.wear_rate, every=settings.media_change,
-                          loss=settings.media_change_loss).factor
+    process = ProcessSettings.of(settings)
+    return media_schedule(trajectory, tool.wear_rate, every=process.media_change, loss=process.media_change_loss).factor
 
 
 def transient_metrics(trajectory, surface, tool, trace, settings, removal) -> dict:
@@ -54,6 +62,7 @@ def transient_metrics(trajectory, surface, tool, trace, settings, removal) -> di
 
     from ..simulate import simulate_removal
 
+    simulate = SimulateSettings.of(settings)
     holds = trace.holds
     out = {}
     idle = replace(trajectory, contact=np.zeros(len(trajectory), bool))
@@ -63,7 +72,7 @@ def transient_metrics(trajectory, surface, tool, trace, settings, removal) -> di
         if not len(part["dwell"]):
             out[f"{name}_depth_excess_m"] = 0.0
             continue
-        rm = simulate_removal(idle, surface, tool, sample_spacing=spacing, sampling=settings.removal_sampling,
+        rm = simulate_removal(idle, surface, tool, sample_spacing=spacing, sampling=simulate.removal_sampling,
                               holds=part)
         out[f"{name}_depth_excess_m"] = float(rm.depth.max())
     mean = removal.metrics.get("removal_mean_m") or 0.0

@@ -1,5 +1,8 @@
 """The command-line and job-file reference as Markdown, generated from the parser and the schema.
 
+Both derive from the settings' one declaration (:mod:`swath.cli.schema`): the parser's options of
+``swath plan`` are built from it, and the job-key tables read it directly, one table per stage.
+
 The docs build (``docs/hooks.py``) puts :func:`cli_markdown` into *Reference → Command line*
 and :func:`job_keys_markdown` into *Reference → Job files*, so neither page can drift from the
 options ``swath`` really accepts.  ``python -m swath.cli.reference`` prints both.
@@ -8,11 +11,12 @@ options ``swath`` really accepts.  ``python -m swath.cli.reference`` prints both
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 
+from .jobsettings import JobSettings
 from .main import _DefaultsFormatter, build_parser
-from .settings import ALIASES, PLANNER_OPTION_SCHEMA, SCHEMA, JobSettings, Key
+from .schema import REQUIRED, STAGES, Key, declarations, default_of
+from .settings import ALIASES, PLANNER_OPTION_SCHEMA, SCHEMA
 
 
 def _cell(text) -> str:
@@ -77,11 +81,13 @@ def cli_markdown(parser: argparse.ArgumentParser | None = None) -> str:
     return "\n".join(out) + "\n"
 
 
-def _describe(spec: Key) -> str:
-    """A key's kind, range and choices in words."""
+def _describe(spec: Key, names: tuple = ()) -> str:
+    """A key's kind, range and choices in words; ``names``: the registry its value is looked up in."""
     parts = [spec.kind]
     if spec.choices:
         parts = ["one of " + ", ".join(f"`{c}`" for c in spec.choices)]
+    elif names:
+        parts.append("names: " + ", ".join(f"`{c}`" for c in names))
     if spec.lo is not None or spec.hi is not None or spec.positive:
         lo = "> 0" if spec.positive and spec.lo is None else (f">= {spec.lo:g}" if spec.lo is not None else "")
         hi = f"<= {spec.hi:g}" if spec.hi is not None else ""
@@ -98,15 +104,9 @@ def _describe(spec: Key) -> str:
 
 
 def _setting_default(name: str) -> str:
-    fields = {f.name: f for f in dataclasses.fields(JobSettings)}
-    f = fields.get(name)
-    if f is None:
-        return ""
-    if f.default is not dataclasses.MISSING:
-        d = f.default
-    elif f.default_factory is not dataclasses.MISSING:
-        d = f.default_factory()
-    else:
+    """A setting's SI default as the reference shows it: ``required``, blank for none/empty."""
+    d = default_of(JobSettings, name)
+    if d is REQUIRED:
         return "required"
     if d is None or d == () or d == {} or d == []:
         return ""
@@ -115,23 +115,33 @@ def _setting_default(name: str) -> str:
     return f"`{d}`"
 
 
-def _flags_by_key(parser: argparse.ArgumentParser) -> dict[str, tuple[str, str]]:
-    """Job-file key -> (the ``swath plan`` option that sets it, its help)."""
+def _flags_by_key(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Job-file key -> the ``swath plan`` option that sets it."""
     plan = _subcommands(parser)["plan"][1]
-    return {a.dest: (a.option_strings[0] if a.option_strings else a.dest.upper(), a.help or "")
+    return {a.dest: a.option_strings[0] if a.option_strings else a.dest.upper()
             for a in plan._actions if a.dest in SCHEMA}
 
 
 def job_keys_markdown(parser: argparse.ArgumentParser | None = None) -> str:
-    """Tables of every job-file key (:data:`~swath.cli.settings.SCHEMA`) and planner option
-    (:data:`~swath.cli.settings.PLANNER_OPTION_SCHEMA`): kind, range, default (SI), CLI option."""
+    """Tables of every job-file key, one per pipeline stage, from the settings' declarations
+    (:mod:`swath.cli.jobsettings`): kind, range, default (SI), the ``swath plan`` option, help;
+    then the planner options (:data:`~swath.cli.settings.PLANNER_OPTION_SCHEMA`)."""
     flags = _flags_by_key(parser or build_parser())
-    out = ["| key | value | default (SI) | command-line option | what it sets |", "|---|---|---|---|---|"]
-    for name, spec in SCHEMA.items():
-        flag, helptext = flags.get(name, ("", ""))
-        flag = f"`{flag}`" if flag else ""
-        out.append(f"| `{name}` | {_cell(_describe(spec))} | {_setting_default(name)} | {flag} | {_cell(helptext)} |")
-    out += ["", "Other spellings accepted: " + ", ".join(f"`{a}` for `{k}`" for a, k in ALIASES.items()) + ".", "",
+    settings = declarations(JobSettings)
+    out: list[str] = []
+    for stage, title in STAGES.items():
+        names = [name for name, spec in settings.items() if spec.stage == stage]
+        if not names:
+            continue
+        out += [f"### {title[0].upper()}{title[1:]}", "",
+                "| key | value | default (SI) | command-line option | what it sets |", "|---|---|---|---|---|"]
+        for name in names:
+            spec = settings[name]
+            flag = f"`{flags[name]}`" if name in flags else ""
+            out.append(f"| `{name}` | {_cell(_describe(SCHEMA[name], spec.names()))} | {_setting_default(name)} "
+                       f"| {flag} | {_cell(spec.help_text())} |")
+        out.append("")
+    out += ["Other spellings accepted: " + ", ".join(f"`{a}` for `{k}`" for a, k in ALIASES.items()) + ".", "",
             "### Planner options (`[planner_options]`)", "",
             "| key | what it holds |", "|---|---|"]
     out += [f"| `{name}` | {_cell(_describe(spec))} |" for name, spec in PLANNER_OPTION_SCHEMA.items()]

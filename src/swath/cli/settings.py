@@ -1,9 +1,10 @@
 """Job settings: the :class:`JobSettings` record (SI units) and the schema that fills it from text.
 
 The CLI flags and TOML job files use the same keys (``pad_radius`` or ``pad-radius``).  Every key
-has one entry in :data:`SCHEMA` saying what it holds; :func:`settings_from_mapping` checks every
-value against it before any work — types (a quoted ``"false"`` is not a boolean), units, ranges —
-and names the key in every refusal.
+is one field of :class:`JobSettings` (:mod:`swath.cli.jobsettings`), declared once with what it
+holds; :data:`SCHEMA` is derived from those declarations, and :func:`settings_from_mapping` checks
+every value against it before any work — types (a quoted ``"false"`` is not a boolean), units,
+ranges — and names the key in every refusal.
 """
 
 from __future__ import annotations
@@ -12,317 +13,23 @@ import difflib
 import logging
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
 from ..units import canonical_length_unit, parse_quantity
+from .jobsettings import DEFAULT_LIMITS, JobSettings, _orders, _planners  # noqa: F401  (DEFAULT_LIMITS, Key: re-exported)
+from .schema import Key, schema
 
 log = logging.getLogger(__name__)
-
-#: Robot-realistic limits every trajectory is timed under unless the user turns them off ("none"):
-#: tool angular speed (rad/s), centripetal and tangential acceleration (m/s²).
-DEFAULT_LIMITS = {"max_angular": 1.0, "max_centripetal": 2.0, "max_accel": 1.0}
 
 #: Words that turn a default limit off.
 OFF_WORDS = ("none", "off", "no")
 
 
-@dataclass(frozen=True)
-class JobSettings:
-    """Every setting of a job, SI units.
-
-    ``part`` is a mesh file path, ``example:NAME`` for a built-in part (``example:blade``), a
-    B-spline patch saved by ``swath fit`` (``patch.json``), or, with ``fit``, a scan (point cloud
-    or mesh) to fit a B-spline patch to first.  A patch is planned on its triangulation at
-    ``surface_spacing`` (m; default its longest extent / 150, clipped to 2..5 mm).  The keys and
-    what each holds are listed in :data:`SCHEMA`.
-    """
-
-    part: str
-    out: str
-    units: str = "m"
-    side: str | None = None
-    all_pieces: bool = False
-    force_units: bool = False
-    overwrite: bool = False
-    planner: str = "raster"
-    order: str | None = None
-    segment: str | None = None
-    pad_radius: float = 0.0381
-    force: float = 20.0
-    depression: float | None = None
-    stiffness: float | None = None
-    motion: str | None = None                  # None: orbital, or the motion the calibration was measured with
-    feed: float = 0.05
-    spacing: float | None = None
-    direction: float | None = None
-    point_spacing: float = 1e-3
-    clearance: float = 0.02
-    max_centripetal: float | None = DEFAULT_LIMITS["max_centripetal"]
-    max_angular: float | None = DEFAULT_LIMITS["max_angular"]
-    max_accel: float | None = DEFAULT_LIMITS["max_accel"]
-    overlap: float | None = None
-    # tilt of the pad about the axis across the feed in contact, rad; None ("auto"): half the pad
-    # presses on a flat part (Tool.half_pad_lead)
-    lead_angle: float | None = 0.0
-    join_gap: float | None = None
-    # Single passes by default: each pass picks its own direction, so a one-way sweep (return moves,
-    # no 180-degree turns at 1 rad/s) can win over a region's snake (example:hub: 131 s vs 186 s).
-    order_groups: str = "passes"
-    # What the tour methods minimise: link time (default: the shorter cycle; on example:hub 129 s
-    # against 212 s ordered by length with contact step-overs) or air length.
-    order_objective: str = "time"
-    sample_spacing: float | None = None
-    # Removal samples: a lattice at the sample spacing on every triangle (default: 2-5x faster and a
-    # third of the samples on CAD parts with long slivers, same metrics within 0.5 %; the depth
-    # picture is drawn on the part's own mesh, interpolated from the samples), or the part
-    # subdivided to the sample spacing ("mesh", the feed kernel's own sampling).
-    removal_sampling: str = "lattice"
-    planner_options: dict = field(default_factory=dict)
-    fit: bool = False
-    parameterization: str = "auto"
-    surface_spacing: float | None = None
-    memory_budget: float | None = None
-    # force control and calibration (simulate stage)
-    force_control: bool = False
-    part_offset: tuple | None = None
-    tool_mass: float = 0.0
-    tool_tilt: float = 0.0
-    gravity_compensation: bool = True
-    calibration: str | None = None
-    grit: str | None = None
-    # feed optimisation
-    optimise_feed: bool = False
-    target_depth: float | None = None
-    target_map: str | None = None
-    depth_tolerance: float | None = None
-    optimise_spacing: str | None = None
-    # the optimised feed is checked in the removal simulator and corrected where it over-removes
-    feed_simulate_check: bool = True
-    # "fastest": raise the target to what the passes remove at the fastest feed (a tapering target map)
-    target_floor: str = "none"
-    # the contact length a spacing optimisation may use, in multiples of the coverage bound L*
-    length_budget: float = 1.5
-    # the interior removal CoV asked for (a fraction): the shortest candidate plan that reaches it
-    target_cov: float | None = None
-    # robot stage
-    robot: str | None = None
-    base: str | None = None
-    tcp: str | None = None
-    programs: tuple = ()
-    place: bool = False
-    table_z: float = 0.0
-    robot_strict: bool = False
-    cell: str | None = None
-    allow_collisions: bool = False
-    tip: str | None = None
-    robot_keep_out: float | None = None
-    # process model: the pad as a shop knows it (depression at a stated force, thickness), its
-    # kinematics, wear and media changes (swath.process)
-    depression_force: float | None = None      # the force `depression` was measured at (None: 20 N)
-    pad_thickness: float | None = None
-    spindle_speed: float | None = None         # rad/s; None: 10 000 rpm or the calibration's
-    orbit_radius: float | None = None          # m; None: 2.5 mm or the calibration's
-    wear_rate: float | None = None             # 1/s; None: no wear, or the calibration's
-    media_change: float | None = None          # s of contact per media
-    media_change_loss: float | None = None     # change when the removal rate has fallen by this fraction
-    wear_compensation: bool = True
-    pad_damping: float = 0.0                   # the pad's viscous relaxation time, s (force-control landings)
-    faces: str | None = None
-    keep_out: str | None = None
-    keep_out_margin: float = 2e-3
-    edge_margin: float = 0.0
-    chordal_tol: float = 1e-4
-    # plan with a feed, force, pad or spindle speed outside PROCESS_RANGES
-    allow_unusual_process: bool = False
-    force_program: str = "native"
-
-    def tool(self):
-        """The job's tool from the settings alone (no calibration: see :func:`swath.cli.stages.job_tool`).
-
-        A bare ``depression`` is the pad's depression at the reference force 20 N (or at
-        ``depression_force``); the set ``force`` then presses that pad deeper or shallower."""
-        from ..contact import Tool
-
-        kw = {}
-        if self.spindle_speed is not None:
-            kw["spindle_speed"] = self.spindle_speed
-        if self.orbit_radius is not None:
-            kw["orbit_radius"] = self.orbit_radius
-        return Tool(pad_radius=self.pad_radius, force=self.force, depression=self.depression,
-                    stiffness=self.stiffness, motion=self.motion or "orbital",
-                    reference_force=20.0 if self.depression_force is None else self.depression_force,
-                    pad_thickness=self.pad_thickness, wear_rate=self.wear_rate or 0.0,
-                    damping_time=self.pad_damping, **kw)
-
-    def constraints(self) -> list:
-        """The trajectory constraints: the feed and whichever limits are on (by default all three of
-        :data:`DEFAULT_LIMITS`)."""
-        from ..trajectory import AngularSpeedLimit, CentripetalLimit, FeedLimit, TangentialAccelLimit
-
-        out: list = [FeedLimit(self.feed)]
-        if self.max_centripetal is not None:
-            out.append(CentripetalLimit(self.max_centripetal))
-        if self.max_angular is not None:
-            out.append(AngularSpeedLimit(self.max_angular))
-        if self.max_accel is not None:
-            out.append(TangentialAccelLimit(self.max_accel))
-        return out
-
-    def lead(self) -> float:
-        """The lead angle (rad) the trajectory tilts the tool by in contact: ``lead_angle``, or for
-        ``auto`` the angle at which half the pad presses on a flat part (``Tool.half_pad_lead``)."""
-        return self.tool().half_pad_lead if self.lead_angle is None else float(self.lead_angle)
-
-    def links(self):
-        """How the tool moves between passes."""
-        from ..trajectory import LinkSettings
-
-        return LinkSettings(clearance=self.clearance)
-
-    def as_record(self) -> dict:
-        """Settings with units in the key names, for metrics.json and the report."""
-        tool = self.tool()
-        record = {
-            "part": self.part, "units": self.units, "planner": self.planner, "order": self.order,
-            "join_gap_m": self.join_gap, "order_groups": self.order_groups, "order_objective": self.order_objective,
-            "segment": self.segment, "removal_sampling": self.removal_sampling,
-            "pad_radius_m": self.pad_radius, "force_N": self.force,
-            "depression_on_flat_m": tool.flat_depression, "stiffness_Pa_per_m": tool.k,
-            "pad_depression_m": tool.depression_at(tool.reference_force),
-            "pad_depression_reference_force_N": tool.reference_force, "pad_thickness_m": self.pad_thickness,
-            "spindle_speed_rad_per_s": tool.spindle_speed, "orbit_radius_m": tool.orbit_radius,
-            "motion": tool.motion, "feed_m_per_s": self.feed, "spacing_m": self.spacing,
-            "direction_rad": self.direction, "point_spacing_m": self.point_spacing, "clearance_m": self.clearance,
-            "max_centripetal_m_per_s2": self.max_centripetal, "max_angular_rad_per_s": self.max_angular,
-            "max_accel_m_per_s2": self.max_accel, "overlap_fraction": self.overlap,
-            "lead_angle_rad": self.lead(),
-            "fit": self.fit, "fit_parameterization": self.parameterization,
-            "surface_spacing_m": self.surface_spacing,
-            **{f"planner_{k}": v for k, v in self.planner_options.items()},
-        }
-        if self.force_control:
-            record.update(force_control=True, part_offset_m_rad=self.part_offset, tool_mass_kg=self.tool_mass,
-                          tool_tilt_rad=self.tool_tilt, gravity_compensation=self.gravity_compensation)
-        if self.calibration:
-            record.update(calibration=self.calibration, grit=self.grit)
-        if self.optimise_feed or self.optimise_spacing:
-            record.update(optimise_feed=self.optimise_feed, optimise_spacing=self.optimise_spacing,
-                          target_depth_m=self.target_depth, target_map=self.target_map,
-                          depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
-        if self.wear_rate or self.media_change or self.media_change_loss:
-            record.update(wear_rate_per_s=self.wear_rate, media_change_s=self.media_change,
-                          media_change_loss_fraction=self.media_change_loss, wear_compensation=self.wear_compensation)
-        if self.robot:
-            record.update(robot=self.robot, base=self.base, tcp=self.tcp, programs=list(self.programs),
-                          place=self.place, table_z_m=self.table_z, cell=self.cell,
-                          allow_collisions=self.allow_collisions,
-                          force_program=self.force_program)
-        return record
-
-
-# ----------------------------------------------------------------------------------------------
-# the schema
-# ----------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Key:
-    """What one settings key holds.
-
-    kind : a quantity kind of :func:`swath.units.parse_quantity`, or ``"bool"``, ``"str"``,
-        ``"path"``, ``"table"``, ``"list"``, ``"offset"``, ``"count"`` (a whole number).
-    choices : allowed strings (``"str"`` keys).
-    lo, hi : allowed range in SI (inclusive), None for open.
-    bare_max : a number given without a unit must not exceed this (SI); catches ``feed = 50``.
-    hint : the unit the user likely meant, for that message.
-    off : the key may be turned off with ``none``/``off``.
-    auto : the key may be ``auto`` (None).
-    positive : the value must be > 0.
-    infinite : the value may be ``inf`` (a TOML float or the text), returned as ``math.inf``.
-    """
-
-    kind: str
-    choices: tuple = ()
-    lo: float | None = None
-    hi: float | None = None
-    bare_max: float | None = None
-    hint: str = ""
-    off: bool = False
-    auto: bool = False
-    positive: bool = False
-    infinite: bool = False
-
-
-def _planners() -> tuple:
-    from ..plan import PLANNERS
-
-    return tuple(PLANNERS)
-
-
-def _orders() -> tuple:
-    from ..order import ORDER_METHODS
-
-    return tuple(ORDER_METHODS)
-
-
-#: Every settings key -> what it holds (the CLI's ``--pad-radius`` is ``pad_radius``).
-SCHEMA: dict[str, Key] = {
-    "part": Key("str"), "out": Key("str"), "units": Key("str"), "side": Key("str"),
-    "all_pieces": Key("bool"), "force_units": Key("bool"), "overwrite": Key("bool"),
-    "planner": Key("str", choices=("raster", "uniform", "equidistant")), "order": Key("str", auto=True),
-    "segment": Key("str", choices=("none", "auto"), off=True),
-    "pad_radius": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 38.1mm"),
-    "force": Key("force", positive=True, hi=1e4, bare_max=1e4),
-    "depression": Key("length", positive=True, bare_max=0.1, hint="mm, e.g. 1mm"),
-    "stiffness": Key("stiffness", positive=True),
-    "motion": Key("str", choices=("orbital", "rotary")),
-    "feed": Key("speed", positive=True, hi=5.0, bare_max=5.0, hint="mm/s, e.g. 50mm/s"),
-    "spacing": Key("length", positive=True, bare_max=2.0, hint="mm, e.g. 60mm"),
-    "direction": Key("angle", auto=True),
-    "point_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 1mm"),
-    "clearance": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 20mm"),
-    "order_groups": Key("str", choices=("regions", "passes")),
-    "order_objective": Key("str", choices=("length", "time")),
-    "join_gap": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 76mm", off=True),
-    "sample_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
-    "removal_sampling": Key("str", choices=("lattice", "mesh")),
-    "surface_spacing": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
-    "max_centripetal": Key("acceleration", positive=True, off=True),
-    "max_angular": Key("angular_speed", positive=True, off=True),
-    "max_accel": Key("acceleration", positive=True, off=True),
-    "overlap": Key("fraction", lo=0.0, hi=0.9),
-    "lead_angle": Key("angle", auto=True, lo=-math.pi / 4, hi=math.pi / 4),
-    "planner_options": Key("table"),
-    "fit": Key("bool"), "parameterization": Key("str", choices=("auto", "projection", "lscm", "rows")),
-    "memory_budget": Key("str"),
-    "force_control": Key("bool"), "part_offset": Key("offset"), "tool_mass": Key("mass", lo=0.0, hi=500.0),
-    "tool_tilt": Key("angle"), "gravity_compensation": Key("bool"), "calibration": Key("path"), "grit": Key("str"),
-    "optimise_feed": Key("bool"), "target_depth": Key("length", positive=True, bare_max=1e-2, hint="um, e.g. 20um"),
-    "target_map": Key("path"), "depth_tolerance": Key("length", lo=0.0, bare_max=1e-2, hint="um, e.g. 5um"),
-    "optimise_spacing": Key("str", choices=("ripple", "greedy", "joint"), off=True),
-    "feed_simulate_check": Key("bool"), "target_floor": Key("str", choices=("none", "fastest")),
-    "length_budget": Key("fraction", lo=1.0, hi=4.0),
-    "target_cov": Key("fraction", positive=True, hi=1.0, off=True),
-    "robot": Key("str"), "base": Key("str"), "tcp": Key("str"), "programs": Key("list"), "place": Key("bool"),
-    "table_z": Key("length", bare_max=5.0, hint="mm, e.g. 700mm"), "robot_strict": Key("bool"),
-    "cell": Key("path"), "allow_collisions": Key("bool"),
-    "tip": Key("str"), "robot_keep_out": Key("length", lo=0.0, hi=5.0, bare_max=5.0, hint="mm, e.g. 400mm"),
-    "depression_force": Key("force", positive=True, hi=1e4, bare_max=1e4),
-    "pad_thickness": Key("length", positive=True, hi=0.5, bare_max=0.5, hint="mm, e.g. 10mm"),
-    "spindle_speed": Key("frequency", positive=True, bare_max=0.0, hint="rpm, e.g. 10000rpm"),
-    "orbit_radius": Key("length", lo=0.0, hi=0.1, bare_max=0.1, hint="mm, e.g. 2.5mm"),
-    "wear_rate": Key("frequency", lo=0.0, hint="1/s, e.g. 0.001/s"),
-    "media_change": Key("time", positive=True, off=True, hint="s, e.g. 300s"),
-    "media_change_loss": Key("fraction", lo=0.01, hi=0.99, off=True),
-    "wear_compensation": Key("bool"),
-    "pad_damping": Key("time", lo=0.0, hi=1.0, bare_max=1.0, hint="ms, e.g. 10ms"),
-    "faces": Key("str"), "keep_out": Key("str"),
-    "keep_out_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 2mm"),
-    "edge_margin": Key("length", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 5mm"),
-    "chordal_tol": Key("length", positive=True, hi=1e-2, bare_max=1e-2, hint="mm, e.g. 0.1mm"),
-    "allow_unusual_process": Key("bool"),
-    "force_program": Key("str", choices=("native", "position")),
-}
+#: Every settings key -> what it holds (the CLI's ``--pad-radius`` is ``pad_radius``), derived from
+#: the declarations of :class:`JobSettings` (:func:`swath.cli.schema.schema`).
+SCHEMA: dict[str, Key] = schema(JobSettings)
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,9 @@ def force_stage(trajectory, surface, tool, settings):
     disturbances; returns the trajectory with a ``force`` column, the :class:`ForceTrace` and
     its metrics."""
     from ..simulate.force import Disturbance, ForceController, gravity_for_tilt, simulate_force, trajectory_with_force
+    from .stage_settings import SimulateSettings
 
+    settings = SimulateSettings.of(settings)          # the stage's own record
     disturbance = Disturbance(part_offset=settings.part_offset or (0.0,) * 6, tool_mass=settings.tool_mass,
                               gravity=gravity_for_tilt(settings.tool_tilt))
     controller = ForceController(gravity_compensation=settings.gravity_compensation)
@@ -78,7 +80,9 @@ def robot_options(settings) -> dict:
     from ..robot import get_robot
     from ..robot.programs import PROGRAM_FILES
     from ..robot.stage import robot_options_from_mapping
+    from .stage_settings import RobotSettings
 
+    settings = RobotSettings.of(settings)             # the stage's own record
     cell = job_cell(settings)
     robot = settings.robot or cell.robot
     if not robot:
