@@ -121,7 +121,8 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
     t0 = time.perf_counter()
     say("loading part", 0, 1)
     part = select(load_closed_part(settings), faces=settings.faces, keep_out=settings.keep_out,
-                  keep_out_margin=settings.keep_out_margin, edge_margin=settings.edge_margin)
+                  keep_out_margin=settings.keep_out_margin, edge_margin=settings.edge_margin,
+                  units=settings.units)
     setups = plan_setups(part, overlap=settings.pad_radius)
     clear = clear_triangles(part, settings.pad_radius)
     say(f"{len(setups)} setups expose the part", 0, 1)
