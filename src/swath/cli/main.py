@@ -49,8 +49,10 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                        help="triangle size of a fitted or saved patch to plan on, e.g. 3mm "
                             "(default: the patch's extent / 150, within 2..5 mm)")
         p.add_argument("--faces", help="the area to finish: face ids, names or colours (3,5 / tube_outer / #0000ff) "
-                                       "or box:xmin,ymin,zmin,xmax,ymax,zmax; terms separated by ';' (default all)")
-        p.add_argument("--keep-out", help="faces or boxes the pad must not touch, as --faces")
+                                       "or box:xmin,ymin,zmin,xmax,ymax,zmax, polygon:FILE.csv or polygon:x,y x,y x,y (projected along "
+                                       "+z; polygon[along=+x]:...), mask:FILE.stl (triangles within 1 mm of it or "
+                                       "inside it); terms separated by ';' (default all)")
+        p.add_argument("--keep-out", help="faces, boxes, polygons or masks the pad must not touch, as --faces")
         p.add_argument("--keep-out-margin", help="clearance beyond the pad radius from the keep-outs (default 2mm)")
         p.add_argument("--edge-margin", help="distance the pad centre keeps in from the area's open edges (default 0)")
         p.add_argument("--chordal-tol", help="STEP/IGES tessellation: largest distance from the exact faces "
