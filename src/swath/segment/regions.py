@@ -156,9 +156,8 @@ def polygon_points(body: str, *, what: str = "--faces", units: str = "m", base_d
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"{what}: cannot read the polygon file {path}: {exc.__class__.__name__}: "
                              f"{getattr(exc, 'strerror', None) or exc}; give a .csv of x,y points") from None
-        rows = [line.split("#", 1)[0].strip() for line in text.splitlines()]
-        rows = [r for r in rows if r]
-        rows = [re.split(r"[,\s;]+", r) for r in rows]
+        lines = [line.split("#", 1)[0].strip() for line in text.splitlines()]
+        rows = [re.split(r"[,\s;]+", line) for line in lines if line]
         if rows and not _is_point(rows[0]):
             rows = rows[1:]                      # a header
         source = f"polygon file {path.name}"
