@@ -67,7 +67,10 @@ def _reference_visible(part: Part, direction, which) -> np.ndarray:
 def test_visibility_agrees_with_ray_casting(direction):
     part = channel()
     everything = np.ones(len(part.face_ids), bool)
-    np.testing.assert_array_equal(visible(part.surface, direction), _reference_visible(part, direction, everything))
+    reference = _reference_visible(part, direction, everything)
+    np.testing.assert_array_equal(visible(part.surface, direction), reference)
+    # a closed solid: only triangles facing against the ray can be the first it meets
+    np.testing.assert_array_equal(visible(part.surface, direction, closed=True), reference)
 
 
 def test_the_floor_of_the_slot_is_hidden_from_above():

@@ -85,7 +85,7 @@ def exposure(part: Part, up: np.ndarray, *, max_angle: float = DEFAULT_MAX_ANGLE
         low = height[s.faces].min(axis=1) - height.min()
         facing &= low >= table_clearance
     if line_of_sight and facing.any():
-        facing &= visible(s, up, facing)
+        facing &= visible(s, up, facing, closed=part.closed)
     return facing
 
 

@@ -18,7 +18,8 @@ from ..surface import Surface
 PAIR_CHUNK = 2_000_000
 
 
-def visible(surface: Surface, direction, which=None, *, tolerance: float | None = None) -> np.ndarray:
+def visible(surface: Surface, direction, which=None, *, tolerance: float | None = None,
+            closed: bool = False) -> np.ndarray:
     """(m,) bool: triangles whose centroid's ray along ``direction`` meets no other triangle.
 
     The triangles' winding gives their outward side (``surface.face_normals``).
@@ -34,6 +35,10 @@ def visible(surface: Surface, direction, which=None, *, tolerance: float | None 
     tolerance : float, optional
         The ray starts this far (m) off the centroid along the triangle's normal, and a triangle
         less than this ahead of that start does not block it (default 1e-6 × the part's extent).
+    closed : bool
+        The surface is a closed solid wound outward: a triangle facing away from the ray is hidden
+        (the ray runs into the material), and a ray from one facing it meets the part first where
+        it enters the material, through a triangle facing against it, so only those are tested.
 
     Returns
     -------
@@ -45,6 +50,9 @@ def visible(surface: Surface, direction, which=None, *, tolerance: float | None 
     m = len(F)
     which = np.ones(m, bool) if which is None else np.asarray(which, bool)
     out = np.zeros(m, bool)
+    if closed:
+        # a ray from a triangle facing away from it runs straight into the material
+        which = which & (surface.face_normals @ (np.asarray(direction, float)) >= 0)
     queries = np.flatnonzero(which)
     if len(queries) == 0:
         return out
@@ -62,7 +70,13 @@ def visible(surface: Surface, direction, which=None, *, tolerance: float | None 
     e2 = tri_uv[:, 2] - tri_uv[:, 0]
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]    # twice the projected signed area
     # an edge-on triangle blocks nothing its neighbours do not
-    blocking = np.flatnonzero(np.abs(det) > 1e-12 * extent ** 2)
+    blocking = np.abs(det) > 1e-12 * extent ** 2
+    if closed:
+        blocking &= surface.face_normals @ d < 0
+    blocking = np.flatnonzero(blocking)
+    if len(blocking) == 0:
+        out[queries] = True
+        return out
     # the ray starts a tolerance off the triangle, along its normal: a face edge-on to the rays
     # is then not grazed by the neighbours it meets at an edge
     start_point = V[F[queries]].mean(axis=1) + tol * surface.face_normals[queries]
