@@ -107,6 +107,12 @@ def test_setups_with_line_of_sight_see_every_face_they_are_given():
         np.testing.assert_array_equal(s.planned & ~exposure(part, s.up), False)
     assert assigned.all()
     assert len(setups) == 3
+    # each setup states the area the part hides from it among the faces within its angle, as the
+    # ray casting finds it
+    for s in setups:
+        by_angle = exposure(part, s.up, line_of_sight=False)
+        hidden = by_angle & ~_reference_visible(part, s.up, by_angle)
+        assert s.hidden == pytest.approx(area[hidden].sum(), rel=1e-12) and s.hidden > 0
 
 
 def test_a_deep_slot_is_refused_until_kept_out():

@@ -49,6 +49,10 @@ class Setup:
         Ids of the part faces with triangles assigned to this setup.
     area : float
         Area of the assigned triangles, m².
+    hidden : float
+        Area (m²) of the triangles to finish that face ``up`` within the angle but that the part
+        hides from it (line of sight): what a judgement by the normal's angle alone would have
+        counted as exposed.
     """
 
     index: int
@@ -57,6 +61,7 @@ class Setup:
     planned: np.ndarray
     faces: tuple
     area: float
+    hidden: float = 0.0
 
 
 def candidate_directions(part: Part) -> np.ndarray:
@@ -209,6 +214,12 @@ def plan_setups(part: Part, *, max_angle: float = DEFAULT_MAX_ANGLE, table_clear
             near, _ = cKDTree(centroid[assigned]).query(centroid, distance_upper_bound=overlap)
             planned |= np.isfinite(near) & exposed[d] & part.work_triangles
         faces = tuple(sorted({int(i) for i in part.face_ids[assigned]}))
-        setups.append(Setup(0, dirs[d], assigned, planned, faces, float(area[assigned].sum())))
+        hidden = 0.0
+        if line_of_sight:
+            by_angle = exposure(part, dirs[d], max_angle=max_angle, table_clearance=table_clearance,
+                                line_of_sight=False)
+            hidden = float(area[todo & by_angle & ~exposed[d]].sum())
+        setups.append(Setup(0, dirs[d], assigned, planned, faces, float(area[assigned].sum()), hidden))
     setups.sort(key=lambda st: -st.area)
-    return [Setup(i + 1, st.up, st.assigned, st.planned, st.faces, st.area) for i, st in enumerate(setups)]
+    return [Setup(i + 1, st.up, st.assigned, st.planned, st.faces, st.area, st.hidden)
+            for i, st in enumerate(setups)]
