@@ -59,3 +59,26 @@ def test_side_all_refuses_an_open_example(tmp_path):
 
     with pytest.raises(InputError, match="closed part"):
         run_job(settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "side": "all"}))
+
+
+def test_regions_on_a_step_part_polygon_and_mask(tube_step, tmp_path):
+    """A window drawn across the tube (polygon projected along +x, y-z coordinates) kept out of
+    tube_outer, and a closed mask box (mm) selecting the tube's x < 0 half."""
+    import trimesh
+
+    window = "polygon[along=+x]:-30mm,100mm 30mm,100mm 30mm,160mm -30mm,160mm"
+    surface, info = load_part_info(_settings(tube_step, faces="tube_outer", keep_out=window))
+    part = info["part"]
+    c = part.surface.vertices[part.surface.faces].mean(axis=1)
+    inside = (np.abs(c[:, 1]) < 0.03) & (c[:, 2] > 0.1) & (c[:, 2] < 0.16)
+    np.testing.assert_array_equal(part.keep_out, inside)             # every layer the prism crosses
+    outer = next(f.id for f in part.faces if f.name == "tube_outer")
+    np.testing.assert_array_equal(part.work_triangles, (part.face_ids == outer) & ~inside)
+    box = trimesh.creation.box(extents=(200.0, 400.0, 400.0))
+    box.apply_translation((-100.0, 0.0, 150.0))
+    box.export(tmp_path / "half_mm.stl")
+    _, info = load_part_info(_settings(tube_step, faces=f"mask[units=mm]:{tmp_path / 'half_mm.stl'}"))
+    part = info["part"]
+    # inside the box, or within the default 1 mm of its x = 0 face
+    np.testing.assert_array_equal(part.selected, c[:, 0] <= 1e-3)
+    assert part.surface.face_areas[part.selected].sum() == pytest.approx(0.5 * part.surface.area, rel=0.02)

@@ -118,7 +118,7 @@ def _selected_part(settings: JobSettings, say):
         part = Part.from_surface(surface, source=name)
         faces = settings.faces
     part = select(part, faces=faces, keep_out=settings.keep_out, keep_out_margin=settings.keep_out_margin,
-                  edge_margin=settings.edge_margin)
+                  edge_margin=settings.edge_margin, units=settings.units)
     metrics = {"n_part_faces": len(part.faces), "selected_faces": sorted({int(i) for i in
                                                                          part.face_ids[part.work_triangles]})}
     if part.chordal_tolerance is not None:

@@ -101,9 +101,11 @@ class JobSettings:
                                                  "(default: the patch's extent / 150, within 2..5 mm)")
     faces: str | None = setting(None, "str", stage="part", cli=Option(group="part"),
                                 help="the area to finish: face ids, names or colours (3,5 / tube_outer / #0000ff) or "
-                                     "box:xmin,ymin,zmin,xmax,ymax,zmax; terms separated by ';' (default all)")
+                                     "box:xmin,ymin,zmin,xmax,ymax,zmax, polygon:FILE.csv or polygon:x,y x,y x,y (projected "
+                                     "along +z; polygon[along=+x]:...), mask:FILE.stl (triangles within 1 mm of it "
+                                     "or inside it); terms separated by ';' (default all)")
     keep_out: str | None = setting(None, "str", stage="part", cli=Option(group="part"),
-                                   help="faces or boxes the pad must not touch, as --faces")
+                                   help="faces, boxes, polygons or masks the pad must not touch, as --faces")
     keep_out_margin: float = setting(0.002, "length", stage="part", lo=0.0, hi=1.0, bare_max=1.0, hint="mm, e.g. 2mm",
                                      cli=Option(group="part"),
                                      help="clearance beyond the pad radius from the keep-outs (default 2mm)")

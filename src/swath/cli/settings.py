@@ -197,6 +197,10 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
             if "depression_force" in values or "depression-force" in values:
                 raise InputError(f"{key} states its force after '@' and depression_force is given too; give it once")
             kwargs["depression_force"] = parse_value(f"{key} (the force after '@')", at.strip(), SCHEMA["depression_force"])
+        if name in ("faces", "keep_out") and not isinstance(value, str):
+            from ..segment.regions import selection_text_from_table
+
+            value = selection_text_from_table(value, str(key))      # a job file's region table
         spec = SCHEMA.get(name)
         if spec is None:
             close = difflib.get_close_matches(name, list(SCHEMA) + list(ALIASES), n=1)
@@ -210,6 +214,11 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
             p = kwargs.get(k)
             if p and not str(p).startswith("example:") and not Path(p).is_absolute():
                 kwargs[k] = str(base_dir / p)
+        for k in ("faces", "keep_out"):
+            if kwargs.get(k):
+                from ..segment.regions import resolve_region_paths
+
+                kwargs[k] = resolve_region_paths(kwargs[k], base_dir)
     if "units" in kwargs:
         kwargs["units"] = canonical_length_unit(kwargs["units"])
     if kwargs.get("spindle_speed") is not None:

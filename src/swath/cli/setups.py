@@ -121,7 +121,8 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
     t0 = time.perf_counter()
     say("loading part", 0, 1)
     part = select(load_closed_part(settings), faces=settings.faces, keep_out=settings.keep_out,
-                  keep_out_margin=settings.keep_out_margin, edge_margin=settings.edge_margin)
+                  keep_out_margin=settings.keep_out_margin, edge_margin=settings.edge_margin,
+                  units=settings.units)
     setups = plan_setups(part, overlap=settings.pad_radius)
     clear = clear_triangles(part, settings.pad_radius)
     say(f"{len(setups)} setups expose the part", 0, 1)
@@ -153,7 +154,8 @@ def run_setups(settings: JobSettings, *, progress=None) -> dict:
                   "planned_area_m2": float(part.surface.face_areas[setup.planned].sum()),
                   "n_passes": len(toolpath.passes), "contact_length_m": m["contact_length_m"],
                   "air_length_m": m["air_length_m"], "cycle_time_s": m["cycle_time_s"],
-                  "assigned_coverage_fraction": own["selected_coverage_fraction"]}
+                  "assigned_coverage_fraction": own["selected_coverage_fraction"],
+                  "hidden_by_part_area_m2": setup.hidden}
         for key in ("contact_length_m", "air_length_m", "cycle_time_s"):
             totals[key] += m[key]
         totals["n_passes"] += len(toolpath.passes)

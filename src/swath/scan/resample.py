@@ -9,10 +9,17 @@ distribution function
 
 over a row's arc length ``s`` (``L`` its length, ``κ`` its curvature, ``q`` how strongly the
 curvature counts) and samples at ``R⁻¹`` of equal steps: more samples where the row bends.  Here
-each row is first smoothed (a penalised cubic spline of each coordinate against the row's arc
-length, its smoothing chosen by generalised cross-validation: Jaeger's local regression), its
-curvature read off that spline, and the resampled points are the spline's values at the new
-arc lengths.
+each row is smoothed by local quadratic regression against its arc length (Jaeger's local
+regression: :func:`local_quadratic`, ``window`` measured points, tricube weights), its curvature is
+read off that regression at the measured points, and the resampled points are the regression's
+values at the new arc lengths.
+
+Measured, it does not improve a fit of a point-laser scan and is therefore not applied unless
+called (``benchmarks/bench_scan_resample.py``; the figures are in the scan guide): such a scan is
+already sampled at the density the fit uses, and the fit's knots follow the same distribution
+function, so moving samples from flat stretches into bends takes points where they helped and puts
+smoothed ones (the regression's bias at a tight bend) where they add nothing.  It is meant for rows
+measured far denser than the fit needs (a line laser), to choose where to keep the points.
 """
 
 from __future__ import annotations

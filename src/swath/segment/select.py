@@ -25,6 +25,7 @@ from ..errors import InputError
 from ..io.part import Part
 from ..surface.surface import farther_from_boundary
 from ..units import parse_quantity
+from .regions import is_region_term, region_mask
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +33,7 @@ log = logging.getLogger(__name__)
 MIN_PASS_POINTS = 3
 
 
-def parse_selection(part: Part, text: str, *, what: str = "--faces") -> np.ndarray:
+def parse_selection(part: Part, text: str, *, what: str = "--faces", units: str = "m") -> np.ndarray:
     """The triangles of ``part`` a selection text names, as an ``(m,) bool`` mask.
 
     Parameters
@@ -41,9 +42,13 @@ def parse_selection(part: Part, text: str, *, what: str = "--faces") -> np.ndarr
     text : str
         Terms separated by ``;``: a comma list of face ids (``3,5``), names (``tube_outer``) or
         colours (``#0000ff``); or ``box:xmin,ymin,zmin,xmax,ymax,zmax`` in the part frame (m, or
-        with unit suffixes such as ``10mm``), which takes the triangles whose centroid is inside.
+        with unit suffixes such as ``10mm``), which takes the triangles whose centroid is inside;
+        or a region drawn on the part, ``polygon:...`` or ``mask:...``
+        (:mod:`swath.segment.regions`).
     what : str
         The option's name, for messages.
+    units : str
+        The unit of a mask mesh's coordinates unless the term states one (the job's ``units``).
 
     Raises
     ------
@@ -54,6 +59,9 @@ def parse_selection(part: Part, text: str, *, what: str = "--faces") -> np.ndarr
     mask = np.zeros(len(part.face_ids), bool)
     for term in (t.strip() for t in str(text).split(";")):
         if not term:
+            continue
+        if is_region_term(term):
+            mask |= region_mask(part, term, what=what, units=units)
             continue
         if term.lower().startswith("box:"):
             mask |= _box_mask(part, term[4:], what)
@@ -101,7 +109,7 @@ def _box_mask(part: Part, text: str, what: str) -> np.ndarray:
 
 
 def select(part: Part, *, faces: str | None = None, keep_out: str | None = None, keep_out_margin: float = 0.0,
-           edge_margin: float = 0.0) -> Part:
+           edge_margin: float = 0.0, units: str = "m") -> Part:
     """``part`` with the area to finish (``faces``; default all) and the keep-outs set.
 
     Parameters
@@ -113,15 +121,17 @@ def select(part: Part, *, faces: str | None = None, keep_out: str | None = None,
         Clearance (m) the pad keeps from the keep-outs beyond its radius.
     edge_margin : float
         Distance (m) the pad's centre keeps in from the selected area's open edges.
+    units : str
+        The unit of mask meshes' coordinates unless a term states one (the job's ``units``).
 
     Raises
     ------
     InputError
         When nothing is left to finish once the keep-outs are taken out.
     """
-    selected = np.ones(len(part.face_ids), bool) if faces is None else parse_selection(part, faces, what="--faces")
+    selected = np.ones(len(part.face_ids), bool) if faces is None else parse_selection(part, faces, what="--faces", units=units)
     kept_out = np.zeros(len(part.face_ids), bool) if keep_out is None else \
-        parse_selection(part, keep_out, what="--keep-out")
+        parse_selection(part, keep_out, what="--keep-out", units=units)
     out = part.with_selection(selected=selected, keep_out=kept_out, keep_out_margin=keep_out_margin,
                               edge_margin=edge_margin)
     if not out.work_triangles.any():

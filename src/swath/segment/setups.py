@@ -3,8 +3,10 @@ every face, with their count kept small.
 
 In a setup the part rests on the table with a direction ``up`` (part frame) pointing away from it;
 the tool comes from above.  A triangle is *exposed* in a setup when its outward normal is within
-``max_angle`` of ``up`` and it stands at least ``table_clearance`` above the table (the lowest
-point of the part along ``up``).  :func:`plan_setups` picks setups among the 26 directions of the
+``max_angle`` of ``up``, it stands at least ``table_clearance`` above the table (the lowest
+point of the part along ``up``), and the part itself does not hide it from above: the ray from it
+along ``up`` leaves the part (:func:`swath.segment.sight.visible`), so the floor of a pocket or the
+face under an overhang is not counted as reached from a direction the part blocks.  :func:`plan_setups` picks setups among the 26 directions of the
 part's principal frame (cube faces, edges and corners) by greedy set cover of the area, assigns each
 triangle to the chosen setup facing it best (the greedy count is then improved by an exhaustive
 search over all combinations of up to four directions), and widens each setup's area by a band of exposed
@@ -21,6 +23,7 @@ import numpy as np
 
 from ..errors import InfeasibleError, InputError
 from ..io.part import Part
+from .sight import visible
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +49,10 @@ class Setup:
         Ids of the part faces with triangles assigned to this setup.
     area : float
         Area of the assigned triangles, m².
+    hidden : float
+        Area (m²) of the triangles to finish that face ``up`` within the angle but that the part
+        hides from it (line of sight): what a judgement by the normal's angle alone would have
+        counted as exposed.
     """
 
     index: int
@@ -54,6 +61,7 @@ class Setup:
     planned: np.ndarray
     faces: tuple
     area: float
+    hidden: float = 0.0
 
 
 def candidate_directions(part: Part) -> np.ndarray:
@@ -70,8 +78,10 @@ def candidate_directions(part: Part) -> np.ndarray:
 
 
 def exposure(part: Part, up: np.ndarray, *, max_angle: float = DEFAULT_MAX_ANGLE,
-             table_clearance: float = 0.0) -> np.ndarray:
-    """(m,) bool: triangles exposed to a tool coming from ``up`` (3,) with the part on the table."""
+             table_clearance: float = 0.0, line_of_sight: bool = True) -> np.ndarray:
+    """(m,) bool: triangles exposed to a tool coming from ``up`` (3,) with the part on the table:
+    facing it within ``max_angle`` (rad), ``table_clearance`` (m) above the table and, with
+    ``line_of_sight``, not hidden from ``up`` by the part itself."""
     s = part.surface
     up = np.asarray(up, float) / np.linalg.norm(up)
     facing = s.face_normals @ up >= np.cos(max_angle)
@@ -79,6 +89,8 @@ def exposure(part: Part, up: np.ndarray, *, max_angle: float = DEFAULT_MAX_ANGLE
         height = s.vertices @ up
         low = height[s.faces].min(axis=1) - height.min()
         facing &= low >= table_clearance
+    if line_of_sight and facing.any():
+        facing &= visible(s, up, facing, closed=part.closed)
     return facing
 
 
@@ -113,7 +125,8 @@ def _fewest(exposed: np.ndarray, normals: np.ndarray, area: np.ndarray, dirs: np
 
 
 def plan_setups(part: Part, *, max_angle: float = DEFAULT_MAX_ANGLE, table_clearance: float = 0.0,
-                overlap: float = 0.0, max_setups: int = 8, directions=None) -> list[Setup]:
+                overlap: float = 0.0, max_setups: int = 8, directions=None,
+                line_of_sight: bool = True) -> list[Setup]:
     """Setups that together expose the part's selected triangles, few of them.
 
     Parameters
@@ -131,6 +144,9 @@ def plan_setups(part: Part, *, max_angle: float = DEFAULT_MAX_ANGLE, table_clear
         Refuse when more setups than this would be needed.
     directions : (k, 3) float, optional
         Candidate up directions (default :func:`candidate_directions`).
+    line_of_sight : bool
+        Count a triangle exposed only where the part does not hide it from the setup's up
+        direction (:func:`exposure`); False judges by the normal's angle alone.
 
     Returns
     -------
@@ -148,13 +164,25 @@ def plan_setups(part: Part, *, max_angle: float = DEFAULT_MAX_ANGLE, table_clear
     s = part.surface
     todo = part.work_triangles.copy()
     dirs = candidate_directions(part) if directions is None else np.asarray(directions, float)
-    exposed = np.array([exposure(part, d, max_angle=max_angle, table_clearance=table_clearance) for d in dirs])
+    exposed = np.array([exposure(part, d, max_angle=max_angle, table_clearance=table_clearance,
+                                 line_of_sight=line_of_sight) for d in dirs])
     area = s.face_areas
     reachable = exposed.any(axis=0)
     lost = todo & ~reachable
     if area[lost].sum() > 1e-6 * area[todo].sum():
-        raise InfeasibleError(f"{area[lost].sum() * 1e4:.3g} cm² of the part faces no setup direction within "
-                              f"{np.degrees(max_angle):.0f}°; raise the angle or finish those faces by hand")
+        facing = np.array([exposure(part, d, max_angle=max_angle, table_clearance=table_clearance,
+                                    line_of_sight=False) for d in dirs]).any(axis=0)
+        hidden = float(area[lost & facing].sum())
+        angle = float(area[lost & ~facing].sum())
+        parts = []
+        if angle > 0:
+            parts.append(f"{angle * 1e4:.3g} cm² of the part faces no setup direction within {np.degrees(max_angle):.0f}° "
+                         "(raise the angle)")
+        if hidden > 0:
+            parts.append(f"{hidden * 1e4:.3g} cm² is hidden by the part itself from every setup direction that "
+                         "faces it (a pocket, bore or overhang)")
+        raise InfeasibleError("; ".join(parts) + "; keep those areas out (--keep-out, e.g. a polygon or mask) or "
+                              "finish them by hand")
     todo &= reachable
     chosen: list[int] = []
     left = todo.copy()
@@ -186,6 +214,12 @@ def plan_setups(part: Part, *, max_angle: float = DEFAULT_MAX_ANGLE, table_clear
             near, _ = cKDTree(centroid[assigned]).query(centroid, distance_upper_bound=overlap)
             planned |= np.isfinite(near) & exposed[d] & part.work_triangles
         faces = tuple(sorted({int(i) for i in part.face_ids[assigned]}))
-        setups.append(Setup(0, dirs[d], assigned, planned, faces, float(area[assigned].sum())))
+        hidden = 0.0
+        if line_of_sight:
+            by_angle = exposure(part, dirs[d], max_angle=max_angle, table_clearance=table_clearance,
+                                line_of_sight=False)
+            hidden = float(area[todo & by_angle & ~exposed[d]].sum())
+        setups.append(Setup(0, dirs[d], assigned, planned, faces, float(area[assigned].sum()), hidden))
     setups.sort(key=lambda st: -st.area)
-    return [Setup(i + 1, st.up, st.assigned, st.planned, st.faces, st.area) for i, st in enumerate(setups)]
+    return [Setup(i + 1, st.up, st.assigned, st.planned, st.faces, st.area, st.hidden)
+            for i, st in enumerate(setups)]
