@@ -220,3 +220,25 @@ def test_the_memo_lets_a_surface_go():
     del surface
     gc.collect()
     assert ref() is None
+
+
+def test_auto_direction_skips_only_candidates_that_cannot_be_chosen():
+    """A candidate whose cost before fill passes is over 1.02 times a completed one's is not filled;
+    filled anyway, it would still cost more than 1.02 times the cheapest, so the choice is the same."""
+    from swath.io.mesh import load_mesh
+    from swath.plan.raster import PASS_ALLOWANCE
+
+    name = "snp_part_scan.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    tp = raster(surface, TOOL)
+    rows = tp.metadata["candidates"]
+    skipped = [r for r in rows if not r["filled"]]
+    assert skipped and len(skipped) < len(rows)
+    assert all(r["predicted_gap_fraction"] is None for r in skipped)
+    filled_costs = [r["length_m"] + PASS_ALLOWANCE * r["n_passes"] for r in rows if r["filled"]]
+    cheapest = min(filled_costs)
+    chosen = min(range(len(rows)), key=lambda i: abs(rows[i]["direction_deg"] - np.degrees(tp.metadata["angle_rad"])))
+    assert rows[chosen]["filled"]
+    for r in skipped:
+        full = raster(surface, TOOL, direction=np.radians(r["direction_deg"]))
+        assert full.contact_length + PASS_ALLOWANCE * len(full.passes) > 1.02 * cheapest
