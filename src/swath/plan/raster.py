@@ -222,7 +222,7 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
     passes, n_planes, margin, dropped, dropped_length, n_slices = [], 0, 0.0, 0, 0.0, 0
     plane_spacing = []
     for k, faces in enumerate(pieces):
-        piece_v = surface.vertices[np.unique(surface.faces[faces])]
+        piece_v = surface.vertices[piece_vertices(surface, pieces, k)]
         offsets, m = plane_offsets(piece_v @ cross, spacing, edge_margin=edge_margin or 0.0)
         margin = max(margin, m)
         plane_spacing.append(float(np.mean(np.diff(offsets))) if len(offsets) > 1 else float(spacing))
@@ -347,6 +347,12 @@ def piece_edges(surface, pieces, k: int):
     """``mesh_edges`` of piece ``k`` of ``surface.face_pieces()`` (``pieces``), computed once per surface
     and shared by the candidate directions and the fill passes."""
     return surface_memo(surface, ("piece_edges", len(pieces), k), lambda: mesh_edges(surface.faces[pieces[k]]))
+
+
+def piece_vertices(surface, pieces, k: int) -> np.ndarray:
+    """Sorted indices of the vertices of piece ``k`` of ``surface.face_pieces()`` (``pieces``),
+    computed once per surface and shared by the candidate directions."""
+    return surface_memo(surface, ("piece_vertices", len(pieces), k), lambda: np.unique(surface.faces[pieces[k]]))
 
 
 def plane_offsets(heights: np.ndarray, spacing: float, *, edge_margin: float = 0.0) -> tuple[np.ndarray, float]:
