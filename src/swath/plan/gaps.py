@@ -90,6 +90,7 @@ class CoverageCheck:
         self.areas = np.zeros(0)
         self.half_chord = np.zeros(0)
         self._known = np.zeros(0, bool)
+        self._grid: PointGrid | None = None
         self._last: tuple[list, np.ndarray] | None = None
 
     def _least_reach(self, centre: np.ndarray, rho: np.ndarray) -> np.ndarray:
@@ -112,6 +113,7 @@ class CoverageCheck:
     def _sample(self, pass_points: np.ndarray) -> None:
         """Halve the surface to the step where a sample may be out of reach of ``pass_points``."""
         top = float(self.pad_half_chord.max()) * (1.0 + CHORD_TOLERANCE)      # no sample reaches more
+        grid = self._grid = PointGrid(pass_points, top)
 
         def drop(xyz, faces):
             tri = xyz[faces]
@@ -125,7 +127,7 @@ class CoverageCheck:
             # of the triangle; the margin outweighs the rounding of these distances many times over
             room = self._least_reach(centre[some], rho[some]) - rho[some] - SURE_MARGIN
             sure = room > 0
-            out[some[sure]] = within_reach(centre[some[sure]], room[sure], pass_points)
+            out[some[sure]] = grid.within(centre[some[sure]], room[sure])
             return out
 
         base = surface_memo(self.surface, ("coverage_base", self.tool, self.step),
@@ -164,7 +166,9 @@ class CoverageCheck:
             before, out = self._last[0], self._last[1].copy()
             old = {id(p) for p in before}
             added = [p for p in passes if id(p) not in old]
+            fresh = False
         else:
+            fresh = True
             added = list(passes)
             self._sample(np.vstack([p.points for p in added]) if added else np.zeros((0, 3)))
             out = self._known.copy()
@@ -172,8 +176,11 @@ class CoverageCheck:
             reach = self.half_chord * (1.0 + CHORD_TOLERANCE)
             todo = np.flatnonzero(~out)
             if len(todo):
-                pts = np.vstack([p.points for p in added])
-                out[todo] = within_reach(self.points[todo], reach[todo], pts)
+                if fresh and self._grid is not None:         # the passes' grid of the sampling
+                    grid = self._grid
+                else:
+                    grid = PointGrid(np.vstack([p.points for p in added]), float(reach[todo].max()))
+                out[todo] = grid.within(self.points[todo], reach[todo])
         # keep the passes themselves, so their ids stay theirs while the result is remembered
         self._last = (list(passes), out)
         return out.copy()
@@ -240,28 +247,52 @@ def within_reach(samples: np.ndarray, reach: np.ndarray, points: np.ndarray) -> 
     """(s,) bool: whether some of ``points`` ``(p, 3)`` lies within ``reach[i]`` (m) of ``samples[i]``
     ``(s, 3)`` (m), the distance being ``sqrt(dx² + dy² + dz²)`` as in :class:`scipy.spatial.cKDTree`.
 
-    The points are binned on a grid of cells as wide as the largest reach and each sample looks in
-    its own and the 26 neighbouring cells, stopping at the first point close enough (compiled); most
-    samples near a pass stop within a few points, where a nearest-neighbour query would keep looking
-    for the nearest one.
+    The points are binned on a grid of cells as wide as the largest reach (:class:`PointGrid`) and
+    each sample looks in its own and the 26 neighbouring cells, stopping at the first point close
+    enough (compiled); most samples near a pass stop within a few points, where a nearest-neighbour
+    query would keep looking for the nearest one.
     """
-    samples = np.ascontiguousarray(samples, float)
     reach = np.ascontiguousarray(reach, float)
-    points = np.ascontiguousarray(points, float)
     if len(samples) == 0 or len(points) == 0:
         return np.zeros(len(samples), bool)
-    cell = float(reach.max())
-    lo = points.min(axis=0)
-    dims = (np.floor((points.max(axis=0) - lo) / cell) + 1) if cell > 0 else np.full(3, np.inf)
-    if not (np.isfinite(dims).all() and float(np.prod(dims)) <= MAX_GRID_CELLS):
-        d = cKDTree(points).query(samples, distance_upper_bound=cell + 1e-9)[0]
-        return d <= reach
-    dims = dims.astype(np.int64)
-    ijk = np.floor((points - lo) / cell).astype(np.int64)
-    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    order = np.argsort(key, kind="stable")
-    start = np.searchsorted(key[order], np.arange(int(np.prod(dims)) + 1))
-    return _within_reach_kernel(samples, reach, points[order], lo, cell, dims, start)
+    return PointGrid(points, float(reach.max())).within(samples, reach)
+
+
+class PointGrid:
+    """Points ``(p, 3)`` (m) binned on a grid of cubic cells of side ``cell`` (m), to ask
+    :meth:`within` about any reach up to ``cell`` without binning them again."""
+
+    def __init__(self, points: np.ndarray, cell: float):
+        self.points = np.ascontiguousarray(points, float).reshape(-1, 3)
+        self.cell = float(cell)
+        self.tree = None
+        if len(self.points) == 0:
+            return
+        self.lo = self.points.min(axis=0)
+        dims = (np.floor((self.points.max(axis=0) - self.lo) / self.cell) + 1) if self.cell > 0 else np.full(3, np.inf)
+        if not (np.isfinite(dims).all() and float(np.prod(dims)) <= MAX_GRID_CELLS):
+            self.tree = cKDTree(self.points)
+            return
+        self.dims = dims.astype(np.int64)
+        ijk = np.floor((self.points - self.lo) / self.cell).astype(np.int64)
+        key = (ijk[:, 0] * self.dims[1] + ijk[:, 1]) * self.dims[2] + ijk[:, 2]
+        order = np.argsort(key, kind="stable")
+        self.start = np.searchsorted(key[order], np.arange(int(np.prod(self.dims)) + 1))
+        self.sorted = self.points[order]
+
+    def within(self, samples: np.ndarray, reach: np.ndarray) -> np.ndarray:
+        """(s,) bool: whether a point lies within ``reach[i]`` (m, at most the cell) of ``samples[i]``
+        ``(s, 3)`` (m); see :func:`within_reach`."""
+        samples = np.ascontiguousarray(samples, float).reshape(-1, 3)
+        reach = np.ascontiguousarray(reach, float)
+        if len(samples) == 0 or len(self.points) == 0:
+            return np.zeros(len(samples), bool)
+        if not float(reach.max()) <= self.cell:
+            raise ValueError(f"reach {float(reach.max())!r} m is over the grid's cell {self.cell!r} m")
+        if self.tree is not None:
+            d = self.tree.query(samples, distance_upper_bound=self.cell + 1e-9)[0]
+            return d <= reach
+        return _within_reach_kernel(samples, reach, self.sorted, self.lo, self.cell, self.dims, self.start)
 
 
 @jit()
