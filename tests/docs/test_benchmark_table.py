@@ -30,16 +30,34 @@ def _plan_row(text, part):
 
 
 def test_budget_verdict_takes_the_slicing_ratio_only_over_10k_faces():
-    rows = [_row("small", 5_000, 0.5, 0.001),            # 500x slicing, but a small mesh: within budget
-            _row("big_ok", 20_000, 0.5, 0.1),            # 5x
+    rows = [_row("small", 5_000, 0.5, 0.001, plan_s=0.9,   # 500x slicing, but a small mesh: within budget
+                 plan_sha256="0123456789ab"),
+            _row("big_ok", 20_000, 0.5, 0.1),            # 5x; the job's plan stage 1.5 s is over 1 s
             _row("big_slow", 20_000, 0.9, 0.1),          # 9x > 7x
             _row("over_1s", 5_000, 1.2, 1.0)]            # 1.2 s > 1 s
     text = run_all.markdown(rows, [], INFO)
-    assert _plan_row(text, "small").endswith("| 500 | yes |")
-    assert _plan_row(text, "big_ok").endswith("| 5 | yes |")
-    assert _plan_row(text, "big_slow").endswith("| 9 | no |")
-    assert _plan_row(text, "over_1s").endswith("| no |")
+    assert _plan_row(text, "small").endswith("| 500 | yes / yes | 0123456789ab |")
+    assert _plan_row(text, "big_ok").endswith("| 5 | no / yes |  |")
+    assert _plan_row(text, "big_slow").endswith("| 9 | no / no |  |")
+    assert _plan_row(text, "over_1s").endswith("| no / no |  |")
     assert "swath 9.9" in text and "2 CPUs" in text and "load average 0.50" in text
+
+
+def test_plan_hash_tells_plans_apart():
+    import numpy as np
+
+    from swath.core import Pass, ToolPath
+    from swath.examples import flat_plate
+
+    surface = flat_plate(size_x=0.1, size_y=0.1)
+    pts = np.column_stack([np.linspace(0, 0.1, 5), np.zeros(5), np.zeros(5)])
+    nrm = np.tile([0.0, 0.0, 1.0], (5, 1))
+    a = ToolPath(surface, [Pass(pts, nrm)], "raster", {})
+    moved = pts.copy()
+    moved[2, 1] = np.nextafter(0.0, 1.0)                 # one coordinate, one bit
+    assert run_all.plan_hash(a) == run_all.plan_hash(ToolPath(surface, [Pass(pts.copy(), nrm)], "raster", {}))
+    assert run_all.plan_hash(a) != run_all.plan_hash(ToolPath(surface, [Pass(moved, nrm)], "raster", {}))
+    assert len(run_all.plan_hash(a)) == 12
 
 
 def test_uniform_ratio_and_failed_rows():

@@ -37,6 +37,23 @@ def test_within_reach_is_the_kdtree_answer(rng, n_points):
     assert 0 < got.sum() < len(got)
 
 
+def test_a_point_grid_with_wider_cells_gives_the_same_answer(rng):
+    """One grid of the pass points serves every reach up to its cell (the coverage check asks it
+    about triangles and samples alike); a reach over the cell is refused."""
+    from swath.plan.gaps import PointGrid
+
+    points = rng.random((3000, 3)) * [0.4, 0.2, 0.05]
+    samples = rng.random((20_000, 3)) * [0.5, 0.3, 0.05] - [0.05, 0.05, 0.0]
+    grid = PointGrid(points, 0.04)
+    for hi in (0.004, 0.02, 0.04):
+        reach = rng.uniform(0.2 * hi, hi, len(samples))
+        got = grid.within(samples, reach)
+        np.testing.assert_array_equal(got, _kdtree_within_reach(samples, reach, points))
+        assert 0 < got.sum() < len(got)
+    with pytest.raises(ValueError, match="over the grid's cell"):
+        grid.within(samples[:3], np.full(3, 0.05))
+
+
 def test_within_reach_on_a_sample_exactly_at_reach_and_with_nothing_near():
     points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
     samples = np.array([[0.0, 0.003, 0.004], [0.5, 0.0, 0.0], [5.0, 5.0, 5.0]])

@@ -68,22 +68,61 @@ def test_pad_samples_and_subdivisions_are_computed_once_per_surface():
     assert fine.edge_lengths.max() <= 4e-3 + 1e-12
 
 
+def _uncovered(check, passes):
+    """The uncovered samples of ``passes`` as sorted rows (position and area): the samples follow the
+    passes, so their numbering may change from call to call but the uncovered ones may not."""
+    free = ~check.covered(passes)
+    rows = np.column_stack([check.points[free], check.areas[free]])
+    return rows[np.lexsort(rows.T[::-1])]
+
+
 def test_incremental_coverage_equals_testing_all_passes():
     surface = doubly_curved_panel(spacing=8e-3)
     tp = raster(surface, TOOL, spacing=0.09, direction=0.0, fill_gaps=False)
     feed = np.asarray(tp.metadata["feed_direction"])
     passes = list(tp.passes)
     incremental = CoverageCheck(surface, TOOL, feed)
-    first = incremental.covered(passes[:3])
-    grown = incremental.covered(passes[:3] + passes[3:])          # extends the previous set
-    shuffled = incremental.covered(passes[::-1])                  # the same set re-ordered
-    fresh = CoverageCheck(surface, TOOL, feed)
-    np.testing.assert_array_equal(first, fresh.covered(passes[:3]))
-    np.testing.assert_array_equal(grown, CoverageCheck(surface, TOOL, feed).covered(passes))
+    first = _uncovered(incremental, passes[:3])
+    grown = _uncovered(incremental, passes[:3] + passes[3:])        # extends the previous set
+    shuffled = _uncovered(incremental, passes[::-1])                # the same set re-ordered
+    np.testing.assert_array_equal(first, _uncovered(CoverageCheck(surface, TOOL, feed), passes[:3]))
+    np.testing.assert_array_equal(grown, _uncovered(CoverageCheck(surface, TOOL, feed), passes))
     np.testing.assert_array_equal(shuffled, grown)
-    assert 0 < first.sum() < grown.sum() < len(grown)            # the test sees partial coverage
+    assert len(first) > len(grown) > 0                               # the test sees partial coverage
     # a set that does not extend the remembered one is tested from scratch
-    np.testing.assert_array_equal(incremental.covered(passes[3:]), fresh.covered(passes[3:]))
+    np.testing.assert_array_equal(_uncovered(incremental, passes[3:]),
+                                  _uncovered(CoverageCheck(surface, TOOL, feed), passes[3:]))
+
+
+def test_coverage_check_sets_aside_only_what_is_surely_covered():
+    """Setting triangles aside before halving them leaves the uncovered samples, their areas and the
+    gap share of testing every sample of the whole halved surface, on a part with long triangles."""
+    from swath.plan.gaps import CHORD_TOLERANCE, within_reach
+    from swath.surface import Surface
+    from swath.surface.geometry import face_normals_and_areas, vertex_areas
+    from swath.surface.subdivide import halve_long_edges
+
+    coarse = doubly_curved_panel(spacing=0.05)                      # edges ~50 mm: halved to R/8 in rounds
+    surface = Surface(coarse.vertices, coarse.faces)
+    tp = raster(surface, TOOL, spacing=0.09, direction=0.0, fill_gaps=False)
+    passes = list(tp.passes)
+    check = CoverageCheck(surface, TOOL, np.asarray(tp.metadata["feed_direction"]))
+    covered = check.covered(passes)
+    assert check._known.any() and covered[check._known].all()      # corners of triangles set aside
+    # every sample of the whole halved surface, tested one by one
+    V, F = halve_long_edges(surface.vertices, surface.faces, TOOL.pad_radius / 8)
+    areas = vertex_areas(len(V), F, face_normals_and_areas(V, F)[1])
+    from scipy.spatial import cKDTree
+
+    pad = cKDTree(check._pad_tree.data)
+    reach = check.pad_half_chord[pad.query(V)[1]] * (1 + CHORD_TOLERANCE)
+    free = ~within_reach(V, reach, np.vstack([p.points for p in passes]))
+    whole = np.column_stack([V[free], areas[free]])
+    whole = whole[np.lexsort(whole.T[::-1])]
+    np.testing.assert_array_equal(_uncovered(check, passes), whole)
+    assert 0 < free.sum() < 0.5 * len(V)
+    assert len(check.points) < 0.5 * len(V)                        # most of the halving was not done
+    assert check.gap_fraction(passes) == pytest.approx(areas[free].sum() / areas.sum(), rel=1e-12)
 
 
 def test_uniform_candidates_in_worker_processes_give_the_serial_plan():
@@ -181,3 +220,25 @@ def test_the_memo_lets_a_surface_go():
     del surface
     gc.collect()
     assert ref() is None
+
+
+def test_auto_direction_skips_only_candidates_that_cannot_be_chosen():
+    """A candidate whose cost before fill passes is over 1.02 times a completed one's is not filled;
+    filled anyway, it would still cost more than 1.02 times the cheapest, so the choice is the same."""
+    from swath.io.mesh import load_mesh
+    from swath.plan.raster import PASS_ALLOWANCE
+
+    name = "snp_part_scan.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    tp = raster(surface, TOOL)
+    rows = tp.metadata["candidates"]
+    skipped = [r for r in rows if not r["filled"]]
+    assert skipped and len(skipped) < len(rows)
+    assert all(r["predicted_gap_fraction"] is None for r in skipped)
+    filled_costs = [r["length_m"] + PASS_ALLOWANCE * r["n_passes"] for r in rows if r["filled"]]
+    cheapest = min(filled_costs)
+    chosen = min(range(len(rows)), key=lambda i: abs(rows[i]["direction_deg"] - np.degrees(tp.metadata["angle_rad"])))
+    assert rows[chosen]["filled"]
+    for r in skipped:
+        full = raster(surface, TOOL, direction=np.radians(r["direction_deg"]))
+        assert full.contact_length + PASS_ALLOWANCE * len(full.passes) > 1.02 * cheapest

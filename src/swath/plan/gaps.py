@@ -11,14 +11,17 @@ along the plan's feed direction, clipped to the patch's extent plus half a pad.
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ..contact.widths import pad_scale_samples, patch_widths, subdivided, surface_memo
+from ..contact.widths import pad_scale_samples, patch_widths, surface_memo
 from ..surface.cells import jit
+from ..surface.geometry import face_normals_and_areas, vertex_areas
+from ..surface.subdivide import halve_long_edges_except
 
 log = logging.getLogger("swath.plan")
 
@@ -27,10 +30,21 @@ log = logging.getLogger("swath.plan")
 CHORD_TOLERANCE = 5e-3
 #: Uncovered patches smaller than this share of the surface are not worth a pass.
 MIN_GAP_SHARE = 2e-4
+#: Slack (m) on the test that a whole triangle is within reach of a pass point.
+SURE_MARGIN = 1e-9
 
 
 class CoverageCheck:
     """Fine samples of a surface with the contact chord across a given feed direction.
+
+    The samples are the vertices of the surface halved to ``step``
+    (:func:`swath.surface.subdivide.halve_long_edges`).  Only where a gap can be: before each
+    halving round, a triangle whose every point is surely within reach of a pass point (its
+    bounding ball, around its centroid, lies within the smallest reach of any sample of a pass
+    point) is set aside unsplit, and its corners are counted as covered.  The samples left and
+    their areas are those of the whole halved surface wherever a sample may be uncovered (same
+    positions and areas, bit for bit), so the uncovered samples, their patches and the fill
+    passes are those of checking every sample; only the numbering of the samples differs.
 
     Parameters
     ----------
@@ -40,53 +54,141 @@ class CoverageCheck:
         The plan's feed direction (passes run along it); the chord is measured across it.
     step : float, optional
         Sample spacing, m (default R/8).
+    chord_share : float
+        Share of the contact chord counted as reached (default 1).
+
+    Attributes
+    ----------
+    points : (s, 3) float
+        The samples of the last :meth:`covered` call, m.
+    areas : (s,) float
+        The area each sample stands for, m² (a third of each incident halved triangle; samples
+        set aside as covered may carry only part of theirs).
+    half_chord : (s,) float
+        Half the contact chord at each sample, m.
+    total : float
+        Area of the surface, m².
     """
 
-    def __init__(self, surface, tool, feed, *, step: float | None = None):
+    def __init__(self, surface, tool, feed, *, step: float | None = None, chord_share: float = 1.0):
         R = tool.pad_radius
         step = R / 8.0 if step is None else float(step)
-        # Everything but the chord is independent of the feed: computed once per surface, tool and
-        # step and shared by every candidate direction.
-        self.points, self.areas, pad, nearest = surface_memo(
-            surface, ("coverage_check", tool, step), lambda: _fine_samples(surface, tool, step))
-        self.total = float(self.areas.sum())
+        pad = pad_scale_samples(surface, tool)
         along = np.cross(np.cross(pad.normals, np.asarray(feed, float)), pad.normals)   # feed in each tangent plane
         along /= np.maximum(np.linalg.norm(along, axis=1, keepdims=True), 1e-12)
         chord = patch_widths(pad.curvature, pad.normals, along, tool)
-        self.half_chord = 0.5 * np.minimum(chord[nearest], 2 * R)
+        half = 0.5 * np.minimum(chord, 2 * R)
+        self.pad_half_chord = half if chord_share == 1.0 else chord_share * half
+        self._pad_tree = surface_memo(surface, ("pad_tree", tool), lambda: cKDTree(pad.points))
+        self._neighbours = lambda: surface_memo(surface, ("pad_neighbours", tool),
+                                                lambda: pad_neighbours(self._pad_tree, R * 2.0 ** np.arange(-1, 3)))
+        self.surface = surface
+        self.tool = tool
+        self.total = float(surface.area)
         self.step = step
+        self.points = np.zeros((0, 3))
+        self.areas = np.zeros(0)
+        self.half_chord = np.zeros(0)
+        self._known = np.zeros(0, bool)
+        self._grid: PointGrid | None = None
         self._last: tuple[list, np.ndarray] | None = None
 
-    def covered(self, passes) -> np.ndarray:
-        """(s,) bool: samples within half a chord of a pass point.
+    def _least_reach(self, centre: np.ndarray, rho: np.ndarray) -> np.ndarray:
+        """(k,) m: a reach no sample in the ball of radius ``rho`` (k,) around ``centre`` (k, 3) falls below.
 
-        A sample is covered by a set of passes when it is covered by some of them, so when
-        ``passes`` extends the set of the previous call (fill rounds add passes; the final check
-        re-sorts them) only the samples still uncovered are tested, and only against the added
-        passes: the same answer as testing all, for a fraction of the cost.
+        A sample's reach is set by its nearest pad-scale sample, which lies within ``2 (rho + d)`` of
+        the pad-scale sample nearest to the centre (``d`` away): the least half chord of the
+        pad-scale samples that near (:func:`pad_neighbours`) bounds the reach from below.
         """
-        if not passes:
-            return np.zeros(len(self.points), bool)
-        reach = self.half_chord * (1.0 + CHORD_TOLERANCE)
+        d, near = self._pad_tree.query(centre)
+        need = 2.0 * (rho + d) * (1.0 + 1e-9) + SURE_MARGIN
+        out = np.full(len(centre), float(self.pad_half_chord.min()))
+        for radius, indptr, indices in reversed(self._neighbours()):      # the largest radius first
+            ok = need <= radius
+            if ok.any():
+                least = np.minimum.reduceat(self.pad_half_chord[indices], indptr[:-1])
+                out[ok] = least[near[ok]]
+        return out * (1.0 + CHORD_TOLERANCE)
+
+    def _sample(self, pass_points: np.ndarray) -> None:
+        """Halve the surface to the step where a sample may be out of reach of ``pass_points``."""
+        top = float(self.pad_half_chord.max()) * (1.0 + CHORD_TOLERANCE)      # no sample reaches more
+        grid = self._grid = PointGrid(pass_points, top)
+
+        def drop(xyz, faces):
+            tri = xyz[faces]
+            centre = tri.mean(axis=1)
+            rho = np.sqrt(((tri - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1)
+            out = np.zeros(len(faces), bool)
+            some = np.flatnonzero(rho + SURE_MARGIN < top)
+            if len(some) == 0 or len(pass_points) == 0:
+                return out
+            # a pass point within (least reach - rho) of the centre is within reach of every point
+            # of the triangle; the margin outweighs the rounding of these distances many times over
+            room = self._least_reach(centre[some], rho[some]) - rho[some] - SURE_MARGIN
+            sure = room > 0
+            out[some[sure]] = grid.within(centre[some[sure]], room[sure])
+            return out
+
+        base = surface_memo(self.surface, ("coverage_base", self.tool, self.step),
+                            lambda: _coverage_base(self.surface, self._pad_tree, self.step))
+        n0 = len(self.surface.vertices)
+        if len(base.split):
+            v, f, gone = halve_long_edges_except(self.surface.vertices, base.split, self.step, drop)
+        else:
+            v, f, gone = self.surface.vertices, base.split, base.split
+        # the areas of the triangles never split, then the others', summed one by one in the
+        # order of the whole halved surface (unsplit triangles first)
+        areas = np.zeros(len(v))
+        areas[:n0] = base.areas
+        if len(f):
+            np.add.at(areas, f.ravel(), np.repeat(face_normals_and_areas(v, f)[1] / 3.0, 3))
+        self.points, self.areas = v, areas
+        self._known = np.zeros(len(v), bool)
+        self._known[gone.ravel()] = True
+        self.half_chord = np.zeros(len(v))
+        nearest = np.concatenate([base.nearest, self._pad_tree.query(v[n0:])[1]]) if len(v) > n0 else base.nearest
+        todo = np.flatnonzero(~self._known)
+        self.half_chord[todo] = self.pad_half_chord[nearest[todo]]
+
+    def covered(self, passes) -> np.ndarray:
+        """(s,) bool: samples within half a chord of a pass point (``s`` = ``len(self.points)``).
+
+        The samples follow the passes (see the class): a call whose ``passes`` do not extend
+        those of the previous call samples the surface anew.  A sample is covered by a set of
+        passes when it is covered by some of them, so when ``passes`` extends the set of the
+        previous call (fill rounds add passes; the final check re-sorts them) the samples are
+        kept, and only those still uncovered are tested, and only against the added passes: the
+        same answer as testing all, for a fraction of the cost.
+        """
         ids = {id(p) for p in passes}
         if self._last is not None and {id(p) for p in self._last[0]} <= ids:
             before, out = self._last[0], self._last[1].copy()
             old = {id(p) for p in before}
             added = [p for p in passes if id(p) not in old]
+            fresh = False
         else:
-            out, added = np.zeros(len(self.points), bool), list(passes)
+            fresh = True
+            added = list(passes)
+            self._sample(np.vstack([p.points for p in added]) if added else np.zeros((0, 3)))
+            out = self._known.copy()
         if added:
+            reach = self.half_chord * (1.0 + CHORD_TOLERANCE)
             todo = np.flatnonzero(~out)
             if len(todo):
-                pts = np.vstack([p.points for p in added])
-                out[todo] = within_reach(self.points[todo], reach[todo], pts)
+                if fresh and self._grid is not None:         # the passes' grid of the sampling
+                    grid = self._grid
+                else:
+                    grid = PointGrid(np.vstack([p.points for p in added]), float(reach[todo].max()))
+                out[todo] = grid.within(self.points[todo], reach[todo])
         # keep the passes themselves, so their ids stay theirs while the result is remembered
         self._last = (list(passes), out)
         return out.copy()
 
     def gap_fraction(self, passes) -> float:
         """Area share of the surface no pass reaches, 0..1."""
-        return float(self.areas[~self.covered(passes)].sum() / self.total)
+        free = ~self.covered(passes)              # first: the call may sample the surface anew
+        return float(self.areas[free].sum() / self.total)
 
     def gap_patches(self, passes, *, min_share: float = MIN_GAP_SHARE) -> list[np.ndarray]:
         """Sample indices of each connected uncovered patch larger than ``min_share`` of the surface."""
@@ -106,6 +208,37 @@ class CoverageCheck:
         return out
 
 
+@dataclass(frozen=True)
+class _CoverageBase:
+    """What the samples of :class:`CoverageCheck` share whatever the passes: the triangles with an
+    edge to halve ``split`` (k, 3), the area the others give the surface's vertices ``areas`` (n,)
+    (m², a third of each, summed in face order) and each vertex's nearest pad-scale sample ``nearest`` (n,)."""
+
+    split: np.ndarray
+    areas: np.ndarray
+    nearest: np.ndarray
+
+
+def _coverage_base(surface, pad_tree, step) -> _CoverageBase:
+    V, F = surface.vertices, surface.faces
+    d = V[F] - V[F[:, [1, 2, 0]]]
+    long_face = ((((d * d).sum(axis=2)) ** 0.5) > step).any(axis=1)     # as halve_long_edges measures them
+    kept = F[~long_face]
+    areas = vertex_areas(len(V), kept, face_normals_and_areas(V, kept)[1])
+    return _CoverageBase(F[long_face].astype(np.int64), areas, pad_tree.query(V)[1])
+
+
+def pad_neighbours(tree, radii) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """For each radius (m), the points of ``tree`` within it of each point (itself included), as
+    ``(radius, indptr (n + 1,), indices)`` (compressed rows, radii increasing)."""
+    out = []
+    for radius in sorted(float(r) for r in radii):
+        lists = tree.query_ball_point(tree.data, radius)
+        indptr = np.concatenate([[0], np.cumsum([len(x) for x in lists])]).astype(np.int64)
+        out.append((radius, indptr, np.concatenate(lists).astype(np.int64)))
+    return out
+
+
 #: Grids of the pass points with more cells than this fall back to a KD-tree query.
 MAX_GRID_CELLS = 20_000_000
 
@@ -114,28 +247,52 @@ def within_reach(samples: np.ndarray, reach: np.ndarray, points: np.ndarray) -> 
     """(s,) bool: whether some of ``points`` ``(p, 3)`` lies within ``reach[i]`` (m) of ``samples[i]``
     ``(s, 3)`` (m), the distance being ``sqrt(dx² + dy² + dz²)`` as in :class:`scipy.spatial.cKDTree`.
 
-    The points are binned on a grid of cells as wide as the largest reach and each sample looks in
-    its own and the 26 neighbouring cells, stopping at the first point close enough (compiled); most
-    samples near a pass stop within a few points, where a nearest-neighbour query would keep looking
-    for the nearest one.
+    The points are binned on a grid of cells as wide as the largest reach (:class:`PointGrid`) and
+    each sample looks in its own and the 26 neighbouring cells, stopping at the first point close
+    enough (compiled); most samples near a pass stop within a few points, where a nearest-neighbour
+    query would keep looking for the nearest one.
     """
-    samples = np.ascontiguousarray(samples, float)
     reach = np.ascontiguousarray(reach, float)
-    points = np.ascontiguousarray(points, float)
     if len(samples) == 0 or len(points) == 0:
         return np.zeros(len(samples), bool)
-    cell = float(reach.max())
-    lo = points.min(axis=0)
-    dims = (np.floor((points.max(axis=0) - lo) / cell) + 1) if cell > 0 else np.full(3, np.inf)
-    if not (np.isfinite(dims).all() and float(np.prod(dims)) <= MAX_GRID_CELLS):
-        d = cKDTree(points).query(samples, distance_upper_bound=cell + 1e-9)[0]
-        return d <= reach
-    dims = dims.astype(np.int64)
-    ijk = np.floor((points - lo) / cell).astype(np.int64)
-    key = (ijk[:, 0] * dims[1] + ijk[:, 1]) * dims[2] + ijk[:, 2]
-    order = np.argsort(key, kind="stable")
-    start = np.searchsorted(key[order], np.arange(int(np.prod(dims)) + 1))
-    return _within_reach_kernel(samples, reach, points[order], lo, cell, dims, start)
+    return PointGrid(points, float(reach.max())).within(samples, reach)
+
+
+class PointGrid:
+    """Points ``(p, 3)`` (m) binned on a grid of cubic cells of side ``cell`` (m), to ask
+    :meth:`within` about any reach up to ``cell`` without binning them again."""
+
+    def __init__(self, points: np.ndarray, cell: float):
+        self.points = np.ascontiguousarray(points, float).reshape(-1, 3)
+        self.cell = float(cell)
+        self.tree = None
+        if len(self.points) == 0:
+            return
+        self.lo = self.points.min(axis=0)
+        dims = (np.floor((self.points.max(axis=0) - self.lo) / self.cell) + 1) if self.cell > 0 else np.full(3, np.inf)
+        if not (np.isfinite(dims).all() and float(np.prod(dims)) <= MAX_GRID_CELLS):
+            self.tree = cKDTree(self.points)
+            return
+        self.dims = dims.astype(np.int64)
+        ijk = np.floor((self.points - self.lo) / self.cell).astype(np.int64)
+        key = (ijk[:, 0] * self.dims[1] + ijk[:, 1]) * self.dims[2] + ijk[:, 2]
+        order = np.argsort(key, kind="stable")
+        self.start = np.searchsorted(key[order], np.arange(int(np.prod(self.dims)) + 1))
+        self.sorted = self.points[order]
+
+    def within(self, samples: np.ndarray, reach: np.ndarray) -> np.ndarray:
+        """(s,) bool: whether a point lies within ``reach[i]`` (m, at most the cell) of ``samples[i]``
+        ``(s, 3)`` (m); see :func:`within_reach`."""
+        samples = np.ascontiguousarray(samples, float).reshape(-1, 3)
+        reach = np.ascontiguousarray(reach, float)
+        if len(samples) == 0 or len(self.points) == 0:
+            return np.zeros(len(samples), bool)
+        if not float(reach.max()) <= self.cell:
+            raise ValueError(f"reach {float(reach.max())!r} m is over the grid's cell {self.cell!r} m")
+        if self.tree is not None:
+            d = self.tree.query(samples, distance_upper_bound=self.cell + 1e-9)[0]
+            return d <= reach
+        return _within_reach_kernel(samples, reach, self.sorted, self.lo, self.cell, self.dims, self.start)
 
 
 @jit()
@@ -167,15 +324,6 @@ def _within_reach_kernel(samples, reach, points, lo, cell, dims, start):   # pra
                 break
         out[s] = found
     return out
-
-
-def _fine_samples(surface, tool, step):
-    """The fine samples of :class:`CoverageCheck`: points ``(s, 3)``, areas ``(s,)`` (m²), the
-    pad-scale samples and the nearest pad-scale sample of each fine sample ``(s,)``."""
-    fine = subdivided(surface, step, method="halving")
-    pad = pad_scale_samples(surface, tool)
-    nearest = cKDTree(pad.points).query(fine.vertices)[1]
-    return fine.vertices, fine.vertex_areas, pad, nearest
 
 
 def fill_passes(check: CoverageCheck, patches, slicer, feed, cross, pad_radius: float) -> list:

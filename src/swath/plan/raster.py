@@ -164,16 +164,31 @@ def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, f
     """Plan along each of :data:`AUTO_ANGLES` and keep the cheapest: contact length plus
     :data:`PASS_ALLOWANCE` per pass, fill passes included (near-ties within 2 % go to the earlier
     angle, the principal axis first)."""
-    rows = []
+    planned = []
     for a in AUTO_ANGLES:
         feed, cross = feed_and_cross(surface, angle=a)
-        tp = _plan_along(surface, tool, feed, cross, angle=a, direction_rule="candidate", spacing=spacing,
-                         point_spacing=point_spacing, min_pass_length=min_pass_length, fill_gaps=fill_gaps,
-                         edge_margin=edge_margin, t_start=t_start)
-        rows.append((a, tp.contact_length + PASS_ALLOWANCE * len(tp.passes), tp))
+        passes, finish = _plan_along(surface, tool, feed, cross, angle=a, direction_rule="candidate",
+                                     spacing=spacing, point_spacing=point_spacing, min_pass_length=min_pass_length,
+                                     fill_gaps=fill_gaps, edge_margin=edge_margin, t_start=t_start, defer_fill=True)
+        planned.append((a, sum(p.length for p in passes) + PASS_ALLOWANCE * len(passes), finish))
+    # Fill passes only add to a candidate's cost: the candidates are completed cheapest first, and
+    # one that costs more than 1.02 times a completed one before its fill passes cannot be chosen,
+    # nor be the cheapest, so its gap check is not made (it is listed with its cost before filling).
+    rows: list = [None] * len(planned)
+    unfilled = set()
+    for i in sorted(range(len(planned)), key=lambda i: planned[i][1]):
+        a, before, finish = planned[i]
+        done = [r[1] for r in rows if r is not None and r[0] not in unfilled]
+        if fill_gaps and done and before > 1.02 * min(done) * (1 + 1e-9):
+            tp = finish(False)
+            unfilled.add(a)
+        else:
+            tp = finish(fill_gaps)
+        rows[i] = (a, tp.contact_length + PASS_ALLOWANCE * len(tp.passes), tp)
     cheapest = min(r[1] for r in rows)
     best = next(r for r in rows if r[1] <= 1.02 * cheapest)
     summary = ", ".join(f"{math.degrees(a):.0f} deg: {len(tp.passes)} passes, {tp.contact_length:.2f} m"
+                        + (" before fill passes (cannot be chosen)" if a in unfilled else "")
                         for a, _, tp in rows)
     rule = (f"auto: least contact length + {PASS_ALLOWANCE:g} m per pass (fill passes included) among "
             f"({summary})")
@@ -182,14 +197,17 @@ def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, f
         log.warning("%s", msg)
     meta = dict(best[2].metadata, direction_rule=rule,
                 candidates=[dict(direction_deg=math.degrees(a), length_m=tp.contact_length, n_passes=len(tp.passes),
-                                 predicted_gap_fraction=tp.metadata.get("predicted_gap_fraction"))
+                                 predicted_gap_fraction=(None if a in unfilled else
+                                                         tp.metadata.get("predicted_gap_fraction")),
+                                 filled=bool(fill_gaps) and a not in unfilled)
                             for a, _, tp in rows])
     return best[2].replace(metadata=meta)
 
 
 def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, point_spacing, min_pass_length,
-                fill_gaps, t_start, edge_margin=None):
-    """The raster plan with this feed and cutting-plane normal (see :func:`raster`)."""
+                fill_gaps, t_start, edge_margin=None, defer_fill=False):
+    """The raster plan with this feed and cutting-plane normal (see :func:`raster`); with
+    ``defer_fill``, the planes' passes and ``finish(fill_gaps) -> ToolPath``, which completes it."""
     choice = None
     if spacing is None:
         if choice is None:
@@ -204,7 +222,7 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
     passes, n_planes, margin, dropped, dropped_length, n_slices = [], 0, 0.0, 0, 0.0, 0
     plane_spacing = []
     for k, faces in enumerate(pieces):
-        piece_v = surface.vertices[np.unique(surface.faces[faces])]
+        piece_v = surface.vertices[piece_vertices(surface, pieces, k)]
         offsets, m = plane_offsets(piece_v @ cross, spacing, edge_margin=edge_margin or 0.0)
         margin = max(margin, m)
         plane_spacing.append(float(np.mean(np.diff(offsets))) if len(offsets) > 1 else float(spacing))
@@ -225,47 +243,52 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
             f"min_pass_length={min_pass_length * 1e3:.1f} mm (the part spans {along * 1e3:.1f} mm along the feed); "
             "lower min_pass_length or choose a feed direction along the part")
 
-    n_fill, gap = 0, None
-    if fill_gaps:
-        passes, n_fill, gap = _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacing)
-    elif fill_gaps is None:
-        from .gaps import CoverageCheck
+    def finish(fill_gaps):
+        """The plan, fill passes added when ``fill_gaps`` (as in :func:`raster`)."""
+        passes, n_fill, gap = planned, 0, None
+        if fill_gaps:
+            passes, n_fill, gap = _fill_gaps(surface, tool, planned, pieces, feed, cross, spacing, point_spacing)
+        elif fill_gaps is None:
+            from .gaps import CoverageCheck
 
-        gap = CoverageCheck(surface, tool, feed).gap_fraction(passes)
-    metadata = dict(
-        spacing_m=float(spacing), angle_rad=float(angle or 0.0), direction_rule=direction_rule,
-        feed_direction=feed.tolist(),
-        cross_direction=cross.tolist(), n_planes=int(n_planes), n_pieces=len(pieces), n_passes=len(passes),
-        n_fill_passes=n_fill, dropped_fragments=dropped, dropped_length_m=dropped_length,
-        point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length), margin_m=float(margin),
-        spacing_rule=rule, edge_rule=("spacing kept, margin what is left" if edge_margin is None else
-                                      "planes spread evenly" if math.isinf(edge_margin) else
-                                      f"outer planes at least {1e3 * edge_margin:.4g} mm in"),
-        plane_spacing_m=plane_spacing,
-    )
-    if gap is not None:
-        metadata["predicted_gap_fraction"] = gap
-        if gap > GAP_WARN_SHARE:
-            name = surface.name or "the surface"
-            if fill_gaps:
-                msg = (f"raster: {100 * gap:.1f} % of {name} is predicted to stay untouched even after the fill "
-                       "passes; lower the spacing, choose another direction or segment the part")
-            else:
-                msg = (f"raster: the given spacing {1e3 * spacing:.4g} mm leaves {100 * gap:.1f} % of {name} "
-                       f"untouched ({_count(len(passes), 'pass', 'passes')} on {_count(n_planes, 'plane', 'planes')}; "
-                       f"the pad's contact reaches about {1e3 * _median_chord(surface, tool, cross):.0f} mm across "
-                       "a pass); lower the spacing, "
-                       "leave it out for the full-coverage default, or add fill passes (fill_gaps = true under "
-                       "[planner_options] in a job file, fill_gaps=True in Python)")
-            if direction_rule != "candidate":
-                log.warning("%s", msg)
-            metadata["warnings"] = [msg]
-    elif choice is not None:
-        metadata["predicted_gap_fraction"] = choice.gap_fraction
-    log.info("raster %s: spacing %.1f mm, %d planes, %d passes (%d fill), %d fragments dropped, %d points, %.2f s",
-             surface.name, spacing * 1e3, n_planes, len(passes), n_fill, dropped, sum(len(p.points) for p in passes),
-             time.perf_counter() - t_start)
-    return ToolPath(surface, passes, "raster", metadata)
+            gap = CoverageCheck(surface, tool, feed).gap_fraction(passes)
+        metadata = dict(
+            spacing_m=float(spacing), angle_rad=float(angle or 0.0), direction_rule=direction_rule,
+            feed_direction=feed.tolist(),
+            cross_direction=cross.tolist(), n_planes=int(n_planes), n_pieces=len(pieces), n_passes=len(passes),
+            n_fill_passes=n_fill, dropped_fragments=dropped, dropped_length_m=dropped_length,
+            point_spacing_m=float(point_spacing), min_pass_length_m=float(min_pass_length), margin_m=float(margin),
+            spacing_rule=rule, edge_rule=("spacing kept, margin what is left" if edge_margin is None else
+                                          "planes spread evenly" if math.isinf(edge_margin) else
+                                          f"outer planes at least {1e3 * edge_margin:.4g} mm in"),
+            plane_spacing_m=plane_spacing,
+        )
+        if gap is not None:
+            metadata["predicted_gap_fraction"] = gap
+            if gap > GAP_WARN_SHARE:
+                name = surface.name or "the surface"
+                if fill_gaps:
+                    msg = (f"raster: {100 * gap:.1f} % of {name} is predicted to stay untouched even after the fill "
+                           "passes; lower the spacing, choose another direction or segment the part")
+                else:
+                    msg = (f"raster: the given spacing {1e3 * spacing:.4g} mm leaves {100 * gap:.1f} % of {name} "
+                           f"untouched ({_count(len(passes), 'pass', 'passes')} on {_count(n_planes, 'plane', 'planes')}; "
+                           f"the pad's contact reaches about {1e3 * _median_chord(surface, tool, cross):.0f} mm across "
+                           "a pass); lower the spacing, "
+                           "leave it out for the full-coverage default, or add fill passes (fill_gaps = true under "
+                           "[planner_options] in a job file, fill_gaps=True in Python)")
+                if direction_rule != "candidate":
+                    log.warning("%s", msg)
+                metadata["warnings"] = [msg]
+        elif choice is not None:
+            metadata["predicted_gap_fraction"] = choice.gap_fraction
+        log.info("raster %s: spacing %.1f mm, %d planes, %d passes (%d fill), %d fragments dropped, %d points, %.2f s",
+                 surface.name, spacing * 1e3, n_planes, len(passes), n_fill, dropped, sum(len(p.points) for p in passes),
+                 time.perf_counter() - t_start)
+        return ToolPath(surface, passes, "raster", metadata)
+
+    planned = passes
+    return (planned, finish) if defer_fill else finish(fill_gaps)
 
 
 def _count(n: int, one: str, many: str) -> str:
@@ -324,6 +347,12 @@ def piece_edges(surface, pieces, k: int):
     """``mesh_edges`` of piece ``k`` of ``surface.face_pieces()`` (``pieces``), computed once per surface
     and shared by the candidate directions and the fill passes."""
     return surface_memo(surface, ("piece_edges", len(pieces), k), lambda: mesh_edges(surface.faces[pieces[k]]))
+
+
+def piece_vertices(surface, pieces, k: int) -> np.ndarray:
+    """Sorted indices of the vertices of piece ``k`` of ``surface.face_pieces()`` (``pieces``),
+    computed once per surface and shared by the candidate directions."""
+    return surface_memo(surface, ("piece_vertices", len(pieces), k), lambda: np.unique(surface.faces[pieces[k]]))
 
 
 def plane_offsets(heights: np.ndarray, spacing: float, *, edge_margin: float = 0.0) -> tuple[np.ndarray, float]:

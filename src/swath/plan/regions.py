@@ -148,8 +148,7 @@ def fill_whole_surface(surface, tool, passes, regions, feed, cross, *, point_spa
         raise InputError(f"fill_chord_share must be in (0, 1], got {chord_share!r}")
     feed = np.asarray(feed, float)
     cross = np.asarray(cross, float)
-    check = CoverageCheck(surface, tool, feed)
-    check.half_chord = chord_share * check.half_chord
+    check = CoverageCheck(surface, tool, feed, chord_share=chord_share)
     all_faces = np.arange(len(surface.faces))
     owner_points = np.vstack([r.surface.vertices for r in regions])
     owner = np.concatenate([np.full(len(r.surface.vertices), i) for i, r in enumerate(regions)])

@@ -184,6 +184,45 @@ def halve_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
         When ``max_edge`` is not a positive finite length, or long edges are left after
         :data:`HALVING_MAX_ROUNDS` rounds.
     """
+    xyz, done, _ = _halving(vertices, faces, max_edge, None)
+    return xyz, done
+
+
+def halve_long_edges_except(vertices, faces, max_edge: float, drop) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`halve_long_edges`, leaving out the triangles ``drop`` rejects, and all they would become.
+
+    Before each round, ``drop(xyz, faces) -> (k,) bool`` sees the triangles about to be split;
+    those it marks are set aside unsplit.  Every other
+    triangle is split as :func:`halve_long_edges` splits it (a triangle's split depends only on
+    its own edges, and a midpoint is the mean of its edge's ends in either order), so the
+    triangles returned are those of :func:`halve_long_edges` that do not lie in a dropped one,
+    with the same corners (bit for bit) in the same relative order; only the numbering of the
+    midpoints differs.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Vertex positions, m.
+    faces : (m, 3) int
+        Triangles as vertex indices.
+    max_edge : float
+        Longest edge allowed in the result, m (> 0).
+    drop : callable
+        ``drop(xyz (v, 3) float, faces (k, 3) int) -> (k,) bool``.
+
+    Returns
+    -------
+    vertices : (n + k, 3) float
+        The input vertices followed by the midpoints made, m.
+    faces : (p, 3) int64
+        The triangles kept.
+    dropped : (q, 3) int64
+        The triangles set aside, as they were when dropped.
+    """
+    return _halving(vertices, faces, max_edge, drop)
+
+
+def _halving(vertices, faces, max_edge, drop):
     max_edge = float(max_edge)
     if not (np.isfinite(max_edge) and max_edge > 0):
         raise InputError(f"max_edge must be a positive length in m, got {max_edge!r}")
@@ -194,6 +233,7 @@ def halve_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
     # leaves them untouched, and only the faces just made go into the next round; the output order
     # is the one of splitting every face every round (untouched faces first, round after round).
     done: list[np.ndarray] = []
+    dropped: list[np.ndarray] = [np.zeros((0, 3), np.int64)]
     for round_ in range(HALVING_MAX_ROUNDS + 1):
         following = faces[:, [1, 2, 0]]
         d = xyz[faces] - xyz[following]
@@ -206,6 +246,14 @@ def halve_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
             raise InputError(f"halving to {max_edge * 1e3:.3g} mm still had long edges after "
                              f"{HALVING_MAX_ROUNDS} rounds; check the mesh for huge or non-finite "
                              "coordinates, or use a larger max_edge")
+        if drop is not None:                    # only triangles about to be split are offered
+            split = np.flatnonzero(long_corner.any(axis=1))
+            gone = split[np.asarray(drop(xyz, faces[split]), bool)]
+            if len(gone):
+                dropped.append(faces[gone])
+                keep = np.ones(len(faces), bool)
+                keep[gone] = False
+                faces, following, long_corner = faces[keep], following[keep], long_corner[keep]
         n_points = len(xyz)
         lo = np.minimum(faces, following)[long_corner]
         hi = np.maximum(faces, following)[long_corner]
@@ -243,4 +291,4 @@ def halve_long_edges(vertices, faces, max_edge: float) -> tuple[np.ndarray, np.n
         m0, m1, m2 = face_mid[three].T
         pieces.append(np.column_stack((v0, m0, m2, m0, v1, m1, m2, m1, v2, m0, m1, m2)).reshape(-1, 3))
         faces = np.vstack(pieces).astype(np.int64)
-    return xyz, np.vstack(done).astype(np.int64)
+    return xyz, np.vstack(done).astype(np.int64), np.vstack(dropped)
