@@ -269,7 +269,7 @@ def _orders() -> tuple:
 SCHEMA: dict[str, Key] = {
     "part": Key("str"), "out": Key("str"), "units": Key("str"), "side": Key("str"),
     "all_pieces": Key("bool"), "force_units": Key("bool"), "overwrite": Key("bool"),
-    "planner": Key("str", choices=("raster", "uniform", "equidistant")), "order": Key("str", auto=True),
+    "planner": Key("str", choices=("raster", "uniform", "equidistant", "wrap")), "order": Key("str", auto=True),
     "segment": Key("str", choices=("none", "auto"), off=True),
     "pad_radius": Key("length", positive=True, hi=1.0, bare_max=1.0, hint="mm, e.g. 38.1mm"),
     "force": Key("force", positive=True, hi=1e4, bare_max=1e4),
