@@ -187,8 +187,13 @@ def _band(surface, origin, axis, pad_radius, tolerance, n_stations=600, n_angles
             runs.append((start, i - 1))
             start = None
     i0, i1 = max(runs, key=lambda r: s[r[1]] - s[r[0]])
-    # the band reaches to the last admissible station, and at an open end to the surface's end
-    return s[i0], s[i1], float(np.nanmedian(rho[i0:i1 + 1])), i0 == 0, i1 == len(s) - 1
+    radius = float(np.nanmedian(rho[i0:i1 + 1]))
+    # the band's ends beside a taller neighbour: exactly one pad radius from its nearest proud vertex
+    proud = r_v > radius + tolerance
+    below, above = proud & (s_v < s[i0]), proud & (s_v > s[i1])
+    s_lo = min(float(s_v[below].max()) + pad_radius, s[i0]) if i0 > 0 and below.any() else s[i0]
+    s_hi = max(float(s_v[above].min()) - pad_radius, s[i1]) if i1 < len(s) - 1 and above.any() else s[i1]
+    return s_lo, s_hi, radius, i0 == 0, i1 == len(s) - 1
 
 
 def wrap(surface, tool, *, spacing: float | None = None, axis=None, mode: str = "helix",
