@@ -8,8 +8,8 @@ way round and the other (a positioner then never turns more than about a turn an
 Every path point is where a ray from outside, pointing at the axis, first meets the surface: the
 outermost surface around the axis.  The pad is a flat disc tangent there, so a station is kept only
 where no part of the surface within one pad radius along the axis stands proud of the pad face (a
-flange next to a tube): the path stops one pad radius short of a taller neighbour, and the pad's
-edge still reaches the foot of it along the straight generatrix.
+flange next to a tube): the path stops one pad radius (and :data:`RIM_CLEARANCE`, 50 µm) short of
+a taller neighbour, and the pad's rim runs along the foot of it.
 """
 
 from __future__ import annotations
@@ -25,6 +25,11 @@ from .common import log, positive
 __all__ = ["wrap", "principal_axis"]
 
 _MODES = ("helix", "rings")
+
+#: How far the pad's rim stays from a taller neighbour (a flange), m: 50 µm, so that the pad never
+#: reaches over the neighbour's face (under the contact model it would press it sideways); the foot
+#: line itself is left to the neighbour's own finishing.
+RIM_CLEARANCE = 5e-5
 
 
 def principal_axis(vertices) -> tuple[np.ndarray, np.ndarray]:
@@ -188,11 +193,12 @@ def _band(surface, origin, axis, pad_radius, tolerance, n_stations=600, n_angles
             start = None
     i0, i1 = max(runs, key=lambda r: s[r[1]] - s[r[0]])
     radius = float(np.nanmedian(rho[i0:i1 + 1]))
-    # the band's ends beside a taller neighbour: exactly one pad radius from its nearest proud vertex
+    # the band's ends beside a taller neighbour: one pad radius (and RIM_CLEARANCE) from its nearest proud vertex
     proud = r_v > radius + tolerance
     below, above = proud & (s_v < s[i0]), proud & (s_v > s[i1])
-    s_lo = min(float(s_v[below].max()) + pad_radius, s[i0]) if i0 > 0 and below.any() else s[i0]
-    s_hi = max(float(s_v[above].min()) - pad_radius, s[i1]) if i1 < len(s) - 1 and above.any() else s[i1]
+    reach = pad_radius + RIM_CLEARANCE
+    s_lo = min(float(s_v[below].max()) + reach, s[i0]) if i0 > 0 and below.any() else s[i0]
+    s_hi = max(float(s_v[above].min()) - reach, s[i1]) if i1 < len(s) - 1 and above.any() else s[i1]
     return s_lo, s_hi, radius, i0 == 0, i1 == len(s) - 1
 
 
