@@ -77,6 +77,28 @@ def test_axis_turns_points_about_its_line():
     assert np.allclose(p.base2part(theta) @ p.part2base(theta), np.eye(4))
 
 
+def test_slow_for_axis_keeps_the_axis_within_its_speed_and_acceleration():
+    from swath.robot.positioner import axis_speed_accel, slow_for_axis
+    from swath.trajectory import Trajectory
+
+    # 2 s at rest, then the axis asked to turn at 3 rad/s at once, 10 ms steps; limits 2 rad/s, 5 rad/s²
+    n = 600
+    t = 0.01 * np.arange(n)
+    theta = np.where(t < 2.0, 0.0, 3.0 * (t - 2.0))
+    tr = Trajectory(t=t, position=np.zeros((n, 3)), quaternion=np.tile([1.0, 0, 0, 0], (n, 1)),
+                    contact=np.ones(n, bool), feed=np.full(n, 0.05), pass_index=np.zeros(n, int))
+    slow = slow_for_axis(tr, theta, 2.0, 5.0, safety=1.0)
+    w, a = axis_speed_accel(slow.t, theta)
+    assert w.max() == pytest.approx(2.0, rel=1e-6)       # the speed limit binds on the long stretch
+    assert a.max() <= 5.0 * (1 + 1e-9)
+    # from rest to 2 rad/s at 5 rad/s² takes 0.4 s and 0.4 rad, and as long to stop at the end (the job
+    # ends at rest); the rest of the turn at full speed
+    turn_time = slow.t[-1] - 2.0
+    assert turn_time == pytest.approx(0.4 + 0.4 + (theta[-1] - 0.8) / 2.0, abs=0.02)
+    assert np.all(np.diff(slow.t) >= np.diff(t) - 1e-12)   # only ever slower
+    assert slow.feed.min() < 0.05 and slow.feed[:150].min() == pytest.approx(0.05)
+
+
 # --- a small tube with a flange, written as STEP by the test --------------------------------------------------
 LENGTH, RADIUS, WALL, FLANGE_R, FLANGE_T = 0.16, 0.025, 0.004, 0.045, 0.008
 
@@ -196,7 +218,7 @@ def test_tube_all_round_in_one_program_with_the_positioner(tube, helix, tmp_path
     assert m["n_branch_switches"] == 0
     assert m["max_fk_position_error_m"] < 1e-5 and m["max_fk_angle_error_rad"] < math.radians(0.01)
     assert m["max_contact_dt_s"] <= 0.02
-    assert m["positioner_max_speed_ratio"] <= 1.0
+    assert m["positioner_max_speed_ratio"] <= 1.0 and m["positioner_max_accel_ratio"] <= 1.0
     assert m["positioner_turns"] == pytest.approx(helix.metadata["n_turns"], abs=0.05)
     # the FK check done here independently: joints.csv rows + their axis angle against trajectory rows
     rows = np.loadtxt(tmp_path / "joints.csv", delimiter=",", skiprows=1)

@@ -6,8 +6,9 @@
    contact point's outward normal points at ``facing`` (default: from the axis toward the robot's
    base, tilted up by ``elevation``), unwrapped along the job so the axis never jumps a turn; the
    whole run is shifted by whole turns into the axis limits (refused when it cannot fit).
-2. **The axis speed**: steps where the axis would turn faster than its ``max_speed`` are slowed
-   (their times stretched), before the arm is re-timed.
+2. **The axis limits** (:func:`slow_for_axis`): steps where the axis would turn faster than its
+   ``max_speed`` or change speed faster than its ``max_accel`` are slowed (their times stretched),
+   before the arm is re-timed.
 3. **The arm**: the TCP poses are carried into the robot base frame with the part at its
    rotated pose (``tcp2base = part2base(θ) @ tcp2part``), and the robot stage
    (:func:`swath.robot.run_robot_stage`) solves, splits, re-times and resamples them as for a
@@ -121,15 +122,43 @@ def facing_angles(trajectory, positioner: Positioner, *, facing=None, elevation:
     return theta
 
 
-def slow_for_axis(trajectory, theta, max_speed: float, *, safety: float = 0.95):
-    """The trajectory with every step stretched where the axis would turn faster than
-    ``safety · max_speed`` (rad/s); ``feed`` scaled down on the stretched steps."""
+def slow_for_axis(trajectory, theta, max_speed: float, max_accel: float, *, safety: float = 0.95):
+    """The trajectory re-timed so the axis keeps within ``safety`` times its speed and acceleration limits.
+
+    The axis speed on each step is capped by ``safety · max_speed`` and by a forward and a backward
+    pass that bounds the change of speed between steps (``|ω_i − ω_{i−1}| ≤ a (dt_i + dt_{i−1}) / 2``,
+    through rest where the axis reverses or stands still); a step whose nominal speed is above its cap is
+    stretched in time and its ``feed`` (and ``wx, wy, wz``) scaled down with it.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    theta : (n,) float
+        Axis angle per sample, rad.
+    max_speed, max_accel : float
+        rad/s and rad/s².
+    """
     t = np.asarray(trajectory.t, dtype=float)
     if len(t) < 2:
         return trajectory
     dt = np.diff(t)
-    need = np.abs(np.diff(theta)) / (safety * max_speed)
-    new_dt = np.maximum(dt, need)
+    step = np.diff(np.asarray(theta, dtype=float))
+    turn = np.abs(step)
+    sign = np.sign(step)
+    nominal = np.where(dt > 0, turn / np.where(dt > 0, dt, 1.0), np.inf)
+    cap = np.minimum(nominal, safety * max_speed)
+    a = safety * max_accel
+    for order in (range(len(cap)), range(len(cap) - 1, -1, -1)):
+        prev, prev_sign, prev_dt = 0.0, 0.0, 0.0
+        for i in order:
+            if sign[i] != prev_sign:
+                prev = 0.0
+            # ω_i − ω_prev ≤ a (dt_i + dt_prev) / 2 with dt_i = |Δθ_i| / ω_i: the root of a quadratic
+            b = prev + 0.5 * a * prev_dt
+            cap[i] = min(cap[i], 0.5 * (b + math.sqrt(b * b + 2.0 * a * turn[i])))
+            prev, prev_sign = cap[i], sign[i]
+            prev_dt = turn[i] / cap[i] if turn[i] > 0 and cap[i] > 0 else dt[i]
+    new_dt = np.where(turn > 0, np.maximum(dt, turn / np.maximum(cap, 1e-12)), dt)
     if np.all(new_dt <= dt):
         return trajectory
     scale = np.ones(len(t))
@@ -139,6 +168,26 @@ def slow_for_axis(trajectory, theta, max_speed: float, *, safety: float = 0.95):
     extra = {k: (v * scale if k in ("wx", "wy", "wz") else v) for k, v in trajectory.extra.items()}
     return replace(trajectory, t=t[0] + np.concatenate([[0.0], np.cumsum(new_dt)]), feed=trajectory.feed * scale,
                    extra=extra)
+
+
+def axis_speed_accel(t, theta) -> tuple[np.ndarray, np.ndarray]:
+    """The axis speed per step (rad/s) and its acceleration between steps (rad/s²).
+
+    Samples added by linear interpolation inside a step (the robot stage's resampling) share that
+    step's speed, so runs of equal speed count as one step: the acceleration is the change of speed
+    between consecutive runs over the time between their midpoints.
+    """
+    t = np.asarray(t, dtype=float)
+    dt = np.diff(t)
+    w = np.diff(np.asarray(theta, dtype=float)) / np.where(dt > 0, dt, np.inf)
+    if len(w) < 2:
+        return np.abs(w), np.zeros(0)
+    new = np.concatenate([[True], np.abs(np.diff(w)) > 1e-3 * np.abs(w[1:]) + 1e-6])
+    run = np.cumsum(new) - 1
+    t_mid = np.bincount(run, weights=0.5 * (t[:-1] + t[1:]) * dt) / np.maximum(np.bincount(run, weights=dt), 1e-300)
+    w_run = w[new]
+    accel = np.abs(np.diff(w_run)) / np.maximum(np.diff(t_mid), 1e-9)
+    return np.abs(w), accel
 
 
 def to_base_frame(trajectory, positioner: Positioner, theta):
@@ -267,7 +316,7 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
                          "the positioner's axis and part2faceplate in the cell file")
     check_axis_formats(programs or ())
     theta = facing_angles(trajectory, positioner, facing=facing, elevation=elevation)
-    trajectory = slow_for_axis(trajectory, theta, positioner.max_speed)
+    trajectory = slow_for_axis(trajectory, theta, positioner.max_speed, positioner.max_accel)
     base_tr = to_base_frame(trajectory, positioner, theta)
     fixed = fixed_cell(cell)
     result = run_robot_stage(base_tr, robot=robot, cell=fixed, programs=programs, out_dir=None, **options)
@@ -278,11 +327,7 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
     th = base_run.extra[AXIS_COLUMN]
     got = positioner.base2part(th[ok]) @ result.model.fk(sol.q[ok]) @ cell.tcp2flange
     dp, da = pose_error(got, poses_from_trajectory(part_run)[ok])
-    t = base_run.t
-    dt = np.diff(t)
-    w = np.abs(np.diff(th)) / np.where(dt > 0, dt, np.inf)
-    accel = np.abs(np.diff(np.diff(th) / np.where(dt > 0, dt, np.inf))) / np.maximum(0.5 * (dt[1:] + dt[:-1]), 1e-9) \
-        if len(dt) > 1 else np.zeros(0)
+    w, accel = axis_speed_accel(base_run.t, th)
     metrics = dict(result.metrics)
     metrics.update({
         "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
