@@ -34,7 +34,7 @@ def test_cell_file_reads_the_positioner_with_units():
     assert p.max_accel == pytest.approx(6.0)
     assert np.allclose(p.part2faceplate[:3, 3], [0, 0, 0.02])
     assert not cell.auto_table                 # no table assumed under a part held in the air
-    assert cell.as_record()["positioner"]["max_speed_deg_s"] == pytest.approx(90.0)
+    assert cell.as_record()["positioner"]["max_speed_rad_per_s"] == pytest.approx(math.pi / 2)
 
 
 @pytest.mark.parametrize("table, words", [
@@ -219,7 +219,7 @@ def test_tube_all_round_in_one_program_with_the_positioner(tube, helix, tmp_path
     assert m["max_fk_position_error_m"] < 1e-5 and m["max_fk_angle_error_rad"] < math.radians(0.01)
     assert m["max_contact_dt_s"] <= 0.02
     assert m["positioner_max_speed_ratio"] <= 1.0 and m["positioner_max_accel_ratio"] <= 1.0
-    assert m["positioner_turns"] == pytest.approx(helix.metadata["n_turns"], abs=0.05)
+    assert m["positioner_range_rad"] / (2 * math.pi) == pytest.approx(helix.metadata["n_turns"], abs=0.05)
     # the FK check done here independently: joints.csv rows + their axis angle against trajectory rows
     rows = np.loadtxt(tmp_path / "joints.csv", delimiter=",", skiprows=1)
     header = (tmp_path / "joints.csv").read_text().splitlines()[0].split(",")

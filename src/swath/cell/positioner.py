@@ -138,11 +138,11 @@ class Positioner:
         return faceplate2part[:3, 3].copy(), faceplate2part[:3, 2].copy()
 
     def as_record(self) -> dict:
-        """Text record for metrics/JSON (mm, deg)."""
-        return {"name": self.name, "axis_point_mm": [float(v) * 1e3 for v in self.axis_point],
+        """Record for metrics/JSON (SI units in the keys; ``part2faceplate`` as pose text in mm and deg)."""
+        return {"name": self.name, "axis_point_m": [float(v) for v in self.axis_point],
                 "axis_direction": [float(v) for v in self.axis_direction],
-                "limits_deg": [math.degrees(v) for v in self.limits],
-                "max_speed_deg_s": math.degrees(self.max_speed), "max_accel_deg_s2": math.degrees(self.max_accel),
+                "limits_rad": [float(v) for v in self.limits],
+                "max_speed_rad_per_s": self.max_speed, "max_accel_rad_per_s2": self.max_accel,
                 "part2faceplate": format_pose(self.part2faceplate)}
 
 

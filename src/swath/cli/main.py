@@ -56,8 +56,9 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
         p.add_argument("--chordal-tol", help="STEP/IGES tessellation: largest distance from the exact faces "
                                              "(default 0.1mm)")
     p.add_argument("--planner", default="raster",
-                   help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage) "
-                        "or equidistant (geodesic-parallel passes)")
+                   help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform coverage), "
+                        "equidistant (geodesic-parallel passes) or wrap (a continuous helix round a closed part's "
+                        "axis, for a rotary positioner)")
     p.add_argument("--pad-radius", default="38.1mm",
                    help="pad radius, e.g. 38.1mm, within 5–150 mm (default: 3-inch pad)")
     p.add_argument("--force", default="20N", help="normal force, e.g. 20N, within 1–500 N")

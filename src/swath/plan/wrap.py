@@ -203,7 +203,7 @@ def _band(surface, origin, axis, pad_radius, tolerance, n_stations=600, n_angles
 
 
 def wrap(surface, tool, *, spacing: float | None = None, axis=None, mode: str = "helix",
-         point_spacing: float = 1e-3, progress=None) -> ToolPath:
+         point_spacing: float = 1e-3, around=None, progress=None) -> ToolPath:
     """Cover a closed part all round its axis with a continuous helix (or rings).
 
     Parameters
@@ -225,6 +225,10 @@ def wrap(surface, tool, *, spacing: float | None = None, axis=None, mode: str = 
         ``helix`` (one continuous pass) or ``rings`` (one closed pass per station, alternating).
     point_spacing : float
         Arc-length step between pass points, m (default 1 mm).
+    around : Surface, optional
+        The whole part ``surface`` belongs to (the same frame): the band the pad can go round and its
+        clearance to taller neighbours are found on it, so a flange that is not to be finished still
+        keeps the pad off.  Default: ``surface``.
     progress : callable, optional
         ``progress(stage, done, total)``.
 
@@ -239,7 +243,7 @@ def wrap(surface, tool, *, spacing: float | None = None, axis=None, mode: str = 
         raise InputError(f"wrap mode must be one of {', '.join(_MODES)}, got {mode!r}")
     point_spacing = positive("point_spacing", point_spacing)
     if axis is None:
-        origin, direction = principal_axis(surface.vertices)
+        origin, direction = principal_axis((surface if around is None else around).vertices)
     else:
         try:
             origin, direction = (np.asarray(a, dtype=float).reshape(3) for a in axis)
@@ -252,7 +256,8 @@ def wrap(surface, tool, *, spacing: float | None = None, axis=None, mode: str = 
     say = progress or (lambda stage, done, total: None)
     say("wrap: finding the band the pad can go round", 0, 1)
     tol = max(2.0 * tool.flat_depression, 5e-4)
-    s_lo, s_hi, radius, open_lo, open_hi = _band(surface, origin, direction, tool.pad_radius, tol)
+    whole = surface if around is None else around
+    s_lo, s_hi, radius, open_lo, open_hi = _band(whole, origin, direction, tool.pad_radius, tol)
     if spacing is None:
         from ..contact.widths import raster_spacing
 

@@ -302,7 +302,8 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
     -------
     RobotResult
         ``trajectory`` in the part frame with the ``positioner`` column (rad); ``program_view`` the
-        (base-frame trajectory, fixed cell) the programs are written from; ``metrics`` as the robot
+        (base-frame trajectory, fixed cell) the programs are written from; ``cell`` the cell with
+        ``part2base`` the part's pose at the first reached contact sample (what the report draws); ``metrics`` as the robot
         stage's plus ``positioner_*`` figures and the FK check in the part frame.
     """
     from .stage import run_robot_stage
@@ -332,8 +333,8 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
     metrics.update({
         "max_fk_position_error_m": float(dp.max(initial=0.0)), "max_fk_angle_error_rad": float(da.max(initial=0.0)),
         "positioner": positioner.as_record(),
-        "positioner_min_deg": float(np.degrees(th.min())), "positioner_max_deg": float(np.degrees(th.max())),
-        "positioner_turns": float((th.max() - th.min()) / (2 * math.pi)),
+        "positioner_min_rad": float(th.min()), "positioner_max_rad": float(th.max()),
+        "positioner_range_rad": float(th.max() - th.min()),
         "positioner_max_speed_ratio": float(w.max(initial=0.0) / positioner.max_speed),
         "positioner_max_accel_ratio": float(accel.max(initial=0.0) / positioner.max_accel),
     })
@@ -351,5 +352,9 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
         files = write_programs(ProgramInput(base_run, sol, result.model, fixed, force=options.get("force", 20.0),
                                             force_program=options.get("force_program", "native")),
                                Path(out_dir), programs)
-    return replace(result, cell=cell, trajectory=part_run, metrics=metrics, warnings=warnings, files=files,
+    # the cell as the report draws it: the part at the axis angle of the first reached contact sample
+    drawn = np.flatnonzero(sol.reachable & base_run.contact)
+    first = int(drawn[0]) if len(drawn) else (int(ok[0]) if len(ok) else 0)
+    shown = replace(cell, part2base=positioner.part2base(th[first:first + 1])[0])
+    return replace(result, cell=shown, trajectory=part_run, metrics=metrics, warnings=warnings, files=files,
                    program_view=(base_run, fixed))
