@@ -292,8 +292,8 @@ def wrap(surface, tool, *, spacing: float | None = None, axis=None, mode: str = 
         raise InputError("the wrap planner found no surface around the axis; check the axis and the part")
     n_missed = sum(len(s) for s, _, _ in segs) - sum(len(p.points) for p in passes)
     if n_missed:
-        log.warning("wrap: %d path points found no outward surface around the axis; the path is split there",
-                    n_missed)
+        log.warning("wrap: %d path points found no outward surface around the axis; the path is split there "
+                    "[W-WRAP-SPLIT]", n_missed)
     say("wrap: done", 1, 1)
     meta = {"axis_point_m": [float(v) for v in origin], "axis_direction": [float(v) for v in direction],
             "spacing_m": float(pitch), "band_m": [float(a), float(b)], "radius_m": radius, "mode": mode,
