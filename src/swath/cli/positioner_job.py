@@ -23,7 +23,8 @@ def job_positioner(settings: JobSettings):
     Raises
     ------
     InputError
-        ``--base`` or ``--place`` with a positioner (the positioner places the part).
+        ``--base`` or ``--place`` with a positioner (the positioner places the part), or a program
+        format that cannot carry the axis (URScript).
     """
     if not settings.cell:
         return None
@@ -36,6 +37,10 @@ def job_positioner(settings: JobSettings):
     if positioner is not None and settings.place:
         raise InputError("--place searches where a fixed part should stand; with a positioner the part's place is "
                          "the positioner's axis and part2faceplate in the cell file: drop --place")
+    if positioner is not None:
+        from ..robot.external_axis import check_axis_formats
+
+        check_axis_formats(settings.programs or ())
     return positioner
 
 
