@@ -29,6 +29,7 @@ import logging
 import math
 import time
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -227,8 +228,8 @@ def check_positioner_collisions(base_trajectory, solution, model, cell: Cell, *,
     CollisionReport
         Events of both checks, in time order; ``n_poses`` the poses checked against the part.
     """
-    from .collision import CollisionEvent, check_job_collisions, interpolate_joints, link_bodies
     from ..cell import MovingBody
+    from .collision import CollisionEvent, check_job_collisions, interpolate_joints, link_bodies
 
     positioner = cell.positioner
     fixed = fixed_cell(cell)
@@ -245,7 +246,7 @@ def check_positioner_collisions(base_trajectory, solution, model, cell: Cell, *,
     n = model.chain.n_joints
     moving = link_bodies(model) + [MovingBody(b, link=n) for b in (cell.tool.bodies if cell.tool is not None else ())]
     scene = CollisionScene([Body("the part", Mesh(part_vertices, part_faces), np.eye(4))], moving)
-    events = []
+    events: list = []
     k0 = np.floor(src).astype(int)
     t_all = np.asarray(base_trajectory.t)
     pass_all = np.asarray(base_trajectory.pass_index)
@@ -306,8 +307,8 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
         ``part2base`` the part's pose at the first reached contact sample (what the report draws); ``metrics`` as the robot
         stage's plus ``positioner_*`` figures and the FK check in the part frame.
     """
-    from .stage import run_robot_stage
     from .programs import ProgramInput, write_programs
+    from .stage import run_robot_stage
 
     positioner = cell.positioner
     if positioner is None:
@@ -321,7 +322,7 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
     base_tr = to_base_frame(trajectory, positioner, theta)
     fixed = fixed_cell(cell)
     result = run_robot_stage(base_tr, robot=robot, cell=fixed, programs=programs, out_dir=None, **options)
-    base_run = result.trajectory
+    base_run: Any = result.trajectory
     part_run = to_part_frame(base_run, positioner)
     sol = result.solution
     ok = np.flatnonzero(sol.reachable)
