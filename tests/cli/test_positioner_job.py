@@ -69,6 +69,8 @@ def test_side_all_on_a_positioner_is_one_program_all_round(tube_job):
     assert {r["pass"] for r in on} == {"0"}                   # one continuous pass
     r = np.array([math.hypot(float(x["x"]), float(x["y"])) for x in on])
     assert np.abs(r - 0.025).max() < 2e-4                     # the part frame, on the tube's skin
+    z = np.array([float(x["z"]) for x in on])
+    assert z.min() >= 0.008 + 0.0381                          # one pad radius clear of the flange (not selected)
     theta = np.array([float(x["positioner"]) for x in rows])
     assert np.ptp(theta) > 2 * math.pi                        # the part turned round more than once
     mods = list((out / "robot").glob("*.mod"))

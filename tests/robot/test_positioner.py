@@ -249,6 +249,27 @@ def test_tube_all_round_in_one_program_with_the_positioner(tube, helix, tmp_path
     assert flange.metrics["coverage_fraction"] == 0.0
 
 
+def test_krl_carries_the_axis_in_e1(helix, tmp_path):
+    from dataclasses import replace
+
+    from swath.robot.positioner import run_positioner_stage
+    from swath.trajectory import time_path
+
+    sander = default_sander()
+    cell = cell_from_mapping({"positioner": {"axis_point": ["1.3", "-100mm", "0.8"], "axis_direction": [0, 1, 0]}})
+    cell = replace(cell, tool=sander, tcp2flange=sander.tcp2flange)
+    res = run_positioner_stage(time_path(helix), cell=cell, robot="kr120", programs=("krl", "csv"), out_dir=tmp_path,
+                               warn=False)
+    dat = next(tmp_path.glob("*.dat")).read_text()
+    e1 = np.array([float(ln.split("E1 ")[1].split(",")[0]) for ln in dat.splitlines() if "DECL E6POS" in ln])
+    rows = np.loadtxt(tmp_path / "joints.csv", delimiter=",", skiprows=1)
+    assert len(e1) == len(rows)                                 # every sample a target: nothing thinned
+    assert np.allclose(e1, np.degrees(rows[:, 7]), atol=1e-5)
+    assert np.ptp(e1) == pytest.approx(np.degrees(res.metrics["positioner_range_rad"]), rel=1e-9)
+    src = next(tmp_path.glob("*.src")).read_text()
+    assert "positioner" in src and "$BASE is the robot base" in src
+
+
 def test_urscript_and_place_are_refused_with_a_positioner(helix):
     from swath.robot.positioner import run_positioner_stage
     from swath.trajectory import time_path

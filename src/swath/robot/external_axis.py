@@ -49,7 +49,8 @@ def header_lines(trajectory, comment: str) -> list[str]:
     if axis_angles(trajectory) is None:
         return []
     return [f"{comment} positioner: the part turns on a rotary positioner (external axis 1: RAPID eax_a, KRL E1, deg); "
-            "targets are TCP poses in the robot base frame with the axis angle they belong to,",
+            "the work object / $BASE is the robot base, so the targets are TCP poses in the robot base frame with the "
+            "axis angle they belong to,",
             f"{comment} so the arm and the axis move together from target to target (every sample is a target: at most "
             "2 mm of TCP travel and 20 ms apart on the part)"]
 
