@@ -173,6 +173,34 @@ def test_wrap_refuses_an_axis_across_the_tube(tube):
         wrap(tube.surface, Tool(), axis=((0, 0, 0.06), (1, 0, 0)))
 
 
+def test_wrap_goes_round_a_rounded_box_like_a_handle(tmp_path):
+    """A box with rounded edges (200 x 100 x 60 mm, 10 mm fillets) round its long axis: one helix, on the
+    skin, normals within 60° of the direction away from the axis, the long sides all covered."""
+    pytest.importorskip("OCP")
+    from swath.examples import cad
+    from swath.io.step import load_step
+    from swath.plan import wrap
+    from swath.simulate import simulate_removal
+    from swath.trajectory import time_path
+
+    part = load_step(cad.write_step(cad.rounded_box(), tmp_path / "box.step"), chordal_tolerance=2e-4)
+    axis = ((0.0, 0.05, 0.03), (1.0, 0.0, 0.0))
+    tp = wrap(part.surface, Tool(), axis=axis)
+    assert len(tp.passes) == 1
+    p, n = tp.passes[0].points, tp.passes[0].normals
+    radial = p - np.array([p[:, 0] * 0, np.full(len(p), 0.05), np.full(len(p), 0.03)]).T
+    radial[:, 0] = 0.0
+    radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+    assert np.einsum("ij,ij->i", n, radial).min() >= 0.5
+    _, dist, _ = part.surface.closest_points(p)
+    assert dist.max() < 1e-6                                   # on the tessellation
+    c = part.surface.vertices[part.surface.faces].mean(axis=1)
+    sides = np.flatnonzero(np.abs(part.surface.face_normals[:, 0]) < 1e-3)   # the four long sides and their fillets
+    removal = simulate_removal(time_path(tp), part.surface.sub_surface(sides), Tool())
+    assert removal.metrics["coverage_fraction"] >= 0.99
+    assert c[sides, 0].min() < 0.02 and c[sides, 0].max() > 0.18      # the sides run the whole length
+
+
 def test_facing_angles_turn_each_contact_point_to_the_robot(helix):
     from swath.trajectory import time_path
 

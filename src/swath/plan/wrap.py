@@ -58,7 +58,8 @@ def _hits(surface, origin, axis, s, phi):
     farthest from the axis (what a ray from outside toward the axis meets first), and the point on
     that facet with the same barycentric coordinates.
 
-    Returns ``points (k, 3)``, ``normals (k, 3)`` (interpolated vertex normals, toward the tool) and
+    Returns ``points (k, 3)``, ``normals (k, 3)`` (toward the tool: a CAD part's exact normals of the
+    facet's own face at its corners, else the vertex normals, interpolated) and
     ``ok (k,)`` (a hit whose normal faces away from the axis).
     """
     k = len(s)
@@ -67,7 +68,7 @@ def _hits(surface, origin, axis, s, phi):
     tris = _triangles(surface, origin, axis)
     if tris is None:
         return points, normals, np.zeros(k, bool)
-    ts, tphi, cell_start, cell_tris, ds, dphi, s0, n_s, n_phi, faces = tris
+    ts, tphi, cell_start, cell_tris, ds, dphi, s0, n_s, n_phi, faces, face_index = tris
     phi = np.mod(phi, 2 * math.pi)
     i_s = np.clip(np.floor((s - s0) / ds).astype(int), 0, n_s - 1)
     i_p = np.floor(phi / dphi).astype(int) % n_phi
@@ -99,13 +100,14 @@ def _hits(surface, origin, axis, s, phi):
     pick = order[first]
     qq = q[pick]
     points[qq] = p3[pick]
-    nv = np.asarray(surface.normals)[faces[cand[pick]]]
+    corner = getattr(surface, "corner_normals", None)          # a CAD part: each face's exact normal
+    nv = corner[face_index[cand[pick]]] if corner is not None else np.asarray(surface.normals)[faces[cand[pick]]]
     w = np.column_stack([1 - w1[pick] - w2[pick], w1[pick], w2[pick]])
     n = np.einsum("ij,ijk->ik", w, nv)
     normals[qq] = n / np.linalg.norm(n, axis=1, keepdims=True)
     e_1, e_2 = _frame(axis)
     radial = np.cos(phi)[:, None] * e_1 + np.sin(phi)[:, None] * e_2
-    ok = np.isfinite(points[:, 0]) & (np.einsum("ij,ij->i", np.nan_to_num(normals), radial) > 0.2)
+    ok = np.isfinite(points[:, 0]) & (np.einsum("ij,ij->i", np.nan_to_num(normals), radial) > _FACING)
     return points, normals, ok
 
 
@@ -124,7 +126,8 @@ def _triangles(surface, origin, axis):
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
     radial = centre - (centre @ axis)[:, None] * axis
     rnorm = np.linalg.norm(radial, axis=1)
-    faces = f[(np.einsum("ij,ij->i", fn, radial) > 0.05 * rnorm) & (rnorm > 0)]
+    face_index = np.flatnonzero((np.einsum("ij,ij->i", fn, radial) > 0.05 * rnorm) & (rnorm > 0))
+    faces = f[face_index]
     result = None
     if len(faces):
         ts = sv[faces]
@@ -150,36 +153,50 @@ def _triangles(surface, origin, axis):
         tri_all, cell_all = np.concatenate(tri_ids), np.concatenate(cells)
         order = np.argsort(cell_all, kind="stable")
         cell_start = np.searchsorted(cell_all[order], np.arange(n_s * n_phi + 1))
-        result = (ts, tphi, cell_start, tri_all[order], ds, dphi, s0, n_s, n_phi, faces)
+        result = (ts, tphi, cell_start, tri_all[order], ds, dphi, s0, n_s, n_phi, faces, face_index)
     _CACHE[:] = [surface, key, result]
     return result
 
 
 _CACHE: list = []
 
+#: A path point's normal must be within 60° of the direction away from the axis (cos 60° = 0.5):
+#: steeper skin (the rounded end of a handle, a chamfer) is left to the neighbouring turns.
+_FACING = 0.5
 
-def _band(surface, origin, axis, pad_radius, tolerance, n_stations=600, n_angles=24):
-    """The longest axial range where the pad, tangent to the outermost surface, has no surface within
-    one pad radius along the axis standing proud of its face: ``(s_lo, s_hi, radius, open_lo, open_hi)``
-    (m; ``open_*`` True where the range ends with the surface rather than at a taller neighbour)."""
-    v = np.asarray(surface.vertices) - origin
-    s_v = v @ axis
-    r_v = np.linalg.norm(v - s_v[:, None] * axis, axis=1)
-    lo, hi = float(s_v.min()), float(s_v.max())
-    s = np.linspace(lo, hi, n_stations)
-    phi = np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
-    ss, pp = np.meshgrid(s, phi, indexing="ij")
-    pts, _, ok = _hits(surface, origin, axis, ss.ravel(), pp.ravel())
-    rad = np.linalg.norm((pts - origin) - ((pts - origin) @ axis)[:, None] * axis, axis=1)
-    rad = np.where(ok, rad, np.nan).reshape(ss.shape)
-    good = np.isfinite(rad).all(axis=1)
-    rho = np.where(good, np.nanmin(np.where(np.isfinite(rad), rad, np.inf), axis=1), np.nan)
-    # the outermost radius of the surface in axial bins, and the pad's clearance test
+
+def _band(surface, origin, axis, pad_radius, tolerance, n_angles=24):
+    """The longest axial range where the pad, a flat disc tangent to the outermost surface all round,
+    has no surface standing proud of its face within its radius: ``(s_lo, s_hi, radius, open_lo,
+    open_hi)`` (m; ``radius`` the median distance of the skin from the axis; ``open_*`` True where the
+    range ends with the surface rather than at a taller neighbour)."""
+    v = np.asarray(surface.vertices, dtype=float)
+    s_v = (v - origin) @ axis
     order = np.argsort(s_v)
-    admissible = np.zeros(len(s), bool)
-    for i in np.flatnonzero(good):
-        a, b = np.searchsorted(s_v[order], [s[i] - pad_radius, s[i] + pad_radius])
-        admissible[i] = r_v[order[a:b]].max(initial=0.0) <= rho[i] + tolerance
+    v_sorted, s_sorted = v[order], s_v[order]
+    lo, hi = float(s_v.min()), float(s_v.max())
+    phi = np.linspace(0, 2 * math.pi, n_angles, endpoint=False)
+
+    def fit(s_i: float) -> int:
+        """0: the pad fits all round at station ``s_i`` (every angle has a skin facing out, and no vertex
+        within one pad radius of the contact, in the pad's plane, stands more than ``tolerance`` proud of
+        it); 1: some angle has no skin facing out (the part ends); 2: a neighbour stands proud."""
+        pts, nrm, ok = _hits(surface, origin, axis, np.full(n_angles, s_i), phi)
+        if not ok.all():
+            return 1
+        a, b = np.searchsorted(s_sorted, [s_i - pad_radius, s_i + pad_radius])
+        near = v_sorted[a:b]
+        if not len(near):
+            return 0
+        rel = near[None, :, :] - pts[:, None, :]                     # (angles, m, 3)
+        h = np.einsum("amk,ak->am", rel, nrm)                         # height above the pad face
+        d2 = np.einsum("amk,amk->am", rel, rel) - h * h               # squared distance in the pad plane
+        return 2 if np.any((h > tolerance) & (d2 < pad_radius * pad_radius)) else 0
+
+    # stations an eighth of a pad radius apart: a proud neighbour is seen from several (the ends are refined)
+    s = np.linspace(lo, hi, int(min(400, max(8, math.ceil((hi - lo) / (pad_radius / 8))))) + 1)
+    why = np.array([fit(si) for si in s])
+    admissible = why == 0
     if not admissible.any():
         raise InputError("the wrap planner found no axial station where the pad can go all round the part: the "
                          "surface is not closed about the axis, or a taller neighbour is within one pad radius "
@@ -192,14 +209,23 @@ def _band(surface, origin, axis, pad_radius, tolerance, n_stations=600, n_angles
             runs.append((start, i - 1))
             start = None
     i0, i1 = max(runs, key=lambda r: s[r[1]] - s[r[0]])
-    radius = float(np.nanmedian(rho[i0:i1 + 1]))
-    # the band's ends beside a taller neighbour: one pad radius (and RIM_CLEARANCE) from its nearest proud vertex
-    proud = r_v > radius + tolerance
-    below, above = proud & (s_v < s[i0]), proud & (s_v > s[i1])
-    reach = pad_radius + RIM_CLEARANCE
-    s_lo = min(float(s_v[below].max()) + reach, s[i0]) if i0 > 0 and below.any() else s[i0]
-    s_hi = max(float(s_v[above].min()) - reach, s[i1]) if i1 < len(s) - 1 and above.any() else s[i1]
-    return s_lo, s_hi, radius, i0 == 0, i1 == len(s) - 1
+
+    def edge(inside: float, outside: float) -> float:
+        """The admissible station nearest ``outside``, by bisection (to 10 µm), moved RIM_CLEARANCE inward."""
+        while abs(outside - inside) > 1e-5:
+            mid = 0.5 * (inside + outside)
+            inside, outside = (mid, outside) if fit(mid) == 0 else (inside, mid)
+        return inside + math.copysign(RIM_CLEARANCE, inside - outside)
+
+    open_lo = i0 == 0 or why[i0 - 1] == 1
+    open_hi = i1 == len(s) - 1 or why[i1 + 1] == 1
+    s_lo = s[i0] if i0 == 0 else edge(s[i0], s[i0 - 1])
+    s_hi = s[i1] if i1 == len(s) - 1 else edge(s[i1], s[i1 + 1])
+    mid_pts, _, mid_ok = _hits(surface, origin, axis, np.repeat(s[i0:i1 + 1], n_angles),
+                               np.tile(phi, i1 - i0 + 1))
+    rel = mid_pts[mid_ok] - origin
+    radius = float(np.median(np.linalg.norm(rel - (rel @ axis)[:, None] * axis, axis=1)))
+    return s_lo, s_hi, radius, bool(open_lo), bool(open_hi)
 
 
 def wrap(surface, tool, *, spacing: float | None = None, axis=None, mode: str = "helix",
