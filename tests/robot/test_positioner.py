@@ -265,6 +265,11 @@ def test_tube_all_round_in_one_program_with_the_positioner(tube, helix, tmp_path
     on = res.trajectory.contact
     r = np.hypot(*res.trajectory.position[on, :2].T)
     assert np.abs(r - RADIUS).max() < 1e-4
+    inward = -res.trajectory.position[on].copy()
+    inward[:, 2] = 0.0
+    inward /= np.linalg.norm(inward, axis=1, keepdims=True)
+    cos = np.einsum("ij,ij->i", res.trajectory.tool_z()[on], inward)
+    assert np.degrees(np.arccos(np.clip(cos, -1, 1))).max() < 0.5     # tool z along minus the normal
     # no collision of the arm or the tool with the turning part, the cell or itself
     report = check_positioner_collisions(res.program_view[0], res.solution, res.model, cell,
                                          part_vertices=tube.surface.vertices, part_faces=tube.surface.faces)

@@ -340,7 +340,9 @@ def run_positioner_stage(trajectory, *, cell: Cell, robot="ur10e", programs=("cs
         "positioner_max_accel_ratio": float(accel.max(initial=0.0) / positioner.max_accel),
     })
     metrics.pop("part2base", None)
-    warnings = list(result.warnings)
+    # the part's place is the positioner's: its advice replaces --base / --place
+    warnings = [w.replace("move the part (--base, or --place)", "move the positioner or the part on it (the cell "
+                          "file's [positioner])") for w in result.warnings]
     if metrics["positioner_max_accel_ratio"] > 1.0:
         warnings.append(f"robot: the positioner's acceleration reaches {metrics['positioner_max_accel_ratio']:.2f} "
                         f"times its max_accel ({math.degrees(positioner.max_accel):.0f} deg/s²) on the job's "
