@@ -62,7 +62,7 @@ def test_failure_keeps_an_existing_output_directory_intact(tmp_path):
 @pytest.mark.parametrize("flag,value,fragment", [
     ("--pad-radius", "38.1 furlongs", "unknown unit"),
     ("--force", "20mm", "unknown unit 'mm' for a force"),
-    ("--planner", "spiral", "planner must be one of raster, uniform, equidistant, got 'spiral'"),
+    ("--planner", "spiral", "planner must be one of raster, uniform, equidistant, wrap, got 'spiral'"),
     ("--units", "ft", "unknown length unit"),
 ])
 def test_bad_settings_are_refused_by_name(tmp_path, capsys, flag, value, fragment):

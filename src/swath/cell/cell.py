@@ -18,6 +18,7 @@ import numpy as np
 
 from .bodies import Body, Table
 from .frames import check_transform, format_pose, invert_transform, parse_pose
+from .positioner import Positioner
 from .tool import ToolBody
 
 __all__ = ["Cell", "format_pose", "parse_pose"]
@@ -47,6 +48,9 @@ class Cell:
         The robot named by the cell file (the CLI's ``--robot`` wins).
     notes : tuple of str
         What was assumed while building the cell (default tool, default table), one sentence each.
+    positioner : Positioner or None
+        A rotary positioner that carries the part (:mod:`swath.cell.positioner`); then the part's
+        pose in the base frame follows the axis angle and ``part2base`` is not used.
     """
 
     part2base: np.ndarray = field(default_factory=lambda: np.eye(4))
@@ -57,6 +61,7 @@ class Cell:
     auto_table: bool = True
     robot: str | None = None
     notes: tuple[str, ...] = ()
+    positioner: Positioner | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "part2base", check_transform(self.part2base, name="part2base"))
@@ -101,4 +106,6 @@ class Cell:
             rec["table"] = self.table.as_record()
         if self.fixtures:
             rec["fixtures"] = [b.as_record() for b in self.fixtures]
+        if self.positioner is not None:
+            rec["positioner"] = self.positioner.as_record()
         return rec

@@ -25,6 +25,9 @@ bare numbers are degrees; every pose is ``"x,y,z,rx,ry,rz"`` or a 4x4 matrix, na
     shape = "box"
     size = ["100mm", "60mm", "80mm"]
     pose = "1.1,0.25,-160mm,0,0,0"              # body2base: centre of the box
+
+A ``[positioner]`` table puts the part on a rotary positioner instead of at ``part2base``
+(see :mod:`swath.cell.positioner`).
 """
 
 from __future__ import annotations
@@ -38,9 +41,10 @@ from ..units import parse_quantity
 from .bodies import Body, Box, Capsule, Cylinder, Mesh, Table
 from .cell import Cell
 from .frames import parse_pose
+from .positioner import positioner_from_mapping
 from .tool import ToolBody
 
-_TOP_KEYS = {"robot", "part2base", "tool", "table", "fixture"}
+_TOP_KEYS = {"robot", "part2base", "tool", "table", "fixture", "positioner"}
 _BODY_KEYS = {"name", "shape", "size", "radius", "length", "pose", "file", "units"}
 
 
@@ -100,8 +104,15 @@ def cell_from_mapping(data: dict, *, where: str = "cell", root: Path | None = No
     robot = data.get("robot")
     if robot is not None and not isinstance(robot, str):
         raise InputError(f"{where}: robot must be a catalogue name such as \"ur10e\", got {robot!r}")
+    positioner = None
+    if "positioner" in data:
+        if "part2base" in data:
+            raise InputError(f"{where}: give either part2base (a fixed part) or [positioner] (its part2faceplate "
+                             "places the part), not both")
+        positioner = positioner_from_mapping(data["positioner"], where=f"{where}: positioner")
     return Cell(part2base=part2base, tcp2flange=np.eye(4) if tool is None else tool.tcp2flange, tool=tool,
-                table=table, fixtures=fixtures, robot=robot, auto_table=data.get("table", True) is not False)
+                table=table, fixtures=fixtures, robot=robot, positioner=positioner,
+                auto_table=data.get("table", positioner is None) is not False)
 
 
 def _length(value, key: str) -> float:

@@ -110,7 +110,7 @@ def _selected_part(settings: JobSettings, say):
             if settings.side is None:
                 raise InputError(f"{PurePath(name).name} is a closed solid; pick the area to finish with --faces "
                                  "(ids, names or colours) or pass --side +z to finish the faces facing that side")
-            faces = _facing(part, settings.side)
+            faces = None if settings.side == "all" else _facing(part, settings.side)   # all: on a positioner
     else:
         from dataclasses import replace
 
@@ -231,6 +231,10 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
                "cost": cycle_time_cost(settings.constraints(), settings.links(), settings.order)}
     if settings.max_angular is not None:
         context["max_angular"] = settings.max_angular
+    if "axis" in takes:                       # the wrap planner turns about the cell's positioner axis
+        from .positioner_job import positioner_axis
+
+        context["axis"] = positioner_axis(settings)
     options = {k: v for k, v in {**context, **given}.items() if k in takes and v is not None}
     options.update(own)
     return options
@@ -243,12 +247,14 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
     ``part`` (its selection set), the passes are cut where the pad would touch a keep-out or cross
     the edge margin (:func:`swath.segment.select.keep_clear`) before they are ordered."""
     from ..order import order_toolpath, route_links
-    from ..plan import get_planner
+    from ..plan import get_planner, planner_options
     from .stages import job_tool
 
     tool = job_tool(settings) if tool is None else tool
     planner = get_planner(settings.planner)
     arguments = planner_arguments(settings, progress=progress)
+    if part is not None and "around" in planner_options(settings.planner):
+        arguments["around"] = part.surface     # the wrap planner keeps the pad clear of the whole part
     if settings.optimise_spacing:
         from .stages import spacing_plan
 
@@ -328,9 +334,12 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from .guard import check_budget
 
     if settings.side == "all":
+        from .positioner_job import all_round_settings, job_positioner
         from .setups import run_setups
 
-        return run_setups(settings, progress=progress)
+        if job_positioner(settings) is None:
+            return run_setups(settings, progress=progress)
+        settings = all_round_settings(settings)           # all round on the positioner, in one program
     say = progress or (lambda stage, done, total: None)
     timings = {}
     check_output_dir(settings.out, overwrite=settings.overwrite)

@@ -117,7 +117,8 @@ class JobSettings:
                                  help="STEP/IGES tessellation: largest distance from the exact faces (default 0.1mm)")
     planner: str = setting("raster", "str", stage="plan", choices=_planners, cli=Option(default="raster"),
                            help="path planner: raster (plane slices, the baseline), uniform (contact-aware uniform "
-                                "coverage) or equidistant (geodesic-parallel passes)")
+                                "coverage), equidistant (geodesic-parallel passes) or wrap (a continuous helix round "
+                                "a closed part's axis, for a rotary positioner)")
     pad_radius: float = setting(0.0381, "length", stage="tool", hi=1.0, bare_max=1.0, hint="mm, e.g. 38.1mm",
                                 positive=True, cli=Option(default="38.1mm"),
                                 help="pad radius, e.g. 38.1mm, within 5–150 mm (default: 3-inch pad)")

@@ -138,7 +138,12 @@ def robot_stage(trajectory, surface, settings, *, progress=None):
     from ..robot import run_robot_stage
     from ..robot.collision import CollisionError, check_job_collisions
 
-    result = run_robot_stage(trajectory, **robot_options(settings), out_dir=None, surface=surface,
+    options = robot_options(settings)
+    if options["cell"].positioner is not None:          # the part turns on a positioner (cli.positioner_job)
+        from .positioner_job import positioner_robot_stage
+
+        return positioner_robot_stage(trajectory, surface, settings, options, progress=progress)
+    result = run_robot_stage(trajectory, **options, out_dir=None, surface=surface,
                              force=settings.force, warn=False,      # the job reports result.warnings
                              progress=None if progress is None else (lambda m, d, n: progress(m, d, n)))
     metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
@@ -181,7 +186,8 @@ def write_robot_outputs(result, surface, settings, out_dir) -> dict:
     from ..robot.programs import ProgramInput, write_programs
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_programs(ProgramInput(result.trajectory, result.solution, result.model, result.cell, force=settings.force,
+    trajectory, cell = result.program_view or (result.trajectory, result.cell)     # a positioner: the base frame
+    write_programs(ProgramInput(trajectory, result.solution, result.model, cell, force=settings.force,
                                 force_program=settings.force_program), out_dir, list(settings.programs or ("csv",)))
     return write_robot_plots(out_dir, result=result, surface=surface, reach_map=result.reach_map)
 

@@ -17,6 +17,7 @@ from .raster import raster
 from .registry import PLANNERS, get_planner, planner_options, planners_taking
 from .slicing import resample, slice_mesh
 from .uniform import uniform
+from .wrap import wrap
 
 __all__ = ["PLANNERS", "Pass", "ToolPath", "equidistant", "equidistant_patch", "get_planner", "planner_options",
-           "planners_taking", "raster", "resample", "slice_mesh", "uniform"]
+           "planners_taking", "raster", "resample", "slice_mesh", "uniform", "wrap"]

@@ -12,12 +12,14 @@ from ..errors import InputError
 from .equidistant import equidistant
 from .raster import raster
 from .uniform import uniform
+from .wrap import wrap
 
 #: Planner name -> planner function.
 PLANNERS = {
     "raster": raster,
     "uniform": uniform,
     "equidistant": equidistant,
+    "wrap": wrap,
 }
 
 

@@ -206,6 +206,8 @@ def robot_traces(result, *, n_poses: int = 3, keep_out: float | None = None) -> 
 
     model, cell, sol = result.model, result.cell, result.solution
     base2part = cell.base2part                  # maps base-frame points into the part frame
+    if getattr(cell, "positioner", None) is not None:
+        n_poses = 1                             # the part turns: the cell's part2base is the first pose's
 
     def to_part(p_base):
         p = np.atleast_2d(p_base)

@@ -230,6 +230,16 @@ CODES: dict[str, WarningCode] = dict([
           "somewhere along the job (the report marks where).",
           "Move the part (`part2base`), change the tool body or the fixtures, or plan another direction; "
           "without `--allow-collisions` such a plan writes no program.", "robot"),
+    entry("W-WRAP-SPLIT", "",
+          "The wrap planner's helix (or a ring) found no outward-facing surface at some angles about the axis "
+          "(a slot, a hole or the end of a face the selection leaves out), so the pass is split there and the pad "
+          "lifts.", "Check the axis (the positioner's, or `axis=`) and the faces selected; a part that is not "
+          "closed about the axis is better planned with another planner.", "plan"),
+    entry("W-POSITIONER-ACCEL", "",
+          "With a rotary positioner: the axis angle the job asks for changes speed faster than the positioner's "
+          "`max_accel` somewhere (the speed itself is kept within `max_speed`); the controller slows there.",
+          "Raise `max_accel` if the positioner allows it, or plan a helix of smaller pitch changes (wrap mode "
+          "helix rather than rings) so the axis turns steadily.", "robot"),
     # --- simulation, force control, calibration ------------------------------------------------------------
     entry("W-REMOVAL-COARSENED", r"removal sampled at .* instead of",
           "The part is too large for the removal simulation's sample cap at the asked spacing; it is sampled "

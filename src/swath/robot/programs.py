@@ -42,7 +42,7 @@ Units and frames per format (the readers in :mod:`swath.robot.readers` parse the
 * ROS 2 ``trajectory_msgs/JointTrajectory`` YAML — joint names, positions (rad), velocities (rad/s;
   0 at the first and last point), ``time_from_start`` ``{sec, nanosec}``
   (``builtin_interfaces/Duration``).
-* ``joints.csv`` — ``t,q1..q6,contact,pass,branch`` (s, rad).
+* ``joints.csv`` — ``t,q1..q6,contact,pass,branch`` (s, rad); with a positioner ``positioner`` (rad) after ``q6``.
 
 Media changes (a ``media`` column on the trajectory, :mod:`swath.process.media`) stop the vendor
 programs for the operator (URScript ``popup``, RAPID ``TPWrite`` + ``Stop``, KRL ``HALT``, each after a
@@ -60,6 +60,7 @@ import numpy as np
 from ..cell import Cell
 from ..io.atomic import write_text_atomic
 from ..process.media import media_header, media_stops
+from .external_axis import AXIS_COLUMN, axis_samples, e1_text, eax_text, header_lines
 from .models import RobotModel
 from .pose import (
     make_transform,
@@ -167,6 +168,8 @@ class ProgramInput:
     max_force_turn: float = math.radians(2.0)
 
     def kept(self) -> np.ndarray:
+        if AXIS_COLUMN in getattr(self.trajectory, "extra", {}):
+            return axis_samples(self.solution.reachable, self.solution.joint_moves)
         return decimate(self.trajectory, self.solution.reachable, tol_position=self.tol_position,
                         tol_angle=self.tol_angle, joint_move=self.solution.joint_moves,
                         max_turn=self.max_force_turn)
@@ -436,7 +439,7 @@ def rapid_text(data: ProgramInput) -> str:
     ends = {s for s, e, p in segments(tr) if p} | {e - 1 for s, e, p in segments(tr) if p}
     lines = ["MODULE SwathJob", f"  ! swath robot program for {data.model.name}: TCP poses in the part frame (mm, quaternion)",
              "  ! configuration: ConfL\\On, so a linear move never changes the arm's configuration; every change is a "
-             "MoveAbsJ in the air"]
+             "MoveAbsJ in the air"] + header_lines(tr, "  !")
     if native:
         lines += [f"  ! force: ABB Force Control (option 'Force Control Pressure'): each pass starts with FCPress1LStart, "
                   f"presses {data.force:.1f} N along the tool z-axis",
@@ -450,10 +453,10 @@ def rapid_text(data: ProgramInput) -> str:
         lines.append("  PERS loaddata lSwath := [1,[0,0,0.001],[1,0,0,0],0,0,0];")
     for k in range(len(idx)):
         lines.append(f"  CONST robtarget p{k} := [[{_fmt(tcp2part[k, :3, 3] * 1e3, 4)}],[{_fmt(quat[k], 9)}],"
-                     f"[{','.join(str(int(c)) for c in conf[k])}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+                     f"[{','.join(str(int(c)) for c in conf[k])}],{eax_text(tr, idx[k])}];")
     for k, i in enumerate(idx):
         if k and jm[i]:
-            lines.append(f"  CONST jointtarget j{k} := [[{_fmt(np.degrees(sol.q[i]), 6)}],[9E9,9E9,9E9,9E9,9E9,9E9]];")
+            lines.append(f"  CONST jointtarget j{k} := [[{_fmt(np.degrees(sol.q[i]), 6)}],{eax_text(tr, i)}];")
     body = ["    ConfL\\On;", "    ConfJ\\On;"]
     if native:
         body.append("    FCCalib lSwath;")
@@ -528,12 +531,12 @@ def krl_texts(data: ProgramInput, name: str = "swath_job") -> tuple[str, str]:
            f"DECL FRAME BASE_SWATH={{{_abc(cell.part2base)}}}", f"DECL FRAME TOOL_SWATH={{{_abc(kuka_tool)}}}"]
     for k in range(len(idx)):
         dat.append(f"DECL E6POS XP{k + 1}={{{_abc(tcp2part[k])},S {status[k]},T {turn[k]},"
-                   "E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
+                   f"E1 {e1_text(tr, idx[k])},E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}}")
     dat += ["ENDDAT", ""]
     ends = {s for s, e, p in segments(tr) if p} | {e - 1 for s, e, p in segments(tr) if p}
     head = ["&ACCESS RVP", f"DEF {name}()",
             "  ; configuration: LIN keeps the arm's configuration (S and T apply to PTP only); every change is a "
-            "PTP with S and T in the air"]
+            "PTP with S and T in the air"] + header_lines(tr, "  ;")
     if native:
         head += [f"  ; force: KUKA.ForceTorqueControl presses {data.force:.1f} N along $TOOL z (the pad axis, into the "
                  "part) in every pass; the force frame is the tool, so it turns with the tool along the surface.",
@@ -608,9 +611,12 @@ def joint_csv_text(data: ProgramInput) -> str:
     tr, sol = data.trajectory, data.solution
     idx = np.flatnonzero(sol.reachable)
     media = tr.extra.get("media") if hasattr(tr, "extra") else None
-    rows = ["t,q1,q2,q3,q4,q5,q6,contact,pass,branch" + (",media" if media is not None else "")]
+    axis = tr.extra.get(AXIS_COLUMN) if hasattr(tr, "extra") else None     # a positioner's angle, rad
+    rows = ["t,q1,q2,q3,q4,q5,q6" + (",positioner" if axis is not None else "") + ",contact,pass,branch"
+            + (",media" if media is not None else "")]
     for i in idx:
-        rows.append(f"{tr.t[i]:.9f}," + _fmt(sol.q[i], 12) + f",{int(tr.contact[i])},{int(tr.pass_index[i])},{int(sol.branch[i])}"
+        rows.append(f"{tr.t[i]:.9f}," + _fmt(sol.q[i], 12) + (f",{axis[i]:.12g}" if axis is not None else "")
+                    + f",{int(tr.contact[i])},{int(tr.pass_index[i])},{int(sol.branch[i])}"
                     + (f",{int(round(float(media[i])))}" if media is not None else ""))
     return "\n".join(rows) + "\n"
 

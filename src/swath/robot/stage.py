@@ -63,6 +63,9 @@ class RobotResult:
         ``retime_added_s``, ``min_manipulability``, ``min_joint_limit_margin_rad`` …
     gaps : list of Gap
         Unreachable stretches the robot skips in air (:mod:`swath.robot.gaps`).
+    program_view : (Trajectory, Cell) or None
+        With a rotary positioner (:mod:`swath.robot.positioner`): the base-frame trajectory with the
+        axis angle and the cell the programs are written from; None: ``trajectory`` and ``cell``.
     warnings : list of str
         What the user must know before running the programs, one sentence each: poses no
         configuration reaches (the programs leave them out) and configuration changes inside a
@@ -79,6 +82,7 @@ class RobotResult:
     metrics: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     gaps: list = field(default_factory=list)
+    program_view: tuple | None = None
 
 
 def fk_errors(trajectory, solution: JointSolution, model: RobotModel, cell: Cell):

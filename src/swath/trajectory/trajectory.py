@@ -18,6 +18,8 @@ column    meaning
 ``force`` (only when the force control was simulated) mean normal contact force while the tool
           passed the sample, N, from :func:`swath.simulate.simulate_force` (added by
           :func:`swath.simulate.force.trajectory_with_force`); ``0`` off contact
+``positioner`` (only with a rotary positioner in the cell) the axis angle at the sample, rad
+          (:mod:`swath.robot.positioner`); the pose columns stay in the part frame
 ========  ==========================================================================================
 
 The angular velocity is expressed in the part frame (not the tool frame): between two samples
@@ -47,6 +49,7 @@ EXTRA_COLUMNS = {
     "wy": "angular velocity of the tool frame about the part y-axis, rad/s (part frame)",
     "wz": "angular velocity of the tool frame about the part z-axis, rad/s (part frame)",
     "force": "simulated normal contact force at the sample, N (0 off contact); only with force control",
+    "positioner": "axis angle of a rotary positioner at the sample, rad; only with a positioner in the cell",
 }
 
 
