@@ -118,7 +118,7 @@ def test_choices_come_from_their_registries(monkeypatch):
     monkeypatch.setitem(PLANNERS, "spiral", PLANNERS["raster"])
     assert "spiral" in schema(JobSettings)["planner"].choices
     assert parse_value("planner", "spiral", schema(JobSettings)["planner"]) == "spiral"
-    with pytest.raises(Exception, match="planner must be one of raster, uniform, equidistant, spiral, got 'helix'"):
+    with pytest.raises(Exception, match="planner must be one of raster, uniform, equidistant, wrap, spiral, got .helix."):
         parse_value("planner", "helix", schema(JobSettings)["planner"])
 
 
