@@ -64,6 +64,8 @@ def check_settings(settings: JobSettings) -> None:
 def load_arrays(settings: JobSettings) -> tuple[np.ndarray, np.ndarray, str]:
     """``(vertices (n, 3), faces (m, 3), name)`` of the job's part (a mesh file or ``example:NAME``)."""
     part = settings.part
+    if part.lower().endswith(".npz"):
+        return read_npz_mesh(part, units=settings.units)
     if part.startswith("example:"):
         from ..examples import example_part
 
@@ -74,6 +76,28 @@ def load_arrays(settings: JobSettings) -> tuple[np.ndarray, np.ndarray, str]:
         surface = load_mesh(part, units=settings.units, side=settings.side, all_pieces=settings.all_pieces,
                             force_units=settings.force_units)
     return np.asarray(surface.vertices), np.asarray(surface.faces), surface.name
+
+
+def read_npz_mesh(path: str, *, units: str = "m") -> tuple[np.ndarray, np.ndarray, str]:
+    """``(vertices (n, 3) m, faces (m, 3) int, name)`` of a NumPy ``.npz`` mesh: arrays ``vertices``
+    (in ``units``) and ``faces``, optionally ``name``; read without the checks and repairs of
+    :func:`swath.io.mesh.load_mesh` (seconds instead of minutes for millions of faces), so only
+    the shapes and index range are checked."""
+    from ..units import length_unit_factor
+
+    name = Path(path).stem
+    try:
+        with np.load(path) as data:
+            vertices, faces = np.asarray(data["vertices"], float), np.asarray(data["faces"])
+            if "name" in data:
+                name = str(data["name"])
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"{Path(path).name}: not a mesh .npz with 'vertices' and 'faces' arrays ({exc})") from None
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3 or not len(faces) \
+            or not np.issubdtype(faces.dtype, np.integer) or faces.min() < 0 or faces.max() >= len(vertices):
+        raise InputError(f"{Path(path).name}: expected vertices (n, 3) and integer faces (m, 3) indexing them; got "
+                         f"{vertices.shape} and {faces.shape} {faces.dtype}")
+    return vertices * length_unit_factor(units), faces, name
 
 
 def default_spacing(vertices, faces, axis, tool, name: str) -> float:
@@ -180,9 +204,10 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         timings["split_s"] = time.perf_counter() - t0
         say(f"{n_regions} regions of {name} ({n_faces} faces), {executor.where}", 0, 1)
         axis_l, feed_l = axis.tolist(), feed_direction.tolist()
+        all_planes = np.concatenate([t.offsets for t in tiles])
         t0 = time.perf_counter()
         planned = executor.run(bigpart_work.plan_region,
-                               [(paths[k], tiles[k], axis_l, feed_l, settings) for k in range(n_regions)],
+                               [(paths[k], tiles[k], axis_l, feed_l, settings, all_planes) for k in range(n_regions)],
                                on_done=lambda i, r: say("planning regions", i + 1, n_regions))
         timings["regions_plan_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -273,3 +298,37 @@ def rows_csv(rows: list[dict]) -> str:
     writer.writeheader()
     writer.writerows(rows)
     return buf.getvalue()
+
+
+def add_arguments(parser) -> None:
+    """The options ``swath big`` adds to the plan options: ``--regions``, ``--workers``, ``--address``."""
+    parser.add_argument("--regions", default="auto",
+                        help="span-wise regions the part is cut into: a count, or auto (about "
+                             f"{FACES_PER_REGION // 1000}k faces each, at least two per worker)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="regions planned at once; 1 runs them in this process (default: every CPU, on Ray)")
+    parser.add_argument("--address", default=None,
+                        help="Ray cluster to run on (ray://host:10001 or auto); default a local Ray")
+    parser.add_argument("--work-dir", default=None,
+                        help="folder for the region files the workers read (default: a new folder beside --out, "
+                             "removed after); on a cluster, one every worker can read")
+
+
+def run_from_args(args, settings, *, progress=None, quiet: bool = False) -> int:
+    """``swath big``: run :func:`run_big_part` from parsed arguments and print a summary."""
+    m = run_big_part(settings, regions=args.regions, workers=args.workers, address=args.address,
+                     progress=progress, work_dir=args.work_dir)
+    if not quiet:
+        print(summary(settings, m))
+    return 0
+
+
+def summary(settings, m: dict) -> str:
+    """The lines ``swath big`` prints when it is done."""
+    gib = m["max_worker_peak_rss_bytes"] / 2**30
+    return (f"wrote {Path(settings.out) / 'trajectory.csv'}, metrics.json, regions.csv\n"
+            f"  {m['n_regions']} regions {m['where']}, {m['n_part_faces']} faces, wall {m['wall_s']:.1f} s, "
+            f"peak memory per worker {gib:.2f} GiB\n"
+            f"  passes {m['n_passes']}, contact path {m['contact_length_m']:.1f} m, cycle time {m['cycle_time_s']:.1f} s\n"
+            f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f} "
+            f"({m['interior_removal_cov']:.3f} a pad radius in from the edges)")

@@ -48,8 +48,15 @@ def load_region(path: str, *, owned_only: bool, tile, axis):
     return Surface(vertices, faces, name=f"{name}_region{tile.index}")
 
 
-def plan_region(path: str, tile, axis, feed_direction, settings) -> dict:
+def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -> dict:
     """Plan, time and (``settings.optimise_feed``) feed-optimise one region (see the module notes).
+
+    With ``optimise_feed``, the feed is optimised on the region's extended mesh over the passes of
+    its own planes and of the whole part's planes ``offsets`` (p,) (m) within the band less a pad
+    radius (the neighbours' passes nearest the seam), matching the target everywhere a pad radius
+    in from the extended mesh's edge: the owned area and most of the band.  Only the region's own
+    passes are kept, with their optimised feed.  The seam is thus optimised by both regions over
+    nearly the same passes (an overlapping split), instead of by neither.
 
     Returns
     -------
@@ -60,17 +67,22 @@ def plan_region(path: str, tile, axis, feed_direction, settings) -> dict:
     from ..order import route_links
     from ..plan.sections import section_passes
     from ..trajectory import time_path
+    from ..trajectory.constraints import FeedProfile
     from . import stages
 
     t0 = time.perf_counter()
-    surface = load_region(path, owned_only=True, tile=tile, axis=axis)
-    out: dict = {"load_s": time.perf_counter() - t0, "n_faces": len(surface.faces)}
+    owned = load_region(path, owned_only=True, tile=tile, axis=axis)
+    out: dict = {"load_s": time.perf_counter() - t0, "n_faces": len(owned.faces)}
     tool = stages.job_tool(settings)
     t0 = time.perf_counter()
-    toolpath = section_passes(surface, axis=axis, offsets=tile.offsets, levels=tile.levels, feed=feed_direction,
-                              point_spacing=settings.point_spacing, min_pass_length=settings.pad_radius)
-    toolpath = route_links(toolpath, clearance=settings.clearance, pad_radius=settings.pad_radius,
+
+    def plan(surface, planes, levels):
+        toolpath = section_passes(surface, axis=axis, offsets=planes, levels=levels, feed=feed_direction,
+                                  point_spacing=settings.point_spacing, min_pass_length=settings.pad_radius)
+        return route_links(toolpath, clearance=settings.clearance, pad_radius=settings.pad_radius,
                            units=settings.units)
+
+    toolpath = plan(owned, tile.offsets, tile.levels)
     out["plan_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
@@ -78,7 +90,20 @@ def plan_region(path: str, tile, axis, feed_direction, settings) -> dict:
     out["feed_s"], out["feed_metrics"] = 0.0, {}
     if settings.optimise_feed:
         t0 = time.perf_counter()
-        trajectory, _, out["feed_metrics"] = stages.feed_stage(toolpath, tool, settings, trajectory, surface)
+        extended = load_region(path, owned_only=False, tile=tile, axis=axis)
+        all_planes = np.asarray(tile.offsets if offsets is None else offsets, float)
+        reach = tile.band - tool.pad_radius
+        near = (all_planes >= tile.lo - reach) & (all_planes < tile.hi + reach)
+        wide = plan(extended, all_planes[near], np.flatnonzero(near))
+        wide_trajectory = time_path(wide, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+        _, result, out["feed_metrics"] = stages.feed_stage(wide, tool, settings, wide_trajectory, extended)
+        own_levels = {int(v) for v in tile.levels}
+        mine = [i for i, p in enumerate(wide.passes) if p.level in own_levels]
+        profile = FeedProfile(tuple(result.profile.speeds[i] for i in mine))
+        own = route_links(wide.replace(passes=tuple(wide.passes[i] for i in mine)),
+                          clearance=settings.clearance, pad_radius=settings.pad_radius, units=settings.units)
+        trajectory = time_path(own, settings.constraints() + [profile], links=settings.links(),
+                               lead_angle=settings.lead())
         out["feed_s"] = time.perf_counter() - t0
     out.update(trajectory=trajectory, n_passes=len(toolpath.passes), contact_length_m=toolpath.contact_length,
                peak_rss_bytes=peak_rss_bytes(), pid=os.getpid())
