@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import csv
 import io
+import itertools
 import logging
 import math
 import shutil
@@ -152,7 +153,9 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     Returns
     -------
     dict
-        The metrics written to ``metrics.json`` (keys with units), with ``regions`` (list of dict).
+        The metrics written to ``metrics.json`` (keys with units), with ``regions`` (the rows of
+        ``regions.csv``), ``stitched`` (per region: its owned removal samples ``points``, ``depth``,
+        ``area``, ``interior``) and ``trajectory`` (the stitched Trajectory).
     """
     from ..io.atomic import atomic_directory, check_output_dir
     from ..report.metrics import write_metrics_json
@@ -184,19 +187,21 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     if executor is None:
         executor = bigpart_work.InlineExecutor() if workers == 1 and not address else \
             bigpart_work.RayExecutor(workers, address)
-    n_regions = region_count(regions, len(faces), executor.workers, n_planes)
-    tiles = span_tiles(heights_v, spacing, n_regions, band=BAND_RADII * tool.pad_radius)
-    made_dir = work_dir is None
-    folder = Path(tempfile.mkdtemp(prefix=".swath-regions-", dir=Path(settings.out).resolve().parent)) \
-        if made_dir else Path(work_dir)
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = None
     try:
+        n_regions = region_count(regions, len(faces), executor.workers, n_planes)
+        tiles = span_tiles(heights_v, spacing, n_regions, band=BAND_RADII * tool.pad_radius)
+        if work_dir is None:
+            folder = Path(tempfile.mkdtemp(prefix=".swath-regions-", dir=Path(settings.out).resolve().parent))
+        else:
+            Path(work_dir).mkdir(parents=True, exist_ok=True)
+        where = folder if folder is not None else Path(str(work_dir))
         t0 = time.perf_counter()
         h_faces = face_heights(vertices, faces, axis)
         paths = []
         for tile in tiles:
             v, f = submesh(vertices, faces, tile.reaches(h_faces))
-            path = folder / f"region{tile.index:04d}.npz"
+            path = where / f"region{tile.index:04d}.npz"
             np.savez(path, vertices=v, faces=f.astype(np.int32 if len(v) < 2**31 else np.int64), name=name)
             paths.append(str(path))
         n_faces, area_note = len(faces), name
@@ -205,21 +210,22 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         say(f"{n_regions} regions of {name} ({n_faces} faces), {executor.where}", 0, 1)
         axis_l, feed_l = axis.tolist(), feed_direction.tolist()
         all_planes = np.concatenate([t.offsets for t in tiles])
+        done_plan, done_sim = itertools.count(1), itertools.count(1)     # regions finished, in any order
         t0 = time.perf_counter()
         planned = executor.run(bigpart_work.plan_region,
                                [(paths[k], tiles[k], axis_l, feed_l, settings, all_planes) for k in range(n_regions)],
-                               on_done=lambda i, r: say("planning regions", i + 1, n_regions))
+                               on_done=lambda i, r: say("planning regions", next(done_plan), n_regions))
         timings["regions_plan_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         refs = [executor.put(r["trajectory"]) for r in planned]
         calls = [(paths[k], tiles[k], axis_l, settings, *[refs[j] for j in reaching(tiles, k)])
                  for k in range(n_regions)]
         simulated = executor.run(bigpart_work.simulate_region, calls,
-                                 on_done=lambda i, r: say("simulating regions", i + 1, n_regions))
+                                 on_done=lambda i, r: say("simulating regions", next(done_sim), n_regions))
         timings["regions_simulate_s"] = time.perf_counter() - t0
     finally:
         executor.close()
-        if made_dir:
+        if folder is not None:
             shutil.rmtree(folder, ignore_errors=True)
     trajectory = join_trajectories([r["trajectory"] for r in planned], link_speed=settings.links().speed)
     metrics = stitched_metrics(simulated, tool.pad_radius)
@@ -244,7 +250,8 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         write_metrics_json(tmp / "metrics.json", metrics, settings.as_record())
     say("done", 1, 1)
     metrics["regions"] = rows
-    metrics["stitched"] = simulated
+    metrics["stitched"] = simulated                 # per region: owned samples, depth, area, interior
+    metrics["trajectory"] = trajectory
     return metrics
 
 

@@ -43,8 +43,9 @@ def join_trajectories(trajectories, *, link_speed: float) -> Trajectory:
         if tr.contact[0] or tr.contact[-1]:
             raise InputError(f"trajectory {i} to join starts or ends in contact; each must start and end in the air")
     names = list(dict.fromkeys(k for tr in parts for k in tr.extra))
-    t, shift, first_pass, link_length = [], 0.0, 0, 0.0
-    pass_index = []
+    t: list[np.ndarray] = []
+    pass_index: list[np.ndarray] = []
+    shift, first_pass, link_length = 0.0, 0, 0.0
     for i, tr in enumerate(parts):
         if i:
             gap = float(np.linalg.norm(tr.position[0] - parts[i - 1].position[-1]))
