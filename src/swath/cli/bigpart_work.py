@@ -28,6 +28,9 @@ from ..errors import InputError
 
 log = logging.getLogger(__name__)
 
+#: The environment variable of Ray's worker niceness (its raylet reads it when it starts).
+WORKER_NICENESS = "RAY_worker_niceness"
+
 
 def peak_rss_bytes() -> int:
     """This process's peak resident memory so far, bytes (``ru_maxrss``: KiB on Linux, bytes on macOS)."""
@@ -189,7 +192,18 @@ class RayExecutor:
             if address:
                 ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
             else:
-                start_local_ray(workers or os.cpu_count() or 1, warm=False)
+                # Ray starts its workers 15 steps nicer than itself by default; here they do all the
+                # work, so they run at this process's priority (on a busy machine a niceness of 15
+                # made the same regions 5-6 times slower than in this process).
+                before = os.environ.get(WORKER_NICENESS)
+                os.environ[WORKER_NICENESS] = "0"
+                try:
+                    start_local_ray(workers or os.cpu_count() or 1, warm=False)
+                finally:
+                    if before is None:
+                        os.environ.pop(WORKER_NICENESS, None)
+                    else:
+                        os.environ[WORKER_NICENESS] = before
             self.started = True
         self.workers = workers or int(ray.cluster_resources().get("CPU", 1))
         self.where = f"on Ray at {address}" if address else f"on a local Ray with {self.workers} workers"
