@@ -5,10 +5,12 @@ Rows (one run each, printed as a Markdown table):
 1. ``big, 1 worker`` / ``big, 2 workers`` — :func:`swath.examples.large.large_blade` at ``--faces``
    (default 5 M) and ``--length`` (20 m), saved as ``.npz``, planned by ``swath big``'s
    :func:`swath.cli.bigpart.run_big_part` in ``--regions`` regions on a local Ray with 1 and 2
-   workers (both on Ray, so both pay its start): wall time (the whole call: read, split, plan, simulate, stitch, write), the regions'
-   plan and simulate phases, the peak resident memory of every worker (``ru_maxrss`` returned by
-   each task) and the stitched interior removal CoV.  The speed-up is the 1-worker wall over the
-   2-worker wall.
+   workers (both on Ray, so both pay its start): wall time (the whole call: read, split, plan,
+   simulate, stitch, write), the regions' plan and simulate phases, the CPU time of the region
+   tasks (all of it, and the busiest worker's: their ratio is the speed-up the split allows,
+   whatever else the machine runs), the peak resident memory of every worker (``ru_maxrss``
+   returned by each task) and the stitched interior removal CoV.  The speed-up is the 1-worker
+   wall over the 2-worker wall.
 2. ``small`` — the same shape at ``--small-faces`` over ``--small-length`` (a part small enough to
    run whole): whole in this process (one region) against ``--small-regions`` regions on 1 and 2
    workers; the CoV difference is the stitching's, the wall ratio the smaller part's speed-up.
@@ -56,7 +58,8 @@ def run(part: Path, out: Path, *, regions, workers: int, ray: bool = True, **set
 def row(label: str, m: dict) -> str:
     gib = [b / 2**30 for b in m["worker_peak_rss_bytes"]]
     return (f"| {label} | {m['n_part_faces']:,} | {m['n_regions']} | {m['workers']} | {m['call_s']:.1f} | "
-            f"{m['regions_plan_s']:.1f} | {m['regions_simulate_s']:.1f} | {max(gib):.2f} ({len(gib)} workers) | "
+            f"{m['regions_plan_s']:.1f} | {m['regions_simulate_s']:.1f} | "
+            f"{m['regions_cpu_s']:.1f} / {m['busiest_worker_cpu_s']:.1f} | {max(gib):.2f} ({len(gib)} workers) | "
             f"{m['n_passes']} | {100 * m['coverage_fraction']:.2f} | {100 * m['interior_removal_cov']:.2f} |")
 
 
@@ -73,8 +76,9 @@ def main() -> None:
     args = ap.parse_args()
     logging.basicConfig(level=logging.ERROR)
     lines = [f"CPUs {os.cpu_count()}, load average before {os.getloadavg()[0]:.2f}", "",
-             "| run | faces | regions | workers | wall s | regions plan s | regions simulate s | peak RSS per worker GiB "
-             "| passes | coverage % | interior CoV % |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| run | faces | regions | workers | wall s | regions plan s | regions simulate s "
+             "| task CPU s: all / busiest worker | peak RSS per worker GiB | passes | coverage % | interior CoV % |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     notes: list[str] = []
     print("\n".join(lines), flush=True)
 
@@ -120,7 +124,8 @@ def main() -> None:
                 add(row(f"big, {args.regions} regions", runs[w]))
             notes.append(f"big part: speed-up 2 workers over 1: {runs[1]['call_s'] / runs[2]['call_s']:.2f}x wall, "
                          f"{(runs[1]['regions_plan_s'] + runs[1]['regions_simulate_s']) / (runs[2]['regions_plan_s'] + runs[2]['regions_simulate_s']):.2f}x "
-                         f"in the regions' phases; the largest worker peak "
+                         f"in the regions' phases; task CPU over the busiest worker's "
+                         f"{runs[2]['regions_cpu_s'] / runs[2]['busiest_worker_cpu_s']:.2f}x; the largest worker peak "
                          f"{max(runs[2]['worker_peak_rss_bytes']) / 2**30:.2f} GiB")
     print("\n".join(["", *notes, f"load average after {os.getloadavg()[0]:.2f}"]), flush=True)
 

@@ -151,3 +151,13 @@ def test_two_ray_workers_give_the_in_process_result(small_blade, tmp_path):
     assert on_ray["interior_removal_cov"] == pytest.approx(inline["interior_removal_cov"], rel=1e-9)
     assert on_ray["n_passes"] == inline["n_passes"]
     assert len(on_ray["worker_peak_rss_bytes"]) >= 1 and 0 < on_ray["max_worker_peak_rss_bytes"] < 8 * 2**30
+
+
+def test_big_prints_its_help(capsys):
+    from swath.cli.main import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["big", "--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: swath big") and "--regions" in out and "--address" in out

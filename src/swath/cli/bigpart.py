@@ -236,10 +236,16 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
                    removal_sample_spacing_m=float(max(r["sample_spacing_m"] for r in simulated)),
                    workers=int(executor.workers), where=executor.where, part_name=area_note)
     per_worker: dict = {}
+    cpu: dict = {}
     for r in planned + simulated:
         per_worker[r["pid"]] = max(per_worker.get(r["pid"], 0), r["peak_rss_bytes"])
+        cpu[r["pid"]] = cpu.get(r["pid"], 0.0) + r["cpu_s"]
     metrics["worker_peak_rss_bytes"] = sorted(per_worker.values(), reverse=True)
     metrics["max_worker_peak_rss_bytes"] = max(per_worker.values())
+    # CPU time of the region tasks: all of it, and the busiest worker's share (their ratio is the
+    # speed-up the split allows whatever else the machine runs)
+    metrics["regions_cpu_s"] = float(sum(cpu.values()))
+    metrics["busiest_worker_cpu_s"] = float(max(cpu.values()))
     rows = region_rows(tiles, planned, simulated)
     metrics.update(timings)
     metrics["wall_s"] = time.perf_counter() - wall0
@@ -293,7 +299,7 @@ def region_rows(tiles, planned, simulated) -> list[dict]:
     for t, p, s in zip(tiles, planned, simulated):
         rows.append({"region": t.index, "from_m": t.lo, "to_m": t.hi, "n_faces": p["n_faces"],
                      "n_passes": p["n_passes"], "plan_s": p["plan_s"], "trajectory_s": p["trajectory_s"],
-                     "feed_s": p["feed_s"], "simulate_s": s["simulate_s"],
+                     "feed_s": p["feed_s"], "simulate_s": s["simulate_s"], "cpu_s": p["cpu_s"] + s["cpu_s"],
                      "n_removal_samples": int(len(s["depth"])),
                      "peak_rss_bytes": max(p["peak_rss_bytes"], s["peak_rss_bytes"])})
     return rows

@@ -65,7 +65,8 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
     -------
     dict
         ``trajectory`` (Trajectory), ``n_passes``, ``n_faces`` (owned), ``feed_metrics`` (dict),
-        ``plan_s``, ``trajectory_s``, ``feed_s``, ``load_s``, ``peak_rss_bytes``, ``pid``.
+        ``plan_s``, ``trajectory_s``, ``feed_s``, ``load_s``, ``cpu_s`` (the task's CPU time, all its
+        threads), ``peak_rss_bytes``, ``pid``.
     """
     from ..order import route_links
     from ..plan.sections import section_passes
@@ -73,6 +74,7 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
     from ..trajectory.constraints import FeedProfile
     from . import stages
 
+    cpu0 = time.process_time()
     t0 = time.perf_counter()
     owned = load_region(path, owned_only=True, tile=tile, axis=axis)
     out: dict = {"load_s": time.perf_counter() - t0, "n_faces": len(owned.faces)}
@@ -109,7 +111,7 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
                                lead_angle=settings.lead())
         out["feed_s"] = time.perf_counter() - t0
     out.update(trajectory=trajectory, n_passes=len(toolpath.passes), contact_length_m=toolpath.contact_length,
-               peak_rss_bytes=peak_rss_bytes(), pid=os.getpid())
+               cpu_s=time.process_time() - cpu0, peak_rss_bytes=peak_rss_bytes(), pid=os.getpid())
     return out
 
 
@@ -123,12 +125,13 @@ def simulate_region(path: str, tile, axis, settings, *trajectories) -> dict:
         ``points`` (k, 3) float32 and ``depth``, ``area`` (k,) float (m, m²) of the owned samples,
         ``interior`` (k,) bool (more than a pad radius from the part's open boundary: the band
         keeps the region's own cut edges farther than that from every owned sample),
-        ``sample_spacing_m``, ``simulate_s``, ``load_s``, ``peak_rss_bytes``, ``pid``.
+        ``sample_spacing_m``, ``simulate_s``, ``load_s``, ``cpu_s``, ``peak_rss_bytes``, ``pid``.
     """
     from ..simulate import simulate_removal
     from ..trajectory.join import join_trajectories
     from . import stages
 
+    cpu0 = time.process_time()
     t0 = time.perf_counter()
     surface = load_region(path, owned_only=False, tile=tile, axis=axis)
     load_s = time.perf_counter() - t0
@@ -143,7 +146,8 @@ def simulate_region(path: str, tile, axis, settings, *trajectories) -> dict:
     return {"points": np.asarray(samples.vertices[owned], np.float32), "depth": removal.depth[owned],
             "area": np.asarray(samples.vertex_areas)[owned], "interior": interior[owned],
             "sample_spacing_m": removal.metrics["removal_sample_spacing_m"],
-            "simulate_s": time.perf_counter() - t0, "load_s": load_s, "peak_rss_bytes": peak_rss_bytes(),
+            "simulate_s": time.perf_counter() - t0, "load_s": load_s, "cpu_s": time.process_time() - cpu0,
+            "peak_rss_bytes": peak_rss_bytes(),
             "pid": os.getpid()}
 
 
