@@ -85,8 +85,8 @@ def main() -> None:
     def add(line: str) -> None:                 # each row as it is measured (the big runs take minutes)
         lines.append(line)
         print(line, flush=True)
-    with tempfile.TemporaryDirectory(prefix="h-bigpart-") as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory(prefix="h-bigpart-") as tmp_name:
+        tmp = Path(tmp_name)
         small = tmp / "small.npz"
         save_npz(large_blade(n_faces=args.small_faces, length=args.small_length), small)
         whole = run(small, tmp / "o", regions=1, workers=1, ray=False)

@@ -143,7 +143,8 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     address : str, optional
         A Ray cluster to run on (``ray://host:10001`` or ``auto``); None: a local Ray.
     executor : optional
-        An executor with ``put``, ``run`` and ``close`` (:mod:`swath.cli.bigpart_work`) instead.
+        An executor with ``put``, ``run`` and ``close`` (:mod:`swath.cli.bigpart_work`) instead;
+        closed at the end.
     progress : callable, optional
         ``progress(stage, done, total)``.
     work_dir : str, optional
