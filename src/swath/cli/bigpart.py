@@ -174,6 +174,7 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     tool = stages.job_tool(settings)
     timings: dict = {}
     wall0 = t0 = time.perf_counter()
+    cpu0 = time.process_time()
     say("loading part", 0, 1)
     vertices, faces, name = load_arrays(settings)
     axis, feed_direction = principal_axes(vertices)
@@ -228,6 +229,7 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         executor.close()
         if folder is not None:
             shutil.rmtree(folder, ignore_errors=True)
+    t0 = time.perf_counter()
     trajectory = join_trajectories([r["trajectory"] for r in planned], link_speed=settings.links().speed)
     metrics = stitched_metrics(simulated, tool.pad_radius)
     metrics.update(cycle_time_s=trajectory.duration, contact_length_m=trajectory.contact_length,
@@ -248,12 +250,17 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     metrics["regions_cpu_s"] = float(sum(cpu.values()))
     metrics["busiest_worker_cpu_s"] = float(max(cpu.values()))
     rows = region_rows(tiles, planned, simulated)
+    timings["stitch_s"] = time.perf_counter() - t0
     metrics.update(timings)
-    metrics["wall_s"] = time.perf_counter() - wall0
     say("writing output", 0, 1)
+    t0 = time.perf_counter()
     with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
         trajectory.write_csv(tmp / "trajectory.csv")
         (tmp / "regions.csv").write_text(rows_csv(rows))
+        # this process's own CPU time (reading, splitting, stitching; not the workers') and the wall
+        # time, both up to here: the figures of the job's serial part
+        metrics.update(wall_s=time.perf_counter() - wall0, driver_cpu_s=time.process_time() - cpu0,
+                       write_s=time.perf_counter() - t0)
         write_metrics_json(tmp / "metrics.json", metrics, settings.as_record())
     say("done", 1, 1)
     metrics["regions"] = rows
