@@ -161,3 +161,16 @@ def test_big_prints_its_help(capsys):
     assert exc.value.code == 0
     out = capsys.readouterr().out
     assert out.startswith("usage: swath big") and "--regions" in out and "--address" in out
+
+
+def test_submesh_keeps_the_faces_and_only_their_vertices_in_order():
+    from swath.segment.tiles import submesh
+
+    rng = np.random.default_rng(3)
+    vertices = rng.random((200, 3))
+    faces = rng.integers(0, 200, (500, 3))
+    keep = rng.random(500) < 0.3
+    v, f = submesh(vertices, faces, keep)
+    used = np.unique(faces[keep])
+    np.testing.assert_array_equal(v, vertices[used])              # the used vertices, in their old order
+    np.testing.assert_array_equal(v[f], vertices[faces[keep]])    # the same triangles

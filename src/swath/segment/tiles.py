@@ -115,5 +115,7 @@ def submesh(vertices: np.ndarray, faces: np.ndarray, keep: np.ndarray) -> tuple[
     """``(vertices (n', 3), faces (m', 3))`` of the faces where ``keep`` (m,) bool is set, with only
     the vertices they use, renumbered in their old order."""
     kept = faces[keep]
-    used = np.unique(kept)
-    return np.asarray(vertices)[used], np.searchsorted(used, kept)
+    used = np.zeros(len(vertices), bool)           # marks and a running count: no sort of m' * 3 indices
+    used[kept.ravel()] = True
+    new_index = np.cumsum(used) - 1
+    return np.asarray(vertices)[used], new_index[kept]
