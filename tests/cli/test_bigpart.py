@@ -129,6 +129,8 @@ def test_big_refuses_settings_it_does_not_take(small_blade, tmp_path):
         run_big_part(_settings(small_blade[1], tmp_path / "x", planner="uniform"), regions=2)
     with pytest.raises(InputError, match="at least 1"):
         run_big_part(_settings(small_blade[1], tmp_path / "x"), regions=0)
+    with pytest.raises(InputError, match="a count or 'auto'"):        # before the (missing) part is read
+        run_big_part(_settings(tmp_path / "missing.npz", tmp_path / "x"), regions="x")
     assert not (tmp_path / "x").exists()
 
 

@@ -171,6 +171,7 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         raise InputError(f"--workers must be at least 1, got {workers}")
     if workers == 1 and address:
         raise InputError("--workers 1 runs the regions in this process; drop --address, or ask for more workers")
+    region_count(regions, 0, 1, 1)                 # a count that is no count is refused before the part is read
     tool = stages.job_tool(settings)
     timings: dict = {}
     wall0 = t0 = time.perf_counter()
