@@ -149,6 +149,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     b = add_parser("batch", help="run a sweep of jobs (parts x settings) in parallel on Ray; one results table")
     add_batch_arguments(b)
+
+    from .bigpart import add_arguments as add_big_arguments
+
+    big = add_parser("big", help="plan a part too big for one process: span-wise regions on Ray, stitched at the seams")
+    big.add_argument("part", help="mesh file (STL, PLY, OBJ, or .npz with vertices and faces arrays) or example:NAME")
+    _add_plan_options(big)
+    add_big_arguments(big)
     return parser
 
 
@@ -268,6 +275,10 @@ def main(argv=None) -> int:
             from .batch import run_from_args
 
             return run_from_args(args, quiet=args.quiet)
+        if args.command == "big":
+            from .bigpart import run_from_args as run_big
+
+            return run_big(args, _settings_from_args(args), progress=progress, quiet=args.quiet)
         if args.command in ("fit", "register", "rework"):
             run, settings_of, summary = _document_job(args.command)
             settings = settings_of(args)

@@ -1,0 +1,356 @@
+"""``swath big``: a part too big for one process, planned region by region on Ray and stitched.
+
+The part is read once, here, and cut span-wise into regions (:func:`swath.segment.tiles.span_tiles`)
+on planes normal to its longest axis.  The passes lie on planes normal to the same axis, laid over
+the whole part ``spacing`` apart, and every seam falls halfway between two of them, so no pass
+crosses a seam and the passes of two regions sit one spacing apart across it.  Each region's
+mesh (the faces it owns and a band of ``2.5`` pad radii each side) is written to its own file in
+a work folder; the workers read their region from that path, never the whole part.
+
+On the workers (:mod:`swath.cli.bigpart_work`), each region is planned, timed and optionally
+feed-optimised on its own area, then its removal is simulated on the extended mesh from every
+trajectory that reaches it, its own and its neighbours'; each removal sample belongs to the one
+region whose span range holds it.  So the seam gets the removal of every pass that touches it
+(no gap) and counts it once (no double removal).  The regions' trajectories run one after the
+other, joined by straight air moves (:func:`swath.trajectory.join.join_trajectories`).
+
+Writes ``trajectory.csv``, ``metrics.json`` and ``regions.csv`` (one row per region: its span
+range, faces, passes, stage times and its worker's peak memory) atomically to ``--out``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import logging
+import math
+import shutil
+import tempfile
+import time
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .settings import JobSettings
+
+log = logging.getLogger(__name__)
+
+#: Band of the extended mesh each side of a region, in pad radii: a pad pressed on a neighbour's
+#: pass that reaches the region (its centre up to one radius outside) lies wholly on the mesh.
+BAND_RADII = 2.5
+
+#: ``--regions auto`` aims at this many faces per region (and at least two regions per worker).
+FACES_PER_REGION = 400_000
+
+#: Settings ``swath big`` does not take (it plans raster sections at a constant or optimised feed).
+UNSUPPORTED = ("planner", "order", "segment", "direction", "overlap", "join_gap", "fit", "optimise_spacing",
+               "target_cov", "robot", "cell", "force_control", "faces", "keep_out", "edge_margin", "target_map",
+               "media_change", "media_change_loss", "wear_rate")
+
+
+def check_settings(settings: JobSettings) -> None:
+    """Refuse the settings ``swath big`` does not take, naming them."""
+    defaults = {f.name: f.default for f in fields(JobSettings)}
+    given = [k for k in UNSUPPORTED if getattr(settings, k) != defaults.get(k)]
+    if settings.side == "all":
+        given.append("side=all")
+    if given:
+        raise InputError(f"swath big plans raster sections across the part's long axis and does not take "
+                         f"{', '.join(given)}; plan the part with swath plan for those")
+
+
+def load_arrays(settings: JobSettings) -> tuple[np.ndarray, np.ndarray, str]:
+    """``(vertices (n, 3), faces (m, 3), name)`` of the job's part (a mesh file or ``example:NAME``)."""
+    part = settings.part
+    if part.lower().endswith(".npz"):
+        return read_npz_mesh(part, units=settings.units)
+    if part.startswith("example:"):
+        from ..examples import example_part
+
+        surface = example_part(part.split(":", 1)[1])
+    else:
+        from ..io.mesh import load_mesh
+
+        surface = load_mesh(part, units=settings.units, side=settings.side, all_pieces=settings.all_pieces,
+                            force_units=settings.force_units)
+    return np.asarray(surface.vertices), np.asarray(surface.faces), surface.name
+
+
+def read_npz_mesh(path: str, *, units: str = "m") -> tuple[np.ndarray, np.ndarray, str]:
+    """``(vertices (n, 3) m, faces (m, 3) int, name)`` of a NumPy ``.npz`` mesh: arrays ``vertices``
+    (in ``units``) and ``faces``, optionally ``name``; read without the checks and repairs of
+    :func:`swath.io.mesh.load_mesh` (seconds instead of minutes for millions of faces), so only
+    the shapes and index range are checked."""
+    from ..units import length_unit_factor
+
+    name = Path(path).stem
+    try:
+        with np.load(path) as data:
+            vertices, faces = np.asarray(data["vertices"], float), np.asarray(data["faces"])
+            if "name" in data:
+                name = str(data["name"])
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"{Path(path).name}: not a mesh .npz with 'vertices' and 'faces' arrays ({exc})") from None
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.ndim != 2 or faces.shape[1] != 3 or not len(faces) \
+            or not np.issubdtype(faces.dtype, np.integer) or faces.min() < 0 or faces.max() >= len(vertices):
+        raise InputError(f"{Path(path).name}: expected vertices (n, 3) and integer faces (m, 3) indexing them; got "
+                         f"{vertices.shape} and {faces.shape} {faces.dtype}")
+    return vertices * length_unit_factor(units), faces, name
+
+
+def default_spacing(vertices, faces, axis, tool, name: str) -> float:
+    """The raster rule's spacing (:func:`swath.contact.widths.raster_spacing`) for planes normal to
+    ``axis``, read on a slab of the part about its middle (at most 20 pad radii wide), m."""
+    from ..contact.widths import raster_spacing
+    from ..segment.tiles import face_heights, submesh
+    from ..surface import Surface
+
+    h = face_heights(vertices, faces, axis)
+    mid, half = 0.5 * (h.min() + h.max()), 10 * tool.pad_radius
+    v, f = submesh(vertices, faces, np.abs(h - mid) <= half)
+    return float(raster_spacing(Surface(v, f, name=f"{name}_middle"), tool, axis).spacing)
+
+
+def region_count(regions, n_faces: int, workers: int, n_planes: int) -> int:
+    """The number of regions: ``regions`` (int) or, for ``"auto"``, enough for about
+    :data:`FACES_PER_REGION` faces each and at least two per worker, at most one per plane."""
+    if regions == "auto":
+        return max(1, min(n_planes, max(math.ceil(n_faces / FACES_PER_REGION), 2 * workers)))
+    try:
+        n = int(regions)
+    except (TypeError, ValueError):
+        raise InputError(f"--regions takes a count or 'auto', got {regions!r}") from None
+    if n < 1:
+        raise InputError(f"--regions must be at least 1, got {n}")
+    return n
+
+
+def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None = 1, address: str | None = None,
+                 executor=None, progress=None, work_dir: str | None = None) -> dict:
+    """Plan a big part region by region and write the stitched job to ``settings.out``.
+
+    Parameters
+    ----------
+    settings : JobSettings
+        The job (tool, feed, spacing, removal sampling, feed optimisation, output folder).
+    regions : int or "auto"
+        Number of span-wise regions (see :func:`region_count`).
+    workers : int, optional
+        Region tasks at once.  1 (default): in this process; more, or None (every CPU): on Ray.
+    address : str, optional
+        A Ray cluster to run on (``ray://host:10001`` or ``auto``); None: a local Ray.
+    executor : optional
+        An executor with ``put``, ``run`` and ``close`` (:mod:`swath.cli.bigpart_work`) instead;
+        closed at the end.
+    progress : callable, optional
+        ``progress(stage, done, total)``.
+    work_dir : str, optional
+        Folder for the region files (default: a new folder beside the output, removed at the end);
+        on a cluster it must be one every worker can read.
+
+    Returns
+    -------
+    dict
+        The metrics written to ``metrics.json`` (keys with units), with ``regions`` (the rows of
+        ``regions.csv``), ``stitched`` (per region: its owned removal samples ``points``, ``depth``,
+        ``area``, ``interior``) and ``trajectory`` (the stitched Trajectory).
+    """
+    from ..io.atomic import atomic_directory, check_output_dir
+    from ..report.metrics import write_metrics_json
+    from ..segment.tiles import face_heights, principal_axes, span_tiles, submesh
+    from ..trajectory.join import join_trajectories
+    from . import bigpart_work, stages
+
+    say = progress or (lambda stage, done, total: None)
+    check_settings(settings)
+    check_output_dir(settings.out, overwrite=settings.overwrite)
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    if workers == 1 and address:
+        raise InputError("--workers 1 runs the regions in this process; drop --address, or ask for more workers")
+    region_count(regions, 0, 1, 1)                 # a count that is no count is refused before the part is read
+    tool = stages.job_tool(settings)
+    timings: dict = {}
+    wall0 = t0 = time.perf_counter()
+    cpu0 = time.process_time()
+    say("loading part", 0, 1)
+    vertices, faces, name = load_arrays(settings)
+    axis, feed_direction = principal_axes(vertices)
+    heights_v = vertices @ axis
+    timings["load_s"] = time.perf_counter() - t0
+    spacing = settings.spacing
+    if spacing is None:
+        t0 = time.perf_counter()
+        spacing = default_spacing(vertices, faces, axis, tool, name)
+        timings["spacing_s"] = time.perf_counter() - t0
+    n_planes = max(math.ceil(float(np.ptp(heights_v)) / spacing), 1)
+    if executor is None:
+        executor = bigpart_work.InlineExecutor() if workers == 1 and not address else \
+            bigpart_work.RayExecutor(workers, address)
+    folder = None
+    try:
+        n_regions = region_count(regions, len(faces), executor.workers, n_planes)
+        tiles = span_tiles(heights_v, spacing, n_regions, band=BAND_RADII * tool.pad_radius)
+        if work_dir is None:
+            folder = Path(tempfile.mkdtemp(prefix=".swath-regions-", dir=Path(settings.out).resolve().parent))
+        else:
+            Path(work_dir).mkdir(parents=True, exist_ok=True)
+        where = folder if folder is not None else Path(str(work_dir))
+        t0 = time.perf_counter()
+        h_faces = face_heights(vertices, faces, axis)
+        paths = []
+        for tile in tiles:
+            v, f = submesh(vertices, faces, tile.reaches(h_faces))
+            path = where / f"region{tile.index:04d}.npz"
+            np.savez(path, vertices=v, faces=f.astype(np.int32 if len(v) < 2**31 else np.int64), name=name)
+            paths.append(str(path))
+        n_faces, area_note = len(faces), name
+        del vertices, faces, heights_v, h_faces            # the workers read their regions from the files
+        timings["split_s"] = time.perf_counter() - t0
+        say(f"{n_regions} regions of {name} ({n_faces} faces), {executor.where}", 0, 1)
+        axis_l, feed_l = axis.tolist(), feed_direction.tolist()
+        all_planes = np.concatenate([t.offsets for t in tiles])
+        done_plan, done_sim = itertools.count(1), itertools.count(1)     # regions finished, in any order
+        t0 = time.perf_counter()
+        planned = executor.run(bigpart_work.plan_region,
+                               [(paths[k], tiles[k], axis_l, feed_l, settings, all_planes) for k in range(n_regions)],
+                               on_done=lambda i, r: say("planning regions", next(done_plan), n_regions))
+        timings["regions_plan_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        refs = [executor.put(r["trajectory"]) for r in planned]
+        calls = [(paths[k], tiles[k], axis_l, settings, *[refs[j] for j in reaching(tiles, k)])
+                 for k in range(n_regions)]
+        simulated = executor.run(bigpart_work.simulate_region, calls,
+                                 on_done=lambda i, r: say("simulating regions", next(done_sim), n_regions))
+        timings["regions_simulate_s"] = time.perf_counter() - t0
+    finally:
+        executor.close()
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
+    t0 = time.perf_counter()
+    trajectory = join_trajectories([r["trajectory"] for r in planned], link_speed=settings.links().speed)
+    metrics = stitched_metrics(simulated, tool.pad_radius)
+    metrics.update(cycle_time_s=trajectory.duration, contact_length_m=trajectory.contact_length,
+                   air_length_m=trajectory.air_length, n_passes=int(sum(r["n_passes"] for r in planned)),
+                   n_part_faces=n_faces, n_regions=n_regions, spacing_m=float(spacing),
+                   region_band_m=BAND_RADII * tool.pad_radius, long_axis=axis_l, pass_direction=feed_l,
+                   removal_sample_spacing_m=float(max(r["sample_spacing_m"] for r in simulated)),
+                   workers=int(executor.workers), where=executor.where, part_name=area_note)
+    per_worker: dict = {}
+    cpu: dict = {}
+    for r in planned + simulated:
+        per_worker[r["pid"]] = max(per_worker.get(r["pid"], 0), r["peak_rss_bytes"])
+        cpu[r["pid"]] = cpu.get(r["pid"], 0.0) + r["cpu_s"]
+    metrics["worker_peak_rss_bytes"] = sorted(per_worker.values(), reverse=True)
+    metrics["max_worker_peak_rss_bytes"] = max(per_worker.values())
+    # CPU time of the region tasks: all of it, and the busiest worker's share (their ratio is the
+    # speed-up the split allows whatever else the machine runs)
+    metrics["regions_cpu_s"] = float(sum(cpu.values()))
+    metrics["busiest_worker_cpu_s"] = float(max(cpu.values()))
+    rows = region_rows(tiles, planned, simulated)
+    timings["stitch_s"] = time.perf_counter() - t0
+    metrics.update(timings)
+    say("writing output", 0, 1)
+    t0 = time.perf_counter()
+    with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
+        trajectory.write_csv(tmp / "trajectory.csv")
+        (tmp / "regions.csv").write_text(rows_csv(rows))
+        # this process's own CPU time (reading, splitting, stitching; not the workers') and the wall
+        # time, both up to here: the figures of the job's serial part
+        metrics.update(wall_s=time.perf_counter() - wall0, driver_cpu_s=time.process_time() - cpu0,
+                       write_s=time.perf_counter() - t0)
+        write_metrics_json(tmp / "metrics.json", metrics, settings.as_record())
+    say("done", 1, 1)
+    metrics["regions"] = rows
+    metrics["stitched"] = simulated                 # per region: owned samples, depth, area, interior
+    metrics["trajectory"] = trajectory
+    return metrics
+
+
+def reaching(tiles, k: int) -> list[int]:
+    """Indices of the tiles whose planes lie within tile ``k``'s owned range grown by its band
+    (their passes can press on the area it owns), ``k`` itself included."""
+    me = tiles[k]
+    return [j for j, t in enumerate(tiles) if j == k or bool(me.reaches(t.offsets).any())]
+
+
+def stitched_metrics(simulated: list, pad_radius: float) -> dict:
+    """Removal figures over every region's owned samples (the figures of
+    :func:`swath.simulate.removal.plan_metrics` that the depths alone give), keys with units."""
+    depth = np.concatenate([r["depth"] for r in simulated])
+    area = np.concatenate([r["area"] for r in simulated])
+    interior = np.concatenate([r["interior"] for r in simulated])
+    touched = depth > 0
+    total = float(area.sum())
+
+    def cov(mask):
+        if not mask.any() or not (area[mask].sum() > 0):
+            return float("nan"), float("nan")
+        mean = float(np.average(depth[mask], weights=area[mask]))
+        std = float(np.sqrt(np.average((depth[mask] - mean) ** 2, weights=area[mask])))
+        return mean, (std / mean if mean > 0 else float("nan"))
+
+    mean, removal_cov = cov(touched)
+    _, interior_cov = cov(interior)
+    return {"surface_area_m2": total, "covered_area_m2": float(area[touched].sum()),
+            "coverage_fraction": float(area[touched].sum()) / total if total > 0 else 0.0,
+            "removal_mean_m": mean, "removal_cov": removal_cov, "interior_removal_cov": interior_cov,
+            "interior_area_m2": float(area[interior].sum()), "removal_max_m": float(depth.max()),
+            "n_removal_samples": int(len(depth)), "pad_radius_m": float(pad_radius)}
+
+
+def region_rows(tiles, planned, simulated) -> list[dict]:
+    """One row per region: span range (m), faces, passes, stage times (s), worker peak memory (bytes)."""
+    rows = []
+    for t, p, s in zip(tiles, planned, simulated):
+        rows.append({"region": t.index, "from_m": t.lo, "to_m": t.hi, "n_faces": p["n_faces"],
+                     "n_passes": p["n_passes"], "plan_s": p["plan_s"], "trajectory_s": p["trajectory_s"],
+                     "feed_s": p["feed_s"], "simulate_s": s["simulate_s"], "cpu_s": p["cpu_s"] + s["cpu_s"],
+                     "n_removal_samples": int(len(s["depth"])),
+                     "peak_rss_bytes": max(p["peak_rss_bytes"], s["peak_rss_bytes"])})
+    return rows
+
+
+def rows_csv(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    return buf.getvalue()
+
+
+def add_arguments(parser) -> None:
+    """The options ``swath big`` adds to the plan options: ``--regions``, ``--workers``, ``--address``."""
+    parser.add_argument("--regions", default="auto",
+                        help="span-wise regions the part is cut into: a count, or auto (about "
+                             f"{FACES_PER_REGION // 1000}k faces each, at least two per worker)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="regions planned at once; 1 runs them in this process (default: every CPU, on Ray)")
+    parser.add_argument("--address", default=None,
+                        help="Ray cluster to run on (ray://host:10001 or auto); default a local Ray")
+    parser.add_argument("--work-dir", default=None,
+                        help="folder for the region files the workers read (default: a new folder beside --out, "
+                             "removed after); on a cluster, one every worker can read")
+
+
+def run_from_args(args, settings, *, progress=None, quiet: bool = False) -> int:
+    """``swath big``: run :func:`run_big_part` from parsed arguments and print a summary."""
+    m = run_big_part(settings, regions=args.regions, workers=args.workers, address=args.address,
+                     progress=progress, work_dir=args.work_dir)
+    if not quiet:
+        print(summary(settings, m))
+    return 0
+
+
+def summary(settings, m: dict) -> str:
+    """The lines ``swath big`` prints when it is done."""
+    gib = m["max_worker_peak_rss_bytes"] / 2**30
+    return (f"wrote {Path(settings.out) / 'trajectory.csv'}, metrics.json, regions.csv\n"
+            f"  {m['n_regions']} regions {m['where']}, {m['n_part_faces']} faces, wall {m['wall_s']:.1f} s, "
+            f"peak memory per worker {gib:.2f} GiB\n"
+            f"  passes {m['n_passes']}, contact path {m['contact_length_m']:.1f} m, cycle time {m['cycle_time_s']:.1f} s\n"
+            f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f} "
+            f"({m['interior_removal_cov']:.3f} a pad radius in from the edges)")

@@ -1,0 +1,243 @@
+"""The work of one region of a big part, and where it runs (this process, or Ray).
+
+Two tasks per region (:mod:`swath.cli.bigpart` runs them):
+
+* :func:`plan_region` reads the region's mesh from its file, slices its passes on the whole part's
+  planes, routes and times them and (with ``optimise_feed``) optimises the feed on the owned area;
+  it returns the region's trajectory.
+* :func:`simulate_region` reads the same file and simulates the removal on the extended mesh (the
+  owned area and a band each side) of every trajectory whose passes reach it, its own and its
+  neighbours'; it returns the depth at the samples the region owns.
+
+Every task returns its worker's peak resident memory (``ru_maxrss``) and process id, so the peak
+per worker can be reported.  :class:`InlineExecutor` runs the tasks one after the other in this
+process; :class:`RayExecutor` runs them as one-CPU Ray tasks on a local Ray or a cluster.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import resource
+import sys
+import time
+
+import numpy as np
+
+from ..errors import InputError
+
+log = logging.getLogger(__name__)
+
+#: The environment variable of Ray's worker niceness (its raylet reads it when it starts).
+WORKER_NICENESS = "RAY_worker_niceness"
+
+
+def peak_rss_bytes() -> int:
+    """This process's peak resident memory so far, bytes (``ru_maxrss``: KiB on Linux, bytes on macOS)."""
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(rss if sys.platform == "darwin" else rss * 1024)
+
+
+def load_region(path: str, *, owned_only: bool, tile, axis):
+    """The region's Surface from its ``.npz`` file (``vertices``, ``faces``, ``name``): the extended
+    mesh, or with ``owned_only`` the faces whose centroid ``tile`` owns."""
+    from ..segment.tiles import face_heights, submesh
+    from ..surface import Surface
+
+    with np.load(path) as data:
+        vertices, faces, name = data["vertices"], data["faces"], str(data["name"])
+    if owned_only:
+        vertices, faces = submesh(vertices, faces, tile.owns(face_heights(vertices, faces, axis)))
+    return Surface(vertices, faces, name=f"{name}_region{tile.index}")
+
+
+def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -> dict:
+    """Plan, time and (``settings.optimise_feed``) feed-optimise one region (see the module notes).
+
+    With ``optimise_feed``, the feed is optimised on the region's extended mesh over the passes of
+    its own planes and of the whole part's planes ``offsets`` (p,) (m) within the band less a pad
+    radius (the neighbours' passes nearest the seam), matching the target everywhere a pad radius
+    in from the extended mesh's edge: the owned area and most of the band.  Only the region's own
+    passes are kept, with their optimised feed.  The seam is thus optimised by both regions over
+    nearly the same passes (an overlapping split), instead of by neither.
+
+    Returns
+    -------
+    dict
+        ``trajectory`` (Trajectory), ``n_passes``, ``n_faces`` (owned), ``feed_metrics`` (dict),
+        ``plan_s``, ``trajectory_s``, ``feed_s``, ``load_s``, ``cpu_s`` (the task's CPU time, all its
+        threads), ``peak_rss_bytes``, ``pid``.
+    """
+    from ..order import route_links
+    from ..plan.sections import section_passes
+    from ..trajectory import time_path
+    from ..trajectory.constraints import FeedProfile
+    from . import stages
+
+    cpu0 = time.process_time()
+    t0 = time.perf_counter()
+    owned = load_region(path, owned_only=True, tile=tile, axis=axis)
+    out: dict = {"load_s": time.perf_counter() - t0, "n_faces": len(owned.faces)}
+    tool = stages.job_tool(settings)
+    t0 = time.perf_counter()
+
+    def plan(surface, planes, levels):
+        toolpath = section_passes(surface, axis=axis, offsets=planes, levels=levels, feed=feed_direction,
+                                  point_spacing=settings.point_spacing, min_pass_length=settings.pad_radius)
+        return route_links(toolpath, clearance=settings.clearance, pad_radius=settings.pad_radius,
+                           units=settings.units)
+
+    toolpath = plan(owned, tile.offsets, tile.levels)
+    out["plan_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+    out["trajectory_s"] = time.perf_counter() - t0
+    out["feed_s"], out["feed_metrics"] = 0.0, {}
+    if settings.optimise_feed:
+        t0 = time.perf_counter()
+        extended = load_region(path, owned_only=False, tile=tile, axis=axis)
+        all_planes = np.asarray(tile.offsets if offsets is None else offsets, float)
+        reach = tile.band - tool.pad_radius
+        near = (all_planes >= tile.lo - reach) & (all_planes < tile.hi + reach)
+        wide = plan(extended, all_planes[near], np.flatnonzero(near))
+        wide_trajectory = time_path(wide, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+        _, result, out["feed_metrics"] = stages.feed_stage(wide, tool, settings, wide_trajectory, extended)
+        own_levels = {int(v) for v in tile.levels}
+        mine = [i for i, p in enumerate(wide.passes) if p.level in own_levels]
+        profile = FeedProfile(tuple(result.profile.speeds[i] for i in mine))
+        own = route_links(wide.replace(passes=tuple(wide.passes[i] for i in mine)),
+                          clearance=settings.clearance, pad_radius=settings.pad_radius, units=settings.units)
+        trajectory = time_path(own, settings.constraints() + [profile], links=settings.links(),
+                               lead_angle=settings.lead())
+        out["feed_s"] = time.perf_counter() - t0
+    out.update(trajectory=trajectory, n_passes=len(toolpath.passes), contact_length_m=toolpath.contact_length,
+               cpu_s=time.process_time() - cpu0, peak_rss_bytes=peak_rss_bytes(), pid=os.getpid())
+    return out
+
+
+def simulate_region(path: str, tile, axis, settings, *trajectories) -> dict:
+    """Simulate the removal of ``trajectories`` (those reaching the region, in any order) on the
+    region's extended mesh and keep the samples it owns.
+
+    Returns
+    -------
+    dict
+        ``points`` (k, 3) float32 and ``depth``, ``area`` (k,) float (m, m²) of the owned samples,
+        ``interior`` (k,) bool (more than a pad radius from the part's open boundary: the band
+        keeps the region's own cut edges farther than that from every owned sample),
+        ``sample_spacing_m``, ``simulate_s``, ``load_s``, ``cpu_s``, ``peak_rss_bytes``, ``pid``.
+    """
+    from ..simulate import simulate_removal
+    from ..trajectory.join import join_trajectories
+    from . import stages
+
+    cpu0 = time.process_time()
+    t0 = time.perf_counter()
+    surface = load_region(path, owned_only=False, tile=tile, axis=axis)
+    load_s = time.perf_counter() - t0
+    tool = stages.job_tool(settings)
+    t0 = time.perf_counter()
+    joined = join_trajectories(trajectories, link_speed=settings.links().speed)
+    removal = simulate_removal(joined, surface, tool, sample_spacing=settings.sample_spacing,
+                               sampling=settings.removal_sampling)
+    samples = removal.surface
+    owned = tile.owns(np.asarray(samples.vertices) @ np.asarray(axis, float))
+    interior = samples.farther_from_boundary(tool.pad_radius)
+    return {"points": np.asarray(samples.vertices[owned], np.float32), "depth": removal.depth[owned],
+            "area": np.asarray(samples.vertex_areas)[owned], "interior": interior[owned],
+            "sample_spacing_m": removal.metrics["removal_sample_spacing_m"],
+            "simulate_s": time.perf_counter() - t0, "load_s": load_s, "cpu_s": time.process_time() - cpu0,
+            "peak_rss_bytes": peak_rss_bytes(),
+            "pid": os.getpid()}
+
+
+class InlineExecutor:
+    """Runs the region tasks one after the other in this process."""
+
+    workers = 1
+    where = "in this process"
+
+    def put(self, value):
+        return value
+
+    def run(self, fn, calls, on_done=None) -> list:
+        """``[fn(*args) for args in calls]``; ``on_done(i, result)`` after each."""
+        out = []
+        for i, args in enumerate(calls):
+            out.append(fn(*args))
+            if on_done is not None:
+                on_done(i, out[-1])
+        return out
+
+    def close(self) -> None:
+        pass
+
+
+class RayExecutor:
+    """Runs the region tasks as one-CPU Ray tasks, at most ``workers`` at a time.
+
+    Without an ``address`` a local Ray with ``workers`` CPUs is started (its workers import this
+    swath) and shut down by :meth:`close`; with one (``ray://host:10001``, ``auto``) the cluster is
+    joined and this swath shipped to its workers.  The region files must then lie on a folder the
+    workers can read (see :mod:`swath.cli.bigpart`).
+    """
+
+    def __init__(self, workers: int | None, address: str | None = None):
+        try:
+            import ray
+        except ImportError:
+            raise InputError("planning a big part on Ray needs Ray (pip install 'swath[batch]'); or run it in this "
+                             "process with --workers 1") from None
+        from .batch_ray import _package_dir, start_local_ray
+
+        self._ray = ray
+        self.started = False
+        if not ray.is_initialized():
+            if address:
+                ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
+            else:
+                # Ray starts its workers 15 steps nicer than itself by default; here they do all the
+                # work, so they run at this process's priority (on a busy machine a niceness of 15
+                # made the same regions 5-6 times slower than in this process).
+                before = os.environ.get(WORKER_NICENESS)
+                os.environ[WORKER_NICENESS] = "0"
+                try:
+                    start_local_ray(workers or os.cpu_count() or 1, warm=False)
+                finally:
+                    if before is None:
+                        os.environ.pop(WORKER_NICENESS, None)
+                    else:
+                        os.environ[WORKER_NICENESS] = before
+            self.started = True
+        self.workers = workers or int(ray.cluster_resources().get("CPU", 1))
+        self.where = f"on Ray at {address}" if address else f"on a local Ray with {self.workers} workers"
+
+    def put(self, value):
+        return self._ray.put(value)
+
+    def run(self, fn, calls, on_done=None) -> list:
+        """``fn(*args)`` for each of ``calls`` as Ray tasks (``workers`` in flight); results in call order."""
+        ray = self._ray
+        remote = ray.remote(num_cpus=1, max_retries=0)(fn)
+        queue = list(enumerate(calls))
+        running: dict = {}
+        out: list = [None] * len(queue)
+        while queue or running:
+            while queue and len(running) < self.workers:
+                i, args = queue.pop(0)
+                running[remote.remote(*args)] = i
+            ready, _ = ray.wait(list(running), num_returns=1)
+            for ref in ready:
+                i = running.pop(ref)
+                try:
+                    out[i] = ray.get(ref)
+                except ray.exceptions.RayTaskError as exc:        # the task raised: raise its error here
+                    raise exc.as_instanceof_cause() from None
+                if on_done is not None:
+                    on_done(i, out[i])
+        return out
+
+    def close(self) -> None:
+        if self.started:
+            self._ray.shutdown()
+            self.started = False
