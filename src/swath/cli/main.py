@@ -105,27 +105,29 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                                            "(default: 3/4 of this machine's memory)")
     p.add_argument("--segment", help="auto: split the part into regions that parallel passes cross without breaks "
                                       "(Wang), plan each, visit them in the order with least air (gtsp); none")
-    e = p.add_argument_group("even removal (Wang §2): feed (dwell) optimisation to a target depth")
+    e = p.add_argument_group("even removal (the default; Wang §2): spacing, lead and feed (dwell) to a target depth")
     e.add_argument("--optimise-feed", action="store_true", default=None,
                    help="choose the feed along every pass so removal matches the target, never more than the "
-                        "target plus the tolerance (HiGHS)")
-    e.add_argument("--target-depth", help="with --optimise-feed: uniform depth to remove, e.g. 20um")
-    e.add_argument("--target-map", help="with --optimise-feed: per-point depths (CSV x,y,z,depth in m, or PLY with a "
+                        "target plus the tolerance (HiGHS; on by default, off with --constant-feed)")
+    e.add_argument("--target-depth", help="uniform depth to remove, e.g. 20um (default: chosen so that the cycle time stays "
+                                             "within --cycle-time-factor of the constant feed's)")
+    e.add_argument("--target-map", help="per-point depths to remove (CSV x,y,z,depth in m, or PLY with a "
                                         "vertex 'depth')")
-    e.add_argument("--depth-tolerance", help="with --optimise-feed: allowed removal above the target, e.g. 2um "
+    e.add_argument("--depth-tolerance", help="allowed removal above the target, e.g. 2um "
                                              "(default 10 %% of the target depth)")
     e.add_argument("--optimise-spacing",
                    help="raster pass spacing for even removal: ripple (the spacing whose summed pad "
                         "cross-profiles are flattest, path within 1.5x the coverage bound; with --planner uniform its overlap), greedy (Wang's pattern "
                         "search, pass by pass, against the target) or joint (equal spacing and feed together)")
     e.add_argument("--length-budget",
-                   help="with --optimise-spacing ripple: the contact length the spacing may use, in multiples of the "
+                   help="with the ripple spacing (the default): the contact length the spacing may use, in multiples of the "
                         "coverage bound L*, e.g. 2 (default 1.5): closer passes, less ripple between them")
     e.add_argument("--lead-angle",
                    help="tilt the pad about the axis across the feed in contact, its leading edge lifted, e.g. "
                         "7deg; auto: the angle at which half the pad presses on a flat part (7.0 deg for the "
                         "default pad), which turns each pass's removal profile from a semicircle into a "
-                        "parabola and halves the ripple between passes (default 0: z along minus the normal)")
+                        "parabola and halves the ripple between passes (default: auto; 0, z along minus the normal, "
+                        "with --constant-feed or --target-cov)")
     e.add_argument("--feed-simulate-check", action=argparse.BooleanOptionalAction, default=None,
                    help="with --optimise-feed: simulate the optimised trajectory and tighten the feed where the "
                         "simulator finds more than the target plus the tolerance (up to 6 rounds; default on)")
@@ -133,6 +135,13 @@ def _add_plan_options(p: argparse.ArgumentParser, *, with_part_options: bool = T
                    help="the interior removal CoV to reach, e.g. 6%%: swath plans, times and simulates a stated set "
                         "of candidates (spacing, lead) and keeps the one with the shortest cycle time that reaches "
                         "it, or refuses with the least reachable CoV and its cycle time")
+    e.add_argument("--constant-feed", action="store_true", default=None,
+                   help="a plain plan: the planner's covering spacing, no lead, the feed given all along the passes "
+                        "(default: even removal: least-ripple spacing, half-pad lead, the feed optimised to a "
+                        "target depth)")
+    e.add_argument("--cycle-time-factor",
+                   help="even removal without --target-depth: the target depth is chosen so that the cycle time "
+                        "stays within this factor of the same passes at constant feed (default 1.5)")
     r = p.add_argument_group("robot (kinematics, reachability, programs)")
     r.add_argument("--robot", help="robot model: ur3e, ur5e, ur10e, ur16e, irb4600, kr120, or a URDF file "
                                    "(path/to/robot.urdf, with --tip)")
@@ -574,6 +583,8 @@ def _register_summary(settings, doc: dict) -> str:
 
 
 def _summary(settings, m: dict) -> str:
+    from .even_default import summary_line
+
     if "n_setups" in m:
         return (f"wrote {settings.out}/metrics.json and setup_1..{m['n_setups']}/trajectory.csv, report.html\n"
                 f"  {m['n_setups']} setups, passes {m['n_passes']}, contact path {m['contact_length_m']:.3f} m, "
@@ -589,7 +600,7 @@ def _summary(settings, m: dict) -> str:
         f"cycle time {m['cycle_time_s']:.1f} s\n"
         f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f}{inside}, "
         f"L* {m['coverage_lower_bound_m']:.3f} m, efficiency {m['efficiency']:.3f}"
-    )
+    ) + ("\n" + even if (even := summary_line(m)) else "")
 
 
 if __name__ == "__main__":

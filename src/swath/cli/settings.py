@@ -64,8 +64,9 @@ class JobSettings:
     max_accel: float | None = DEFAULT_LIMITS["max_accel"]
     overlap: float | None = None
     # tilt of the pad about the axis across the feed in contact, rad; None ("auto"): half the pad
-    # presses on a flat part (Tool.half_pad_lead)
-    lead_angle: float | None = 0.0
+    # presses on a flat part (Tool.half_pad_lead); "default": auto in the even-removal job, 0 with
+    # constant_feed or target_cov (swath.cli.even_default)
+    lead_angle: float | str | None = "default"
     join_gap: float | None = None
     # Single passes by default: each pass picks its own direction, so a one-way sweep (return moves,
     # no 180-degree turns at 1 rad/s) can win over a region's snake (example:hub: 131 s vs 186 s).
@@ -137,6 +138,11 @@ class JobSettings:
     # plan with a feed, force, pad or spindle speed outside PROCESS_RANGES
     allow_unusual_process: bool = False
     force_program: str = "native"
+    # the default job evens the removal (ripple spacing, lead, optimised feed: swath.cli.even_default);
+    # constant_feed plans at the covering spacing and runs the feed given
+    constant_feed: bool = False
+    # the default target depth keeps the cycle time within this factor of the constant-feed plan
+    cycle_time_factor: float = 1.5
 
     def tool(self):
         """The job's tool from the settings alone (no calibration: see :func:`swath.cli.stages.job_tool`).
@@ -172,8 +178,12 @@ class JobSettings:
 
     def lead(self) -> float:
         """The lead angle (rad) the trajectory tilts the tool by in contact: ``lead_angle``, or for
-        ``auto`` the angle at which half the pad presses on a flat part (``Tool.half_pad_lead``)."""
-        return self.tool().half_pad_lead if self.lead_angle is None else float(self.lead_angle)
+        ``auto`` the angle at which half the pad presses on a flat part (``Tool.half_pad_lead``); for
+        ``"default"`` auto in the even-removal job and 0 with ``constant_feed`` or ``target_cov``."""
+        lead = self.lead_angle
+        if lead == "default":
+            lead = 0.0 if self.constant_feed or self.target_cov is not None or self.side == "all" else None
+        return self.tool().half_pad_lead if lead is None else float(lead)
 
     def links(self):
         """How the tool moves between passes."""
@@ -207,8 +217,9 @@ class JobSettings:
                           tool_tilt_rad=self.tool_tilt, gravity_compensation=self.gravity_compensation)
         if self.calibration:
             record.update(calibration=self.calibration, grit=self.grit)
+        record.update(constant_feed=self.constant_feed)
         if self.optimise_feed or self.optimise_spacing:
-            record.update(optimise_feed=self.optimise_feed, optimise_spacing=self.optimise_spacing,
+            record.update(cycle_time_factor_ratio=self.cycle_time_factor, optimise_feed=self.optimise_feed, optimise_spacing=self.optimise_spacing,
                           target_depth_m=self.target_depth, target_map=self.target_map,
                           depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
         if self.wear_rate or self.media_change or self.media_change_loss:
@@ -322,6 +333,7 @@ SCHEMA: dict[str, Key] = {
     "chordal_tol": Key("length", positive=True, hi=1e-2, bare_max=1e-2, hint="mm, e.g. 0.1mm"),
     "allow_unusual_process": Key("bool"),
     "force_program": Key("str", choices=("native", "position")),
+    "constant_feed": Key("bool"), "cycle_time_factor": Key("fraction", lo=1.05, hi=10.0),
 }
 
 
@@ -550,10 +562,14 @@ def check_settings(settings: JobSettings) -> None:
         from .stages import robot_options
 
         robot_options(settings)                     # robot name, cell file, base and tcp poses, program formats
-    if settings.optimise_feed and not (settings.target_depth or settings.target_map):
-        raise InputError("--optimise-feed needs a target: --target-depth (e.g. 20um) or --target-map FILE")
-    if (settings.target_depth or settings.target_map or settings.depth_tolerance) and not settings.optimise_feed:
-        raise InputError("--target-depth, --target-map and --depth-tolerance apply with --optimise-feed; add it")
+    if settings.constant_feed:
+        given = [flag for flag, on in (("--optimise-feed", settings.optimise_feed),
+                                       ("--target-depth", settings.target_depth is not None),
+                                       ("--target-map", settings.target_map is not None),
+                                       ("--depth-tolerance", settings.depth_tolerance is not None)) if on]
+        if given:
+            raise InputError(f"--constant-feed runs the feed given (--feed) all along the passes: drop "
+                             f"{', '.join(given)}, or drop --constant-feed to optimise the feed to a target depth")
     if settings.optimise_spacing:
         uniform_ripple = settings.planner == "uniform" and settings.optimise_spacing == "ripple"
         if uniform_ripple and settings.overlap is not None:
@@ -564,10 +580,10 @@ def check_settings(settings: JobSettings) -> None:
             raise InputError(f"--optimise-spacing {settings.optimise_spacing} places raster passes itself: use it "
                              "with the raster planner (ripple also with uniform), without --spacing and without "
                              "--segment auto")
-        if settings.optimise_spacing in ("greedy", "joint") and not settings.optimise_feed:
+        if settings.optimise_spacing in ("greedy", "joint") and not (settings.target_depth or settings.target_map):
             raise InputError(f"--optimise-spacing {settings.optimise_spacing} scores spacings against the target "
-                             "depth: add --optimise-feed and --target-depth or --target-map (or use "
-                             "--optimise-spacing ripple, which needs no target)")
+                             "depth: add --target-depth or --target-map (or use --optimise-spacing ripple, which "
+                             "needs no target)")
     if not settings.force_control:
         given = [flag for flag, on in (("--part-offset", settings.part_offset is not None),
                                        ("--tool-mass", settings.tool_mass != 0.0),
@@ -583,6 +599,8 @@ def check_settings(settings: JobSettings) -> None:
                                        ("--spacing", settings.spacing is not None),
                                        ("--overlap", settings.overlap is not None),
                                        ("--optimise-feed", settings.optimise_feed),
+                                       ("--target-depth", settings.target_depth is not None),
+                                       ("--target-map", settings.target_map is not None),
                                        ("--segment auto", settings.segment == "auto")) if on]
         if given:
             raise InputError(f"--target-cov chooses the spacing, lead and feed itself: drop {', '.join(given)}")
