@@ -186,7 +186,7 @@ def summary_line(m: dict) -> str:
     if not m.get("even_removal_default"):
         return ""
     target = m.get("target_depth_m")
-    parts = [f"  even removal (default; --constant-feed for a plain plan): target depth "
+    parts = ["  even removal (default; --constant-feed for a plain plan): target depth "
              + (f"{target * 1e6:.3g} um" if target else "from the target map")]
     if m.get("cycle_time_ratio") is not None:
         parts.append(f", cycle time {m['cycle_time_ratio']:.2f}x the constant feed's "
