@@ -87,11 +87,11 @@ def test_the_constant_feed_is_kept_when_the_simulation_finds_it_evener():
     even = {"_constant": ("constant trajectory", better)}
     out = even_default.keep_evener("optimised trajectory", worse, "feed", even)
     assert out == ("constant trajectory", better, None) and even["constant_feed_kept"]
-    assert "[W-EVEN-FEED-WORSE]" in even["fallback_warning"] and "_constant" not in even
+    assert "[W-EVEN-FEED-WORSE]" in even["warnings"][0] and "_constant" not in even
     even = {"_constant": ("constant trajectory", worse)}
     assert even_default.keep_evener("optimised trajectory", better, "feed", even) == ("optimised trajectory", better,
                                                                                      "feed")
-    assert "fallback_warning" not in even
+    assert "warnings" not in even
 
 
 def test_the_default_job_states_figures_the_written_trajectory_confirms(tmp_path, capsys):

@@ -207,7 +207,7 @@ def summary_line(m: dict) -> str:
 def keep_evener(trajectory, removal, feed, even: dict):
     """The optimised-feed ``trajectory`` and its ``removal``, or the same passes at constant feed
     (``even["_constant"]``, their trajectory and removal) when those remove more evenly on the
-    interior, as the simulator finds: then ``feed`` becomes None and ``even["fallback_warning"]``
+    interior, as the simulator finds: then ``feed`` becomes None and ``even["warnings"]``
     says so.  Returns ``(trajectory, removal, feed)``; ``even["_constant"]`` is removed."""
     constant_trajectory, constant_removal = even.pop("_constant")
     optimised = float(removal.metrics["interior_removal_cov"])
@@ -216,8 +216,8 @@ def keep_evener(trajectory, removal, feed, even: dict):
     if not optimised > plain:
         return trajectory, removal, feed
     even["constant_feed_kept"] = True
-    even["fallback_warning"] = (
+    even["warnings"] = [(
         f"even removal: the optimised feed removes less evenly (interior CoV {optimised:.3f}) than the same passes at "
         f"constant feed ({plain:.3f}) in the simulation, so the constant-feed trajectory is written: the part's "
-        "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")
+        "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")]
     return constant_trajectory, constant_removal, None

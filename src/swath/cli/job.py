@@ -435,13 +435,13 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics = dict(removal.metrics)
     if even is not None:
         extra_metrics.update(even_default.even_metrics(settings, removal, trajectory,
-                                                       {k: v for k, v in even.items() if k != "fallback_warning"},
+                                                       {k: v for k, v in even.items() if k != "warnings"},
                                                        tool))
     if part_info.get("part") is not None:
         extra_metrics.update(_judge_on_part(part_info["part"], trajectory, tool, settings, force, say))
     warnings: list[str] = []                     # the job's own warnings (the others come from plan_warnings)
-    if even is not None and "fallback_warning" in even:
-        warnings.append(even.pop("fallback_warning"))
+    if even is not None:
+        warnings += even.pop("warnings", [])
     if searched is not None:
         metrics.update(searched.metrics(settings_target))
         if not metrics["interior_removal_cov"] <= settings_target:      # a later stage (robot, force) changed it

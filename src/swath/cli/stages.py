@@ -321,6 +321,7 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     """
     from dataclasses import replace
 
+    from ..errors import InfeasibleError
     from ..simulate import simulate_removal
     from . import even_default
 
@@ -337,8 +338,15 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     settings = replace(settings, target_depth=depth)
     say(f"optimising the feed to the default target depth {depth * 1e6:.3g} um (cycle time within {factor:g}x "
         "the constant feed's)", 0, 1)
-    timed, result, metrics = feed_stage(toolpath, tool, settings, trajectory, surface, progress=say,
-                                        rounds=DEFAULT_JOB_FEED_ROUNDS)
+    try:
+        timed, result, metrics = feed_stage(toolpath, tool, settings, trajectory, surface, progress=say,
+                                            rounds=DEFAULT_JOB_FEED_ROUNDS)
+    except InfeasibleError as exc:        # the default's own target: the plain plan, said, rather than no plan
+        even["warnings"] = [(
+            f"even removal: the feed could not be optimised to the default target {depth * 1e6:.3g} um ({exc}); the "
+            "same passes are written at constant feed [W-EVEN-FEED-WORSE]")]
+        even["constant_feed_kept"] = True
+        return settings, trajectory, None, {}
     reached = timed.duration / trajectory.duration
     if reached > factor * 1.01:
         lower = even_default.lower_target(depth, figures["constant_feed_interior_removal_mean_m"], factor, reached)

@@ -175,10 +175,10 @@ CODES: dict[str, WarningCode] = dict([
           "trajectory (re-timed by the robot stage, or run under force control) removes less evenly.",
           "Ask for a somewhat lower CoV so that the search keeps a margin, or relax the joint limits that re-time the "
           "path.", "feed"),
-    entry("W-EVEN-FEED-WORSE", r"even removal: the optimised feed removes less evenly",
+    entry("W-EVEN-FEED-WORSE", r"even removal: the (optimised feed removes less evenly|feed could not be optimised)",
           "The default job optimised the feed, but the simulation finds the same passes at constant feed remove "
-          "more evenly on the interior (the part's curvature, not the feed, sets the evenness); the constant-feed "
-          "trajectory is written.",
+          "more evenly on the interior (the part's curvature, not the feed, sets the evenness), or the feed "
+          "programme found no feed for the default target; the constant-feed trajectory is written.",
           "Nothing to do for this run; a softer pad (see the softer-pad figure) or a smaller one follows the "
           "curvature better. `--constant-feed` skips the feed optimisation.", "feed"),
     entry("W-TARGET-COV-CANDIDATE", r"--target-cov: candidate .* cannot be planned",
