@@ -376,7 +376,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["trajectory_s"] = time.perf_counter() - t0
 
     extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
-    even = {} if settings.optimise_feed and even_default.is_even(settings) else None
+    even: dict | None = {} if settings.optimise_feed and even_default.is_even(settings) else None
     if settings.optimise_feed:
         t0 = time.perf_counter()
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,

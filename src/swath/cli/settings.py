@@ -63,9 +63,8 @@ class JobSettings:
     max_angular: float | None = DEFAULT_LIMITS["max_angular"]
     max_accel: float | None = DEFAULT_LIMITS["max_accel"]
     overlap: float | None = None
-    # tilt of the pad about the axis across the feed in contact, rad; None ("auto"): half the pad
-    # presses on a flat part (Tool.half_pad_lead); "default": auto in the even-removal job, 0 with
-    # constant_feed or target_cov (swath.cli.even_default)
+    # tilt of the pad about the axis across the feed in contact, rad; None ("auto"): half the pad presses
+    # on a flat part (Tool.half_pad_lead); "default": auto in the even-removal job, else 0 (lead())
     lead_angle: float | str | None = "default"
     join_gap: float | None = None
     # Single passes by default: each pass picks its own direction, so a one-way sweep (return moves,
@@ -138,8 +137,7 @@ class JobSettings:
     # plan with a feed, force, pad or spindle speed outside PROCESS_RANGES
     allow_unusual_process: bool = False
     force_program: str = "native"
-    # the default job evens the removal (ripple spacing, lead, optimised feed: swath.cli.even_default);
-    # constant_feed plans at the covering spacing and runs the feed given
+    # the default job evens the removal (swath.cli.even_default); constant_feed: the plain plan
     constant_feed: bool = False
     # the default target depth keeps the cycle time within this factor of the constant-feed plan
     cycle_time_factor: float = 1.5

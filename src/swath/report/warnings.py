@@ -64,7 +64,8 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
                    "the tolerance where the removal is highest holds it back, not the feed; raise the tolerance "
                    "or even out the passes (the ripple spacing and lead of the default job)")
         else:
-            at = f"{1e3 * (used or limit):.0f} mm/s" if (used or limit) else "its slowest"
+            slowest = used or limit
+            at = f"{1e3 * slowest:.0f} mm/s" if slowest else "its slowest"
             why = (f" with the feed down to {at} where needed: the slowest feed holds it back; lower the target, "
                    "raise the force, plan the passes closer, or run the job more than once")
         out.append(f"the optimised feed removes {_depth(got)} on average, {100 * got / want:.2g} % of the "
