@@ -61,8 +61,8 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
         if used and limit and used > 1.2 * limit:
             # the feed never reached its slowest: the tolerance at the removal's highs holds the rest back
             why = (f"; the slowest feed used is {1e3 * used:.0f} mm/s (allowed down to {1e3 * limit:.0f} mm/s): "
-                   "the tolerance where the removal is highest holds it back, not the feed; raise the tolerance "
-                   "or even out the passes (the ripple spacing and lead of the default job)")
+                   "the tolerance where the removal is highest holds it back, not the feed; raise --depth-tolerance, "
+                   "or on a curved part use a softer pad")
         else:
             slowest = used or limit
             at = f"{1e3 * slowest:.0f} mm/s" if slowest else "its slowest"
