@@ -168,7 +168,7 @@ def even_metrics(settings, removal, trajectory, figures: dict, tool) -> dict:
     out["target_depth_m"] = settings.target_depth
     out["cycle_time_allowed_ratio"] = settings.cycle_time_factor
     const = figures.get("constant_feed_cycle_time_s")
-    if const:
+    if const and not figures.get("plain_plan_kept"):
         out["cycle_time_ratio"] = float(trajectory.duration / const)
     mean = interior_mean(removal, tool.pad_radius)
     out["interior_removal_mean_m"] = mean
@@ -185,6 +185,10 @@ def summary_line(m: dict) -> str:
     """The CLI's line on the even-removal default (from :func:`even_metrics`), or ``""``."""
     if not m.get("even_removal_default"):
         return ""
+    if m.get("plain_plan_kept"):
+        return (f"  even removal (default): the plain plan removes more evenly here (interior CoV "
+                f"{m['plain_interior_removal_cov']:.3f} against {m['even_plan_interior_removal_cov']:.3f}) and is "
+                f"written; {m['length_ratio']:.2f} L*")
     target = m.get("target_depth_m")
     parts = ["  even removal (default; --constant-feed for a plain plan): target depth "
              + (f"{target * 1e6:.3g} um" if target else "from the target map")]
@@ -221,3 +225,47 @@ def keep_evener(trajectory, removal, feed, even: dict):
         f"constant feed ({plain:.3f}) in the simulation, so the constant-feed trajectory is written: the part's "
         "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")]
     return constant_trajectory, constant_removal, None
+
+
+def plain_alternative(settings):
+    """The plain plan's settings (``constant_feed``, resolved) when the default job chose the
+    spacing, the lead and the target itself, so the job may compare the two (:func:`plain_if_evener`);
+    None when the job gave any of them, or is not the even-removal default."""
+    if not (is_even(settings) and settings.lead_angle == "default" and settings.optimise_spacing is None
+            and settings.spacing is None and settings.overlap is None and settings.segment != "auto"
+            and settings.planner in RIPPLE_PLANNERS and settings.target_depth is None and settings.target_map is None):
+        return None
+    return resolve(replace(settings, constant_feed=True, optimise_feed=False))
+
+
+def plain_if_evener(surface, tool, plain, removal, even: dict, *, part=None):
+    """The plain plan (``plain``: its settings) planned, timed and simulated; ``(toolpath,
+    trajectory, removal)`` of it when it removes more evenly on the interior than the default job's
+    ``removal``, else None.  Its figures go into ``even`` (``plain_interior_removal_cov``,
+    ``plain_cycle_time_s``, ``plain_plan_kept``), with a warning when it is kept.
+
+    On a curved part whose covering spacing is narrower than a plane's, the least-ripple spacing
+    (worked out on a plane) can lay the passes farther apart than covering needs there; the
+    simulation, not the plane's model, then decides."""
+    from ..simulate import simulate_removal
+    from ..trajectory import time_path
+    from .job import make_plan
+
+    toolpath = make_plan(surface, plain, tool=tool, part=part)
+    trajectory = time_path(toolpath, plain.constraints(), links=plain.links(), lead_angle=plain.lead())
+    plain_removal = simulate_removal(trajectory, surface, tool, sample_spacing=plain.sample_spacing,
+                                     sampling=plain.removal_sampling)
+    cov_plain = float(plain_removal.metrics["interior_removal_cov"])
+    cov_even = float(removal.metrics["interior_removal_cov"])
+    even.update(plain_interior_removal_cov=cov_plain, plain_cycle_time_s=float(trajectory.duration),
+                even_plan_interior_removal_cov=cov_even)
+    if not cov_plain < cov_even:
+        return None
+    even["plain_plan_kept"] = True
+    warnings: list[str] = []                    # what was said about the even plan's feed no longer applies
+    even["warnings"] = warnings
+    warnings.append(f"even removal: the plain plan (covering spacing, flat pad, constant feed) removes more evenly on "
+                    f"this part (interior CoV {cov_plain:.3f}) than the least-ripple spacing with the lead and the "
+                    f"optimised feed ({cov_even:.3f}) in the simulation, so the plain plan is written: the spacing "
+                    "worked out on a plane does not fit this part's curvature [W-EVEN-PLAIN-KEPT]")
+    return toolpath, trajectory, plain_removal

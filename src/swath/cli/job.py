@@ -12,7 +12,7 @@ import json
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import InputError
@@ -334,6 +334,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     say = progress or (lambda stage, done, total: None)
     timings = {}
     check_output_dir(settings.out, overwrite=settings.overwrite)
+    plain = even_default.plain_alternative(settings)  # the plain plan the default job is compared with
     settings = even_default.resolve(settings)        # the default job: spacing, lead and feed for even removal
     tool = stages.job_tool(settings)
     if settings.target_cov is not None:
@@ -417,6 +418,13 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if even is not None and "_constant" in even and force is None and robot is None \
             and wear_and_holds["rate_scale"] is None:
         trajectory, removal, feed = even_default.keep_evener(trajectory, removal, feed, even)
+        if plain is not None:
+            say("simulating the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
+            t0 = time.perf_counter()
+            kept = even_default.plain_if_evener(surface, tool, plain, removal, even, part=part_info.get("part"))
+            if kept is not None:
+                (toolpath, trajectory, removal), feed, settings = kept, None, replace(plain, constant_feed=False)
+            timings["plain_check_s"] = time.perf_counter() - t0
         if feed is None:                              # the feed figures describe a trajectory not written
             extra_metrics = {k: v for k, v in extra_metrics.items() if not k.startswith("feed_")}
     if force is not None and len(force.holds.get("dwell", ())):

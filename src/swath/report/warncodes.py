@@ -175,6 +175,13 @@ CODES: dict[str, WarningCode] = dict([
           "trajectory (re-timed by the robot stage, or run under force control) removes less evenly.",
           "Ask for a somewhat lower CoV so that the search keeps a margin, or relax the joint limits that re-time the "
           "path.", "feed"),
+    entry("W-EVEN-PLAIN-KEPT", r"even removal: the plain plan .* removes more evenly",
+          "The default job compared its even-removal plan (least-ripple spacing, lead, optimised feed) with the "
+          "plain plan (covering spacing, flat pad, constant feed) in the removal simulation, and the plain one "
+          "removes more evenly on this part: it is written. The least-ripple spacing is worked out on a plane and "
+          "can be too wide where curvature narrows the pad's swath.",
+          "Nothing to do for this run; `--constant-feed` skips the comparison, `--spacing` or `--planner uniform` "
+          "spaces the passes yourself.", "feed"),
     entry("W-EVEN-FEED-WORSE", r"even removal: the (optimised feed removes less evenly|feed could not be optimised)",
           "The default job optimised the feed, but the simulation finds the same passes at constant feed remove "
           "more evenly on the interior (the part's curvature, not the feed, sets the evenness), or the feed "
