@@ -238,26 +238,32 @@ def plain_alternative(settings):
     return resolve(replace(settings, constant_feed=True, optimise_feed=False))
 
 
-def plain_if_evener(surface, tool, plain, removal, even: dict, *, part=None):
-    """The plain plan (``plain``: its settings) planned, timed and simulated; ``(toolpath,
-    trajectory, removal)`` of it when it removes more evenly on the interior than the default job's
-    ``removal``, else None.  Its figures go into ``even`` (``plain_interior_removal_cov``,
-    ``plain_cycle_time_s``, ``plain_plan_kept``), with a warning when it is kept.
-
-    On a curved part whose covering spacing is narrower than a plane's, the least-ripple spacing
-    (worked out on a plane) can lay the passes farther apart than covering needs there; the
-    simulation, not the plane's model, then decides."""
+def plain_run(surface, tool, plain, *, part=None) -> tuple:
+    """The plain plan (``plain``: its settings, :func:`plain_alternative`) planned, timed and
+    simulated: ``(toolpath, trajectory, removal)``."""
     from ..simulate import simulate_removal
     from ..trajectory import time_path
     from .job import make_plan
 
     toolpath = make_plan(surface, plain, tool=tool, part=part)
     trajectory = time_path(toolpath, plain.constraints(), links=plain.links(), lead_angle=plain.lead())
-    plain_removal = simulate_removal(trajectory, surface, tool, sample_spacing=plain.sample_spacing,
-                                     sampling=plain.removal_sampling)
-    cov_plain = float(plain_removal.metrics["interior_removal_cov"])
+    removal = simulate_removal(trajectory, surface, tool, sample_spacing=plain.sample_spacing,
+                               sampling=plain.removal_sampling)
+    return toolpath, trajectory, removal
+
+
+def plain_if_evener(run: tuple, removal, even: dict):
+    """``run`` (the plain plan's ``(toolpath, trajectory, removal)``, :func:`plain_run`) when it removes
+    more evenly on the interior than the default job's ``removal``, else None.  The figures go into
+    ``even`` (``plain_interior_removal_cov``, ``plain_cycle_time_s``, ``even_plan_interior_removal_cov``,
+    ``plain_plan_kept``), with a warning when the plain plan is kept.
+
+    On a curved part whose covering spacing is narrower than a plane's, the least-ripple spacing
+    (worked out on a plane) can lay the passes farther apart than covering needs there; the
+    simulation, not the plane's model, then decides."""
+    cov_plain = float(run[2].metrics["interior_removal_cov"])
     cov_even = float(removal.metrics["interior_removal_cov"])
-    even.update(plain_interior_removal_cov=cov_plain, plain_cycle_time_s=float(trajectory.duration),
+    even.update(plain_interior_removal_cov=cov_plain, plain_cycle_time_s=float(run[1].duration),
                 even_plan_interior_removal_cov=cov_even)
     if not cov_plain < cov_even:
         return None
@@ -265,7 +271,7 @@ def plain_if_evener(surface, tool, plain, removal, even: dict, *, part=None):
     warnings: list[str] = []                    # what was said about the even plan's feed no longer applies
     even["warnings"] = warnings
     warnings.append(f"even removal: the plain plan (covering spacing, flat pad, constant feed) removes more evenly on "
-                    f"this part (interior CoV {cov_plain:.3f}) than the least-ripple spacing with the lead and the "
-                    f"optimised feed ({cov_even:.3f}) in the simulation, so the plain plan is written: the spacing "
-                    "worked out on a plane does not fit this part's curvature [W-EVEN-PLAIN-KEPT]")
-    return toolpath, trajectory, plain_removal
+                    f"this part (interior CoV {cov_plain:.3f}) than the least-ripple spacing with the lead "
+                    f"({cov_even:.3f}) in the simulation, so the plain plan is written: the spacing worked out on a "
+                    "plane does not fit this part's curvature [W-EVEN-PLAIN-KEPT]")
+    return run

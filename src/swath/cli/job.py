@@ -380,8 +380,13 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     even: dict | None = {} if settings.optimise_feed and even_default.is_even(settings) else None
     if settings.optimise_feed:
         t0 = time.perf_counter()
+        plain_run = None if plain is None or even is None else (
+            lambda: even_default.plain_run(surface, tool, plain, part=part_info.get("part")))
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,
-                                                                          surface, even, progress=say)
+                                                                          surface, even, progress=say,
+                                                                          plain=plain_run)
+        if even is not None and even.get("plain_plan_kept"):      # the plain plan, not the feed, is written
+            (toolpath, trajectory, _), settings = even.pop("_plain"), replace(plain, constant_feed=False)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
     if process_stage.wants_wear_stage(tool, settings):
@@ -418,13 +423,12 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if even is not None and "_constant" in even and force is None and robot is None \
             and wear_and_holds["rate_scale"] is None:
         trajectory, removal, feed = even_default.keep_evener(trajectory, removal, feed, even)
-        if plain is not None:
-            say("simulating the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
-            t0 = time.perf_counter()
-            kept = even_default.plain_if_evener(surface, tool, plain, removal, even, part=part_info.get("part"))
+        if "_plain" in even:
+            kept = even_default.plain_if_evener(even.pop("_plain"), removal, even)
             if kept is not None:
                 (toolpath, trajectory, removal), feed, settings = kept, None, replace(plain, constant_feed=False)
-            timings["plain_check_s"] = time.perf_counter() - t0
+    if even is not None:
+        even.pop("_plain", None)
         if feed is None:                              # the feed figures describe a trajectory not written
             extra_metrics = {k: v for k, v in extra_metrics.items() if not k.startswith("feed_")}
     if force is not None and len(force.holds.get("dwell", ())):

@@ -303,7 +303,7 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None
     return timed, result, metrics
 
 
-def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | None, progress=None):
+def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | None, progress=None, plain=None):
     """The job's feed stage (:func:`feed_stage`), choosing the target depth first when the job
     leaves it to the even-removal default (:mod:`swath.cli.even_default`).
 
@@ -313,6 +313,13 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     times the constant feed's, the feed is optimised once more to a lower target
     (:func:`~swath.cli.even_default.lower_target`).  The figures of the choice go into ``even``
     (a dict, filled in here; None: not the default job).
+
+    ``plain`` (a callable returning the plain plan's ``(toolpath, trajectory, removal)``,
+    :func:`~swath.cli.even_default.plain_run`) is run after the constant-feed simulation: when the
+    plain plan already removes more evenly than these passes at constant feed, the feed is not
+    optimised (``even["plain_plan_kept"]``; measured on the panel, the blade and the scans, the
+    optimised feed then never caught up with it); else it is kept in ``even["_plain"]`` for the
+    job's comparison after the final simulation.
 
     Returns
     -------
@@ -335,6 +342,13 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
                                 sampling=settings.removal_sampling)
     depth, figures = even_default.choose_target_depth(constant, trajectory.duration, factor, tool.pad_radius)
     even.update(figures)
+    if plain is not None:
+        say("planning the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
+        run = plain()
+        if even_default.plain_if_evener(run, constant, even) is not None:
+            even["_plain"] = run
+            return settings, trajectory, None, {}
+        even["_plain"] = run
     settings = replace(settings, target_depth=depth)
     say(f"optimising the feed to the default target depth {depth * 1e6:.3g} um (cycle time within {factor:g}x "
         "the constant feed's)", 0, 1)
