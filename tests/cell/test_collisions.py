@@ -165,7 +165,7 @@ def test_the_job_refuses_a_colliding_plan_unless_allowed(tmp_path, capsys):
     from swath.cli import main
 
     cell = _cell_file(tmp_path, (0.03, 0.03, 0.12), (0.2, 0.16, 0.06))
-    base = ["plan", "example:plate", "--spacing", "100mm", "--cell", str(cell), "--program", "urscript"]
+    base = ["plan", "--constant-feed", "example:plate", "--spacing", "100mm", "--cell", str(cell), "--program", "urscript"]
     code = main([*base, "--out", str(tmp_path / "refused")])
     err = capsys.readouterr().err
     assert code == 2

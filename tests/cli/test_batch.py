@@ -20,6 +20,7 @@ point_spacing = "5mm"
 sample_spacing = "4mm"
 feed = "100mm/s"
 angle = "0deg"
+constant_feed = true
 """
 GRID = """
 [grid]

@@ -20,7 +20,7 @@ def run_cli(*args):
 
 def test_plan_writes_trajectory_metrics_and_report(tmp_path):
     out = tmp_path / "out"
-    r = run_cli("plan", "example:plate", "--spacing", "60mm", "--feed", "80mm/s", "--max-accel", "none",
+    r = run_cli("plan", "--constant-feed", "example:plate", "--spacing", "60mm", "--feed", "80mm/s", "--max-accel", "none",
                 "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert "coverage" in r.stdout and "loading part" in r.stderr      # progress on stderr
@@ -43,7 +43,7 @@ def test_bad_input_exits_2_with_one_line_and_no_output(tmp_path):
     bad = tmp_path / "empty.stl"
     bad.write_bytes(b"")
     out = tmp_path / "out"
-    r = run_cli("plan", str(bad), "--out", str(out))
+    r = run_cli("plan", "--constant-feed", str(bad), "--out", str(out))
     assert r.returncode == 2
     lines = [l for l in r.stderr.splitlines() if l.startswith("swath: error:")]
     assert len(lines) == 1 and "empty" in lines[0]
@@ -55,7 +55,7 @@ def test_failure_keeps_an_existing_output_directory_intact(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("old results")
-    assert main(["-q", "plan", "example:plate", "--feed=-5mm/s", "--out", str(out)]) == 2
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--feed=-5mm/s", "--out", str(out)]) == 2
     assert (out / "keep.txt").read_text() == "old results"
 
 
@@ -70,7 +70,7 @@ def test_bad_settings_are_refused_by_name(tmp_path, capsys, flag, value, fragmen
     if flag == "--units":
         import trimesh
         trimesh.creation.box([0.1, 0.1, 0.01]).export(part)
-    code = main(["plan", part, flag, value, "--out", str(tmp_path / "o")])
+    code = main(["plan", "--constant-feed", part, flag, value, "--out", str(tmp_path / "o")])
     assert code == 2
     assert fragment in capsys.readouterr().err
 
@@ -102,7 +102,7 @@ def test_written_trajectory_honours_the_limits_the_direction_was_chosen_under(tm
     """The uniform planner ranks directions by the cycle time under the job's own limits, and the
     written trajectory is timed under the same ones: peak in-contact angular speed <= limit + 3 %."""
     out = tmp_path / "o"
-    assert main(["-q", "plan", "example:panel", "--planner", "uniform", "--max-angular", "0.8rad/s",
+    assert main(["-q", "plan", "--constant-feed", "example:panel", "--planner", "uniform", "--max-angular", "0.8rad/s",
                  "--out", str(out)]) == 0
     tr = read_csv(out / "trajectory.csv")
     omega = np.linalg.norm(np.stack([tr.extra["wx"], tr.extra["wy"], tr.extra["wz"]], axis=1), axis=1)
@@ -128,7 +128,7 @@ def test_toml_job_runs_relative_to_its_file(tmp_path):
                                            ("equidistant", ["--angle", "0deg"])])
 def test_every_planner_runs_through_the_cli(tmp_path, planner, extra):
     out = tmp_path / planner
-    assert main(["-q", "plan", "example:plate", "--planner", planner, *extra, "--out", str(out)]) == 0
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--planner", planner, *extra, "--out", str(out)]) == 0
     m = json.loads((out / "metrics.json").read_text())
     assert m["settings"]["planner"] == planner
     assert m["metrics"]["coverage_fraction"] > 0.995
@@ -149,7 +149,7 @@ def test_every_command_prints_its_help(command, capsys):
 def test_a_pad_larger_than_the_part_suggests_only_what_can_explain_it(tmp_path, capsys):
     """A built-in part has known units, so only the pad is named; a mesh file read in metres that is
     too small for the pad gets no unit suggestion that would make it smaller still (inches)."""
-    assert main(["-q", "plan", "example:plate", "--out", str(tmp_path / "a"), "--pad-radius", "500mm",
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--out", str(tmp_path / "a"), "--pad-radius", "500mm",
                  "--allow-unusual-process"]) == 2
     err = capsys.readouterr().err
     assert "smaller than the pad (1000.0 mm); choose a smaller --pad-radius" in err
@@ -159,7 +159,7 @@ def test_a_pad_larger_than_the_part_suggests_only_what_can_explain_it(tmp_path, 
 
     mesh = tmp_path / "plate.ply"
     save_surface_ply(example_part("plate"), mesh)        # 0.4 m across, read in metres
-    assert main(["-q", "plan", str(mesh), "--units", "m", "--out", str(tmp_path / "b"), "--pad-radius", "500mm",
+    assert main(["-q", "plan", "--constant-feed", str(mesh), "--units", "m", "--out", str(tmp_path / "b"), "--pad-radius", "500mm",
                  "--allow-unusual-process"]) == 2
     err = capsys.readouterr().err
     assert "smaller than the pad" in err and "inches" not in err and "--force-units" in err
@@ -201,7 +201,7 @@ def test_a_partly_unreachable_robot_cell_is_a_job_warning_said_once(tmp_path):
     metrics.json's warnings stayed empty).  The robot and force figures all name their unit (or
     say they are pure numbers), so the job logs no naming complaint."""
     out = tmp_path / "out"
-    r = run_cli("plan", "example:plate", "--spacing", "100mm", "--robot", "ur3e", "--base", "0.2,-0.15,0,0,0,0",
+    r = run_cli("plan", "--constant-feed", "example:plate", "--spacing", "100mm", "--robot", "ur3e", "--base", "0.2,-0.15,0,0,0,0",
                 "--program", "urscript", "--force-control", "--out", str(out))
     assert r.returncode == 0, r.stderr
     doc = json.loads((out / "metrics.json").read_text())

@@ -47,14 +47,14 @@ def test_the_spindle_range_is_stated_in_rpm():
 
 def test_the_cli_refuses_a_feed_of_5_m_per_s_before_any_work(tmp_path, capsys):
     out = tmp_path / "o"
-    assert main(["-q", "plan", "example:plate", "--feed", "5m/s", "--out", str(out)]) == 2
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--feed", "5m/s", "--out", str(out)]) == 2
     assert "feed = 5000 mm/s is outside the feed of a sanding robot (1–500 mm/s)" in capsys.readouterr().err
     assert not out.exists()
 
 
 def test_the_help_states_the_ranges(capsys):
     with pytest.raises(SystemExit):
-        main(["plan", "--help"])
+        main(["plan", "--constant-feed", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "within 1–500 mm/s" in text and "within 1–500 N" in text and "within 5–150 mm" in text
     assert "--allow-unusual-process" in text
@@ -95,7 +95,7 @@ def test_every_subcommand_option_is_known_and_a_prefix_is_left_to_argparse(capsy
 
             _check_option_names(parser, [name, option])      # no refusal
     with pytest.raises(SystemExit):
-        main(["plan", "example:plate", "--fe", "50mm/s", "--out", "o"])
+        main(["plan", "--constant-feed", "example:plate", "--fe", "50mm/s", "--out", "o"])
     assert "ambiguous option: --fe could match --feed, --feed-simulate-check" in capsys.readouterr().err
 
 
@@ -275,7 +275,7 @@ def test_the_report_summary_shows_the_headline_and_folds_the_rest():
 
 def test_an_option_of_swath_itself_after_the_subcommand_says_where_it_goes(capsys):
     with pytest.raises(SystemExit) as exc:
-        main(["plan", "example:plate", "--quiet", "--out", "o"])
+        main(["plan", "--constant-feed", "example:plate", "--quiet", "--out", "o"])
     assert exc.value.code == 2
     assert "--quiet is an option of swath itself: give it before the subcommand (swath --quiet plan ...)" in \
         capsys.readouterr().err

@@ -164,7 +164,7 @@ def test_fit_of_a_round_scan_is_trimmed_to_the_scanned_area(tmp_path, scan_files
 def test_plan_on_the_fitted_scan_and_on_the_saved_patch(tmp_path, scan_files, fitted, capsys):
     d, _ = scan_files
     out_fit, out_patch = tmp_path / "plan_fit", tmp_path / "plan_patch"
-    assert main(["plan", str(d / "scan.xyz"), "--fit", "--out", str(out_fit)]) == 0
+    assert main(["plan", "--constant-feed", str(d / "scan.xyz"), "--fit", "--out", str(out_fit)]) == 0
     assert "fit rms" in capsys.readouterr().err
     tr = read_csv(out_fit / "trajectory.csv")
     assert tr.contact.any() and tr.contact_length > 0.3
@@ -177,7 +177,7 @@ def test_plan_on_the_fitted_scan_and_on_the_saved_patch(tmp_path, scan_files, fi
     assert m["metrics"]["coverage_fraction"] > 0.99
     assert (out_fit / "patch.json").exists()
     # the patch written by swath fit plans the same way
-    assert main(["plan", str(fitted[0] / "patch.json"), "--surface-spacing", "2mm", "--out", str(out_patch)]) == 0
+    assert main(["plan", "--constant-feed", str(fitted[0] / "patch.json"), "--surface-spacing", "2mm", "--out", str(out_patch)]) == 0
     m2 = json.loads((out_patch / "metrics.json").read_text())
     assert read_csv(out_patch / "trajectory.csv").contact.any()
     assert m2["metrics"]["contact_length_m"] == pytest.approx(m["metrics"]["contact_length_m"], rel=0.01)
@@ -327,9 +327,9 @@ def test_register_refuses_no_convergence_and_clouds_as_cad(tmp_path, capsys):
 
 def test_plan_refuses_a_point_cloud_without_fit_and_fit_on_a_patch(tmp_path, scan_files, fitted, capsys):
     d, _ = scan_files
-    assert main(["plan", str(d / "scan.xyz"), "--out", str(tmp_path / "o")]) == 2
+    assert main(["plan", "--constant-feed", str(d / "scan.xyz"), "--out", str(tmp_path / "o")]) == 2
     assert "is a point cloud, not a mesh; add --fit" in capsys.readouterr().err
-    assert main(["plan", str(fitted[0] / "patch.json"), "--fit", "--out", str(tmp_path / "o")]) == 2
+    assert main(["plan", "--constant-feed", str(fitted[0] / "patch.json"), "--fit", "--out", str(tmp_path / "o")]) == 2
     assert "already a fitted patch" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
 

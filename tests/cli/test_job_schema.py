@@ -73,13 +73,13 @@ def test_a_directory_as_the_job_file_is_refused(tmp_path, capsys):
 
 def test_values_are_refused_before_the_part_is_loaded(tmp_path, capsys):
     """A bad limit with a part file that does not exist: the limit is named, not the file."""
-    code = main(["-q", "plan", str(tmp_path / "missing.stl"), "--max-accel=0", "--out", str(tmp_path / "o")])
+    code = main(["-q", "plan", "--constant-feed", str(tmp_path / "missing.stl"), "--max-accel=0", "--out", str(tmp_path / "o")])
     assert code == 2
     assert "max_accel must be positive" in capsys.readouterr().err
 
 
 def test_a_negative_value_reaches_the_check_instead_of_argparse(tmp_path, capsys):
-    assert main(["-q", "plan", "example:plate", "--feed", "-5mm/s", "--out", str(tmp_path / "o")]) == 2
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--feed", "-5mm/s", "--out", str(tmp_path / "o")]) == 2
     assert "feed must be positive" in capsys.readouterr().err
 
 
@@ -108,19 +108,20 @@ def test_a_calibration_file_round_trips_into_a_plan(tmp_path):
     cal = json.loads((tmp_path / "cal" / "calibration.json").read_text())
     fitted = json.dumps(cal)
     assert "preston" in fitted
-    assert main(["-q", "plan", "example:plate", "--spacing", "80mm", "--calibration",
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--spacing", "80mm", "--calibration",
                  str(tmp_path / "cal" / "calibration.json"), "--out", str(tmp_path / "o")]) == 0
     used = json.loads((tmp_path / "o" / "metrics.json").read_text())["metrics"]["preston_coefficient_per_Pa"]
     assert used == pytest.approx(k_true, rel=0.05)
 
 
-def test_feed_optimisation_runs_through_the_job_and_needs_a_target(tmp_path, capsys):
+def test_feed_optimisation_runs_through_the_job_and_refuses_a_target_with_constant_feed(tmp_path, capsys):
     import json
 
     from swath.trajectory import read_csv
 
-    assert main(["-q", "plan", "example:plate", "--optimise-feed", "--out", str(tmp_path / "x")]) == 2
-    assert "needs a target" in capsys.readouterr().err
+    assert main(["-q", "plan", "example:plate", "--constant-feed", "--target-depth", "3um",
+                 "--out", str(tmp_path / "x")]) == 2
+    assert "--constant-feed runs the feed given" in capsys.readouterr().err
     out = tmp_path / "o"
     assert main(["plan", "example:plate", "--optimise-feed", "--target-depth", "3um", "--out", str(out)]) == 0
     # a line for the kernel, each HiGHS solve and each simulated check (a large part takes a minute)
@@ -158,14 +159,15 @@ def test_spacing_optimisation_is_reachable_from_jobs(tmp_path, capsys):
     from swath.feed import ripple_spacing
 
     assert main(["-q", "plan", "example:plate", "--optimise-spacing", "greedy", "--out", str(tmp_path / "x")]) == 2
-    assert "add --optimise-feed" in capsys.readouterr().err
+    assert "add --target-depth" in capsys.readouterr().err
     assert main(["-q", "plan", "example:plate", "--optimise-spacing", "ripple", "--spacing", "40mm",
                  "--out", str(tmp_path / "y")]) == 2
     assert "without --spacing" in capsys.readouterr().err
     assert main(["-q", "plan", "example:plate", "--optimise-spacing", "wavy", "--out", str(tmp_path / "z")]) == 2
     assert "ripple, greedy, joint" in capsys.readouterr().err
     out = tmp_path / "o"
-    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "ripple", "--out", str(out)]) == 0
+    assert main(["-q", "plan", "example:plate", "--optimise-spacing", "ripple", "--constant-feed",
+                 "--out", str(out)]) == 0
     doc = json.loads((out / "metrics.json").read_text())
     assert doc["settings"]["optimise_spacing"] == "ripple"
     assert doc["metrics"]["spacing_m"] == pytest.approx(ripple_spacing(Tool())[0], rel=1e-9)

@@ -56,8 +56,9 @@ def test_a_plan_reaching_10_percent_on_the_plate_is_the_shortest_that_does(tmp_p
 def test_out_of_reach_is_refused_with_the_least_reachable_cov_and_its_cost():
     settings = JobSettings(part="example:plate", out="unused", target_cov=0.06, sample_spacing=COARSE)
     surface, tool = example_part("plate"), settings.tool()
-    base = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE)
-    ripple = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE, optimise_spacing="ripple")
+    base = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE, constant_feed=True)
+    ripple = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE, optimise_spacing="ripple",
+                         constant_feed=True)
     with pytest.raises(InfeasibleError) as err:
         search_target_cov(surface, tool, settings, candidates=[("cover", base), ("ripple", ripple)])
     text = str(err.value)

@@ -143,7 +143,8 @@ def test_the_metrics_documented_are_the_ones_a_job_writes(tmp_path):
     keys = [k for row in table.splitlines() if row.startswith("| `")
             for k in re.findall(r"`([a-z0-9_]+)`", row.split("|")[1])]
     assert len(keys) >= 20
-    run_job(settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "job"), "point_spacing": "4mm"}))
+    run_job(settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "job"), "point_spacing": "4mm",
+                                   "constant_feed": True}))
     metrics = json.loads((tmp_path / "job" / "metrics.json").read_text())["metrics"]
     for key in keys:
         assert key in metrics, key

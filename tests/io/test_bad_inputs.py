@@ -121,7 +121,7 @@ def test_a_broken_step_file_is_refused_by_the_cli(tmp_path, capsys):
     from swath.cli import main
 
     (tmp_path / "part.step").write_text("ISO-10303-21;\n")
-    assert main(["plan", str(tmp_path / "part.step"), "--out", str(tmp_path / "out")]) == 2
+    assert main(["plan", "--constant-feed", str(tmp_path / "part.step"), "--out", str(tmp_path / "out")]) == 2
     assert "part.step: Open CASCADE could not read it as a STEP file; re-export it" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 

@@ -67,9 +67,9 @@ def test_swath_plan_names_the_fix_for_a_plate_facing_down(tmp_path):
 
     path = tmp_path / "plate_down.ply"
     save_surface_ply(flipped(flat_plate(), "plate_down"), path)
-    assert main(["-q", "plan", str(path), "--out", str(tmp_path / "a")]) == 0
+    assert main(["-q", "plan", "--constant-feed", str(path), "--out", str(tmp_path / "a")]) == 0
     warnings = json.loads((tmp_path / "a" / "metrics.json").read_text())["metrics"]["warnings"]
     assert warnings[0].startswith("plate_down faces away") and "--side +z" in warnings[0]
-    assert main(["-q", "plan", str(path), "--side", "+z", "--out", str(tmp_path / "b")]) == 0
+    assert main(["-q", "plan", "--constant-feed", str(path), "--side", "+z", "--out", str(tmp_path / "b")]) == 0
     warnings = json.loads((tmp_path / "b" / "metrics.json").read_text())["metrics"]["warnings"]
     assert not any("faces away" in w for w in warnings)

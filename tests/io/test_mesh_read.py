@@ -234,10 +234,10 @@ def test_cli_accepts_unit_names(tmp_path, capsys):
 
     bad = tmp_path / "empty.obj"
     bad.write_text("# nothing\n")
-    assert main(["--quiet", "plan", str(bad), "--units", "Inch", "--out", str(tmp_path / "out")]) == 2
+    assert main(["--quiet", "plan", "--constant-feed", str(bad), "--units", "Inch", "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert err == "swath: error: empty.obj holds no vertices; check the file or re-export it\n"   # the unit passed
-    assert main(["--quiet", "plan", str(bad), "--units", "furlong", "--out", str(tmp_path / "out")]) == 2
+    assert main(["--quiet", "plan", "--constant-feed", str(bad), "--units", "furlong", "--out", str(tmp_path / "out")]) == 2
     assert "unknown length unit 'furlong'" in capsys.readouterr().err
 
 

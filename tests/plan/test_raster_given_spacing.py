@@ -62,7 +62,7 @@ def test_swath_plan_with_a_spacing_keeps_it_and_reports_the_gap(tmp_path):
     from swath.cli.main import main
 
     out = tmp_path / "o"
-    assert main(["-q", "plan", "example:plate", "--spacing", "200mm", "--direction", "0", "--out", str(out)]) == 0
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--spacing", "200mm", "--direction", "0", "--out", str(out)]) == 0
     m = json.loads((out / "metrics.json").read_text())["metrics"]
     assert m["n_passes"] == 2
     [msg] = [w for w in m["warnings"] if "given spacing 200 mm" in w]

@@ -106,7 +106,7 @@ def test_a_job_with_a_media_schedule_stops_every_program_for_the_operator(tmp_pa
             "kr120": ("1.6,-0.15,0,0,0,0", "krl")}
     for robot_name, (base, programs) in runs.items():
         out = tmp_path / robot_name
-        r = subprocess.run([sys.executable, "-m", "swath.cli", "plan", "example:plate", "--spacing", "100mm", "--robot",
+        r = subprocess.run([sys.executable, "-m", "swath.cli", "plan", "--constant-feed", "example:plate", "--spacing", "100mm", "--robot",
                             robot_name, "--base", base, "--program", programs, "--tcp", "0,0,150mm,0,0,0",
                             "--wear-rate", "0.002/s", "--media-change", "10s", "--out", str(out)],
                            capture_output=True, text=True)

@@ -56,7 +56,7 @@ def test_pad_damping_lengthens_the_landing_and_shortens_the_lift():
 
 def test_a_force_controlled_job_reports_the_landing_marks(tmp_path):
     out = tmp_path / "job"
-    r = subprocess.run([sys.executable, "-m", "swath.cli", "plan", "example:plate", "--spacing", "100mm",
+    r = subprocess.run([sys.executable, "-m", "swath.cli", "plan", "--constant-feed", "example:plate", "--spacing", "100mm",
                         "--force-control", "--pad-damping", "10ms", "--out", str(out)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert "without a unit suffix" not in r.stderr          # every new metric names its unit

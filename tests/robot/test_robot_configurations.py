@@ -258,7 +258,7 @@ def test_cli_refuses_rapid_for_a_ur_before_work(tmp_path, capsys):
     from swath.cli.main import main
 
     t0 = time.perf_counter()
-    code = main(["plan", "example:plate", "--robot", "ur10e", "--program", "rapid", "--out", str(tmp_path / "o")])
+    code = main(["plan", "--constant-feed", "example:plate", "--robot", "ur10e", "--program", "rapid", "--out", str(tmp_path / "o")])
     assert code != 0 and time.perf_counter() - t0 < 5.0
     assert "cannot write rapid for ur10e" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()

@@ -82,7 +82,7 @@ def test_plan_job_records_the_study_and_warns(tmp_path, capsys):
     part = tmp_path / "wavy.ply"
     save_surface_ply(wavy_plate(), part)
     out = tmp_path / "job"
-    assert main(["plan", str(part), "--units", "m", "--out", str(out)]) == 0
+    assert main(["plan", "--constant-feed", str(part), "--units", "m", "--out", str(out)]) == 0
     m = json.loads((out / "metrics.json").read_text())
     m = m.get("metrics", m)
     assert m["softer_pad_depression_m"] == pytest.approx(3e-3)

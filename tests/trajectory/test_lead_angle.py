@@ -153,7 +153,7 @@ def test_job_with_auto_lead_states_the_tilt(tmp_path):
     from swath.trajectory import read_csv
 
     out = tmp_path / "lead"
-    assert main(["-q", "plan", "example:plate", "--lead-angle", "auto", "--out", str(out)]) == 0
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--lead-angle", "auto", "--out", str(out)]) == 0
     doc = json.loads((out / "metrics.json").read_text())
     theta = Tool().half_pad_lead
     assert doc["settings"]["lead_angle_rad"] == pytest.approx(theta)
@@ -162,7 +162,7 @@ def test_job_with_auto_lead_states_the_tilt(tmp_path):
     traj = read_csv(out / "trajectory.csv")
     z = traj.tool_z()[traj.contact]
     np.testing.assert_allclose(np.degrees(np.arccos(z @ [0.0, 0.0, -1.0])), math.degrees(theta), atol=1e-3)
-    assert main(["-q", "plan", "example:plate", "--lead-angle", "60deg", "--out", str(tmp_path / "bad")]) == 2
+    assert main(["-q", "plan", "--constant-feed", "example:plate", "--lead-angle", "60deg", "--out", str(tmp_path / "bad")]) == 2
     assert not (tmp_path / "bad").exists()
 
 

@@ -12,7 +12,7 @@ import json
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import InputError
@@ -330,7 +330,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
     from ..trajectory.timing import describe_lead
-    from . import process_stage, stages
+    from . import even_default, process_stage, stages
     from .guard import check_budget
 
     if settings.side == "all":
@@ -343,6 +343,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     say = progress or (lambda stage, done, total: None)
     timings = {}
     check_output_dir(settings.out, overwrite=settings.overwrite)
+    plain = even_default.plain_alternative(settings)  # the plain plan the default job is compared with
+    settings = even_default.resolve(settings)        # the default job: spacing, lead and feed for even removal
     tool = stages.job_tool(settings)
     if settings.target_cov is not None:
         from .target_cov import check_target_cov
@@ -384,10 +386,16 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["trajectory_s"] = time.perf_counter() - t0
 
     extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
+    even: dict | None = {} if settings.optimise_feed and even_default.is_even(settings) else None
     if settings.optimise_feed:
         t0 = time.perf_counter()
-        say("optimising the feed (dwell) to the target depth", 0, 1)
-        trajectory, feed, feed_metrics = stages.feed_stage(toolpath, tool, settings, trajectory, surface, progress=say)
+        plain_run = None if plain is None or even is None else (
+            lambda: even_default.plain_run(surface, tool, plain, part=part_info.get("part")))
+        settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,
+                                                                          surface, even, progress=say,
+                                                                          plain=plain_run)
+        if even is not None and even.get("plain_plan_kept"):      # the plain plan, not the feed, is written
+            (toolpath, trajectory, _), settings = even.pop("_plain"), replace(plain, constant_feed=False)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
     if process_stage.wants_wear_stage(tool, settings):
@@ -421,6 +429,17 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
                                    sampling=settings.removal_sampling, force=None if force is None else force.force,
                                    progress=lambda d, n: say("simulating removal", d, n), **wear_and_holds)
     timings["simulate_s"] = time.perf_counter() - t0
+    if even is not None and "_constant" in even and force is None and robot is None \
+            and wear_and_holds["rate_scale"] is None:
+        trajectory, removal, feed = even_default.keep_evener(trajectory, removal, feed, even)
+        if "_plain" in even:
+            kept = even_default.plain_if_evener(even.pop("_plain"), removal, even)
+            if kept is not None:
+                (toolpath, trajectory, removal), feed, settings = kept, None, replace(plain, constant_feed=False)
+    if even is not None:
+        even.pop("_plain", None)
+        if feed is None:                              # the feed figures describe a trajectory not written
+            extra_metrics = {k: v for k, v in extra_metrics.items() if not k.startswith("feed_")}
     if force is not None and len(force.holds.get("dwell", ())):
         # the marks the landings and lifts leave, each on its own
         extra_metrics.update(process_stage.transient_metrics(trajectory, surface, tool, force, settings, removal))
@@ -435,9 +454,15 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["pad_study_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)
+    if even is not None:
+        extra_metrics.update(even_default.even_metrics(settings, removal, trajectory,
+                                                       {k: v for k, v in even.items() if k != "warnings"},
+                                                       tool))
     if part_info.get("part") is not None:
         extra_metrics.update(_judge_on_part(part_info["part"], trajectory, tool, settings, force, say))
     warnings: list[str] = []                     # the job's own warnings (the others come from plan_warnings)
+    if even is not None:
+        warnings += even.pop("warnings", [])
     if searched is not None:
         metrics.update(searched.metrics(settings_target))
         if not metrics["interior_removal_cov"] <= settings_target:      # a later stage (robot, force) changed it

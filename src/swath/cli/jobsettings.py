@@ -203,16 +203,18 @@ class JobSettings:
                                        "(Wang), plan each, visit them in the order with least air (gtsp); none")
     optimise_feed: bool = setting(False, "bool", stage="feed", cli=Option(action="store_true", group="even"),
                                   help="choose the feed along every pass so removal matches the target, never more "
-                                       "than the target plus the tolerance (HiGHS)")
+                                       "than the target plus the tolerance (HiGHS; on by default, off with "
+                                       "--constant-feed)")
     target_depth: float | None = setting(None, "length", stage="feed", bare_max=0.01, hint="um, e.g. 20um",
                                          positive=True, cli=Option(group="even"),
-                                         help="with --optimise-feed: uniform depth to remove, e.g. 20um")
+                                         help="uniform depth to remove, e.g. 20um (default: chosen so that the cycle "
+                                              "time stays within --cycle-time-factor of the constant feed's)")
     target_map: str | None = setting(None, "path", stage="feed", cli=Option(group="even"),
-                                     help="with --optimise-feed: per-point depths (CSV x,y,z,depth in m, or PLY with "
-                                          "a vertex 'depth')")
+                                     help="per-point depths to remove (CSV x,y,z,depth in m, or PLY with a vertex "
+                                          "'depth')")
     depth_tolerance: float | None = setting(None, "length", stage="feed", lo=0.0, bare_max=0.01, hint="um, e.g. 5um",
                                             cli=Option(group="even"),
-                                            help="with --optimise-feed: allowed removal above the target, e.g. 2um "
+                                            help="allowed removal above the target, e.g. 2um "
                                                  "(default 10 %% of the target depth)")
     optimise_spacing: str | None = setting(None, "str", stage="feed", choices=("ripple", "greedy", "joint"), off=True,
                                            cli=Option(group="even"),
@@ -222,17 +224,19 @@ class JobSettings:
                                                 "pattern search, pass by pass, against the target) or joint (equal "
                                                 "spacing and feed together)")
     length_budget: float = setting(1.5, "fraction", stage="feed", lo=1.0, hi=4.0, cli=Option(group="even"),
-                                   help="with --optimise-spacing ripple: the contact length the spacing may use, in "
-                                        "multiples of the coverage bound L*, e.g. 2 (default 1.5): closer passes, "
+                                   help="with the ripple spacing (the default): the contact length the spacing may "
+                                        "use, in multiples of the coverage bound L*, e.g. 2 (default 1.5): closer passes, "
                                         "less ripple between them")
-    # rad; None ("auto"): the angle at which half the pad presses on a flat part (Tool.half_pad_lead)
-    lead_angle: float | None = setting(0.0, "angle", stage="trajectory", lo=-math.pi / 4, hi=math.pi / 4, auto=True,
+    # rad; None ("auto"): the angle at which half the pad presses on a flat part (Tool.half_pad_lead);
+    # "default": auto in the even-removal job, else 0 (lead())
+    lead_angle: float | str | None = setting("default", "angle", stage="trajectory", lo=-math.pi / 4, hi=math.pi / 4, auto=True,
                                        cli=Option(group="even"),
                                        help="tilt the pad about the axis across the feed in contact, its leading "
                                             "edge lifted, e.g. 7deg; auto: the angle at which half the pad presses "
                                             "on a flat part (7.0 deg for the default pad), which turns each pass's "
                                             "removal profile from a semicircle into a parabola and halves the ripple "
-                                            "between passes (default 0: z along minus the normal)")
+                                            "between passes (default: auto; 0, z along minus the normal, with "
+                                            "--constant-feed or --target-cov)")
     feed_simulate_check: bool = setting(True, "bool", stage="feed",
                                         cli=Option(action="boolean", group="even"),
                                         help="with --optimise-feed: simulate the optimised trajectory and tighten "
@@ -244,6 +248,16 @@ class JobSettings:
                                             "simulates a stated set of candidates (spacing, lead) and keeps the one "
                                             "with the shortest cycle time that reaches it, or refuses with the least "
                                             "reachable CoV and its cycle time")
+    # the default job evens the removal (swath.cli.even_default); constant_feed: the plain plan
+    constant_feed: bool = setting(False, "bool", stage="feed", cli=Option(action="store_true", group="even"),
+                                  help="a plain plan: the planner's covering spacing, no lead, the feed given all "
+                                       "along the passes (default: even removal: least-ripple spacing, half-pad "
+                                       "lead, the feed optimised to a target depth)")
+    # the default target depth keeps the cycle time within this factor of the constant-feed plan
+    cycle_time_factor: float = setting(1.5, "fraction", stage="feed", lo=1.05, hi=10.0, cli=Option(group="even"),
+                                       help="even removal without --target-depth: the target depth is chosen so "
+                                            "that the cycle time stays within this factor of the same passes at "
+                                            "constant feed (default 1.5)")
     robot: str | None = setting(None, "str", stage="robot", cli=Option(group="robot"), names=_robots,
                                 help="robot model: {names}, or a URDF file (path/to/robot.urdf, with --tip)")
     base: str | None = setting(None, "str", stage="robot", cli=Option(group="robot"),
@@ -384,8 +398,12 @@ class JobSettings:
 
     def lead(self) -> float:
         """The lead angle (rad) the trajectory tilts the tool by in contact: ``lead_angle``, or for
-        ``auto`` the angle at which half the pad presses on a flat part (``Tool.half_pad_lead``)."""
-        return self.tool().half_pad_lead if self.lead_angle is None else float(self.lead_angle)
+        ``auto`` the angle at which half the pad presses on a flat part (``Tool.half_pad_lead``); for
+        ``"default"`` auto in the even-removal job and 0 with ``constant_feed`` or ``target_cov``."""
+        lead = self.lead_angle
+        if lead == "default":
+            lead = 0.0 if self.constant_feed or self.target_cov is not None or self.side == "all" else None
+        return self.tool().half_pad_lead if lead is None else float(lead)
 
     def links(self):
         """How the tool moves between passes."""
@@ -419,8 +437,9 @@ class JobSettings:
                           tool_tilt_rad=self.tool_tilt, gravity_compensation=self.gravity_compensation)
         if self.calibration:
             record.update(calibration=self.calibration, grit=self.grit)
+        record.update(constant_feed=self.constant_feed)
         if self.optimise_feed or self.optimise_spacing:
-            record.update(optimise_feed=self.optimise_feed, optimise_spacing=self.optimise_spacing,
+            record.update(cycle_time_factor_ratio=self.cycle_time_factor, optimise_feed=self.optimise_feed, optimise_spacing=self.optimise_spacing,
                           target_depth_m=self.target_depth, target_map=self.target_map,
                           depth_tolerance_m=self.depth_tolerance, feed_simulate_check=self.feed_simulate_check)
         if self.wear_rate or self.media_change or self.media_change_loss:

@@ -52,7 +52,7 @@ STAGES = {
 #: Titles of the option groups of ``swath plan --help`` (options without a group are listed first).
 GROUPS = {
     "part": None,                   # the part options, only on commands that read a part file
-    "even": "even removal (Wang §2): feed (dwell) optimisation to a target depth",
+    "even": "even removal (the default; Wang §2): spacing, lead and feed (dwell) to a target depth",
     "robot": "robot (kinematics, reachability, programs)",
     "force": "force control and calibration (Jaeger ch. 5, 6)",
     "process": "process: pad, kinematics, wear and media changes",

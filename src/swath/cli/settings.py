@@ -267,10 +267,14 @@ def check_settings(settings: JobSettings) -> None:
         from .stages import robot_options
 
         robot_options(settings)                     # robot name, cell file, base and tcp poses, program formats
-    if settings.optimise_feed and not (settings.target_depth or settings.target_map):
-        raise InputError("--optimise-feed needs a target: --target-depth (e.g. 20um) or --target-map FILE")
-    if (settings.target_depth or settings.target_map or settings.depth_tolerance) and not settings.optimise_feed:
-        raise InputError("--target-depth, --target-map and --depth-tolerance apply with --optimise-feed; add it")
+    if settings.constant_feed:
+        given = [flag for flag, on in (("--optimise-feed", settings.optimise_feed),
+                                       ("--target-depth", settings.target_depth is not None),
+                                       ("--target-map", settings.target_map is not None),
+                                       ("--depth-tolerance", settings.depth_tolerance is not None)) if on]
+        if given:
+            raise InputError(f"--constant-feed runs the feed given (--feed) all along the passes: drop "
+                             f"{', '.join(given)}, or drop --constant-feed to optimise the feed to a target depth")
     if settings.optimise_spacing:
         uniform_ripple = settings.planner == "uniform" and settings.optimise_spacing == "ripple"
         if uniform_ripple and settings.overlap is not None:
@@ -281,10 +285,10 @@ def check_settings(settings: JobSettings) -> None:
             raise InputError(f"--optimise-spacing {settings.optimise_spacing} places raster passes itself: use it "
                              "with the raster planner (ripple also with uniform), without --spacing and without "
                              "--segment auto")
-        if settings.optimise_spacing in ("greedy", "joint") and not settings.optimise_feed:
+        if settings.optimise_spacing in ("greedy", "joint") and not (settings.target_depth or settings.target_map):
             raise InputError(f"--optimise-spacing {settings.optimise_spacing} scores spacings against the target "
-                             "depth: add --optimise-feed and --target-depth or --target-map (or use "
-                             "--optimise-spacing ripple, which needs no target)")
+                             "depth: add --target-depth or --target-map (or use --optimise-spacing ripple, which "
+                             "needs no target)")
     if not settings.force_control:
         given = [flag for flag, on in (("--part-offset", settings.part_offset is not None),
                                        ("--tool-mass", settings.tool_mass != 0.0),
@@ -300,6 +304,8 @@ def check_settings(settings: JobSettings) -> None:
                                        ("--spacing", settings.spacing is not None),
                                        ("--overlap", settings.overlap is not None),
                                        ("--optimise-feed", settings.optimise_feed),
+                                       ("--target-depth", settings.target_depth is not None),
+                                       ("--target-map", settings.target_map is not None),
                                        ("--segment auto", settings.segment == "auto")) if on]
         if given:
             raise InputError(f"--target-cov chooses the spacing, lead and feed itself: drop {', '.join(given)}")

@@ -122,6 +122,8 @@ class FeedSettings(StageSettings):
     length_budget: float
     feed_simulate_check: bool
     target_floor: str
+    constant_feed: bool
+    cycle_time_factor: float
 
 
 @dataclass(frozen=True)
@@ -134,7 +136,7 @@ class TrajectorySettings(StageSettings):
     max_centripetal: float | None
     max_angular: float | None
     max_accel: float | None
-    lead_angle: float | None
+    lead_angle: float | str | None
 
     def constraints(self) -> list:
         """The trajectory constraints: the feed and whichever limits are on (by default all three of

@@ -165,7 +165,9 @@ CODES: dict[str, WarningCode] = dict([
           "than the target depth plus the tolerance, even at the fastest feed the limits allow.",
           "Raise the target or the tolerance, or the feed limit; plan the passes farther apart.", "feed"),
     entry("W-TARGET-SHORT", r"the optimised feed removes",
-          "Even at the slowest allowed feed the plan removes clearly less than the target depth on average.",
+          "The optimised feed removes clearly less than the target depth on average: the tolerance where the "
+          "removal is highest (the feed may not slow there) or the slowest allowed feed holds it back; the "
+          "message gives the slowest feed the plan uses.",
           "Lower the target or raise the tolerance, raise the force, plan the passes closer, or run the job "
           "more than once.", "feed"),
     entry("W-TARGET-COV-MISSED", r"--target-cov: the chosen plan reached",
@@ -173,6 +175,19 @@ CODES: dict[str, WarningCode] = dict([
           "trajectory (re-timed by the robot stage, or run under force control) removes less evenly.",
           "Ask for a somewhat lower CoV so that the search keeps a margin, or relax the joint limits that re-time the "
           "path.", "feed"),
+    entry("W-EVEN-PLAIN-KEPT", r"even removal: the plain plan .* removes more evenly",
+          "The default job compared its even-removal plan (least-ripple spacing, lead, optimised feed) with the "
+          "plain plan (covering spacing, flat pad, constant feed) in the removal simulation, and the plain one "
+          "removes more evenly on this part: it is written. The least-ripple spacing is worked out on a plane and "
+          "can be too wide where curvature narrows the pad's swath.",
+          "Nothing to do for this run; `--constant-feed` skips the comparison, `--spacing` or `--planner uniform` "
+          "spaces the passes yourself.", "feed"),
+    entry("W-EVEN-FEED-WORSE", r"even removal: the (optimised feed removes less evenly|feed could not be optimised)",
+          "The default job optimised the feed, but the simulation finds the same passes at constant feed remove "
+          "more evenly on the interior (the part's curvature, not the feed, sets the evenness), or the feed "
+          "programme found no feed for the default target; the constant-feed trajectory is written.",
+          "Nothing to do for this run; a softer pad (see the softer-pad figure) or a smaller one follows the "
+          "curvature better. `--constant-feed` skips the feed optimisation.", "feed"),
     entry("W-TARGET-COV-CANDIDATE", r"--target-cov: candidate .* cannot be planned",
           "One of the candidate plans --target-cov tries could not be planned on this part (for instance no "
           "direction lets the uniform planner lay passes at that overlap); the search goes on without it.",

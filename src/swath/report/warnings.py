@@ -57,12 +57,19 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
     got, want = metrics.get("feed_removal_mean_m"), metrics.get("feed_target_mean_m")
     optimised = want is not None
     if want is not None and got is not None and np.isfinite(got) and want > 0 and got < MIN_TARGET_SHARE * want:
-        slowest = metrics.get("feed_v_min_m_per_s")
-        at = f" even with the feed down to {1e3 * slowest:.0f} mm/s where needed" if slowest else ""
+        limit, used = metrics.get("feed_v_min_m_per_s"), metrics.get("feed_speed_min_m_per_s")
+        if used and limit and used > 1.2 * limit:
+            # the feed never reached its slowest: the tolerance at the removal's highs holds the rest back
+            why = (f"; the slowest feed used is {1e3 * used:.0f} mm/s (allowed down to {1e3 * limit:.0f} mm/s): "
+                   "the tolerance where the removal is highest holds it back, not the feed; raise --depth-tolerance, "
+                   "or on a curved part use a softer pad")
+        else:
+            slowest = used or limit
+            at = f"{1e3 * slowest:.0f} mm/s" if slowest else "its slowest"
+            why = (f" with the feed down to {at} where needed: the slowest feed holds it back; lower the target, "
+                   "raise the force, plan the passes closer, or run the job more than once")
         out.append(f"the optimised feed removes {_depth(got)} on average, {100 * got / want:.2g} % of the "
-                   f"target {_depth(want)}{at}: the slowest feed, or the tolerance where the removal is highest, holds it "
-                   "back; lower the target or raise the tolerance, raise the force, plan the passes closer, or run "
-                   "the job more than once")
+                   f"target {_depth(want)}{why}")
     soft, cov = metrics.get("softer_pad_removal_cov"), metrics.get("removal_cov")
     if soft is not None and cov is not None and np.isfinite(soft) and soft <= WARN_BELOW_SHARE * cov:
         e, e_soft = metrics["pad_depression_m"], metrics["softer_pad_depression_m"]

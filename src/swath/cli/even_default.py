@@ -1,0 +1,277 @@
+"""The default job: even removal at a stated cost in cycle time.
+
+Unless the job asks for ``constant_feed`` (``--constant-feed``) or a ``target_cov``, ``swath plan``,
+``swath demo`` and job files plan for even removal:
+
+* **spacing** — the least-ripple spacing within ``length_budget`` times the coverage bound L*
+  (``optimise_spacing = "ripple"``; with the uniform planner the overlap that gives it), unless
+  the job gives ``spacing``, ``overlap``, ``optimise_spacing`` or ``segment = "auto"``, or plans
+  with another planner;
+* **lead** — the half-pad lead (``lead_angle = "auto"``, :attr:`swath.contact.Tool.half_pad_lead`),
+  unless the job gives ``lead_angle``.  Chosen by the removal simulator, which is what an
+  independent check sees: with the ripple spacing and the optimised feed it removes more evenly
+  than a flat pad and than 11° on the plate, the blade and crs_part_5 (docs: the even-removal
+  default);
+* **feed** — optimised along every pass to a target depth (:func:`swath.cli.stages.feed_stage`).
+  Unless the job gives ``target_depth`` or ``target_map``, the target is chosen by
+  :func:`choose_target_depth` so that the cycle time stays within ``cycle_time_factor`` (1.5)
+  times that of running the same passes at the constant feed; where the passes remove more
+  than that at the fastest feed (a curved part's ridges), the target rises to it
+  (``target_floor = "fastest"``).
+
+A job planned all round in setups (``side = "all"``) runs at constant feed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: Planners the least-ripple spacing applies to.
+RIPPLE_PLANNERS = ("raster", "uniform")
+
+
+def is_even(settings) -> bool:
+    """Whether ``settings`` run the even-removal default (not constant feed, no ``target_cov``, one setup)."""
+    return not settings.constant_feed and settings.target_cov is None and settings.side != "all"
+
+
+def resolve(settings):
+    """The job's settings with the default job's choices made (module notes): the lead is a number
+    or ``None`` (auto) afterwards, never ``"default"``.
+
+    Parameters
+    ----------
+    settings : JobSettings
+
+    Returns
+    -------
+    JobSettings
+    """
+    changes: dict = {}
+    if settings.lead_angle == "default":
+        changes["lead_angle"] = settings.lead()          # auto when even, 0 otherwise (JobSettings.lead)
+    if is_even(settings):
+        changes["optimise_feed"] = True
+        if (settings.optimise_spacing is None and settings.spacing is None and settings.overlap is None
+                and settings.segment != "auto" and settings.planner in RIPPLE_PLANNERS):
+            changes["optimise_spacing"] = "ripple"
+        if settings.target_depth is None and settings.target_map is None:
+            changes["target_floor"] = "fastest"         # a ridge the fastest feed over-removes raises the target
+    return replace(settings, **changes) if changes else settings
+
+
+def wants_target_depth(settings) -> bool:
+    """Whether the job's target depth is still to be chosen (:func:`choose_target_depth`)."""
+    return settings.optimise_feed and settings.target_depth is None and settings.target_map is None
+
+
+def interior_mean(removal, pad_radius: float) -> float:
+    """Area-weighted mean depth (m) over the samples more than ``pad_radius`` (m) from the open
+    boundary: the interior ``interior_removal_cov`` is taken over (the whole part when closed)."""
+    inner = removal.surface.farther_from_boundary(pad_radius)
+    a = removal.surface.vertex_areas[inner]
+    if not len(a) or not a.sum() > 0:
+        return float("nan")
+    return float(np.sum(a * removal.depth[inner]) / a.sum())
+
+
+def _floor_2(x: float) -> float:
+    """``x`` rounded down to two significant figures (a depth stated as 3.4 um, not 3.4172 um)."""
+    if not (x > 0 and math.isfinite(x)):
+        return x
+    scale = 10.0 ** (math.floor(math.log10(x)) - 1)
+    return math.floor(x / scale + 1e-9) * scale
+
+
+def choose_target_depth(constant_removal, constant_cycle_s: float, factor: float, pad_radius: float) -> tuple[float, dict]:
+    """The default target depth (m) of the even-removal job, and the figures it was chosen from.
+
+    The constant-feed run of the same passes removes ``mean`` on the interior (m), with
+    ``contact`` s of its ``cycle`` s in contact.  Optimised to a target ``D``, the feed slows down
+    by about ``D / mean`` in contact and the air moves keep their time, so the cycle time is about
+    ``cycle + contact (D / mean - 1)``; the target is the largest ``D`` whose estimate is within
+    ``factor`` times ``cycle``, rounded down to two figures::
+
+        D = mean (1 + (factor - 1) cycle / contact)
+
+    The estimate is conservative where the feed cannot slow everywhere in proportion (speed
+    limits already hold it, the edge band): the cycle time reached is measured and stated.
+
+    Parameters
+    ----------
+    constant_removal : RemovalMap
+        The simulated removal of the passes at the constant feed.
+    constant_cycle_s : float
+        Its cycle time, s.
+    factor : float
+        The allowed cycle time over the constant-feed cycle time (> 1).
+    pad_radius : float
+        m (the interior is a pad radius in from the edges).
+
+    Returns
+    -------
+    depth : float
+        m.
+    figures : dict
+        ``constant_feed_interior_removal_mean_m``, ``constant_feed_interior_removal_cov``,
+        ``constant_feed_cycle_time_s``, ``constant_feed_contact_time_s``.
+    """
+    m = constant_removal.metrics
+    mean = interior_mean(constant_removal, pad_radius)
+    if not mean > 0:
+        mean = float(m["removal_mean_m"])
+    contact = float(m["contact_time_s"])
+    ratio = constant_cycle_s / contact if contact > 0 else 1.0
+    depth = _floor_2(mean * (1.0 + (factor - 1.0) * ratio))
+    figures = {"constant_feed_interior_removal_mean_m": mean,
+               "constant_feed_interior_removal_cov": float(m["interior_removal_cov"]),
+               "constant_feed_removal_cov": float(m["removal_cov"]),
+               "constant_feed_cycle_time_s": float(constant_cycle_s), "constant_feed_contact_time_s": contact}
+    return depth, figures
+
+
+def lower_target(depth: float, mean: float, factor: float, reached: float) -> float:
+    """A second target (m) when the first, ``depth``, gave a cycle ``reached`` times the
+    constant-feed one, over ``factor``: the slowing down above the constant-feed ``mean`` (m)
+    scaled by ``(factor - 1) / (reached - 1)``, rounded down to two figures."""
+    scale = (factor - 1.0) / (reached - 1.0) if reached > 1.0 else 1.0
+    return _floor_2(mean + (depth - mean) * min(scale, 1.0))
+
+
+def feed_used(trajectory) -> dict:
+    """The feeds the written trajectory runs at in contact, weighted by contact length: the
+    slowest (2nd percentile: the pass-end ramps left out) and the fastest, m/s."""
+    c = trajectory.contact[1:] & trajectory.contact[:-1]
+    if not c.any():
+        return {}
+    seg = np.linalg.norm(np.diff(trajectory.position, axis=0), axis=1)[c]
+    v = 0.5 * (trajectory.feed[1:] + trajectory.feed[:-1])[c]
+    order = np.argsort(v)
+    cdf = np.cumsum(seg[order]) / max(seg.sum(), 1e-300)
+    slow = float(v[order][min(int(np.searchsorted(cdf, 0.02)), len(v) - 1)])
+    return {"feed_used_p2_m_per_s": slow, "feed_used_max_m_per_s": float(v.max())}
+
+
+def even_metrics(settings, removal, trajectory, figures: dict, tool) -> dict:
+    """What the even-removal job states (units in the keys): the target depth, the factor asked and
+    the cycle-time ratio reached, the depth reached on the interior against the target, the feeds
+    used, and L / L*; all from the simulated removal of the written ``trajectory``."""
+    m = removal.metrics
+    out = dict(figures)
+    out["even_removal_default"] = True
+    out["target_depth_m"] = settings.target_depth
+    out["cycle_time_allowed_ratio"] = settings.cycle_time_factor
+    const = figures.get("constant_feed_cycle_time_s")
+    if const and not figures.get("plain_plan_kept"):
+        out["cycle_time_ratio"] = float(trajectory.duration / const)
+    mean = interior_mean(removal, tool.pad_radius)
+    out["interior_removal_mean_m"] = mean
+    if settings.target_depth:
+        out["target_depth_reached_fraction"] = mean / settings.target_depth
+    out["length_ratio"] = float(m["contact_length_m"] / m["coverage_lower_bound_m"])
+    out["lead_angle_deg"] = math.degrees(settings.lead())
+    out["length_budget_ratio"] = settings.length_budget if settings.optimise_spacing == "ripple" else None
+    out.update(feed_used(trajectory))
+    return out
+
+
+def summary_line(m: dict) -> str:
+    """The CLI's line on the even-removal default (from :func:`even_metrics`), or ``""``."""
+    if not m.get("even_removal_default"):
+        return ""
+    if m.get("plain_plan_kept"):
+        return (f"  even removal (default): the plain plan removes more evenly here (interior CoV "
+                f"{m['plain_interior_removal_cov']:.3f} against {m['even_plan_interior_removal_cov']:.3f}) and is "
+                f"written; {m['length_ratio']:.2f} L*")
+    target = m.get("target_depth_m")
+    parts = ["  even removal (default; --constant-feed for a plain plan): target depth "
+             + (f"{target * 1e6:.3g} um" if target else "from the target map")]
+    if m.get("cycle_time_ratio") is not None:
+        parts.append(f", cycle time {m['cycle_time_ratio']:.2f}x the constant feed's "
+                     f"(allowed {m['cycle_time_allowed_ratio']:g}x)")
+    text = "".join(parts) + "\n"
+    reached = m.get("target_depth_reached_fraction")
+    text += (f"  interior depth {m['interior_removal_mean_m'] * 1e6:.3g} um"
+             + (f" ({100 * reached:.0f} % of the target)" if reached is not None else "")
+             + (f", feed {m['feed_used_p2_m_per_s'] * 1e3:.0f}..{m['feed_used_max_m_per_s'] * 1e3:.0f} mm/s"
+                if "feed_used_p2_m_per_s" in m else "")
+             + f", {m['length_ratio']:.2f} L*, lead {m['lead_angle_deg']:.1f} deg")
+    if m.get("constant_feed_interior_removal_cov") is not None:
+        text += (f"\n  the same passes at constant feed: interior CoV {m['constant_feed_interior_removal_cov']:.3f}, "
+                 f"cycle time {m['constant_feed_cycle_time_s']:.1f} s")
+    return text
+
+
+def keep_evener(trajectory, removal, feed, even: dict):
+    """The optimised-feed ``trajectory`` and its ``removal``, or the same passes at constant feed
+    (``even["_constant"]``, their trajectory and removal) when those remove more evenly on the
+    interior, as the simulator finds: then ``feed`` becomes None and ``even["warnings"]``
+    says so.  Returns ``(trajectory, removal, feed)``; ``even["_constant"]`` is removed."""
+    constant_trajectory, constant_removal = even.pop("_constant")
+    optimised = float(removal.metrics["interior_removal_cov"])
+    plain = float(constant_removal.metrics["interior_removal_cov"])
+    even["optimised_feed_interior_removal_cov"] = optimised
+    if not optimised > plain:
+        return trajectory, removal, feed
+    even["constant_feed_kept"] = True
+    even["warnings"] = [(
+        f"even removal: the optimised feed removes less evenly (interior CoV {optimised:.3f}) than the same passes at "
+        f"constant feed ({plain:.3f}) in the simulation, so the constant-feed trajectory is written: the part's "
+        "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")]
+    return constant_trajectory, constant_removal, None
+
+
+def plain_alternative(settings):
+    """The plain plan's settings (``constant_feed``, resolved) when the default job chose the
+    spacing, the lead and the target itself, so the job may compare the two (:func:`plain_if_evener`);
+    None when the job gave any of them, or is not the even-removal default."""
+    if not (is_even(settings) and settings.lead_angle == "default" and settings.optimise_spacing is None
+            and settings.spacing is None and settings.overlap is None and settings.segment != "auto"
+            and settings.planner in RIPPLE_PLANNERS and settings.target_depth is None and settings.target_map is None):
+        return None
+    return resolve(replace(settings, constant_feed=True, optimise_feed=False))
+
+
+def plain_run(surface, tool, plain, *, part=None) -> tuple:
+    """The plain plan (``plain``: its settings, :func:`plain_alternative`) planned, timed and
+    simulated: ``(toolpath, trajectory, removal)``."""
+    from ..simulate import simulate_removal
+    from ..trajectory import time_path
+    from .job import make_plan
+
+    toolpath = make_plan(surface, plain, tool=tool, part=part)
+    trajectory = time_path(toolpath, plain.constraints(), links=plain.links(), lead_angle=plain.lead())
+    removal = simulate_removal(trajectory, surface, tool, sample_spacing=plain.sample_spacing,
+                               sampling=plain.removal_sampling)
+    return toolpath, trajectory, removal
+
+
+def plain_if_evener(run: tuple, removal, even: dict):
+    """``run`` (the plain plan's ``(toolpath, trajectory, removal)``, :func:`plain_run`) when it removes
+    more evenly on the interior than the default job's ``removal``, else None.  The figures go into
+    ``even`` (``plain_interior_removal_cov``, ``plain_cycle_time_s``, ``even_plan_interior_removal_cov``,
+    ``plain_plan_kept``), with a warning when the plain plan is kept.
+
+    On a curved part whose covering spacing is narrower than a plane's, the least-ripple spacing
+    (worked out on a plane) can lay the passes farther apart than covering needs there; the
+    simulation, not the plane's model, then decides."""
+    cov_plain = float(run[2].metrics["interior_removal_cov"])
+    cov_even = float(removal.metrics["interior_removal_cov"])
+    even.update(plain_interior_removal_cov=cov_plain, plain_cycle_time_s=float(run[1].duration),
+                even_plan_interior_removal_cov=cov_even)
+    if not cov_plain < cov_even:
+        return None
+    even["plain_plan_kept"] = True
+    warnings: list[str] = []                    # what was said about the even plan's feed no longer applies
+    even["warnings"] = warnings
+    warnings.append(f"even removal: the plain plan (covering spacing, flat pad, constant feed) removes more evenly on "
+                    f"this part (interior CoV {cov_plain:.3f}) than the least-ripple spacing with the lead "
+                    f"({cov_even:.3f}) in the simulation, so the plain plan is written: the spacing worked out on a "
+                    "plane does not fit this part's curvature [W-EVEN-PLAIN-KEPT]")
+    return run
