@@ -209,7 +209,7 @@ def test_the_defaults_the_help_states_are_the_dataclass_defaults():
             assert parse_value(name, m.group(1), SCHEMA[name]) == pytest.approx(default), (name, m.group(0))
             checked.append(name)
     assert {"max_centripetal", "max_angular", "max_accel", "keep_out_margin", "chordal_tol", "length_budget",
-            "lead_angle", "pad_damping"} <= set(checked)
+            "cycle_time_factor", "pad_damping"} <= set(checked)
     # the pad radius's help names the pad: "(default: 3-inch pad)", 3 in across
     assert "(default: 3-inch pad)" in declarations(JobSettings)["pad_radius"].help_text()
     assert default_of(JobSettings, "pad_radius") == pytest.approx(3 * 0.0254 / 2)
