@@ -25,6 +25,9 @@ log = logging.getLogger(__name__)
 #: Largest joint step between two checked poses, rad (2°).
 MAX_JOINT_STEP = math.radians(2.0)
 
+#: Name of the small body at the TCP in a scene built with ``tcp_radius`` (:func:`job_scene`).
+TCP_BODY = "tool centre point"
+
 
 class CollisionError(SwathError):
     """The plan drives a body of the robot or tool into the part, the cell or the robot itself."""
@@ -152,7 +155,8 @@ class CollisionReport:
         return f"{len(self.events)} collision(s): {head}{more}"
 
 
-def job_scene(model, cell: Cell, part_vertices=None, part_faces=None) -> tuple[CollisionScene, Cell]:
+def job_scene(model, cell: Cell, part_vertices=None, part_faces=None, *,
+              tcp_radius: float | None = None) -> tuple[CollisionScene, Cell]:
     """The collision scene of a job and its cell (with the default table put in when assumed).
 
     Parameters
@@ -163,6 +167,10 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None) -> tuple[C
     part_vertices : (n, 3) float, optional
         The part in the part frame, m.
     part_faces : (m, 3) int, optional
+    tcp_radius : float, optional
+        Also a small body at the TCP (a capsule of this radius, m), named ``"tool centre point"``,
+        never checked against the part (the pad is meant to touch it): for measuring how far the
+        TCP stays from the part (:meth:`CollisionScene.distances`) on air moves.
     """
     from dataclasses import replace
 
@@ -178,8 +186,11 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None) -> tuple[C
     links = link_bodies(model)
     n = model.chain.n_joints
     tools = [MovingBody(b, link=n) for b in (cell.tool.bodies if cell.tool is not None else ())]
-    moving = links + tools
     skip = set()
+    if tcp_radius is not None:
+        tools.append(MovingBody(Body(TCP_BODY, Capsule(tcp_radius, tcp_radius), cell.tcp2flange), link=n))
+        skip.add((TCP_BODY, "the part"))
+    moving = links + tools
     if links and links[0].link == 0:        # the robot stands on (or through) its table
         skip.add((links[0].body.name, "table"))
     self_pairs = []

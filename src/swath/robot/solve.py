@@ -124,6 +124,10 @@ class JointSolution:
     clearance : (n,) float or None
         Distance of each sample's TCP from the nearest in-contact sample, m (0 in contact); how far
         from the part a branch change happens.
+    via : (n,) bool or None
+        True at a joint move's target that the next joint move leaves from (a via-point of a lifted
+        move, :mod:`swath.robot.sweep`): the programs write it as a joint-move target of its own.
+        None: no via-points.
     """
 
     q: np.ndarray
@@ -136,6 +140,7 @@ class JointSolution:
     warning: str | None = None
     joint_move: np.ndarray | None = None
     clearance: np.ndarray | None = None
+    via: np.ndarray | None = None
 
     @property
     def reachable_fraction(self) -> float:
@@ -145,6 +150,11 @@ class JointSolution:
     def joint_moves(self) -> np.ndarray:
         """(n,) bool :attr:`joint_move`, all False when None."""
         return np.zeros(len(self.q), bool) if self.joint_move is None else np.asarray(self.joint_move, bool)
+
+    @property
+    def vias(self) -> np.ndarray:
+        """(n,) bool :attr:`via`, all False when None."""
+        return np.zeros(len(self.q), bool) if self.via is None else np.asarray(self.via, bool)
 
 
 def segments(trajectory) -> list[tuple[int, int, bool]]:

@@ -133,7 +133,9 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         Split passes at unreachable stretches with a retract and an approach (default); the returned
         trajectory is then what the robot runs (:func:`swath.robot.gaps.split_unreachable`).
     clearance : float
-        Retract/approach height at a split, m.
+        Retract/approach height at a split, m, and the distance from the part every configuration
+        change keeps: with a ``surface``, every joint move is checked along its sweep and lifted
+        where it comes nearer the part than this or hits the cell (:mod:`swath.robot.sweep`).
     progress : callable, optional
         ``progress(message, done, total)`` for the placement search and the solves.
     force_program : str
@@ -169,6 +171,13 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         say(f"robot: {n_unreachable} unreachable poses become air moves (retract, joint move, approach)", 0, 1)
         trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
         solution = solution_after_split(solution, trajectory, q_moves, src, model)
+    sweeps = None
+    if surface is not None and solution.joint_moves.any():
+        from .sweep import SweepCheck, clear_joint_moves
+
+        say(f"robot: {int(solution.joint_moves.sum())} joint moves checked along their sweep", 0, 1)
+        check = SweepCheck(model, cell, np.asarray(surface.vertices), np.asarray(surface.faces))
+        trajectory, solution, sweeps = clear_joint_moves(trajectory, solution, model, cell, check, clearance=clearance)
     t_ik = time.perf_counter() - t0
     retimed, solution, rt = retime_and_resample(trajectory, solution, model, cell)
     dp, da = fk_errors(retimed, solution, model, cell)
@@ -199,8 +208,15 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     if placement is not None:
         metrics.update(placement.as_record())
     metrics["force_program"] = force_program
+    metrics["clearance_m"] = clearance
+    if sweeps is not None:
+        from .sweep import sweep_metrics, sweep_warnings
+
+        metrics.update(sweep_metrics(sweeps))
     warnings = robot_warnings(solution, metrics, first_warning=first_warning, split=split_gaps, programs=programs,
                               cell=cell)
+    if sweeps:
+        warnings += sweep_warnings(sweeps, clearance)
     if warn:
         for w in warnings:
             log.warning("%s", w)
