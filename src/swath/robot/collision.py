@@ -3,8 +3,9 @@
 The robot's links are capsules along its kinematic chain (:func:`link_bodies`): link ``i`` runs from
 joint ``i``'s frame to joint ``i + 1``'s along the chain's fixed offset, with a radius that scales
 with the robot's reach (5 % for the three main links, 3.5 % for the wrist; 65 and 46 mm on a UR10e,
-about the size of its tubes).  The tool's bodies ride on the flange; the pad is never checked (it is
-meant to touch the part).  The joint path is interpolated so that no joint moves more than
+about the size of its tubes).  The tool's bodies ride on the flange; the pad is never checked against
+the part (it is meant to touch it), but its centre (the TCP, a 1 mm body) is checked against the
+fixtures, the robot and, out of contact, the table.  The joint path is interpolated so that no joint moves more than
 ``max_step`` (2° by default) between checked poses, in contact and in air moves alike.
 """
 
@@ -27,6 +28,10 @@ MAX_JOINT_STEP = math.radians(2.0)
 
 #: Name of the small body at the TCP in a scene built with ``tcp_radius`` (:func:`job_scene`).
 TCP_BODY = "tool centre point"
+
+#: Radius of that body in the job's collision check, m: the TCP itself, so that a pad driven into a
+#: fixture, the table or the robot is found (against the part it is never checked).
+TCP_RADIUS = 1e-3
 
 
 class CollisionError(SwathError):
@@ -255,7 +260,7 @@ def check_job_collisions(trajectory, solution, model, cell: Cell, *, part_vertic
     CollisionReport
     """
     t0 = time.perf_counter()
-    scene, cell = job_scene(model, cell, part_vertices, part_faces)
+    scene, cell = job_scene(model, cell, part_vertices, part_faces, tcp_radius=TCP_RADIUS)
     t_scene = time.perf_counter() - t0
     idx = np.flatnonzero(solution.reachable)
     if not len(idx):
@@ -294,6 +299,13 @@ def check_job_collisions(trajectory, solution, model, cell: Cell, *, part_vertic
     pose = np.concatenate(hits_pose)
     point = np.vstack(hits_p) if hits_p else np.zeros((0, 3))
     depth = np.concatenate(hits_d)
+    # the TCP touches the table where the pad is on the part at its lowest point (the table's top)
+    keep = np.array([not (a == TCP_BODY and b == "table" and contact_fine[p]) for a, b, p in zip(hits_a, hits_b, pose)],
+                    dtype=bool)
+    if not keep.all():
+        pose, point, depth = pose[keep], point[keep], depth[keep]
+        hits_a = [a for a, k in zip(hits_a, keep) if k]
+        hits_b = [b for b, k in zip(hits_b, keep) if k]
     base2part = cell.base2part
     events = _events(pose, hits_a, hits_b, point @ base2part[:3, :3].T + base2part[:3, 3], depth,
                      t_fine, sample_fine, pass_fine, after_fine, contact_fine)

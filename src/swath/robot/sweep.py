@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .collision import MAX_JOINT_STEP, TCP_BODY, interpolate_joints, job_scene
+from .collision import MAX_JOINT_STEP, TCP_RADIUS, interpolate_joints, job_scene
 from .joint_moves import insert_samples
 from .pose import matrix_to_quat, poses_from_trajectory
 
@@ -90,7 +90,7 @@ class SweepCheck:
 
     def __init__(self, model, cell, part_vertices, part_faces, *, max_step: float = MAX_JOINT_STEP, cap: float = 0.3):
         self.model = model
-        self.scene, self.cell = job_scene(model, cell, part_vertices, part_faces, tcp_radius=1e-3)
+        self.scene, self.cell = job_scene(model, cell, part_vertices, part_faces, tcp_radius=TCP_RADIUS)
         self.max_step = max_step
         self.cap = cap
 
@@ -130,9 +130,10 @@ class MoveSweep:
     final : Sweep
         The move as written (the same when not lifted).
     lift_m : float
-        Height of the retract and approach added, m (0: not lifted).
+        Height of the retract and approach added, m (0: none).
     direction : str
-        ``""``, ``"tool axis"`` or ``"up"``: the retract's direction.
+        ``""`` (as planned), ``"tool axis"`` or ``"up"`` (the retract's direction), or ``"via only"``
+        (the ends kept, a raised via-point between them).
     vias : int
         Via-points added between the lifted ends.
     """
@@ -219,34 +220,58 @@ class _Plan:
 
 
 def _candidates(model, cell, check: SweepCheck, p0, p1, q0, q1, b0, b1, clearance: float, up_part, ignore):
-    """Lifted versions of the joint move ``q0 → q1`` (TCP poses ``p0``, ``p1``), lowest first."""
+    """Lifted versions of the joint move ``q0 → q1`` (TCP poses ``p0``, ``p1``), lowest first: per
+    height, the ends retracted along the tool axis, then straight up, each without and with a raised
+    via-point; where neither retract is reachable (the ends at the edge of the reach), the ends as
+    they are with the via-point alone."""
     for factor in LIFTS:
         h = factor * clearance
+        lifted = False
         for direction, d0, d1 in (("tool axis", -p0[:3, 2], -p1[:3, 2]), ("up", up_part, up_part)):
             ret = straight_line(model, cell, p0, h * d0, q0)
             app = straight_line(model, cell, p1, h * d1, q1)
             if ret is None or app is None:
                 continue
+            lifted = True
             if check.sweep(ret[1], ignore=ignore).hits or check.sweep(app[1], ignore=ignore).hits:
                 continue
-            top0, top1 = ret[1][-1], app[1][-1]
-            chains: list[list] = [[]]
-            mid = ret[0][-1].copy()
-            mid[:3, 3] = 0.5 * (ret[0][-1][:3, 3] + app[0][-1][:3, 3]) + h * up_part
-            via = ik_near(model, cell, mid, 0.5 * (top0 + top1), max_change=math.pi)
-            if via is not None:
-                chains.append([via])
-            for vias in chains:
-                sw = check.sweep(np.array([top0] + [v[0] for v in vias] + [top1]), ignore=ignore)
-                a_poses, a_q = app[0][::-1], app[1][::-1]
-                poses = np.concatenate([ret[0][1:]] + [mid[None]] * len(vias) + [a_poses[:-1]])
-                q = np.concatenate([ret[1][1:]] + [v[0][None] for v in vias] + [a_q[:-1]])
-                nr, nv, na = len(ret[0]) - 1, len(vias), len(a_q) - 1
-                jm = np.r_[np.zeros(nr, bool), np.ones(nv + 1, bool), np.zeros(na - 1, bool)]
-                via_flag = np.r_[np.zeros(nr, bool), np.ones(nv, bool), np.zeros(na, bool)]
-                branch = np.r_[np.full(nr, b0), [v[1] for v in vias], np.full(na, b1)].astype(int)
-                after = np.r_[np.zeros(nr + nv, bool), np.ones(na, bool)]
-                yield _Plan(poses, q, jm, via_flag, branch, after, sw, h, direction, nv)
+            yield from _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore)
+        if not lifted:
+            ret = (p0[None], np.asarray(q0, dtype=float)[None])
+            app = (p1[None], np.asarray(q1, dtype=float)[None])
+            yield from _chains(model, cell, check, ret, app, b0, b1, h, "via only", up_part, ignore, direct=False)
+
+
+def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore, *, direct=True):
+    """The joint moves between the top of a retract ``ret`` and of an approach ``app`` ((poses, q),
+    each from the job's path upward): straight (``direct``), then through a via-point ``h`` above the
+    middle, then one ``h`` above it and ``h`` nearer the robot's axis."""
+    top0, top1 = ret[1][-1], app[1][-1]
+    chains: list[tuple] = [((), ret[0][-1])] if direct else []
+    centre = 0.5 * (ret[0][-1][:3, 3] + app[0][-1][:3, 3])
+    # toward the robot's axis, level: a via-point at the edge of the reach is found nearer the robot
+    inward = cell.base2part[:3, 3] - centre
+    inward -= (inward @ up_part) * up_part
+    inward /= max(float(np.linalg.norm(inward)), 1e-12)
+    for offset in (h * up_part, h * (up_part + inward)):
+        mid = ret[0][-1].copy()
+        mid[:3, 3] = centre + offset
+        via = ik_near(model, cell, mid, 0.5 * (top0 + top1), max_change=math.pi)
+        if via is not None:
+            chains.append(((via,), mid))
+    for vias, mid in chains:
+        sw = check.sweep(np.array([top0] + [v[0] for v in vias] + [top1]), ignore=ignore)
+        a_poses, a_q = app[0][::-1], app[1][::-1]
+        poses = np.concatenate([ret[0][1:]] + [mid[None]] * len(vias) + [a_poses[:-1]])
+        q = np.concatenate([ret[1][1:]] + [v[0][None] for v in vias] + [a_q[:-1]])
+        nr, nv, na = len(ret[0]) - 1, len(vias), len(a_q) - 1
+        # rows: the retract's (linear), the via-points and the approach's top (joint-move targets), the
+        # approach's others (linear); a via-only chain has no approach rows: its last target is the landing
+        jm = np.r_[np.zeros(nr, bool), np.ones(nv, bool), np.ones(min(na, 1), bool), np.zeros(max(na - 1, 0), bool)]
+        via_flag = np.r_[np.zeros(nr, bool), np.ones(nv, bool), np.zeros(na, bool)]
+        branch = np.r_[np.full(nr, b0), [v[1] for v in vias], np.full(na, b1)].astype(int)
+        after = np.r_[np.zeros(nr + nv, bool), np.ones(na, bool)]
+        yield _Plan(poses, q, jm, via_flag, branch, after, sw, h if direct else 0.0, direction, nv)
 
 
 def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, clearance: float,
@@ -312,7 +337,7 @@ def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, c
         sweeps.append(rec)
         if chosen is not None:
             plans.append((i, chosen))
-            log.info("robot: %s lifted %.0f mm along the %s (%d via-point(s)): %.1f mm from the part, was %.1f mm",
+            log.info("robot: %s lifted %.0f mm (%s, %d via-point(s)): %.1f mm from the part, was %.1f mm",
                      rec.where(), 1e3 * rec.lift_m, rec.direction, rec.vias, 1e3 * rec.final.min_distance,
                      1e3 * planned.min_distance)
     if not plans:
@@ -333,7 +358,8 @@ def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, c
     for i, plan, offsets in rows:
         at += [i] * len(plan.q)
         t_new.append(t_shift[i - 1] + offsets)
-        joint_move[i] = False                       # the landing is now the approach's last step
+        # the landing: the approach's last step, or (no approach) the last joint move's target
+        joint_move[i] = not plan.after.any()
     tr = replace(trajectory, t=t_shift)
     sol = replace(solution, joint_move=joint_move)
     cat = np.concatenate
@@ -348,11 +374,11 @@ def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, c
 
 
 def sweep_metrics(sweeps: list[MoveSweep]) -> dict:
-    """Keys: ``n_swept_joint_moves``, ``n_lifted_joint_moves``, ``n_joint_moves_not_clear`` (moves that
+    """Keys: ``n_swept_joint_moves``, ``n_lifted_joint_moves`` (lifted or given a via-point), ``n_joint_moves_not_clear`` (moves that
     still break a rule), ``min_switch_clearance_m`` (smallest swept distance to the part of a move
     that changes the configuration; NaN without one), ``joint_move_sweeps`` (records, at most 50)."""
     changes = [s.final.min_distance for s in sweeps if s.branch_change]
-    return {"n_swept_joint_moves": len(sweeps), "n_lifted_joint_moves": sum(s.lift_m > 0 for s in sweeps),
+    return {"n_swept_joint_moves": len(sweeps), "n_lifted_joint_moves": sum(s.direction != "" for s in sweeps),
             "n_joint_moves_not_clear": sum(not s.ok for s in sweeps),
             "min_switch_clearance_m": float(min(changes)) if changes else float("nan"),
             "joint_move_sweeps": [s.as_record() for s in sweeps[:50]]}
