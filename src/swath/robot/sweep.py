@@ -158,6 +158,7 @@ class MoveSweep:
     def as_record(self) -> dict:
         return {"after_pass": self.after_pass, "pass_after": self.pass_after, "branch_change": self.branch_change,
                 "required_m": self.required_m, "planned_min_distance_m": self.planned.min_distance,
+                "planned_collisions": [list(p) for p in self.planned.hits],
                 "min_distance_m": self.final.min_distance, "nearest_body": self.final.nearest,
                 "collisions": [list(p) for p in self.final.hits], "lift_m": self.lift_m,
                 "lift_direction": self.direction, "vias": self.vias, "ok": self.ok}
