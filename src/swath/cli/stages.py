@@ -136,6 +136,7 @@ def robot_stage(trajectory, surface, settings, *, progress=None):
 
     result = run_robot_stage(trajectory, **robot_options(settings), out_dir=None, surface=surface,
                              force=settings.force, warn=False,      # the job reports result.warnings
+                             clearance=settings.clearance,
                              progress=None if progress is None else (lambda m, d, n: progress(m, d, n)))
     metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
     report = check_job_collisions(result.trajectory, result.solution, result.model, result.cell,
