@@ -249,7 +249,6 @@ class CollisionScene:
         if static not in names:
             raise InputError(f"no static body named {static!r} in the scene; it has {', '.join(names)}")
         s = names.index(static)
-        b = self.static[s]
         geom_b, tf_b = self._static_geom[s]
         kind, cull, extra, lo, hi = self._static_cull[s]
         link2base = np.asarray(link2base, dtype=float)
