@@ -59,6 +59,11 @@ class Margins:
     max_step : float
         Largest joint change between consecutive samples on one branch, rad (default 0.5);
         a larger change is a discontinuity, not a motion.
+    floor_z : float or None
+        Height of the table top in the base frame, m: a configuration whose link capsules (those
+        of the collision check, :func:`swath.robot.collision.link_bodies`; the base column excepted)
+        dip below it is not feasible, so the arm stays above the table (elbow up where the elbow
+        would go down).  None (default): no floor.
     """
 
     wrist: float = math.sin(math.radians(5.0))
@@ -66,6 +71,7 @@ class Margins:
     shoulder: float = 0.05
     joint_limit: float = 0.0
     max_step: float = 0.5
+    floor_z: float | None = None
 
 
 @dataclass(frozen=True)
@@ -192,7 +198,8 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         Joint values per branch, rad (NaN where none).
     feasible : (n, B) bool
     reason : (n, B) int
-        0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump.
+        0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump, 5 the arm below
+        ``margins.floor_z``.
     """
     margins = Margins() if margins is None else margins
     raw = model.ik(flange2base, seed=seed)
@@ -238,12 +245,35 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         sing_ok[valid] = (m["wrist"] >= margins.wrist) & (m["elbow"] >= margins.elbow) & (m["shoulder_m"] >= margins.shoulder)
     sing_ok = sing_ok.reshape(n, nb)
     reason = np.where((reason == 0) & ~sing_ok, 3, reason)
+    if margins.floor_z is not None:
+        low = np.zeros(len(flat), bool)
+        low[valid] = arm_below(model, flat[valid], margins.floor_z)
+        reason = np.where((reason == 0) & low.reshape(n, nb), 5, reason)
     reason = np.where((reason == 0) & jumps, 4, reason)
     return q, reason == 0, reason
 
 
+def arm_below(model: RobotModel, q, floor_z: float, *, chunk: int = 20000) -> np.ndarray:
+    """(n,) bool: the link capsules of the collision check (the base column excepted) dip below
+    ``floor_z`` (m, base frame) at joint values ``q`` (n, 6) rad."""
+    from .collision import link_bodies
+
+    q = np.asarray(q, dtype=float)
+    links = [m for m in link_bodies(model) if m.link > 0]
+    out = np.zeros(len(q), bool)
+    for s in range(0, len(q), chunk):
+        frames = model.chain.frames(q[s:s + chunk])
+        for m in links:
+            t = frames[:, m.link] @ m.body.body2frame
+            half = 0.5 * m.body.shape.length * t[:, 2, 2]           # z of the capsule axis' half length
+            lowest = t[:, 2, 3] - np.abs(half) - m.body.shape.radius
+            out[s:s + chunk] |= lowest < floor_z
+    return out
+
+
 _REASONS = {1: "no inverse-kinematics solution (out of reach)", 2: "outside the joint limits",
-            3: "too close to a singularity", 4: "a joint would jump between samples"}
+            3: "too close to a singularity", 4: "a joint would jump between samples",
+            5: "the arm would dip into the table"}
 
 
 def _run_lengths(feasible: np.ndarray) -> np.ndarray:
@@ -484,7 +514,7 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
         j = i
         while j < n and bad[j] and trajectory.pass_index[j] == trajectory.pass_index[i]:
             j += 1
-        why = np.bincount(reason[i:j, branch[i]], minlength=5)[1:]
+        why = np.bincount(reason[i:j, branch[i]], minlength=6)[1:]
         stretches.append(UnreachableStretch(start=i, stop=j, pass_index=int(trajectory.pass_index[i]),
                                             position=tuple(float(v) for v in trajectory.position[i]),
                                             reason=_REASONS[int(np.argmax(why)) + 1] + f" on branch {names[branch[i]]}"))

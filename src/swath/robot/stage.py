@@ -15,7 +15,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -121,7 +121,9 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         Contact force for URScript ``force_mode``, N.
     surface : Surface, optional
         The part; when given, a reachability map over its vertices is added (tool normal to the
-        surface; :func:`swath.robot.reachability_map`).
+        surface; :func:`swath.robot.reachability_map`), the joint moves are checked along their
+        sweep, and with a table (the cell's, or the one assumed under the part's lowest point) the
+        arm is kept above it (:attr:`Margins.floor_z`; the placement search too).
     reach_vertices : int
         At most this many vertices in the reachability map.
     warn : bool
@@ -154,11 +156,18 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     placement = None
     t0 = time.perf_counter()
     say = progress or (lambda message, done, total: None)
+    # with the part's mesh and a table (given, or assumed under the part's lowest point), the arm stays above it
+    on_table = surface is not None and margins.floor_z is None and (cell.table is not None or cell.auto_table)
     if place:
-        placement = search_placement(trajectory, model, cell, table_z=table_z, margins=margins, keep_out=keep_out,
+        floor = (cell.table.top_z if cell.table is not None else table_z) if on_table else None
+        placement = search_placement(trajectory, model, cell, table_z=table_z, keep_out=keep_out,
+                                     margins=margins if floor is None else replace(margins, floor_z=floor),
                                      points=None if surface is None else np.asarray(surface.vertices),
                                      progress=progress)
         cell = placement.cell
+    if on_table:
+        part_z = np.asarray(surface.vertices) @ cell.part2base[2, :3] + cell.part2base[2, 3]
+        margins = replace(margins, floor_z=cell.table.top_z if cell.table is not None else float(part_z.min()))
     t_place = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"robot: inverse kinematics on {len(trajectory)} poses", 0, 1)
