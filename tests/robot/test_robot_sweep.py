@@ -164,3 +164,22 @@ def test_the_arm_below_the_table_top_is_what_coal_finds_in_a_deep_table(robot):
     below = arm_below(model, q, 0.1)
     assert 0.2 < below.mean() < 0.9                       # both kinds are among the samples
     np.testing.assert_array_equal(below, touching)
+
+
+def test_a_change_forced_at_a_pass_end_moves_to_the_link_before_the_pass():
+    """Branch 0 serves everything up to the end of the first pass and nothing after; branch 1 serves
+    from sample 2 on.  The change cannot wait for the link after the pass (the pad would leave the
+    part on a change), so it is put on the link before the pass, at its highest sample."""
+    from swath.robot.solve import choose_branches
+
+    n = 20
+    segs = [(0, 5, False), (5, 10, True), (10, 15, False), (15, 20, True)]
+    feasible = np.zeros((n, 2), bool)
+    feasible[:10, 0] = True
+    feasible[2:, 1] = True
+    clearance = np.r_[[0.02, 0.03, 0.05, 0.04, 0.01], np.zeros(5), np.full(5, 0.02), np.zeros(5)]
+    branch = choose_branches(feasible, segs, clearance)
+    # the step 2 -> 3 has both samples highest (0.05, 0.04) among the steps inside the link
+    np.testing.assert_array_equal(branch, np.r_[[0, 0, 0], np.ones(17, int)])
+    # without distances the change stays where the old branch stops
+    np.testing.assert_array_equal(choose_branches(feasible, segs), np.r_[np.zeros(10, int), np.ones(10, int)])

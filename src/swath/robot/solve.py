@@ -314,7 +314,8 @@ def choose_branches(feasible: np.ndarray, segs, clearance=None) -> np.ndarray:
         Distance from the part, m (:func:`clearance_from_contact`).  A switch on a link is put on
         the step whose two samples are farthest from the part among the steps where the old branch
         serves up to it and the new one from it to the next pass; without it, at the latest such
-        step.
+        step.  Where that step is the link's first (the pad leaving the pass) and the new branch
+        serves the pass before, the change moves to the link before that pass.
     """
     n, nb = feasible.shape
     run = _run_lengths(feasible)
@@ -356,10 +357,36 @@ def choose_branches(feasible: np.ndarray, segs, clearance=None) -> np.ndarray:
             j = e
             while j > s and feasible[j - 1, new]:
                 j -= 1
+        if j == s and clearance is not None:
+            # the change would be right where the pad leaves the part: where the new branch serves the pass
+            # before and a link leads to it, change on that link instead, farthest from the part
+            earlier = _earlier_switch(feasible, segs, k, current, new, clearance)
+            if earlier is not None:
+                branch[earlier:s] = new
         branch[s:j] = current
         branch[j:e] = new
         current = new
     return branch
+
+
+def _earlier_switch(feasible, segs, k, old: int, new: int, clearance) -> int | None:
+    """The sample on the link before the pass ``segs[k - 1]`` where the change from ``old`` to
+    ``new`` is farthest from the part, when ``new`` serves that pass and the link from there on;
+    None when there is no such link."""
+    if k < 2 or not segs[k - 1][2] or segs[k - 2][2]:
+        return None
+    (ls, le, _), (ps, pe, _) = segs[k - 2], segs[k - 1]
+    if not feasible[le:pe, new].all():
+        return None
+    old_ok = np.concatenate([[True], np.cumprod(feasible[ls:le, old]).astype(bool)])
+    new_ok = np.concatenate([np.cumprod(feasible[ls:le, new][::-1]).astype(bool)[::-1], [True]])
+    cand = np.flatnonzero(old_ok & new_ok) + ls
+    cand = cand[(cand > ls) & (cand < le)]          # inside the link, not where it meets a pass
+    if not len(cand):
+        return None
+    n = len(clearance)
+    side = np.minimum(clearance[np.maximum(cand - 1, 0)], clearance[np.minimum(cand, n - 1)])
+    return int(cand[np.argmax(side)])
 
 
 def align_turns(q, lower, upper, breaks) -> np.ndarray:
