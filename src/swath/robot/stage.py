@@ -166,8 +166,12 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
                                      progress=progress)
         cell = placement.cell
     if on_table:
-        part_z = np.asarray(surface.vertices) @ cell.part2base[2, :3] + cell.part2base[2, 3]
-        margins = replace(margins, floor_z=cell.table.top_z if cell.table is not None else float(part_z.min()))
+        # the table the part stands on; a table top above the part's lowest point is a cell error that
+        # the collision check names (the part would be in it), not a floor
+        part_z = float((np.asarray(surface.vertices) @ cell.part2base[2, :3] + cell.part2base[2, 3]).min())
+        top = cell.table.top_z if cell.table is not None else part_z
+        if top <= part_z + 1e-3:
+            margins = replace(margins, floor_z=top)
     t_place = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"robot: inverse kinematics on {len(trajectory)} poses", 0, 1)
