@@ -375,7 +375,7 @@ def _earlier_switch(feasible, segs, k, old: int, new: int, clearance) -> int | N
     None when there is no such link."""
     if k < 2 or not segs[k - 1][2] or segs[k - 2][2]:
         return None
-    (ls, le, _), (ps, pe, _) = segs[k - 2], segs[k - 1]
+    (ls, le, _), pe = segs[k - 2], segs[k - 1][1]
     if not feasible[le:pe, new].all():
         return None
     old_ok = np.concatenate([[True], np.cumprod(feasible[ls:le, old]).astype(bool)])
