@@ -256,17 +256,20 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
 def arm_below(model: RobotModel, q, floor_z: float, *, chunk: int = 20000) -> np.ndarray:
     """(n,) bool: the link capsules of the collision check (the base column excepted) dip below
     ``floor_z`` (m, base frame) at joint values ``q`` (n, 6) rad."""
+    from ..cell import Capsule
     from .collision import link_bodies
 
     q = np.asarray(q, dtype=float)
-    links = [m for m in link_bodies(model) if m.link > 0]
+    links = [(m.link, m.body.body2frame, m.body.shape) for m in link_bodies(model) if m.link > 0]
     out = np.zeros(len(q), bool)
     for s in range(0, len(q), chunk):
         frames = model.chain.frames(q[s:s + chunk])
-        for m in links:
-            t = frames[:, m.link] @ m.body.body2frame
-            half = 0.5 * m.body.shape.length * t[:, 2, 2]           # z of the capsule axis' half length
-            lowest = t[:, 2, 3] - np.abs(half) - m.body.shape.radius
+        for link, body2frame, shape in links:
+            if not isinstance(shape, Capsule):
+                continue
+            t = frames[:, link] @ body2frame
+            half = 0.5 * shape.length * t[:, 2, 2]                  # z of the capsule axis' half length
+            lowest = t[:, 2, 3] - np.abs(half) - shape.radius
             out[s:s + chunk] |= lowest < floor_z
     return out
 
