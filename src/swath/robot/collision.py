@@ -207,6 +207,14 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None, *,
     return CollisionScene(static, moving, skip=skip, self_pairs=self_pairs), cell
 
 
+def tcp_grazes_table(body_a, body_b, depth, *, invert: bool = False) -> np.ndarray:
+    """(h,) bool: hits of the TCP on the table whose centre is no more than its radius below the top
+    (the pad on, or just off, a part whose lowest point is the table top); ``invert``: the others."""
+    graze = np.array([a == TCP_BODY and b == "table" and d <= 2 * TCP_RADIUS + 1e-9
+                      for a, b, d in zip(body_a, body_b, np.asarray(depth, dtype=float))], dtype=bool)
+    return ~graze if invert else graze
+
+
 def interpolate_joints(q, *, max_step: float = MAX_JOINT_STEP):
     """Joint path with no joint step above ``max_step``.
 
@@ -300,8 +308,9 @@ def check_job_collisions(trajectory, solution, model, cell: Cell, *, part_vertic
     point = np.vstack(hits_p) if hits_p else np.zeros((0, 3))
     depth = np.concatenate(hits_d)
     # the TCP touches the table where the pad is on the part at its lowest point (the table's top)
-    keep = np.array([not (a == TCP_BODY and b == "table" and contact_fine[p]) for a, b, p in zip(hits_a, hits_b, pose)],
-                    dtype=bool)
+    keep = tcp_grazes_table(hits_a, hits_b, depth, invert=True)
+    keep &= np.array([not (a == TCP_BODY and b == "table" and contact_fine[p]) for a, b, p in zip(hits_a, hits_b, pose)],
+                     dtype=bool)
     if not keep.all():
         pose, point, depth = pose[keep], point[keep], depth[keep]
         hits_a = [a for a, k in zip(hits_a, keep) if k]

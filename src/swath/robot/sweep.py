@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .collision import MAX_JOINT_STEP, TCP_RADIUS, interpolate_joints, job_scene
+from .collision import MAX_JOINT_STEP, TCP_RADIUS, interpolate_joints, job_scene, tcp_grazes_table
 from .joint_moves import insert_samples
 from .pose import matrix_to_quat, poses_from_trajectory
 
@@ -101,15 +101,18 @@ class SweepCheck:
         q_fine, _ = interpolate_joints(np.asarray(q_nodes, dtype=float), max_step=self.max_step)
         frames = self.model.chain.frames(q_fine)
         d, who = self.scene.distances(frames, "the part", cap=self.cap)
-        hits = self.scene.check(frames)
         k = int(np.argmin(d))
-        pairs = tuple(sorted({(a, b) for a, b in zip(hits.body_a, hits.body_b)} - set(ignore)))
+        pairs = tuple(sorted(self._pairs(frames) - set(ignore)))
         return Sweep(min_distance=float(d[k]), nearest=who[k], hits=pairs)
 
     def touching(self, q) -> set:
         """Pairs of body names that touch at the joint values ``q`` (k, 6) rad."""
-        hits = self.scene.check(self.model.chain.frames(np.asarray(q, dtype=float)))
-        return set(zip(hits.body_a, hits.body_b))
+        return self._pairs(self.model.chain.frames(np.asarray(q, dtype=float)))
+
+    def _pairs(self, frames) -> set:
+        hits = self.scene.check(frames)
+        keep = tcp_grazes_table(hits.body_a, hits.body_b, hits.depth, invert=True)
+        return {(a, b) for a, b, k in zip(hits.body_a, hits.body_b, keep) if k}
 
 
 @dataclass(frozen=True)
