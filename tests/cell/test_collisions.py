@@ -141,13 +141,16 @@ def test_the_tool_body_against_a_wall_is_found(solved, plate):
 def test_a_table_above_the_plate_is_hit_by_the_tool(solved, plate):
     """A table top 50 mm above the plate (a user's cell file mistake): the spindle, from 30 mm
     above the pad face, is in it from the first sample; the holder, from 125 mm up, is not; the
-    robot's first link stands on the table by design and is not reported."""
+    robot's first link stands on the table by design and is not reported; the TCP is in it on the
+    air moves (20 mm above the plate), and where the pad is on the plate it is not reported."""
     cell = replace(solved.cell, table=Table(top_z=0.05, centre_xy=(0.0, 0.0), size_xy=(3.0, 3.0)))
     rep = check_job_collisions(solved.trajectory, solved.solution, solved.model, cell,
                                part_vertices=plate.vertices, part_faces=plate.faces)
     assert rep.events and rep.events[0].sample == 0
     assert {e.body_b for e in rep.events} == {"table"}
-    assert {e.body_a for e in rep.events} == {"tool spindle"}
+    assert {e.body_a for e in rep.events} == {"tool spindle", "tool centre point"}
+    tcp = [e for e in rep.events if e.body_a == "tool centre point"]
+    assert not any(e.contact for e in tcp) and all(e.pass_index == -1 for e in tcp)
 
 
 def _cell_file(tmp_path, size, centre_part):
@@ -176,7 +179,9 @@ def test_the_job_refuses_a_colliding_plan_unless_allowed(tmp_path, capsys):
     assert code == 0
     metrics = json.loads((tmp_path / "allowed" / "metrics.json").read_text())["metrics"]
     assert metrics["collision_count"] >= 1
-    assert {(c["body_a"], c["body_b"]) for c in metrics["collisions"]} == {("tool spindle", "fixture post")}
+    # the spindle and, where the pad runs into the post, the TCP
+    assert {(c["body_a"], c["body_b"]) for c in metrics["collisions"]} == {("tool spindle", "fixture post"),
+                                                                          ("tool centre point", "fixture post")}
     assert any(c["pass"] >= 0 and c["contact"] for c in metrics["collisions"])
     assert any("--allow-collisions" in w for w in metrics["warnings"])
     assert any("3-inch random-orbital sander" in w for w in metrics["warnings"])

@@ -146,3 +146,38 @@ def test_urdf_robot_from_job_settings(ur10e_urdf):
     assert opts["keep_out"] == pytest.approx(0.4)
     with pytest.raises(InputError, match="no frame 'nope'"):      # refused with the settings, before any work
         settings_from_mapping({"part": "example:plate", "out": "unused", "robot": str(ur10e_urdf), "tip": "nope"})
+
+
+def test_relative_urdf_paths_are_read_from_the_job_and_cell_files_folders(tmp_path, ur10e_urdf, monkeypatch):
+    """``robot = "arms/ur10e.urdf"`` in a TOML job and in a cell file names the URDF beside that file,
+    wherever swath is run from; a URDF that is not there is refused naming the folder it looked in."""
+    from swath.cell import read_cell_file
+    from swath.cli.settings import load_job_toml
+    from swath.cli.stages import robot_options
+
+    job_dir = tmp_path / "jobs"
+    (job_dir / "arms").mkdir(parents=True)
+    (job_dir / "arms" / "ur10e.urdf").write_text(ur10e_urdf.read_text())
+    job = job_dir / "job.toml"
+    job.write_text('part = "example:plate"\nout = "out"\nrobot = "arms/ur10e.urdf"\ntip = "tool0"\n')
+    cell_file = job_dir / "cell.toml"
+    cell_file.write_text('robot = "arms/ur10e.urdf"\npart2base = "0.55,-0.15,0,0,0,0"\n')
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    s = load_job_toml(job)
+    assert s.robot == str(job_dir / "arms" / "ur10e.urdf")
+    model = robot_options(s)["robot"]
+    assert model.kind == "numeric" and model.extra["tip"] == "tool0"
+    cell = read_cell_file(cell_file)
+    assert cell.robot == str(job_dir / "arms" / "ur10e.urdf")
+    # a job naming only the cell file takes the cell's URDF robot
+    job.write_text('part = "example:plate"\nout = "out"\ncell = "cell.toml"\n')
+    opts = robot_options(load_job_toml(job))
+    assert opts["robot"].kind == "numeric"
+    np.testing.assert_allclose(opts["cell"].part2base[:3, 3], [0.55, -0.15, 0.0])
+    # a catalogue name is no file
+    job.write_text('part = "example:plate"\nout = "out"\nrobot = "ur10e"\n')
+    assert load_job_toml(job).robot == "ur10e"
+    cell_file.write_text('robot = "arms/missing.urdf"\n')
+    with pytest.raises(InputError, match="missing.urdf not found .*cell file's folder"):
+        read_cell_file(cell_file)

@@ -220,6 +220,69 @@ class CollisionScene:
                              stats={"poses": n, "candidates": n_candidates})
 
 
+    def distances(self, link2base, static: str, *, cap: float = 0.1):
+        """Smallest distance of the moving bodies to one static body, per pose.
+
+        A covering sphere's distance to the body's sampled points, less the sphere's radius and
+        the sampling bound, is a lower bound on the moving body's distance; coal measures the
+        distance exactly only where that bound is below ``cap``.
+
+        Parameters
+        ----------
+        link2base : (n, n_frames, 4, 4) float
+            The chain's frames in the base frame, m.
+        static : str
+            Name of the static body (e.g. ``"the part"``).
+        cap : float
+            Distances at or above this need not be exact, m.
+
+        Returns
+        -------
+        distance : (n,) float
+            Per pose, the smallest distance of any moving body (the pairs the collision check
+            skips included) to the static body, m: exact below ``cap``, a lower bound at or above it (0 where they touch).
+        body : list of str
+            Per pose, the moving body nearest it.
+        """
+        coal = _coal()
+        names = [b.name for b in self.static]
+        if static not in names:
+            raise InputError(f"no static body named {static!r} in the scene; it has {', '.join(names)}")
+        s = names.index(static)
+        geom_b, tf_b = self._static_geom[s]
+        kind, cull, extra, lo, hi = self._static_cull[s]
+        link2base = np.asarray(link2base, dtype=float)
+        n = len(link2base)
+        best = np.full(n, np.inf)
+        who = np.full(n, -1)
+        req = coal.DistanceRequest()
+        res = coal.DistanceResult()
+        for i, m in enumerate(self.moving):
+            t = link2base[:, m.link] @ m.body.body2frame
+            cov_c, cov_r = self._cover[i]
+            c = np.swapaxes(t[:, :3, :3] @ cov_c.T, 1, 2) + t[:, None, :3, 3]          # (n, k, 3)
+            if kind == "mesh":
+                d, _ = cull.query(c.reshape(-1, 3))
+                bound = (d.reshape(c.shape[:2]) - extra - cov_r[None]).min(axis=1)
+            elif kind == "box":
+                local = c @ cull[:3, :3].T + cull[:3, 3]
+                bound = (np.linalg.norm(np.maximum(np.abs(local) - extra, 0.0), axis=2) - cov_r[None]).min(axis=1)
+            else:
+                out = np.maximum(np.maximum(lo - c, c - hi), 0.0)
+                bound = (np.linalg.norm(out, axis=2) - cov_r[None]).min(axis=1)
+            bound = np.maximum(bound, 0.0)
+            geom_a = self._moving_geom[i]
+            exact = bound.copy()
+            for k in np.flatnonzero((bound < cap) & (bound < best)):
+                res.clear()
+                tf_a = coal.Transform3s(t[k, :3, :3].copy(), t[k, :3, 3].copy())
+                exact[k] = max(float(coal.distance(geom_a, tf_a, geom_b, tf_b, req, res)), 0.0)
+            closer = exact < best
+            best = np.where(closer, exact, best)
+            who = np.where(closer, i, who)
+        return best, [self.moving[i].body.name if i >= 0 else "" for i in who]
+
+
 def surface_points(vertices, faces, *, spacing: float):
     """Points on a triangle mesh such that every point of the mesh lies near one of them.
 

@@ -3,7 +3,7 @@
 Example (lengths take ``mm``/``m``/``in``, bare numbers are metres; angles take ``deg``/``rad``,
 bare numbers are degrees; every pose is ``"x,y,z,rx,ry,rz"`` or a 4x4 matrix, named ``A2B``)::
 
-    robot = "ur10e"
+    robot = "ur10e"                            # or a URDF file: "arms/ur10e.urdf" (read from this file's folder)
     part2base = "900mm,0,-200mm,0,0,90deg"     # the part's pose in the robot base frame
 
     [tool]
@@ -103,7 +103,15 @@ def cell_from_mapping(data: dict, *, where: str = "cell", root: Path | None = No
                      for i, b in enumerate(data.get("fixture", [])))
     robot = data.get("robot")
     if robot is not None and not isinstance(robot, str):
-        raise InputError(f"{where}: robot must be a catalogue name such as \"ur10e\", got {robot!r}")
+        raise InputError(f"{where}: robot must be a catalogue name such as \"ur10e\" or a .urdf file, got {robot!r}")
+    if robot is not None and robot.strip().lower().endswith(".urdf"):
+        urdf = Path(robot.strip())
+        if not urdf.is_absolute() and root is not None:
+            urdf = root / urdf
+        if not urdf.is_file():
+            raise InputError(f"{where}: robot URDF file {urdf} not found (relative paths are read from the cell "
+                             "file's folder)")
+        robot = str(urdf)
     positioner = None
     if "positioner" in data:
         if "part2base" in data:

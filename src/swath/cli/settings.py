@@ -211,8 +211,10 @@ def settings_from_mapping(values: dict, *, base_dir: Path | None = None) -> JobS
     if not kwargs.get("part") or not kwargs.get("out"):
         raise InputError("a job needs 'part' (a mesh file or example:NAME) and 'out' (the output directory)")
     if base_dir is not None:
-        for k in ("part", "out", "calibration", "target_map", "cell"):
+        for k in ("part", "out", "calibration", "target_map", "cell", "robot"):
             p = kwargs.get(k)
+            if k == "robot" and not str(p or "").strip().lower().endswith(".urdf"):
+                continue                            # a catalogue name, not a file
             if p and not str(p).startswith("example:") and not Path(p).is_absolute():
                 kwargs[k] = str(base_dir / p)
         for k in ("faces", "keep_out"):

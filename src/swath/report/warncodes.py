@@ -227,6 +227,11 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-ROBOT-FLIP", r"changes configuration .* inside a contact pass",
           "The arm changes configuration (shoulder, elbow or wrist branch) with the pad on the part.",
           "Move the part (`--base`, or `--place`) or choose another robot.", "robot"),
+    entry("W-ROBOT-LOW-SWITCH", "",
+          "A configuration change in the air sweeps the tool or the arm closer to the part than the job's "
+          "clearance, and no lift (a retract away from the part, with a raised via-point) tried kept it clear.",
+          "Move the part (`--base`, or `--place`) so that one configuration serves the whole job, or give more "
+          "room above the part.", "robot"),
     # --- the cell -------------------------------------------------------------------------------------------
     entry("W-CELL-DEFAULT-TOOL", "",
           "No tool was described: a 3-inch random-orbital sander (holder, spindle, 175 mm TCP) is assumed for "

@@ -3,8 +3,9 @@
 The robot's links are capsules along its kinematic chain (:func:`link_bodies`): link ``i`` runs from
 joint ``i``'s frame to joint ``i + 1``'s along the chain's fixed offset, with a radius that scales
 with the robot's reach (5 % for the three main links, 3.5 % for the wrist; 65 and 46 mm on a UR10e,
-about the size of its tubes).  The tool's bodies ride on the flange; the pad is never checked (it is
-meant to touch the part).  The joint path is interpolated so that no joint moves more than
+about the size of its tubes).  The tool's bodies ride on the flange; the pad is never checked against
+the part (it is meant to touch it), but its centre (the TCP, a 1 mm body) is checked against the
+fixtures, the robot and, out of contact, the table.  The joint path is interpolated so that no joint moves more than
 ``max_step`` (2° by default) between checked poses, in contact and in air moves alike.
 """
 
@@ -24,6 +25,13 @@ log = logging.getLogger(__name__)
 
 #: Largest joint step between two checked poses, rad (2°).
 MAX_JOINT_STEP = math.radians(2.0)
+
+#: Name of the small body at the TCP in a scene built with ``tcp_radius`` (:func:`job_scene`).
+TCP_BODY = "tool centre point"
+
+#: Radius of that body in the job's collision check, m: the TCP itself, so that a pad driven into a
+#: fixture, the table or the robot is found (against the part it is never checked).
+TCP_RADIUS = 1e-3
 
 
 class CollisionError(SwathError):
@@ -152,7 +160,8 @@ class CollisionReport:
         return f"{len(self.events)} collision(s): {head}{more}"
 
 
-def job_scene(model, cell: Cell, part_vertices=None, part_faces=None) -> tuple[CollisionScene, Cell]:
+def job_scene(model, cell: Cell, part_vertices=None, part_faces=None, *,
+              tcp_radius: float | None = None) -> tuple[CollisionScene, Cell]:
     """The collision scene of a job and its cell (with the default table put in when assumed).
 
     Parameters
@@ -163,6 +172,10 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None) -> tuple[C
     part_vertices : (n, 3) float, optional
         The part in the part frame, m.
     part_faces : (m, 3) int, optional
+    tcp_radius : float, optional
+        Also a small body at the TCP (a capsule of this radius, m), named ``"tool centre point"``,
+        never checked against the part (the pad is meant to touch it): for measuring how far the
+        TCP stays from the part (:meth:`CollisionScene.distances`) on air moves.
     """
     from dataclasses import replace
 
@@ -178,8 +191,11 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None) -> tuple[C
     links = link_bodies(model)
     n = model.chain.n_joints
     tools = [MovingBody(b, link=n) for b in (cell.tool.bodies if cell.tool is not None else ())]
-    moving = links + tools
     skip = set()
+    if tcp_radius is not None:
+        tools.append(MovingBody(Body(TCP_BODY, Capsule(tcp_radius, tcp_radius), cell.tcp2flange), link=n))
+        skip.add((TCP_BODY, "the part"))
+    moving = links + tools
     if links and links[0].link == 0:        # the robot stands on (or through) its table
         skip.add((links[0].body.name, "table"))
     self_pairs = []
@@ -189,6 +205,14 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None) -> tuple[C
             if b.link - a.link >= 3 and not (b.link == n and a.link >= n - 2):
                 self_pairs.append((i, j))
     return CollisionScene(static, moving, skip=skip, self_pairs=self_pairs), cell
+
+
+def tcp_grazes_table(body_a, body_b, depth, *, invert: bool = False) -> np.ndarray:
+    """(h,) bool: hits of the TCP on the table whose centre is no more than its radius below the top
+    (the pad on, or just off, a part whose lowest point is the table top); ``invert``: the others."""
+    graze = np.array([a == TCP_BODY and b == "table" and d <= 2 * TCP_RADIUS + 1e-9
+                      for a, b, d in zip(body_a, body_b, np.asarray(depth, dtype=float))], dtype=bool)
+    return ~graze if invert else graze
 
 
 def interpolate_joints(q, *, max_step: float = MAX_JOINT_STEP):
@@ -244,7 +268,7 @@ def check_job_collisions(trajectory, solution, model, cell: Cell, *, part_vertic
     CollisionReport
     """
     t0 = time.perf_counter()
-    scene, cell = job_scene(model, cell, part_vertices, part_faces)
+    scene, cell = job_scene(model, cell, part_vertices, part_faces, tcp_radius=TCP_RADIUS)
     t_scene = time.perf_counter() - t0
     idx = np.flatnonzero(solution.reachable)
     if not len(idx):
@@ -283,6 +307,14 @@ def check_job_collisions(trajectory, solution, model, cell: Cell, *, part_vertic
     pose = np.concatenate(hits_pose)
     point = np.vstack(hits_p) if hits_p else np.zeros((0, 3))
     depth = np.concatenate(hits_d)
+    # the TCP touches the table where the pad is on the part at its lowest point (the table's top)
+    keep = tcp_grazes_table(hits_a, hits_b, depth, invert=True)
+    keep &= np.array([not (a == TCP_BODY and b == "table" and contact_fine[p]) for a, b, p in zip(hits_a, hits_b, pose)],
+                     dtype=bool)
+    if not keep.all():
+        pose, point, depth = pose[keep], point[keep], depth[keep]
+        hits_a = [a for a, k in zip(hits_a, keep) if k]
+        hits_b = [b for b, k in zip(hits_b, keep) if k]
     base2part = cell.base2part
     events = _events(pose, hits_a, hits_b, point @ base2part[:3, :3].T + base2part[:3, 3], depth,
                      t_fine, sample_fine, pass_fine, after_fine, contact_fine)

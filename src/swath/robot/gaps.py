@@ -4,9 +4,11 @@ A pose no configuration reaches cannot be sanded; driving straight across it (wh
 when it skips the sample) would press the pad along a line the plan never made, and counting it as
 sanded overstates the coverage.  :func:`split_unreachable` rebuilds the trajectory the robot actually
 runs: the unreachable samples are dropped, the pad lifts ``clearance`` along minus the tool z-axis at
-the last reached sample (retract), the arm moves in joint space to above the next reached sample, and
-lowers onto it (approach).  The joint move is sampled (FK of joint values interpolated at most
-``max_joint_step`` apart) so that the trajectory's poses are where the arm really passes.  The
+the last reached sample (retract), the arm makes a joint move to above the next reached sample, and
+lowers onto it (approach).  The joint move is one step flagged :attr:`JointSolution.joint_move`: the
+programs write it as a joint move, :func:`swath.robot.joint_moves.insert_joint_moves` puts its swept
+joints on the trajectory (at most 2° apart), and :func:`swath.robot.sweep.clear_joint_moves` checks
+the sweep and lifts it higher, with via-points, where it would hit the part or the cell.  The
 simulation and the metrics then run on this trajectory.
 """
 
@@ -104,8 +106,7 @@ def _lift(model, cell, pose, q_ref, clearance):
     return np.asarray(q_ref, dtype=float)
 
 
-def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0.02, air_speed: float = 0.1,
-                      max_joint_step: float = math.radians(2.0)):
+def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0.02, air_speed: float = 0.1):
     """The trajectory the robot runs: unreachable samples replaced by retract, joint move, approach.
 
     Parameters
@@ -120,19 +121,19 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
         Retract/approach height along minus the tool z-axis, m.
     air_speed : float
         Nominal TCP speed of the retract and approach, m/s (the robot stage re-times to the joint limits).
-    max_joint_step : float
-        Largest joint change between the joint move's samples, rad.
 
     Returns
     -------
     trajectory : Trajectory
         With the unreachable samples dropped and the air samples inserted (``contact`` 0, ``pass`` -1).
     q : (m, 6) float
-        Joint values of every sample of the new trajectory, rad: the solution's on kept samples,
-        interpolated on the joint moves (between the lifted poses' joint values nearest the reached ones).
+        Joint values of every sample of the new trajectory, rad: the solution's on kept samples, and on
+        the inserted ones the lifted poses' joint values nearest the reached ones.
     gaps : list of Gap
     src : (m,) int
-        Index of each sample in ``trajectory`` (-1 for an inserted air sample).
+        Index of each sample in ``trajectory`` (-1 for an inserted air sample).  Each gap inserts the
+        retract (a lifted pose of the last reached sample) and the joint move's target (a lifted pose
+        of the next reached one); the job's end inserts the retract alone.
     """
     reach = np.asarray(solution.reachable, bool)
     gaps = find_gaps(trajectory, reach)
@@ -165,15 +166,14 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
                            np.full(1, air_speed), np.full(1, t_lift), qa[None], np.full(1, -1)))
             break
         qb = _lift(model, cell, poses[b], solution.q[b], clearance)
-        steps = max(int(np.ceil(np.max(np.abs(qb - qa)) / max_joint_step)), 1)
-        q_air = qa + np.linspace(0.0, 1.0, steps + 1)[:, None] * (qb - qa)
+        q_air = np.array([qa, qb])
         air = cell.tcp2part(model.fk(q_air))
-        k = len(air)
-        # at least the time the slowest joint needs at half its speed limit (the re-timing refines it)
+        # at least the time the slowest joint needs at half its speed limit (insert_joint_moves and the
+        # re-timing refine it)
         t_joints = float(np.max(np.abs(qb - qa) / (0.5 * model.max_speed)))
-        t_move = max(trajectory.t[b] - trajectory.t[a] - 2 * t_lift, t_joints, 1e-3 * steps)
-        dt = np.r_[t_lift, np.full(k - 1, t_move / (k - 1))]
-        pieces.append((air, np.zeros(k, bool), np.full(k, -1), np.full(k, air_speed), dt, q_air, np.full(k, -1)))
+        t_move = max(trajectory.t[b] - trajectory.t[a] - 2 * t_lift, t_joints, 1e-3)
+        pieces.append((air, np.zeros(2, bool), np.full(2, -1), np.full(2, air_speed), np.r_[t_lift, t_move], q_air,
+                       np.full(2, -1)))
     if cursor < n:
         keep(cursor, n)
     new_poses = np.concatenate([p[0] for p in pieces])
@@ -203,9 +203,10 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
 def solution_after_split(solution, trajectory, q, src, model):
     """The :class:`JointSolution` of the split trajectory, without solving it again.
 
-    Kept samples keep their joint values and branch; the retract, joint-move and approach samples
-    take :func:`split_unreachable`'s joint values (their poses are FK of them) and the branch of the
-    sample before them.
+    Kept samples keep their joint values and branch; the retract and the joint move's target take
+    :func:`split_unreachable`'s joint values (their poses are FK of them); the retract keeps the
+    branch of the sample before it, the target takes the branch of the sample after it, and the
+    step onto the target is a joint move.
 
     Parameters
     ----------
@@ -228,7 +229,12 @@ def solution_after_split(solution, trajectory, q, src, model):
     branch = np.full(m, -1)
     kept = src >= 0
     branch[kept] = solution.branch[src[kept]]
-    for i in range(1, m):                       # air samples: the branch they leave from
+    target = np.zeros(m, bool)                  # joint-move targets: an inserted sample after an inserted one
+    target[1:] = (src[1:] < 0) & (src[:-1] < 0)
+    for i in range(m - 2, -1, -1):              # a target: the branch it lands on
+        if target[i] and reach[i] and branch[i + 1] >= 0:
+            branch[i] = branch[i + 1]
+    for i in range(1, m):                       # a retract: the branch it leaves from
         if branch[i] < 0 and reach[i]:
             branch[i] = branch[i - 1]
     for i in range(m - 2, -1, -1):              # the job's start: the branch it lands on
@@ -248,15 +254,13 @@ def solution_after_split(solution, trajectory, q, src, model):
             if k in measures:
                 measures[k][reach] = v
         measures["joint_limit_margin_rad"][reach] = model.joint_limit_margin(q[reach])
-    # per-sample flags on the split samples: a kept sample keeps its joint-move flag (the inserted retract,
-    # joint move and approach are written as the dense FK poses they are); the distance from the part is
-    # measured again on the split trajectory
+    # per-sample flags on the split samples: a kept sample keeps its joint-move flag, the step onto each
+    # inserted target is a joint move; the distance from the part is measured again on the split trajectory
     from .solve import clearance_from_contact
 
-    joint_move = None
-    if solution.joint_move is not None:
-        joint_move = np.zeros(m, bool)
-        joint_move[kept] = np.asarray(solution.joint_move, bool)[src[kept]]
+    joint_move = np.zeros(m, bool)
+    joint_move[kept] = solution.joint_moves[src[kept]]
+    joint_move |= target & reach & np.r_[False, reach[:-1]]
     clearance = None if solution.clearance is None else clearance_from_contact(trajectory)
     return replace(solution, q=q, branch=np.where(reach, branch, -1), reachable=reach, switches=switches,
                    stretches=[], measures=measures, warning=None, joint_move=joint_move, clearance=clearance)

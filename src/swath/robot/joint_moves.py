@@ -18,7 +18,7 @@ from .solve import JointSolution
 
 
 def insert_samples(trajectory, solution: JointSolution, model: RobotModel, at, *, t, position, quaternion, contact,
-                   pass_index, q, joint_move, branch, fraction):
+                   pass_index, q, joint_move, branch, fraction, via=None):
     """Trajectory and joint solution with new samples inserted.
 
     Parameters
@@ -35,6 +35,8 @@ def insert_samples(trajectory, solution: JointSolution, model: RobotModel, at, *
     fraction : (m,) float
         Where between samples ``at − 1`` and ``at`` each new sample lies (0..1); feed and the extra
         columns are interpolated linearly with it.
+    via : (m,) bool, optional
+        The new samples that are via-points (:attr:`JointSolution.via`; default none).
 
     Returns
     -------
@@ -85,6 +87,8 @@ def insert_samples(trajectory, solution: JointSolution, model: RobotModel, at, *
                       branch=np.insert(solution.branch, at, branch),
                       reachable=np.insert(solution.reachable, at, ok_new),
                       joint_move=np.insert(solution.joint_moves, at, joint_move), switches=switches,
+                      via=(None if via is None and solution.via is None else
+                           np.insert(solution.vias, at, np.zeros(len(at), bool) if via is None else via)),
                       stretches=stretches, measures=measures, clearance=clearance)
     return new_tr, new_sol
 

@@ -172,7 +172,7 @@ class ProgramInput:
             return axis_samples(self.solution.reachable, self.solution.joint_moves)
         return decimate(self.trajectory, self.solution.reachable, tol_position=self.tol_position,
                         tol_angle=self.tol_angle, joint_move=self.solution.joint_moves,
-                        max_turn=self.max_force_turn)
+                        max_turn=self.max_force_turn, via=self.solution.vias)
 
 
 def joint_names(model: RobotModel) -> list[str]:
@@ -186,7 +186,7 @@ def joint_names(model: RobotModel) -> list[str]:
 
 
 def decimate(trajectory, keep, *, tol_position: float = 1e-4, tol_angle: float = math.radians(0.5),
-             joint_move=None, max_turn: float | None = None) -> np.ndarray:
+             joint_move=None, max_turn: float | None = None, via=None) -> np.ndarray:
     """Indices of the samples a Cartesian program needs.
 
     Parameters
@@ -201,6 +201,8 @@ def decimate(trajectory, keep, *, tol_position: float = 1e-4, tol_angle: float =
     joint_move : (n,) bool, optional
         :attr:`JointSolution.joint_move`: the interpolated rows of a joint move are left out (the
         controller interpolates the joints itself) and its target is kept.
+    via : (n,) bool, optional
+        :attr:`JointSolution.via`: via-points of a joint move, kept (each a joint-move target).
     max_turn : float, optional
         In contact passes, also keep samples so that every sample's tool z lies within this angle
         (rad) of the tool z of the last kept sample before it (where the force frame is re-issued).
@@ -217,6 +219,8 @@ def decimate(trajectory, keep, *, tol_position: float = 1e-4, tol_angle: float =
     inner = jm.copy()
     inner[:-1] &= jm[1:]
     inner[-1:] = False
+    if via is not None:
+        inner &= ~np.asarray(via, bool)
     keep &= ~inner
     out = []
     for s, e, is_pass in segments(trajectory):

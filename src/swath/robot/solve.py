@@ -59,6 +59,11 @@ class Margins:
     max_step : float
         Largest joint change between consecutive samples on one branch, rad (default 0.5);
         a larger change is a discontinuity, not a motion.
+    floor_z : float or None
+        Height of the table top in the base frame, m: a configuration whose link capsules (those
+        of the collision check, :func:`swath.robot.collision.link_bodies`; the base column excepted)
+        dip below it is not feasible, so the arm stays above the table (elbow up where the elbow
+        would go down).  None (default): no floor.
     """
 
     wrist: float = math.sin(math.radians(5.0))
@@ -66,6 +71,7 @@ class Margins:
     shoulder: float = 0.05
     joint_limit: float = 0.0
     max_step: float = 0.5
+    floor_z: float | None = None
 
 
 @dataclass(frozen=True)
@@ -124,6 +130,10 @@ class JointSolution:
     clearance : (n,) float or None
         Distance of each sample's TCP from the nearest in-contact sample, m (0 in contact); how far
         from the part a branch change happens.
+    via : (n,) bool or None
+        True at a joint move's target that the next joint move leaves from (a via-point of a lifted
+        move, :mod:`swath.robot.sweep`): the programs write it as a joint-move target of its own.
+        None: no via-points.
     """
 
     q: np.ndarray
@@ -136,6 +146,7 @@ class JointSolution:
     warning: str | None = None
     joint_move: np.ndarray | None = None
     clearance: np.ndarray | None = None
+    via: np.ndarray | None = None
 
     @property
     def reachable_fraction(self) -> float:
@@ -145,6 +156,11 @@ class JointSolution:
     def joint_moves(self) -> np.ndarray:
         """(n,) bool :attr:`joint_move`, all False when None."""
         return np.zeros(len(self.q), bool) if self.joint_move is None else np.asarray(self.joint_move, bool)
+
+    @property
+    def vias(self) -> np.ndarray:
+        """(n,) bool :attr:`via`, all False when None."""
+        return np.zeros(len(self.q), bool) if self.via is None else np.asarray(self.via, bool)
 
 
 def segments(trajectory) -> list[tuple[int, int, bool]]:
@@ -182,7 +198,8 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         Joint values per branch, rad (NaN where none).
     feasible : (n, B) bool
     reason : (n, B) int
-        0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump.
+        0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump, 5 the arm below
+        ``margins.floor_z``.
     """
     margins = Margins() if margins is None else margins
     raw = model.ik(flange2base, seed=seed)
@@ -228,12 +245,38 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         sing_ok[valid] = (m["wrist"] >= margins.wrist) & (m["elbow"] >= margins.elbow) & (m["shoulder_m"] >= margins.shoulder)
     sing_ok = sing_ok.reshape(n, nb)
     reason = np.where((reason == 0) & ~sing_ok, 3, reason)
+    if margins.floor_z is not None:
+        low = np.zeros(len(flat), bool)
+        low[valid] = arm_below(model, flat[valid], margins.floor_z)
+        reason = np.where((reason == 0) & low.reshape(n, nb), 5, reason)
     reason = np.where((reason == 0) & jumps, 4, reason)
     return q, reason == 0, reason
 
 
+def arm_below(model: RobotModel, q, floor_z: float, *, chunk: int = 20000) -> np.ndarray:
+    """(n,) bool: the link capsules of the collision check (the base column excepted) dip below
+    ``floor_z`` (m, base frame) at joint values ``q`` (n, 6) rad."""
+    from ..cell import Capsule
+    from .collision import link_bodies
+
+    q = np.asarray(q, dtype=float)
+    links = [(m.link, m.body.body2frame, m.body.shape) for m in link_bodies(model) if m.link > 0]
+    out = np.zeros(len(q), bool)
+    for s in range(0, len(q), chunk):
+        frames = model.chain.frames(q[s:s + chunk])
+        for link, body2frame, shape in links:
+            if not isinstance(shape, Capsule):
+                continue
+            t = frames[:, link] @ body2frame
+            half = 0.5 * shape.length * t[:, 2, 2]                  # z of the capsule axis' half length
+            lowest = t[:, 2, 3] - np.abs(half) - shape.radius
+            out[s:s + chunk] |= lowest < floor_z
+    return out
+
+
 _REASONS = {1: "no inverse-kinematics solution (out of reach)", 2: "outside the joint limits",
-            3: "too close to a singularity", 4: "a joint would jump between samples"}
+            3: "too close to a singularity", 4: "a joint would jump between samples",
+            5: "the arm would dip into the table"}
 
 
 def _run_lengths(feasible: np.ndarray) -> np.ndarray:
@@ -274,7 +317,8 @@ def choose_branches(feasible: np.ndarray, segs, clearance=None) -> np.ndarray:
         Distance from the part, m (:func:`clearance_from_contact`).  A switch on a link is put on
         the step whose two samples are farthest from the part among the steps where the old branch
         serves up to it and the new one from it to the next pass; without it, at the latest such
-        step.
+        step.  Where that step is the link's first (the pad leaving the pass) and the new branch
+        serves the pass before, the change moves to the link before that pass.
     """
     n, nb = feasible.shape
     run = _run_lengths(feasible)
@@ -316,10 +360,36 @@ def choose_branches(feasible: np.ndarray, segs, clearance=None) -> np.ndarray:
             j = e
             while j > s and feasible[j - 1, new]:
                 j -= 1
+        if j == s and clearance is not None:
+            # the change would be right where the pad leaves the part: where the new branch serves the pass
+            # before and a link leads to it, change on that link instead, farthest from the part
+            earlier = _earlier_switch(feasible, segs, k, current, new, clearance)
+            if earlier is not None:
+                branch[earlier:s] = new
         branch[s:j] = current
         branch[j:e] = new
         current = new
     return branch
+
+
+def _earlier_switch(feasible, segs, k, old: int, new: int, clearance) -> int | None:
+    """The sample on the link before the pass ``segs[k - 1]`` where the change from ``old`` to
+    ``new`` is farthest from the part, when ``new`` serves that pass and the link from there on;
+    None when there is no such link."""
+    if k < 2 or not segs[k - 1][2] or segs[k - 2][2]:
+        return None
+    (ls, le, _), pe = segs[k - 2], segs[k - 1][1]
+    if not feasible[le:pe, new].all():
+        return None
+    old_ok = np.concatenate([[True], np.cumprod(feasible[ls:le, old]).astype(bool)])
+    new_ok = np.concatenate([np.cumprod(feasible[ls:le, new][::-1]).astype(bool)[::-1], [True]])
+    cand = np.flatnonzero(old_ok & new_ok) + ls
+    cand = cand[(cand > ls) & (cand < le)]          # inside the link, not where it meets a pass
+    if not len(cand):
+        return None
+    n = len(clearance)
+    side = np.minimum(clearance[np.maximum(cand - 1, 0)], clearance[np.minimum(cand, n - 1)])
+    return int(cand[np.argmax(side)])
 
 
 def align_turns(q, lower, upper, breaks) -> np.ndarray:
@@ -474,7 +544,7 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
         j = i
         while j < n and bad[j] and trajectory.pass_index[j] == trajectory.pass_index[i]:
             j += 1
-        why = np.bincount(reason[i:j, branch[i]], minlength=5)[1:]
+        why = np.bincount(reason[i:j, branch[i]], minlength=6)[1:]
         stretches.append(UnreachableStretch(start=i, stop=j, pass_index=int(trajectory.pass_index[i]),
                                             position=tuple(float(v) for v in trajectory.position[i]),
                                             reason=_REASONS[int(np.argmax(why)) + 1] + f" on branch {names[branch[i]]}"))

@@ -15,7 +15,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -125,7 +125,9 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         Contact force for URScript ``force_mode``, N.
     surface : Surface, optional
         The part; when given, a reachability map over its vertices is added (tool normal to the
-        surface; :func:`swath.robot.reachability_map`).
+        surface; :func:`swath.robot.reachability_map`), the joint moves are checked along their
+        sweep, and with a table (the cell's, or the one assumed under the part's lowest point) the
+        arm is kept above it (:attr:`Margins.floor_z`; the placement search too).
     reach_vertices : int
         At most this many vertices in the reachability map.
     warn : bool
@@ -137,7 +139,9 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         Split passes at unreachable stretches with a retract and an approach (default); the returned
         trajectory is then what the robot runs (:func:`swath.robot.gaps.split_unreachable`).
     clearance : float
-        Retract/approach height at a split, m.
+        Retract/approach height at a split, m, and the distance from the part every configuration
+        change keeps: with a ``surface``, every joint move is checked along its sweep and lifted
+        where it comes nearer the part than this or hits the cell (:mod:`swath.robot.sweep`).
     progress : callable, optional
         ``progress(message, done, total)`` for the placement search and the solves.
     force_program : str
@@ -156,11 +160,22 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     placement = None
     t0 = time.perf_counter()
     say = progress or (lambda message, done, total: None)
+    # with the part's mesh and a table (given, or assumed under the part's lowest point), the arm stays above it
+    on_table = surface is not None and margins.floor_z is None and (cell.table is not None or cell.auto_table)
     if place:
-        placement = search_placement(trajectory, model, cell, table_z=table_z, margins=margins, keep_out=keep_out,
+        floor = (cell.table.top_z if cell.table is not None else table_z) if on_table else None
+        placement = search_placement(trajectory, model, cell, table_z=table_z, keep_out=keep_out,
+                                     margins=margins if floor is None else replace(margins, floor_z=floor),
                                      points=None if surface is None else np.asarray(surface.vertices),
                                      progress=progress)
         cell = placement.cell
+    if on_table:
+        # the table the part stands on; a table top above the part's lowest point is a cell error that
+        # the collision check names (the part would be in it), not a floor
+        part_z = float((np.asarray(surface.vertices) @ cell.part2base[2, :3] + cell.part2base[2, 3]).min())
+        top = cell.table.top_z if cell.table is not None else part_z
+        if top <= part_z + 1e-3:
+            margins = replace(margins, floor_z=top)
     t_place = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"robot: inverse kinematics on {len(trajectory)} poses", 0, 1)
@@ -173,6 +188,13 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         say(f"robot: {n_unreachable} unreachable poses become air moves (retract, joint move, approach)", 0, 1)
         trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
         solution = solution_after_split(solution, trajectory, q_moves, src, model)
+    sweeps = None
+    if surface is not None and solution.joint_moves.any():
+        from .sweep import SweepCheck, clear_joint_moves
+
+        say(f"robot: {int(solution.joint_moves.sum())} joint moves checked along their sweep", 0, 1)
+        check = SweepCheck(model, cell, np.asarray(surface.vertices), np.asarray(surface.faces))
+        trajectory, solution, sweeps = clear_joint_moves(trajectory, solution, model, cell, check, clearance=clearance)
     t_ik = time.perf_counter() - t0
     retimed, solution, rt = retime_and_resample(trajectory, solution, model, cell)
     dp, da = fk_errors(retimed, solution, model, cell)
@@ -203,8 +225,15 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     if placement is not None:
         metrics.update(placement.as_record())
     metrics["force_program"] = force_program
+    metrics["clearance_m"] = clearance
+    if sweeps is not None:
+        from .sweep import sweep_metrics, sweep_warnings
+
+        metrics.update(sweep_metrics(sweeps))
     warnings = robot_warnings(solution, metrics, first_warning=first_warning, split=split_gaps, programs=programs,
                               cell=cell)
+    if sweeps:
+        warnings += sweep_warnings(sweeps, clearance)
     if warn:
         for w in warnings:
             log.warning("%s", w)
