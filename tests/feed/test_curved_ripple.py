@@ -65,6 +65,10 @@ def test_curved_spacing_on_a_plane_is_ripple_spacing():
     lead = math.radians(11.0)
     c = curved_ripple_spacing(TOOL, 0.0, 0.0, lead_angle=lead)
     assert (c.spacing, c.cov) == ripple_spacing(TOOL, lead_angle=lead)
+    # 5.1 % at its spacing, 8.6 % within ±5 % of it: a steep lead's ripple rises fast off its best spacing
+    assert c.robust_cov == pytest.approx(0.086, abs=0.005)
+    assert curved_ripple_spacing(TOOL, 0.0, 0.0, lead_angle=lead, tolerance=0.0).robust_cov == pytest.approx(
+        c.cov, abs=0.002)
     assert c.overlap == pytest.approx(1 - c.spacing / (2 * R))
 
 
@@ -102,3 +106,24 @@ def test_bad_input_is_refused():
         quadric_cross_profile(TOOL, [0.0], float("nan"), 0.0)
     with pytest.raises(InputError, match="min_length_ratio"):
         curved_ripple_spacing(TOOL, 1.0, 1.0, max_length_ratio=0.5)
+
+
+def test_choice_in_a_bowl_takes_the_steeper_lead():
+    """Passes across a 0.35 m bowl: of 7°, 11° and 15° the quadric picks 11° (6.2 % predicted,
+    7.6 % within ±5 % of the spacing; 15° ripples 5.0 % at its best spacing but 7.8 % within ±5 %,
+    7° 9.9 %), within the length budget."""
+    from swath.feed.curved_ripple import curved_ripple_choice
+
+    part = bowl(size=0.3, radius=0.35, n=61)
+    x = np.linspace(-0.1, 0.1, 81)
+    passes = []
+    for y0 in (-0.05, 0.0, 0.05):
+        pts = np.stack([x, np.full_like(x, y0), (x**2 + y0**2) / 0.7], axis=1)
+        n = np.stack([-x / 0.35, np.full_like(x, -y0 / 0.35), np.ones_like(x)], axis=1)
+        passes.append(Pass(pts, n / np.linalg.norm(n, axis=1, keepdims=True)))
+    tp = ToolPath(part, tuple(passes), planner="test")
+    leads = np.radians([7.0, 11.0, 15.0])
+    lead, c = curved_ripple_choice(tp, part, TOOL, leads=leads)
+    assert lead == pytest.approx(leads[1])
+    assert c.cov == pytest.approx(0.062, abs=0.01) and c.robust_cov == pytest.approx(0.076, abs=0.01)
+    assert c.max_width / c.spacing <= 1.5 + 1e-9
