@@ -221,6 +221,10 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
     if swept:
         stretch = _stretches(trajectory, live, group, idx)
         stretch[:, :, 0, :] -= origin
+        # the force balance at the middle of each stretch: the sink held over it is then centred
+        # (at a pass end, where the sink changes fast as the pad runs off the edge, a pose at one
+        # end of its stretch would tilt the result toward the direction of travel)
+        pose_pos, pose_axes = stretch[:, 1, 0, :].copy(), stretch[:, 1, 1, :].copy()
     if holds is not None and len(holds["dwell"]):
         hold_pos, hold_axes = np.asarray(holds["position"], float) - origin, np.asarray(holds["axis"], float)
         pose_pos = np.concatenate([pose_pos, hold_pos])
