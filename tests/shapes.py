@@ -54,3 +54,21 @@ def sliver_plate(size_x: float = 0.4, size_y: float = 0.3, strip: float = 1.5e-3
     i = np.arange(n - 1)
     faces = np.concatenate([np.stack([i, n + i, n + i + 1], 1), np.stack([i, n + i + 1, i + 1], 1)])
     return Surface(v, faces, name="slivers")
+
+
+def bowl(size: float = 0.4, radius: float = 0.35, n: int = 101) -> Surface:
+    """A concave bowl ``z = (x² + y²) / (2 radius)`` over a ``size`` square (m), normals +z (the
+    tool looks into it): concave everywhere, curvature ``1 / radius`` at the centre."""
+    t = np.linspace(-size / 2, size / 2, n)
+    X, Y = np.meshgrid(t, t, indexing="ij")
+    v = np.stack([X.ravel(), Y.ravel(), ((X**2 + Y**2) / (2 * radius)).ravel()], axis=1)
+    return Surface(v, grid_faces(n, n), name="bowl")
+
+
+def saddle(size: float = 0.4, radius: float = 0.4, n: int = 101) -> Surface:
+    """A saddle ``z = (x² − y²) / (2 radius)`` over a ``size`` square (m), normals +z: convex along
+    y, concave along x, principal curvatures ``±1 / radius`` at the centre."""
+    t = np.linspace(-size / 2, size / 2, n)
+    X, Y = np.meshgrid(t, t, indexing="ij")
+    v = np.stack([X.ravel(), Y.ravel(), ((X**2 - Y**2) / (2 * radius)).ravel()], axis=1)
+    return Surface(v, grid_faces(n, n), name="saddle")
