@@ -188,6 +188,23 @@ class CycleTimeCost:
         return time_path(ordered, list(self.constraints), links=self.links).duration, \
             f"predicted cycle time (s) under {names}"
 
+    def bounded(self, toolpath, bar: float) -> tuple[float | None, str]:
+        """``self(toolpath)``, or ``(None, why)`` without timing the links when the candidate
+        certainly costs more than ``bar`` (s): its passes' contact time alone exceeds it (links
+        only add time), so a cheaper candidate is already known.  Otherwise the very value of
+        ``self(toolpath)`` (the passes are timed once)."""
+        from ..order import order_toolpath
+        from ..trajectory import contact_duration, time_passes, time_path
+
+        names = ", ".join(type(c).__name__ for c in self.constraints)
+        ordered = order_toolpath(toolpath, method=self.order)
+        timed = time_passes(ordered, list(self.constraints))
+        contact = contact_duration(timed)
+        if contact > bar:
+            return None, f"contact time alone {contact:.4g} s exceeds the best cycle time {bar:.4g} s"
+        return time_path(ordered, list(self.constraints), links=self.links, timed=timed).duration, \
+            f"predicted cycle time (s) under {names}"
+
 
 def cycle_time_cost(constraints, links, order: str | None = None) -> CycleTimeCost:
     """The :class:`CycleTimeCost` of a job's ``constraints`` (sequence), ``links`` and ``order``."""
