@@ -12,8 +12,15 @@ from swath.contact import Tool
 from swath.examples import doubly_curved_panel, flat_plate
 from swath.order import order_toolpath
 from swath.plan.raster import raster
-from swath.trajectory import (AngularSpeedLimit, CentripetalLimit, FeedLimit, LinkSettings, contact_duration,
-                              time_passes, time_path)
+from swath.trajectory import (
+    AngularSpeedLimit,
+    CentripetalLimit,
+    FeedLimit,
+    LinkSettings,
+    contact_duration,
+    time_passes,
+    time_path,
+)
 
 U = importlib.import_module("swath.plan.uniform")
 LIMITS = [FeedLimit(0.05), AngularSpeedLimit(1.0), CentripetalLimit(2.0)]
