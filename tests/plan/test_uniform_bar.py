@@ -18,6 +18,7 @@ from swath.trajectory import (
     FeedLimit,
     LinkSettings,
     contact_duration,
+    links_duration_bound,
     time_passes,
     time_path,
 )
@@ -49,12 +50,21 @@ def test_timing_the_passes_first_gives_the_same_trajectory_and_a_lower_bound():
     in_contact = np.sum(np.diff(whole.t)[whole.contact[1:] & whole.contact[:-1]])
     assert contact == pytest.approx(in_contact, rel=0.02)
     assert 0 < contact < whole.duration
+    # the links' bound: between the contact time and the cycle time
+    links_least = links_duration_bound(tp, timed, LinkSettings())
+    assert 0 < links_least and contact + links_least <= whole.duration
+    # with the angular-speed limit: the snake's half turns between passes, pi s each at 1 rad/s
+    turning = links_duration_bound(tp, timed, LinkSettings(), omega_max=1.0)
+    assert turning >= links_least
+    assert contact + turning <= whole.duration
+    # approach and retreat alone: 2 cm at 1 m/s² from rest to rest, 2 sqrt(0.02 / 1) s each
+    assert links_least >= 0.95 * 2 * 2 * math.sqrt(0.02)
     # no pass runs faster than the 0.05 m/s feed
     assert contact >= sum(p.length for p in tp.passes) / 0.05 * (1 - 1e-6)
     cost = cycle_time_cost(LIMITS, LinkSettings())
     assert cost.bounded(tp, math.inf) == cost(tp)
     value, why = cost.bounded(tp, 0.5 * contact)
-    assert value is None and "contact time" in why
+    assert value is None and "more than the best" in why
     with pytest.raises(Exception, match="timed holds"):
         time_path(tp, LIMITS, timed=timed[:-1])
 

@@ -189,19 +189,22 @@ class CycleTimeCost:
             f"predicted cycle time (s) under {names}"
 
     def bounded(self, toolpath, bar: float) -> tuple[float | None, str]:
-        """``self(toolpath)``, or ``(None, why)`` without timing the links when the candidate
-        certainly costs more than ``bar`` (s): its passes' contact time alone exceeds it (links
-        only add time), so a cheaper candidate is already known.  Otherwise the very value of
-        ``self(toolpath)`` (the passes are timed once)."""
+        """``self(toolpath)``, or ``(None, why)`` without routing and timing the links when the
+        candidate certainly costs more than ``bar`` (s): its passes' contact time plus a lower bound
+        of its links' time (:func:`swath.trajectory.links_duration_bound`) exceeds it, so a cheaper
+        candidate is already known.  Otherwise the very value of ``self(toolpath)`` (the passes are
+        timed once)."""
         from ..order import order_toolpath
-        from ..trajectory import contact_duration, time_passes, time_path
+        from ..trajectory import contact_duration, links_duration_bound, time_passes, time_path
 
         names = ", ".join(type(c).__name__ for c in self.constraints)
         ordered = order_toolpath(toolpath, method=self.order)
         timed = time_passes(ordered, list(self.constraints))
-        contact = contact_duration(timed)
-        if contact > bar:
-            return None, f"contact time alone {contact:.4g} s exceeds the best cycle time {bar:.4g} s"
+        turning = [c.omega_max for c in self.constraints if type(c).__name__ == "AngularSpeedLimit"]
+        least = contact_duration(timed) + links_duration_bound(ordered, timed, self.links,
+                                                               omega_max=turning[0] if turning else None)
+        if least > bar:
+            return None, f"at least {least:.4g} s, more than the best cycle time {bar:.4g} s"
         return time_path(ordered, list(self.constraints), links=self.links, timed=timed).duration, \
             f"predicted cycle time (s) under {names}"
 

@@ -226,6 +226,36 @@ def contact_duration(timed: list) -> float:
     return float(sum(tp["t"][-1] for tp in timed))
 
 
+def links_duration_bound(toolpath: ToolPath, timed: list, links: LinkSettings | None = None,
+                         omega_max: float | None = None) -> float:
+    """A lower bound (s) of the time :func:`time_path` spends on the air links of ``toolpath``,
+    whose passes :func:`time_passes` timed as ``timed``.
+
+    Every link is flown rest to rest along a route at least as long as the straight chord between
+    its ends, at a TCP speed at most ``links.speed`` and a tangential acceleration at most
+    ``links.acceleration``: the shortest such motion over a length ``L`` takes ``L/v + v/a``
+    (``2 sqrt(L/a)`` when it cannot reach ``v``).  With ``omega_max`` (rad/s, the job's
+    :class:`AngularSpeedLimit`) it also turns the tool from the last pose of one pass to the first
+    of the next, an angle ``θ`` taking at least ``θ / omega_max``; a link takes the longer of the
+    two.  The approach and the retreat each cover the clearance.  The sum is scaled by 0.95, a
+    margin for the timing's discretisation.
+    """
+    links = LinkSettings() if links is None else links
+    v, a = links.speed, links.acceleration
+    pairs = list(zip(timed, timed[1:]))
+    if toolpath.links is not None:
+        chords = [float(np.linalg.norm(k.waypoints[-1] - k.waypoints[0])) for k in toolpath.links]
+    else:
+        chords = [float(np.linalg.norm(nxt["position"][0] - tp["position"][-1])) for tp, nxt in pairs]
+    lengths = np.array(chords + [links.clearance, links.clearance])
+    least = np.where(lengths >= v * v / a, lengths / v + v / a, 2.0 * np.sqrt(lengths / a))
+    if omega_max is not None and pairs and len(chords) == len(pairs):
+        dots = np.array([abs(float(np.dot(tp["quaternion"][-1], nxt["quaternion"][0]))) for tp, nxt in pairs])
+        turns = 2.0 * np.arccos(np.clip(dots, 0.0, 1.0)) / omega_max
+        least[:len(pairs)] = np.maximum(least[:len(pairs)], turns)
+    return 0.95 * float(least.sum())
+
+
 def _checked(toolpath, constraints, heading_scale, lead_angle):
     """The constraints by type, the contact grid step (m) and the checked lead angle (rad) of a
     timing request; refuses a bad one (see :func:`time_path`)."""
