@@ -98,7 +98,9 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         use (:func:`swath.cli.job.cycle_time_cost` builds one).  Default: contact length plus the
         straight-line air distance between consecutive passes in zig-zag order, m.  A cost whose
         ``passes_only`` attribute is true reads only the passes and the order hint, not the rest of
-        the metadata, so directions that lay the same passes are ranked once.
+        the metadata, so directions that lay the same passes are ranked once.  A cost with a
+        ``bounded(toolpath, bar)`` method (returning ``(None, why)`` once a lower bound of the cost
+        exceeds ``bar``) lets a direction that cannot beat one already ranked stop early.
     work_spacing : float, optional
         Edge length (m) the surface is subdivided to for the distance fields (default from the part
         size, between R/12 and R/4, coarsened if the mesh would exceed about
