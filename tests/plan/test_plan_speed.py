@@ -141,9 +141,15 @@ def test_uniform_candidates_in_worker_processes_give_the_serial_plan():
     # 150°) cost the same to 2e-5 relative, closer than cycle times agree between machines and library
     # builds (TOPP-RA's LPs, LKH tours): the costs are pinned at 1e-4, the kept direction is the
     # cheapest of this run's candidates, and the plan is the recorded one when 150° is kept here too.
-    costs = [c["cost"] for c in serial.metadata["candidates"]]
-    assert costs == pytest.approx([22.926508642133513, 22.926462227598655, 35.4045852611285, 35.627670295896685,
-                                   36.89510057643419, 22.92613282280339], rel=1e-4)
+    # A candidate whose lower bound exceeds a cheaper eligible one's cycle time stops before its
+    # links are timed (cost None): those ranked have the recorded costs, the others cost more.
+    recorded = np.array([22.926508642133513, 22.926462227598655, 35.4045852611285, 35.627670295896685,
+                         36.89510057643419, 22.92613282280339])
+    got = [c["cost"] for c in serial.metadata["candidates"]]
+    ranked = np.array([c is not None for c in got])
+    assert ranked.sum() >= 1 and (recorded[~ranked] > recorded.min() * 1.1).all()
+    assert [c for c in got if c is not None] == pytest.approx(recorded[ranked], rel=1e-4)
+    costs = [np.inf if c is None else c for c in got]
     kept = serial.metadata["candidates"][int(np.argmin(costs))]["direction_deg"]
     assert np.degrees(serial.metadata["direction_rad"]) == pytest.approx(kept, abs=1e-9)
     assert round(kept) in (0, 30, 150) and len(serial.passes) == 3
@@ -153,14 +159,23 @@ def test_uniform_candidates_in_worker_processes_give_the_serial_plan():
         assert serial.contact_length == pytest.approx(0.7676265048049925, rel=1e-6)
     parallel = uniform(surface, TOOL, workers=2, **options)
     assert len(serial.metadata["candidates"]) == 6
-    assert parallel.metadata["candidates"] == serial.metadata["candidates"]
+    # which candidates stop early depends on the order the workers finish in; the costs of those
+    # ranked in both runs are the same
+    for a, b in zip(parallel.metadata["candidates"], serial.metadata["candidates"]):
+        assert a["direction_deg"] == b["direction_deg"] and a["length_m"] == b["length_m"]
+        assert a["cost"] is None or b["cost"] is None or a["cost"] == b["cost"]
     assert parallel.metadata["direction_rad"] == serial.metadata["direction_rad"]
     assert len(parallel.passes) == len(serial.passes)
     for a, b in zip(parallel.passes, serial.passes):
         np.testing.assert_array_equal(a.points, b.points)
     # a cost that does not pickle (a lambda) is ranked here, one candidate after another
+    # (a plain function has no lower bound, so every candidate is ranked to the end)
     local = uniform(surface, TOOL, workers=2, work_spacing=TOOL.pad_radius / 5, cost=lambda tp: cost(tp))
-    assert local.metadata["candidates"] == serial.metadata["candidates"]
+    assert [c["cost"] for c in local.metadata["candidates"]] == pytest.approx(recorded, rel=1e-4)
+    for a, b in zip(local.metadata["candidates"], serial.metadata["candidates"]):
+        assert a["direction_deg"] == b["direction_deg"] and a["length_m"] == b["length_m"]
+        assert b["cost"] is None or a["cost"] == b["cost"]
+    assert local.metadata["direction_rad"] == serial.metadata["direction_rad"]
 
 
 def test_uniform_candidates_in_spawned_workers_give_the_serial_plan(monkeypatch):

@@ -76,7 +76,8 @@ def test_auto_direction_picks_the_shortest_cycle_and_is_efficient():
     cands = tp.metadata["candidates"]
     assert len(cands) >= 4
     top = max(c["predicted_coverage_fraction"] for c in cands)
-    best = min(c["cost"] for c in cands if c["predicted_coverage_fraction"] >= min(0.995, top - 0.002))
+    best = min(c["cost"] for c in cands
+               if c["cost"] is not None and c["predicted_coverage_fraction"] >= min(0.995, top - 0.002))
     chosen = [c for c in cands if math.isclose(math.radians(c["direction_deg"]), tp.metadata["direction_rad"])]
     assert chosen and chosen[0]["cost"] == pytest.approx(best)
     # the chosen plan, ordered and timed as the job does, takes the cycle time it was chosen for

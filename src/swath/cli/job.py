@@ -188,6 +188,26 @@ class CycleTimeCost:
         return time_path(ordered, list(self.constraints), links=self.links).duration, \
             f"predicted cycle time (s) under {names}"
 
+    def bounded(self, toolpath, bar: float) -> tuple[float | None, str]:
+        """``self(toolpath)``, or ``(None, why)`` without routing and timing the links when the
+        candidate certainly costs more than ``bar`` (s): its passes' contact time plus a lower bound
+        of its links' time (:func:`swath.trajectory.links_duration_bound`) exceeds it, so a cheaper
+        candidate is already known.  Otherwise the very value of ``self(toolpath)`` (the passes are
+        timed once)."""
+        from ..order import order_toolpath
+        from ..trajectory import contact_duration, links_duration_bound, time_passes, time_path
+
+        names = ", ".join(type(c).__name__ for c in self.constraints)
+        ordered = order_toolpath(toolpath, method=self.order)
+        timed = time_passes(ordered, list(self.constraints))
+        turning = [c.omega_max for c in self.constraints if type(c).__name__ == "AngularSpeedLimit"]
+        least = contact_duration(timed) + links_duration_bound(ordered, timed, self.links,
+                                                               omega_max=turning[0] if turning else None)
+        if least > bar:
+            return None, f"at least {least:.4g} s, more than the best cycle time {bar:.4g} s"
+        return time_path(ordered, list(self.constraints), links=self.links, timed=timed).duration, \
+            f"predicted cycle time (s) under {names}"
+
 
 def cycle_time_cost(constraints, links, order: str | None = None) -> CycleTimeCost:
     """The :class:`CycleTimeCost` of a job's ``constraints`` (sequence), ``links`` and ``order``."""

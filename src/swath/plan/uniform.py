@@ -98,7 +98,9 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         use (:func:`swath.cli.job.cycle_time_cost` builds one).  Default: contact length plus the
         straight-line air distance between consecutive passes in zig-zag order, m.  A cost whose
         ``passes_only`` attribute is true reads only the passes and the order hint, not the rest of
-        the metadata, so directions that lay the same passes are ranked once.
+        the metadata, so directions that lay the same passes are ranked once.  A cost with a
+        ``bounded(toolpath, bar)`` method (returning ``(None, why)`` once a lower bound of the cost
+        exceeds ``bar``) lets a direction that cannot beat one already ranked stop early.
     work_spacing : float, optional
         Edge length (m) the surface is subdivided to for the distance fields (default from the part
         size, between R/12 and R/4, coarsened if the mesh would exceed about
@@ -120,7 +122,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         n_touch_up_passes and touch_up_passes (their indices in ``passes``; the passes also carry
         ``kind="touch_up"``), candidates (per direction: direction_deg, length_m,
         predicted_coverage_fraction and cost, None for a direction that covers less than
-        :func:`coverage_floor` asks and so cannot be chosen) for automatic direction, order_hint
+        :func:`coverage_floor` asks, or whose passes alone take longer than a direction ranked
+        before it that covers as much, and so cannot be chosen) for automatic direction, order_hint
         ``"zigzag"``.  Each pass's ``level`` is its generation.
     """
     pieces = surface.face_pieces()
@@ -226,7 +229,7 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         # working mesh took 12 ms with two threads and 0.1 ms with one on a loaded machine).
         with threadpool_limits(limits=1, user_api="blas"):
             for group in groups:
-                rows = _candidate_group(make_context(), group, options, cost, top)
+                rows = _candidate_group(make_context(), group, options, cost, top, _ranked_so_far(rows_of))
                 rows_of.append(rows)
                 top = max([top] + [r[3] for r in rows if not isinstance(r, str)])
                 done += 2 * len(group)
@@ -246,12 +249,14 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
     # A direction must cover (a pad riding on the crests of waves narrower than itself leaves the
     # troughs untouched, so passes along the waves can miss area); among those that cover, the
     # cheapest wins.  Those that do not cover are not ranked (or their rank is not reported: which
-    # of them were ranked depends on the order the workers finished in).
+    # of them were ranked depends on the order the workers finished in), nor are those whose passes
+    # alone take longer than the cycle of a candidate ranked before that covers as much (_bar).
     floor = coverage_floor(max(r[3] for r in results))
     results = [(a, L, c if cv >= floor else None, cv) for a, L, c, cv in results]
     for a, L, c, cv in results:
         log.info("uniform candidate %.0f deg: %.2f m in contact, predicted coverage %.2f %%, %s", math.degrees(a), L,
-                 100 * cv, f"cost {c:.4g} ({what})" if c is not None else "not ranked (covers too little)")
+                 100 * cv, f"cost {c:.4g} ({what})" if c is not None else "not ranked (covers too little, or its passes alone take "
+                 "longer than a candidate covering as much)")
     best = min((r for r in results if r[2] is not None), key=lambda r: r[2])
     candidates = [dict(direction_deg=math.degrees(a), length_m=L, cost=c, predicted_coverage_fraction=cv)
                   for a, L, c, cv in results]
@@ -291,12 +296,32 @@ def _same_seed_groups(ctx, angles: list[float], seed) -> list[list[float]]:
     return list(groups.values())
 
 
-def _candidate_group(ctx, group: list[float], options: dict, cost, top: float = -math.inf) -> list:
+def _candidate_group(ctx, group: list[float], options: dict, cost, top: float = -math.inf,
+                     ranked: tuple = ()) -> list:
     """:func:`_candidate` of every angle in ``group`` (angles with the same seed curves): the layout
     is made once, then resampled and ranked with each angle's own direction recorded, unless its
-    coverage is below the floor of the best coverage ``top`` seen before (:func:`_worth_ranking`)."""
+    coverage is below the floor of the best coverage ``top`` seen before (:func:`_worth_ranking`).
+    ``ranked``: ``(coverage, cost)`` of the candidates ranked before (:func:`_bar`)."""
     layout = _first_layout(ctx, group[0], options)
-    return _group_rows(ctx, group, layout, options, cost, rank=_worth_ranking(layout, max(top, _coverage_of(layout))))
+    return _group_rows(ctx, group, layout, options, cost, rank=_worth_ranking(layout, max(top, _coverage_of(layout))),
+                       bar=_bar(ranked, layout))
+
+
+def _ranked_so_far(rows_of) -> tuple:
+    """``(predicted coverage, cost)`` of every candidate ranked in the row lists ``rows_of``."""
+    return tuple((r[3], r[1]) for rows in rows_of if rows for r in rows
+                 if not isinstance(r, str) and r[1] is not None)
+
+
+def _bar(ranked, layout: dict | str) -> float:
+    """The cost ``layout`` must stay under to be chosen: the least cost among the candidates ranked
+    so far (``ranked``: ``(coverage, cost)`` pairs) that are eligible whenever it is: those that
+    cover at least as much, and those that cover at least the most :func:`coverage_floor` ever
+    asks (99.5 %).  A layout costing more than one of them can never win, and its ranking can
+    stop early (:func:`_ranked`).  Infinity when there is none."""
+    cover = _coverage_of(layout)
+    always = coverage_floor(1.0)
+    return min((c for cv, c in ranked if cv >= cover or cv >= always), default=math.inf)
 
 
 def _candidate(ctx, angle: float, options: dict, cost):
@@ -326,10 +351,12 @@ def _worth_ranking(layout: dict | str, top: float) -> bool:
     return isinstance(layout, str) or _coverage_of(layout) >= coverage_floor(top)
 
 
-def _group_rows(ctx, group: list[float], layout: dict | str, options: dict, cost, rank: bool = True) -> list:
+def _group_rows(ctx, group: list[float], layout: dict | str, options: dict, cost, rank: bool = True,
+                bar: float = math.inf) -> list:
     """The rows of :func:`_candidate_group` from the group's layout (that of ``group[0]``); with
     ``rank=False`` the cost and its description are None (the passes are still resampled, for
-    the contact length the candidates report)."""
+    the contact length the candidates report), and so they are when the cost certainly exceeds
+    ``bar`` (:func:`_ranked`)."""
     if isinstance(layout, str):
         return [layout] * len(group)
     def as_angle(a):          # the group's layout recorded with angle ``a``'s own direction
@@ -339,21 +366,32 @@ def _group_rows(ctx, group: list[float], layout: dict | str, options: dict, cost
         tp = _toolpath(ctx.surface, layout, point_spacing=options["point_spacing"], rule="candidate")
         return [(tp.contact_length, None, None, layout["covered_pred"], as_angle(a) if i else layout)
                 for i, a in enumerate(group)]
-    rows = [_ranked(ctx.surface, layout, options["point_spacing"], cost)]
+    rows = [_ranked(ctx.surface, layout, options["point_spacing"], cost, bar)]
     for a in group[1:]:
         other = as_angle(a)
         if getattr(cost, "passes_only", False):
             # the same passes in the same order: a cost that reads nothing else ranks them the same
             rows.append((*rows[0][:4], other))
         else:
-            rows.append(_ranked(ctx.surface, other, options["point_spacing"], cost))
+            rows.append(_ranked(ctx.surface, other, options["point_spacing"], cost, bar))
     return rows
 
 
-def _ranked(surface, layout: dict, point_spacing: float, cost):
-    """``layout`` resampled at ``point_spacing`` (m) and ranked: the row of :func:`_candidate`."""
+def _ranked(surface, layout: dict, point_spacing: float, cost, bar: float = math.inf):
+    """``layout`` resampled at ``point_spacing`` (m) and ranked: the row of :func:`_candidate`.
+
+    With a finite ``bar`` and a cost that has ``bounded(toolpath, bar)`` (returning the cost, or
+    None once a lower bound of it exceeds ``bar``), a candidate that cannot beat ``bar`` is left
+    unranked (cost None) after the cheap part of its ranking: the chosen plan is the same."""
     tp = _toolpath(surface, layout, point_spacing=point_spacing, rule="candidate")
-    value, what = cost(tp)
+    bounded = getattr(cost, "bounded", None)
+    if math.isfinite(bar) and callable(bounded):
+        value, what = bounded(tp, bar)
+        if value is None:
+            log.info("uniform: direction %.0f deg not ranked further: %s", math.degrees(layout["angle"]), what)
+            return tp.contact_length, None, None, tp.metadata["predicted_coverage_fraction"], layout
+    else:
+        value, what = cost(tp)
     return tp.contact_length, float(value), what, tp.metadata["predicted_coverage_fraction"], layout
 
 
@@ -432,7 +470,8 @@ def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -
         while pending or held:
             while held and len(pending) < n_workers:
                 i, layout = held.pop(0)
-                task = pool.submit(_worker_group_rows, groups[i], layout, options, cost, _worth_ranking(layout, top))
+                task = pool.submit(_worker_group_rows, groups[i], layout, options, cost, _worth_ranking(layout, top),
+                                   _bar(_ranked_so_far(rows_of), layout))
                 rows_task[task] = i
                 pending.add(task)
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -474,8 +513,9 @@ def _worker_layout(angle: float, options: dict) -> dict | str:
     return _first_layout(_WORKER_CONTEXT, angle, options)
 
 
-def _worker_group_rows(group: list[float], layout: dict | str, options: dict, cost, rank: bool = True) -> list:
-    return _group_rows(_WORKER_CONTEXT, group, layout, options, cost, rank)
+def _worker_group_rows(group: list[float], layout: dict | str, options: dict, cost, rank: bool = True,
+                       bar: float = math.inf) -> list:
+    return _group_rows(_WORKER_CONTEXT, group, layout, options, cost, rank, bar)
 
 
 # ----------------------------------------------------------------------------------------------

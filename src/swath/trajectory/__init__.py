@@ -8,8 +8,9 @@ columns of ``trajectory.csv``.
 
 from .constraints import AngularSpeedLimit, CentripetalLimit, FeedLimit, FeedProfile, TangentialAccelLimit
 from .links import LinkSettings
-from .timing import time_path
+from .timing import contact_duration, links_duration_bound, time_passes, time_path
 from .trajectory import CSV_COLUMNS, EXTRA_COLUMNS, Trajectory, read_csv
 
 __all__ = ["AngularSpeedLimit", "CSV_COLUMNS", "CentripetalLimit", "EXTRA_COLUMNS", "FeedLimit", "FeedProfile",
-           "LinkSettings", "TangentialAccelLimit", "Trajectory", "read_csv", "time_path"]
+           "LinkSettings", "TangentialAccelLimit", "Trajectory", "read_csv", "time_path",
+           "time_passes", "contact_duration", "links_duration_bound"]

@@ -99,7 +99,7 @@ __all__ = ["FeedLimit", "FeedProfile", "CentripetalLimit", "AngularSpeedLimit", 
 
 
 def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | None = None,
-              heading_scale: float = 5e-3, lead_angle: float = 0.0) -> Trajectory:
+              heading_scale: float = 5e-3, lead_angle: float = 0.0, timed: list | None = None) -> Trajectory:
     """Turn ``toolpath`` into timed TCP poses.
 
     Parameters
@@ -117,6 +117,9 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
     lead_angle : float
         Tilt of the tool about its y-axis in contact, rad (default 0: ``z = −normal``); positive
         lifts the pad's leading edge (module notes).  ``Tool.half_pad_lead`` presses half the pad.
+    timed : list, optional
+        What :func:`time_passes` returned for this very tool path, constraints, heading scale and
+        lead angle: the passes are not timed again.
 
     Returns
     -------
@@ -130,27 +133,22 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
         On unknown or repeated constraints, a missing feed, an empty tool path, a feed profile that
         does not match the passes, a negative ``heading_scale`` or a lead angle outside ±45°.
     """
-    cons = _collect([FeedLimit()] if constraints is None else constraints)
+    cons, step, lead_angle = _checked(toolpath, constraints, heading_scale, lead_angle)
     links = LinkSettings() if links is None else links
     feed = cons[FeedLimit].speed
-    if not toolpath.passes:
-        raise InputError("the tool path has no passes to time")
-    if not (np.isfinite(heading_scale) and heading_scale >= 0):
-        raise InputError(f"heading_scale must be a length >= 0 in m, got {heading_scale!r}")
-    lead_angle = check_lead_angle(lead_angle)
-    for c in cons.values():
-        if hasattr(c, "check"):
-            c.check(toolpath.passes)
     angular = cons.get(AngularSpeedLimit)
     omega_max = angular.omega_max if angular else None
     surface = toolpath.surface
-    step = min(GRID_STEP, _MARGIN * feed * MAX_CONTACT_DT, _MARGIN * MAX_CONTACT_STEP)
     # routes between the same pass ends are found once per surface and clearance (re-timing a plan
     # with another feed, as the feed optimisation does, asks for every link again)
     guard = AirGuard(surface, links.clearance, memo=surface_memo(surface, ("air routes", links.clearance), dict))
 
-    timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale, lead_angle)
-             for i, p in enumerate(toolpath.passes)]
+    if timed is None:
+        timed = [_time_pass(i, p, surface, step, list(cons.values()), heading_scale, lead_angle)
+                 for i, p in enumerate(toolpath.passes)]
+    elif len(timed) != len(toolpath.passes):
+        raise InputError(f"timed holds {len(timed)} passes, the tool path {len(toolpath.passes)}; give what "
+                         "time_passes returned for this tool path")
     out: dict[str, list] = {k: [] for k in ("pos", "quat", "contact", "feed", "pass", "t", "omega")}
     clock = 0.0
     methods = {"toppra": 0, "trapezoid": 0, "none": 0}
@@ -200,6 +198,78 @@ def time_path(toolpath: ToolPath, constraints=None, *, links: LinkSettings | Non
                       contact=np.concatenate(out["contact"]), feed=np.concatenate(out["feed"]),
                       pass_index=np.concatenate(out["pass"]).astype(int),
                       extra={"wx": omega[:, 0], "wy": omega[:, 1], "wz": omega[:, 2]}, metadata=meta)
+
+
+def time_passes(toolpath: ToolPath, constraints=None, *, heading_scale: float = 5e-3,
+                lead_angle: float = 0.0) -> list:
+    """The contact half of :func:`time_path`: every pass of ``toolpath`` timed on its own, under the
+    same checks and arguments.  Give the list to :func:`time_path` (``timed=``) to finish the
+    trajectory without timing the passes again.
+
+    :func:`contact_duration` of the list (s) is a lower bound of that trajectory's cycle time (the
+    links only add time), so a caller ranking candidate tool paths by cycle time can stop here for
+    a candidate whose contact time alone exceeds the best cycle time found so far.
+
+    Returns
+    -------
+    list of dict
+        One record per pass, in order: positions ``(k, 3)`` m, quaternions ``(k, 4)``, speeds m/s,
+        times ``t`` ``(k,)`` s from the pass's start, angular velocities ``(k, 3)`` rad/s.
+    """
+    cons, step, lead_angle = _checked(toolpath, constraints, heading_scale, lead_angle)
+    return [_time_pass(i, p, toolpath.surface, step, list(cons.values()), heading_scale, lead_angle)
+            for i, p in enumerate(toolpath.passes)]
+
+
+def contact_duration(timed: list) -> float:
+    """Seconds in contact of the passes :func:`time_passes` timed: the sum of their durations."""
+    return float(sum(tp["t"][-1] for tp in timed))
+
+
+def links_duration_bound(toolpath: ToolPath, timed: list, links: LinkSettings | None = None,
+                         omega_max: float | None = None) -> float:
+    """A lower bound (s) of the time :func:`time_path` spends on the air links of ``toolpath``,
+    whose passes :func:`time_passes` timed as ``timed``.
+
+    Every link is flown rest to rest along a route at least as long as the straight chord between
+    its ends, at a TCP speed at most ``links.speed`` and a tangential acceleration at most
+    ``links.acceleration``: the shortest such motion over a length ``L`` takes ``L/v + v/a``
+    (``2 sqrt(L/a)`` when it cannot reach ``v``).  With ``omega_max`` (rad/s, the job's
+    :class:`AngularSpeedLimit`) it also turns the tool from the last pose of one pass to the first
+    of the next, an angle ``θ`` taking at least ``θ / omega_max``; a link takes the longer of the
+    two.  The approach and the retreat each cover the clearance.  The sum is scaled by 0.95, a
+    margin for the timing's discretisation.
+    """
+    links = LinkSettings() if links is None else links
+    v, a = links.speed, links.acceleration
+    pairs = list(zip(timed, timed[1:]))
+    if toolpath.links is not None:
+        chords = [float(np.linalg.norm(k.waypoints[-1] - k.waypoints[0])) for k in toolpath.links]
+    else:
+        chords = [float(np.linalg.norm(nxt["position"][0] - tp["position"][-1])) for tp, nxt in pairs]
+    lengths = np.array(chords + [links.clearance, links.clearance])
+    least = np.where(lengths >= v * v / a, lengths / v + v / a, 2.0 * np.sqrt(lengths / a))
+    if omega_max is not None and pairs and len(chords) == len(pairs):
+        dots = np.array([abs(float(np.dot(tp["quaternion"][-1], nxt["quaternion"][0]))) for tp, nxt in pairs])
+        turns = 2.0 * np.arccos(np.clip(dots, 0.0, 1.0)) / omega_max
+        least[:len(pairs)] = np.maximum(least[:len(pairs)], turns)
+    return 0.95 * float(least.sum())
+
+
+def _checked(toolpath, constraints, heading_scale, lead_angle):
+    """The constraints by type, the contact grid step (m) and the checked lead angle (rad) of a
+    timing request; refuses a bad one (see :func:`time_path`)."""
+    cons = _collect([FeedLimit()] if constraints is None else constraints)
+    feed = cons[FeedLimit].speed
+    if not toolpath.passes:
+        raise InputError("the tool path has no passes to time")
+    if not (np.isfinite(heading_scale) and heading_scale >= 0):
+        raise InputError(f"heading_scale must be a length >= 0 in m, got {heading_scale!r}")
+    lead_angle = check_lead_angle(lead_angle)
+    for c in cons.values():
+        if hasattr(c, "check"):
+            c.check(toolpath.passes)
+    return cons, min(GRID_STEP, _MARGIN * feed * MAX_CONTACT_DT, _MARGIN * MAX_CONTACT_STEP), lead_angle
 
 
 def _collect(constraints) -> dict:
