@@ -1,0 +1,105 @@
+"""The default job's least-ripple spacing read from the part's curvature, within the length budget."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from shapes import bowl
+
+from swath.cli import curved_spacing
+from swath.cli.main import main
+from swath.cli.settings import settings_from_mapping
+from swath.contact import Tool
+from swath.contact.widths import coverage_lower_bound
+from swath.feed import ripple_spacing
+from swath.plan import get_planner
+
+TOOL = Tool()
+
+
+def _settings(**given):
+    from swath.cli import even_default
+
+    return even_default.resolve(settings_from_mapping({"part": "example:plate", "out": "unused", **given}))
+
+
+def test_in_a_bowl_the_raster_spacing_is_the_quadrics_within_the_budget():
+    """A 0.35 m bowl: the passes read its curvature (about -2.9 /m both ways) and the raster is
+    re-planned at the quadric's least-ripple spacing for the half-pad lead, wider than the plane's
+    (1.40 R) because the pad rides on its rim there; the contact length stays within 1.5 L*."""
+    from swath.feed.curved_ripple import curved_ripple_spacing
+
+    part = bowl(size=0.3, radius=0.35, n=61)
+    settings = _settings()
+    raster = get_planner("raster")
+    tp = curved_spacing.curved_spacing_plan(part, TOOL, raster, settings, {})
+    assert tp.metadata["ripple_model"] == "curved"
+    plane, _ = ripple_spacing(TOOL, lead_angle=TOOL.half_pad_lead, max_length_ratio=1.5)
+    quadric = curved_ripple_spacing(TOOL, -1 / 0.35, -1 / 0.35, lead_angle=TOOL.half_pad_lead)
+    assert quadric.spacing > 1.1 * plane
+    # the spacing asked is the quadric's at the curvature the passes read (within the curvature
+    # estimate's spread over the bowl), or wider where the budget held it
+    assert tp.metadata["ripple_spacing_m"] == pytest.approx(quadric.spacing, rel=0.08)
+    ratio = tp.contact_length / coverage_lower_bound(part, TOOL)
+    assert ratio == pytest.approx(tp.metadata["ripple_length_ratio"], rel=1e-9) and ratio <= 1.5 * 1.02
+
+
+def test_on_a_plane_the_spacing_is_the_planes_held_within_the_budget():
+    """On the plate the plane's spacing stays: its eight passes come to 1.52 L*, within the budget's
+    2 % tolerance (seven passes would be 1.33 L*)."""
+    from swath.examples import example_part
+
+    plate = example_part("plate")
+    settings = _settings()
+    plane, _ = ripple_spacing(TOOL, lead_angle=TOOL.half_pad_lead, max_length_ratio=1.5)
+    tp = curved_spacing.curved_spacing_plan(plate, TOOL, get_planner("raster"), settings, {})
+    assert tp.metadata["ripple_model"] == "plane"
+    assert tp.metadata["ripple_spacing_m"] == pytest.approx(plane, rel=1e-12)
+    assert tp.metadata["ripple_length_ratio"] == pytest.approx(1.52, abs=0.01)
+    assert tp.contact_length / coverage_lower_bound(plate, TOOL) == pytest.approx(tp.metadata["ripple_length_ratio"])
+
+
+def test_the_uniform_planner_gets_the_quadrics_overlap():
+    part = bowl(size=0.3, radius=0.35, n=41)
+    settings = _settings(planner="uniform")
+    tp = curved_spacing.curved_spacing_plan(part, TOOL, get_planner("uniform"), settings, {})
+    assert tp.metadata["ripple_model"] == "curved" and tp.metadata["ripple_length_ratio"] <= 1.5
+    from swath.feed import ripple_overlap
+
+    # wider passes than the plane's overlap in the bowl (the quadric's spacing is wider)
+    assert tp.metadata["ripple_overlap"] < ripple_overlap(TOOL, lead_angle=TOOL.half_pad_lead, max_length_ratio=1.5)
+
+
+def _run_default(tmp_path, name):
+    out = tmp_path / name
+    assert main(["--quiet", "plan", str(tmp_path / "bowl.stl"), "--out", str(out), "--sample-spacing", "4mm",
+                 "--point-spacing", "4mm"]) == 0
+    return out, json.loads((out / "metrics.json").read_text())["metrics"]
+
+
+def test_the_default_job_in_a_bowl_states_what_the_simulation_confirms_and_beats_the_plane_rule(tmp_path,
+                                                                                                   monkeypatch):
+    import trimesh
+
+    from swath.io.mesh import load_mesh
+    from swath.simulate import simulate_removal
+    from swath.trajectory import read_csv
+
+    part = bowl(size=0.3, radius=0.35, n=61)
+    trimesh.Trimesh(part.vertices, part.faces, process=False).export(tmp_path / "bowl.stl")
+    out, m = _run_default(tmp_path, "curved")
+    # the job's figures are the simulation of the trajectory it wrote
+    surface = load_mesh(tmp_path / "bowl.stl", units="m")
+    removal = simulate_removal(read_csv(out / "trajectory.csv"), surface, TOOL, sample_spacing=4e-3)
+    assert removal.metrics["interior_removal_cov"] == pytest.approx(m["interior_removal_cov"], abs=0.005)
+    assert m["contact_length_m"] / m["coverage_lower_bound_m"] <= 1.5 * 1.02
+    assert m["lead_angle_deg"] == pytest.approx(math.degrees(TOOL.half_pad_lead))
+    # the plane's rule, as the default job had it: the spacing of a plane, the budget unchecked
+    monkeypatch.setattr(curved_spacing, "FLAT_SAGITTA", math.inf)
+    monkeypatch.setattr(curved_spacing, "BUDGET_ROUNDS", 0)
+    _, old = _run_default(tmp_path, "plane")
+    assert m["interior_removal_cov"] < old["interior_removal_cov"] - 0.01
+    assert np.isfinite(old["interior_removal_cov"])
