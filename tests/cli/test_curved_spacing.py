@@ -75,13 +75,16 @@ def test_the_uniform_planner_gets_the_quadrics_overlap():
 
 def _run_default(tmp_path, name):
     out = tmp_path / name
-    assert main(["--quiet", "plan", str(tmp_path / "bowl.stl"), "--out", str(out), "--sample-spacing", "4mm",
-                 "--point-spacing", "4mm"]) == 0
+    job = tmp_path / f"{name}.toml"         # a job file: nothing but the part, the output and coarser samples
+    job.write_text(f'part = "bowl.stl"\nout = "{name}"\nsample_spacing = "4mm"\npoint_spacing = "4mm"\n')
+    assert main(["--quiet", "run", str(job)]) == 0
     return out, json.loads((out / "metrics.json").read_text())["metrics"]
 
 
 def test_the_default_job_in_a_bowl_states_what_the_simulation_confirms_and_beats_the_plane_rule(tmp_path,
                                                                                                    monkeypatch):
+    """Measured: the plane's rule 0.137 at 1.48 L* (six passes, the feed optimised), the quadric's
+    spacing 0.089 at 1.24 L* (five passes; the constant feed kept, as even as the optimised)."""
     import trimesh
 
     from swath.io.mesh import load_mesh
@@ -101,5 +104,5 @@ def test_the_default_job_in_a_bowl_states_what_the_simulation_confirms_and_beats
     monkeypatch.setattr(curved_spacing, "FLAT_SAGITTA", math.inf)
     monkeypatch.setattr(curved_spacing, "BUDGET_ROUNDS", 0)
     _, old = _run_default(tmp_path, "plane")
-    assert m["interior_removal_cov"] < old["interior_removal_cov"] - 0.01
+    assert m["interior_removal_cov"] < 0.8 * old["interior_removal_cov"]
     assert np.isfinite(old["interior_removal_cov"])
