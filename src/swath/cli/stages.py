@@ -226,11 +226,12 @@ def job_target(settings):
     return target, tolerance
 
 
-def spacing_plan(surface, tool, planner, settings, arguments: dict):
+def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False):
     """Raster passes placed by ``settings.optimise_spacing``: ``ripple`` plans the raster at the
     spacing whose summed pad cross-profiles, on the part's representative curvature and at the
     job's lead, are flattest within the length budget, or the uniform planner at the overlap that
-    gives it (:func:`swath.cli.curved_spacing.curved_spacing_plan`); ``greedy`` and ``joint`` place the planes against the
+    gives it (:func:`swath.cli.curved_spacing.curved_spacing_plan`; ``choose_lead``: the lead too, on a
+    curved part); ``greedy`` and ``joint`` place the planes against the
     job's target depth (:func:`swath.feed.greedy_offsets`, :func:`swath.feed.joint_spacing`) in the
     raster's direction (its automatic choice when none is given).  The feed stage then optimises
     the feed along these passes."""
@@ -240,7 +241,7 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict):
     if method == "ripple":
         from .curved_spacing import curved_spacing_plan
 
-        return curved_spacing_plan(surface, tool, planner, settings, arguments)
+        return curved_spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead)
     direction = arguments.get("direction")
     if direction is None:
         direction = planner(surface, tool, **arguments).metadata["angle_rad"]
