@@ -11,7 +11,7 @@ in its own process:
 Columns, from the job's ``metrics.json``: interior removal CoV, L / L* (contact length over the
 coverage bound), cycle time, which plan was written (``even``: the optimised feed on the
 least-ripple passes; ``constant``: those passes at constant feed, W-EVEN-FEED-WORSE; ``plain``:
-the plain covering plan, W-EVEN-PLAIN-KEPT), the spacing model the job used, and the job's CPU
+the plain covering plan, W-EVEN-PLAIN-KEPT), the lead of the plan written, the spacing model the job used, and the job's CPU
 and wall time (the whole process: imports, report and files included).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_default_spacing.py [PART ...]`` (default: the parts
@@ -61,7 +61,7 @@ def one(part: str, mode: str) -> dict:
     kept = "plain" if metrics.get("plain_plan_kept") else "constant" if metrics.get("constant_feed_kept") else "even"
     return {"interior_cov": metrics["interior_removal_cov"],
             "length_ratio": metrics["contact_length_m"] / metrics["coverage_lower_bound_m"],
-            "cycle_s": metrics["cycle_time_s"], "kept": kept,
+            "cycle_s": metrics["cycle_time_s"], "kept": kept, "lead_deg": metrics.get("lead_angle_deg"),
             "plain_cov": metrics.get("plain_interior_removal_cov"),
             "even_cov": metrics.get("even_plan_interior_removal_cov")}
 
@@ -89,16 +89,16 @@ def main(argv: list[str]) -> None:
         return
     parts = argv or list(PARTS)
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-    print("| part | spacing | interior CoV | L / L* | cycle time | plan written | CPU time | wall time |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| part | spacing | interior CoV | L / L* | cycle time | plan written | lead | CPU time | wall time |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for part in parts:
         for mode in MODES:
             r = run(part, mode)
             if "failed" in r:
-                print(f"| {part} | {mode} | FAILED: {r['failed']} |||||")
+                print(f"| {part} | {mode} | FAILED: {r['failed']} ||||||")
                 continue
             print(f"| {part} | {mode} | {r['interior_cov']:.3f} | {r['length_ratio']:.2f} | {r['cycle_s']:.0f} s | "
-                  f"{r['kept']} | {r['cpu_s']:.1f} s | {r['wall_s']:.1f} s |", flush=True)
+                  f"{r['kept']} | {r['lead_deg']:.1f}° | {r['cpu_s']:.1f} s | {r['wall_s']:.1f} s |", flush=True)
 
 
 if __name__ == "__main__":
