@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 import pytest
-from shapes import bowl
 
+from shapes import bowl
 from swath.cli import curved_spacing
 from swath.cli.main import main
 from swath.cli.settings import settings_from_mapping

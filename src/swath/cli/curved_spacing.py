@@ -117,31 +117,25 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
 
     lead, budget = settings.lead(), settings.length_budget
     uniform = settings.planner == "uniform"
-    if uniform:
-        overlap = ripple_overlap(tool, lead_angle=lead, max_length_ratio=budget)
-        spacing = None
-    else:
-        spacing, _ = ripple_spacing(tool, lead_angle=lead, max_length_ratio=budget)
-        overlap = None
+    # the uniform planner's overlap, or the raster's spacing (m)
+    value = (ripple_overlap(tool, lead_angle=lead, max_length_ratio=budget) if uniform
+             else ripple_spacing(tool, lead_angle=lead, max_length_ratio=budget)[0])
 
-    def plan(spacing, overlap):
+    def plan(value: float):
         if uniform:
-            return planner(surface, tool, **{**arguments, "overlap": overlap})
+            return planner(surface, tool, **{**arguments, "overlap": value})
         # swath's spacing, not the user's: fill passes still close what it leaves (raster's default)
-        return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": spacing})
+        return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": value})
 
-    toolpath = plan(spacing, overlap)
+    toolpath = plan(value)
     model = "plane"
     leads = [lead] + ([math.radians(a) for a in STEEPER_LEADS_DEG if math.radians(a) > lead] if choose_lead else [])
     chosen = curved_choice(toolpath, surface, tool, leads, budget)
     if chosen is not None:
         model = "curved"
         lead, choice = chosen
-        if uniform:
-            overlap = choice.overlap
-        else:
-            spacing = choice.spacing
-        toolpath = plan(spacing, overlap)
+        value = choice.overlap if uniform else choice.spacing
+        toolpath = plan(value)
     bound = coverage_lower_bound(surface, tool)
     ratio = toolpath.contact_length / bound if bound > 0 else float("nan")
     for _ in range(BUDGET_ROUNDS):
@@ -149,13 +143,10 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
             break
         widen = ratio / budget * BUDGET_MARGIN
         log.info("ripple spacing: %.2f L* over the %.2f budget, %.1f %% wider", ratio, budget, 100 * (widen - 1))
-        if uniform:
-            overlap = 1.0 - (1.0 - overlap) * widen
-        else:
-            spacing = spacing * widen
-        toolpath = plan(spacing, overlap)
+        value = 1.0 - (1.0 - value) * widen if uniform else value * widen
+        toolpath = plan(value)
         ratio = toolpath.contact_length / bound
-    meta = {"ripple_model": model, "ripple_lead_rad": float(lead), "ripple_length_ratio": float(ratio)}
-    meta.update({"ripple_overlap": float(overlap)} if uniform else {"ripple_spacing_m": float(spacing)})
+    meta = {"ripple_model": model, "ripple_lead_rad": float(lead), "ripple_length_ratio": float(ratio),
+            ("ripple_overlap" if uniform else "ripple_spacing_m"): float(value)}
     toolpath.metadata.update(meta)
     return toolpath
