@@ -11,7 +11,8 @@ in its own process:
 Columns, from the job's ``metrics.json``: interior removal CoV, L / L* (contact length over the
 coverage bound), cycle time, which plan was written (``even``: the optimised feed on the
 least-ripple passes; ``constant``: those passes at constant feed, W-EVEN-FEED-WORSE; ``plain``:
-the plain covering plan, W-EVEN-PLAIN-KEPT), the lead of the plan written, the spacing model the job used, and the job's CPU
+the plain covering plan, W-EVEN-PLAIN-KEPT), the lead of the plan written, the interior CoV of the
+least-ripple plan the plain one was compared with (when it was), the spacing model the job used, and the job's CPU
 and wall time (the whole process: imports, report and files included).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_default_spacing.py [PART ...]`` (default: the parts
@@ -83,22 +84,27 @@ def run(part: str, mode: str) -> dict:
     return row
 
 
+def _cov(value) -> str:
+    return "" if value is None else f"{value:.3f}"
+
+
 def main(argv: list[str]) -> None:
     if argv[:1] == ["--one"]:
         print(json.dumps(one(argv[1], argv[2])))
         return
     parts = argv or list(PARTS)
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
-    print("| part | spacing | interior CoV | L / L* | cycle time | plan written | lead | CPU time | wall time |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| part | spacing | interior CoV | L / L* | cycle time | plan written | lead | least-ripple plan's CoV "
+          "| CPU time | wall time |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for part in parts:
         for mode in MODES:
             r = run(part, mode)
             if "failed" in r:
-                print(f"| {part} | {mode} | FAILED: {r['failed']} ||||||")
+                print(f"| {part} | {mode} | FAILED: {r['failed']} |||||||")
                 continue
             print(f"| {part} | {mode} | {r['interior_cov']:.3f} | {r['length_ratio']:.2f} | {r['cycle_s']:.0f} s | "
-                  f"{r['kept']} | {r['lead_deg']:.1f}° | {r['cpu_s']:.1f} s | {r['wall_s']:.1f} s |", flush=True)
+                  f"{r['kept']} | {r['lead_deg']:.1f}° | {_cov(r['even_cov'])} | {r['cpu_s']:.1f} s | {r['wall_s']:.1f} s |", flush=True)
 
 
 if __name__ == "__main__":

@@ -63,7 +63,7 @@ def test_on_a_plane_the_spacing_is_the_planes_held_within_the_budget():
 
 
 def test_the_default_job_may_choose_a_steeper_lead_in_the_bowl():
-    """With ``choose_lead`` the bowl's quadric takes 11° (of 7.0°, 11° and 15°, judged within ±5 %
+    """With ``choose_lead`` the bowl's quadric takes 11° (of 0°, 7.0°, 11° and 15°, judged within ±5 %
     of the spacing), as :func:`swath.feed.curved_ripple.curved_ripple_choice` finds for passes across it."""
     part = bowl(size=0.3, radius=0.35, n=61)
     tp = curved_spacing.curved_spacing_plan(part, TOOL, get_planner("raster"), _settings(), {}, choose_lead=True)
@@ -72,6 +72,15 @@ def test_the_default_job_may_choose_a_steeper_lead_in_the_bowl():
     plain = curved_spacing.curved_spacing_plan(part, TOOL, get_planner("raster"), _settings(), {})
     assert tp.metadata["ripple_spacing_m"] < plain.metadata["ripple_spacing_m"]     # the steeper lead packs closer
     assert plain.metadata["ripple_lead_rad"] == pytest.approx(TOOL.half_pad_lead)
+
+
+def test_on_a_dome_the_default_job_chooses_the_flat_pad():
+    """A convex 0.4 m dome: led pads peak the narrowed cross-profile; the quadric ripples least with
+    the pad flat (of 0°, 7.0°, 11° and 15°)."""
+    dome = bowl(size=0.3, radius=-0.4, n=61)
+    tp = curved_spacing.curved_spacing_plan(dome, TOOL, get_planner("raster"), _settings(), {}, choose_lead=True)
+    assert tp.metadata["ripple_model"] == "curved" and tp.metadata["ripple_lead_rad"] == 0.0
+    assert tp.metadata["ripple_length_ratio"] <= 1.5 * 1.02
 
 
 def test_the_uniform_planner_gets_the_quadrics_overlap():
@@ -111,7 +120,7 @@ def test_the_default_job_in_a_bowl_states_what_the_simulation_confirms_and_beats
     removal = simulate_removal(read_csv(out / "trajectory.csv"), surface, TOOL, sample_spacing=4e-3)
     assert removal.metrics["interior_removal_cov"] == pytest.approx(m["interior_removal_cov"], abs=0.005)
     assert m["contact_length_m"] / m["coverage_lower_bound_m"] <= 1.5 * 1.02
-    assert m["lead_angle_deg"] == pytest.approx(11.0)       # the quadric's choice among 7.0, 11 and 15°
+    assert m["lead_angle_deg"] == pytest.approx(11.0)       # the quadric's choice among 0, 7.0, 11 and 15°
     # the plane's rule, as the default job had it: the spacing of a plane, the budget unchecked
     monkeypatch.setattr(curved_spacing, "FLAT_SAGITTA", math.inf)
     monkeypatch.setattr(curved_spacing, "BUDGET_ROUNDS", 0)

@@ -9,7 +9,7 @@ panel, the blade and the scans the simulator then found the plain covering plan 
 representative curvatures along and across (:func:`swath.feed.curved_ripple.pass_curvatures`),
 and re-plans at the spacing whose profiles on that quadric sum flattest
 (:func:`swath.feed.curved_ripple.curved_ripple_spacing`, at the job's lead, or in the default job
-at the lead of those in :data:`STEEPER_LEADS_DEG` and the job's that ripples least): the raster at
+at the lead of those in :data:`LEAD_CHOICES_DEG` and the job's that ripples least): the raster at
 ``spacing = choice.spacing``, the uniform planner at ``overlap = choice.overlap``.  On a part
 flatter than :data:`FLAT_SAGITTA` over the pad the plane's spacing stays.
 
@@ -36,10 +36,10 @@ FLAT_SAGITTA = 1e-4
 #: plate's eight passes at the plane's spacing come to 1.52 L*, seven to 1.33 L*).
 BUDGET_TOLERANCE = 0.02
 
-#: The steeper leads (degrees) the default job may choose on a curved part besides the half-pad
-#: lead: in a 0.35 m bowl the quadric picks 11° (simulated interior CoV 0.063 against 0.089 at the
-#: half-pad lead, both within the budget).
-STEEPER_LEADS_DEG = (11.0, 15.0)
+#: The leads (degrees) the default job may choose on a curved part besides the half-pad lead: in a
+#: 0.35 m bowl the quadric picks 11° (simulated interior CoV 0.063 against 0.089 at the half-pad
+#: lead), on the convex ``bezier_dac_cad`` the flat pad (0.113 against 0.261).
+LEAD_CHOICES_DEG = (0.0, 11.0, 15.0)
 
 #: Re-plans allowed to bring the contact length within the budget.
 BUDGET_ROUNDS = 2
@@ -100,7 +100,7 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
     arguments : dict
         The planner's other keyword arguments.
     choose_lead : bool
-        On a curved part, also choose the lead among the job's and :data:`STEEPER_LEADS_DEG` (the
+        On a curved part, also choose the lead among the job's and :data:`LEAD_CHOICES_DEG` (the
         default job, which chose the lead itself): the job then times the passes at
         ``metadata["ripple_lead_rad"]``.
 
@@ -129,7 +129,7 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
 
     toolpath = plan(value)
     model = "plane"
-    leads = [lead] + ([math.radians(a) for a in STEEPER_LEADS_DEG if math.radians(a) > lead] if choose_lead else [])
+    leads = [lead] + ([math.radians(a) for a in LEAD_CHOICES_DEG if math.radians(a) != lead] if choose_lead else [])
     chosen = curved_choice(toolpath, surface, tool, leads, budget)
     if chosen is not None:
         model = "curved"
