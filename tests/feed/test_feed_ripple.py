@@ -188,8 +188,9 @@ def test_weave_refuses_bad_input():
 
 
 def test_uniform_planner_at_the_ripple_overlap_from_a_job(tmp_path):
-    """``optimise_spacing = "ripple"`` with the uniform planner sets its overlap to 1 - d*/(2R), d* for
-    the job's lead: on the flat plate the inner passes lie the least-ripple spacing apart."""
+    """``optimise_spacing = "ripple"`` with the uniform planner sets its overlap to 1 - d*/(2R), d*
+    for the job's lead (the half-pad lead by default): on the flat plate the inner passes lie the
+    least-ripple spacing apart."""
     from swath.cli.settings import settings_from_mapping
     from swath.cli.stages import spacing_plan
     from swath.examples import example_part
@@ -204,7 +205,7 @@ def test_uniform_planner_at_the_ripple_overlap_from_a_job(tmp_path):
         settings_from_mapping({**job, "planner": "equidistant"})
     tool = settings.tool()
     path = spacing_plan(example_part("plate"), tool, get_planner("uniform"), settings, {"direction": 0.0, "workers": 1})
-    lead = settings.lead()                               # the even-removal default leads the pad by half its width
+    lead = settings.lead()
     assert lead == pytest.approx(tool.half_pad_lead)
     assert path.metadata["overlap_fraction"] == pytest.approx(ripple_overlap(tool, lead_angle=lead), rel=1e-12)
     cross = np.cross(np.asarray(path.metadata["feed_direction"]), [0.0, 0.0, 1.0])

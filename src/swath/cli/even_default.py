@@ -258,9 +258,10 @@ def plain_if_evener(run: tuple, removal, even: dict):
     ``even`` (``plain_interior_removal_cov``, ``plain_cycle_time_s``, ``even_plan_interior_removal_cov``,
     ``plain_plan_kept``), with a warning when the plain plan is kept.
 
-    On a curved part whose covering spacing is narrower than a plane's, the least-ripple spacing
-    (worked out on a plane) can lay the passes farther apart than covering needs there; the
-    simulation, not the plane's model, then decides."""
+    The least-ripple spacing is worked out on the part's representative curvature
+    (:mod:`swath.cli.curved_spacing`); where the curvature varies over the part, or a scan's
+    waviness narrows the swath the covering spacing follows, it can lay the passes farther apart
+    than covering needs there: the simulation, not the local model, then decides."""
     cov_plain = float(run[2].metrics["interior_removal_cov"])
     cov_even = float(removal.metrics["interior_removal_cov"])
     even.update(plain_interior_removal_cov=cov_plain, plain_cycle_time_s=float(run[1].duration),
@@ -272,6 +273,6 @@ def plain_if_evener(run: tuple, removal, even: dict):
     even["warnings"] = warnings
     warnings.append(f"even removal: the plain plan (covering spacing, flat pad, constant feed) removes more evenly on "
                     f"this part (interior CoV {cov_plain:.3f}) than the least-ripple spacing with the lead "
-                    f"({cov_even:.3f}) in the simulation, so the plain plan is written: the spacing worked out on a "
-                    "plane does not fit this part's curvature [W-EVEN-PLAIN-KEPT]")
+                    f"({cov_even:.3f}) in the simulation, so the plain plan is written: the spacing worked out on the "
+                    "part's representative curvature does not fit it everywhere [W-EVEN-PLAIN-KEPT]")
     return run

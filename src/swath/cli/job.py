@@ -260,12 +260,14 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     return options
 
 
-def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=None):
+def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=None, choose_lead: bool = False):
     """Run the job's planner on ``surface`` and order its passes; returns a ToolPath.
     ``progress(stage, done, total)`` hears about long planning steps; ``tool`` is the job's tool
     (default :func:`swath.cli.stages.job_tool`, built from the settings and the calibration).  With a
     ``part`` (its selection set), the passes are cut where the pad would touch a keep-out or cross
-    the edge margin (:func:`swath.segment.select.keep_clear`) before they are ordered."""
+    the edge margin (:func:`swath.segment.select.keep_clear`) before they are ordered.  ``choose_lead``:
+    the least-ripple spacing may choose the lead too (:func:`swath.cli.curved_spacing.curved_spacing_plan`;
+    the plan's ``metadata["ripple_lead_rad"]``)."""
     from ..order import order_toolpath, route_links
     from ..plan import get_planner, planner_options
     from .stages import job_tool
@@ -278,7 +280,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
     if settings.optimise_spacing:
         from .stages import spacing_plan
 
-        toolpath = spacing_plan(surface, tool, planner, settings, arguments)
+        toolpath = spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead)
     elif settings.segment == "auto":
         from .stages import segmented_plan
 
@@ -396,7 +398,11 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     else:
         t0 = time.perf_counter()
         say(f"planning ({settings.planner})", 0, 1)
-        toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"))
+        toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"),
+                             choose_lead=plain is not None)       # the default job chose the lead: on a curved part, again
+        lead = toolpath.metadata.get("ripple_lead_rad")
+        if plain is not None and lead is not None and lead != settings.lead():
+            settings = replace(settings, lead_angle=lead)
         timings["plan_s"] = time.perf_counter() - t0
         log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
 

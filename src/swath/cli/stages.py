@@ -226,28 +226,22 @@ def job_target(settings):
     return target, tolerance
 
 
-def spacing_plan(surface, tool, planner, settings, arguments: dict):
+def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False):
     """Raster passes placed by ``settings.optimise_spacing``: ``ripple`` plans the raster at the
-    spacing whose summed pad cross-profiles are flattest with the path within 1.5x the coverage
-    bound (:func:`swath.feed.ripple_spacing`, for the pad at the job's lead angle), or the uniform planner at the overlap that gives that
-    spacing over the local swath width (:func:`swath.feed.ripple_overlap`); ``greedy`` and ``joint`` place the planes against the
+    spacing whose summed pad cross-profiles, on the part's representative curvature and at the
+    job's lead, are flattest within the length budget, or the uniform planner at the overlap that
+    gives it (:func:`swath.cli.curved_spacing.curved_spacing_plan`; ``choose_lead``: the lead too, on a
+    curved part); ``greedy`` and ``joint`` place the planes against the
     job's target depth (:func:`swath.feed.greedy_offsets`, :func:`swath.feed.joint_spacing`) in the
     raster's direction (its automatic choice when none is given).  The feed stage then optimises
     the feed along these passes."""
-    from ..feed import greedy_offsets, joint_spacing, ripple_overlap, ripple_spacing
+    from ..feed import greedy_offsets, joint_spacing
 
     method = settings.optimise_spacing
-    if method == "ripple" and settings.planner == "uniform":
-        # the uniform planner spaces passes by overlap of the local swath width: keep d / w at the
-        # ratio the ripple analysis chose (on a plane w = 2R and the spacing is ripple_spacing's)
-        overlap = ripple_overlap(tool, lead_angle=settings.lead(), max_length_ratio=settings.length_budget)
-        log.info("ripple overlap %.3f of the swath width", overlap)
-        return planner(surface, tool, **{**arguments, "overlap": overlap})
     if method == "ripple":
-        spacing, cov = ripple_spacing(tool, lead_angle=settings.lead(), max_length_ratio=settings.length_budget)
-        log.info("ripple spacing %.1f mm (pad cross-profile ripple CoV %.3f on a plane)", spacing * 1e3, cov)
-        # swath's spacing, not the user's: fill passes still close what it leaves (raster's default)
-        return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": spacing})
+        from .curved_spacing import curved_spacing_plan
+
+        return curved_spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead)
     direction = arguments.get("direction")
     if direction is None:
         direction = planner(surface, tool, **arguments).metadata["angle_rad"]

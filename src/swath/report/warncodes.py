@@ -178,8 +178,8 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-EVEN-PLAIN-KEPT", r"even removal: the plain plan .* removes more evenly",
           "The default job compared its even-removal plan (least-ripple spacing, lead, optimised feed) with the "
           "plain plan (covering spacing, flat pad, constant feed) in the removal simulation, and the plain one "
-          "removes more evenly on this part: it is written. The least-ripple spacing is worked out on a plane and "
-          "can be too wide where curvature narrows the pad's swath.",
+          "removes more evenly on this part: it is written. The least-ripple spacing is worked out on the part's "
+          "representative curvature and can be too wide where the curvature differs or waviness narrows the swath.",
           "Nothing to do for this run; `--constant-feed` skips the comparison, `--spacing` or `--planner uniform` "
           "spaces the passes yourself.", "feed"),
     entry("W-EVEN-FEED-WORSE", r"even removal: the (optimised feed removes less evenly|feed could not be optimised)",

@@ -1,0 +1,152 @@
+"""The least-ripple spacing of a job, on the part's own curvature and within the length budget.
+
+``optimise_spacing = "ripple"`` (the even-removal default's spacing) used to take the spacing
+that sums the pad's cross-profiles flattest *on a plane* (:func:`swath.feed.ripple_spacing`).
+On a curved part the cross-profile itself changes (:mod:`swath.feed.curved_ripple`), and on the
+panel, the blade and the scans the simulator then found the plain covering plan evener.
+
+:func:`curved_spacing_plan` plans the passes once at the plane's spacing, reads their
+representative curvatures along and across (:func:`swath.feed.curved_ripple.pass_curvatures`),
+and re-plans at the spacing whose profiles on that quadric sum flattest
+(:func:`swath.feed.curved_ripple.curved_ripple_spacing`, at the job's lead, or in the default job
+at the lead of those in :data:`LEAD_CHOICES_DEG` and the job's that ripples least): the raster at
+``spacing = choice.spacing``, the uniform planner at ``overlap = choice.overlap``.  On a part
+flatter than :data:`FLAT_SAGITTA` over the pad the plane's spacing stays.
+
+Either way the contact length is then held within the budget: the plane's ``L* = A / 2R`` and the
+quadric's ``w_max / d`` are local estimates, the fill passes and the pass ends add length, and the
+panel's plan came out at 1.6 L* for a 1.5 budget.  While the plan's contact length over the
+part's coverage bound (:func:`swath.contact.coverage_lower_bound`, the figure ``metrics.json``
+states) exceeds the budget (by more than :data:`BUDGET_TOLERANCE`), the spacing widens by that excess and the part is planned again.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+log = logging.getLogger(__name__)
+
+#: Curvatures whose sagitta over the pad, ``R² |κ| / 2``, stays under this (m) leave the plane's
+#: spacing: below a tenth of the default pad's 1 mm compression the profile is the plane's.
+FLAT_SAGITTA = 1e-4
+
+#: The contact length may exceed the budget by this fraction before the spacing widens: a raster
+#: keeps its spacing and leaves the rest to the margins, so its length steps by whole passes (the
+#: plate's eight passes at the plane's spacing come to 1.52 L*, seven to 1.33 L*).
+BUDGET_TOLERANCE = 0.02
+
+#: The leads (degrees) the default job may choose on a curved part besides the half-pad lead: in a
+#: 0.35 m bowl the quadric picks 11° (simulated interior CoV 0.063 against 0.089 at the half-pad
+#: lead), on the convex ``bezier_dac_cad`` the flat pad (0.113 against 0.261).
+LEAD_CHOICES_DEG = (0.0, 11.0, 15.0)
+
+#: Re-plans allowed to bring the contact length within the budget.
+BUDGET_ROUNDS = 2
+
+#: The spacing widens by the excess over the budget times this (a little more: the plan's
+#: length does not fall quite in proportion, pass ends and fill passes staying).
+BUDGET_MARGIN = 1.02
+
+
+def curved_choice(toolpath, surface, tool, leads, budget: float):
+    """The lead (one of ``leads``) and the least-ripple spacing on the representative quadric of
+    ``toolpath``'s passes, judged by the ripple within ±5 % of the spacing (``robust_cov``), or
+    None when the part is flat there (sagitta under :data:`FLAT_SAGITTA`).
+
+    Parameters
+    ----------
+    toolpath : ToolPath
+        A first plan of the part (its passes give the curvatures).
+    surface : Surface
+    tool : Tool
+    leads : sequence of float
+        The lead angles to choose from, rad.
+    budget : float
+        The length budget, times the coverage bound.
+
+    Returns
+    -------
+    tuple (float, CurvedSpacing) or None
+    """
+    from ..feed.curved_ripple import curved_ripple_spacing, pass_curvatures
+
+    k_feed, k_cross = pass_curvatures(toolpath, surface)
+    sagitta = 0.5 * tool.pad_radius ** 2 * max(abs(k_feed), abs(k_cross))
+    if not sagitta > FLAT_SAGITTA:
+        log.info("curvature %.3g, %.3g 1/m: flat over the pad, the plane's spacing stays", k_feed, k_cross)
+        return None
+    options = [(curved_ripple_spacing(tool, k_feed, k_cross, lead_angle=a, max_length_ratio=budget), a)
+               for a in leads]
+    choice, lead = min(options, key=lambda o: o[0].robust_cov)
+    log.info("curvature %.3g 1/m along, %.3g across the passes: lead %.1f deg, spacing %.1f mm (%.3f of the "
+             "%.1f mm swath), cross-profile ripple %.3f (%.3f within 5 %%)", k_feed, k_cross, math.degrees(lead),
+             choice.spacing * 1e3, choice.spacing / choice.width, choice.width * 1e3, choice.cov, choice.robust_cov)
+    return lead, choice
+
+
+def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False):
+    """The job's passes at the least-ripple spacing on the part's curvature, within
+    ``settings.length_budget`` times the coverage bound (module notes).
+
+    Parameters
+    ----------
+    surface : Surface
+    tool : Tool
+    planner : callable
+        The raster or the uniform planner.
+    settings : JobSettings
+        ``planner``, ``length_budget`` and the lead (``settings.lead()``) are read.
+    arguments : dict
+        The planner's other keyword arguments.
+    choose_lead : bool
+        On a curved part, also choose the lead among the job's and :data:`LEAD_CHOICES_DEG` (the
+        default job, which chose the lead itself): the job then times the passes at
+        ``metadata["ripple_lead_rad"]``.
+
+    Returns
+    -------
+    ToolPath
+        Its ``metadata`` gains ``ripple_spacing_m`` (the spacing asked, raster), or
+        ``ripple_overlap`` (uniform), ``ripple_model`` (``"plane"`` or ``"curved"``),
+        ``ripple_lead_rad`` (the lead the spacing is for) and ``ripple_length_ratio`` (its contact
+        length over the coverage bound).
+    """
+    from ..contact.widths import coverage_lower_bound
+    from ..feed import ripple_overlap, ripple_spacing
+
+    lead, budget = settings.lead(), settings.length_budget
+    uniform = settings.planner == "uniform"
+    # the uniform planner's overlap, or the raster's spacing (m)
+    value = (ripple_overlap(tool, lead_angle=lead, max_length_ratio=budget) if uniform
+             else ripple_spacing(tool, lead_angle=lead, max_length_ratio=budget)[0])
+
+    def plan(value: float):
+        if uniform:
+            return planner(surface, tool, **{**arguments, "overlap": value})
+        # swath's spacing, not the user's: fill passes still close what it leaves (raster's default)
+        return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": value})
+
+    toolpath = plan(value)
+    model = "plane"
+    leads = [lead] + ([math.radians(a) for a in LEAD_CHOICES_DEG if math.radians(a) != lead] if choose_lead else [])
+    chosen = curved_choice(toolpath, surface, tool, leads, budget)
+    if chosen is not None:
+        model = "curved"
+        lead, choice = chosen
+        value = choice.overlap if uniform else choice.spacing
+        toolpath = plan(value)
+    bound = coverage_lower_bound(surface, tool)
+    ratio = toolpath.contact_length / bound if bound > 0 else float("nan")
+    for _ in range(BUDGET_ROUNDS):
+        if not ratio > budget * (1.0 + BUDGET_TOLERANCE):
+            break
+        widen = ratio / budget * BUDGET_MARGIN
+        log.info("ripple spacing: %.2f L* over the %.2f budget, %.1f %% wider", ratio, budget, 100 * (widen - 1))
+        value = 1.0 - (1.0 - value) * widen if uniform else value * widen
+        toolpath = plan(value)
+        ratio = toolpath.contact_length / bound
+    meta = {"ripple_model": model, "ripple_lead_rad": float(lead), "ripple_length_ratio": float(ratio),
+            ("ripple_overlap" if uniform else "ripple_spacing_m"): float(value)}
+    toolpath.metadata.update(meta)
+    return toolpath
