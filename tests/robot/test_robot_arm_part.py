@@ -118,3 +118,52 @@ def test_an_air_link_through_a_fixture_is_taken_over_it():
     # the air rows that replace the link are at least the clearance above the plate (z = 0) at their ends
     air = ~res.trajectory.contact
     assert res.trajectory.position[air, 2].max() >= 0.02 - 1e-6
+
+
+def test_a_change_where_the_old_configuration_cannot_retract_moves_into_a_gap():
+    """A wrist flip planted right where the pad leaves the first stroke, on a UR10e whose joint 4 may
+    not rise more than 0.06 rad above its value at the stroke's end (retracting 50 mm turns it by about
+    0.077 rad): the stroke's last samples, from which the old configuration cannot rise, are given up
+    back to the first one it can rise from; the change then happens in the gap's joint move, at least
+    the 20 mm clearance from the plate over its whole sweep."""
+    from dataclasses import replace
+
+    from swath.cell import default_sander
+    from swath.examples import example_part
+    from swath.robot import Cell, solve_trajectory
+    from swath.robot.gaps import _retracts, air_splits, solution_after_split, split_unreachable
+    from swath.robot.pose import poses_from_trajectory
+    from swath.robot.sweep import SweepCheck, clear_joint_moves
+
+    plate = example_part("plate")
+    tool = default_sander()
+    cell = Cell(part2base=Cell.from_text("0.55,-0.15,0,0,0,20").part2base, tcp2flange=tool.tcp2flange, tool=tool)
+    tr = _two_strokes()
+    sol = solve_trajectory(tr, get_robot("ur10e"), cell, warn=False)
+    upper = get_robot("ur10e").upper.copy()
+    upper[3] = sol.q[10, 3] + 0.06
+    model = replace(get_robot("ur10e"), upper=upper)
+    q_all, feasible, _ = branch_table(cell.flange2base(poses_from_trajectory(tr)), model)
+    b0 = int(sol.branch[0])
+    b1 = b0 ^ 1                                        # the same shoulder and elbow, the other wrist
+    assert feasible[11:, b1].all()
+    q, branch = sol.q.copy(), sol.branch.copy()
+    q[11:], branch[11:] = q_all[11:, b1], b1
+    jm = np.zeros(len(tr), bool)
+    jm[11] = True
+    planted = replace(sol, q=q, branch=branch, joint_move=jm)
+    check = SweepCheck(model, cell, plate.vertices, plate.faces)
+    drop, low, air = air_splits(tr, planted, model, cell, check, clearance=0.02)
+    assert (low, air) == (1, 0)
+    gone = np.flatnonzero(drop)
+    poses = poses_from_trajectory(tr)
+    assert gone.max() == 10 and 0 < gone.min() < 10 and np.all(np.diff(gone) == 1)
+    assert all(not _retracts(model, cell, poses[i], q[i], 0.02) for i in gone)
+    assert _retracts(model, cell, poses[gone.min() - 1], q[gone.min() - 1], 0.02)
+    cut = replace(planted, reachable=~drop, q=np.where(drop[:, None], np.nan, q), branch=np.where(drop, -1, branch))
+    tr2, q2, gaps, src = split_unreachable(tr, cut, model, cell, clearance=0.02)
+    assert len(gaps) == 1 and gaps[0].pass_index == 0 and gaps[0].contact_length > 0
+    sol2 = solution_after_split(cut, tr2, q2, src, model)
+    _, _, sweeps = clear_joint_moves(tr2, sol2, model, cell, check, clearance=0.02)
+    changes = [s for s in sweeps if s.branch_change]
+    assert len(changes) == 1 and changes[0].ok and changes[0].final.min_distance >= 0.02
