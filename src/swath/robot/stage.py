@@ -349,6 +349,12 @@ def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str
     elif sentence:
         out.append(f"robot: {sentence} The programs leave these samples out, so the robot moves straight "
                    "across them.")
+    low, air = int(metrics.get("n_low_switch_gaps", 0)), int(metrics.get("n_air_collision_gaps", 0))
+    if low or air:
+        out.append(f"robot: {low} configuration change(s) the old configuration could not retract from, and {air} "
+                   "air link(s) that hit the cell or the robot, run as gaps instead (retract, joint move at the "
+                   "clearance, approach); coverage and removal are computed on what the robot runs "
+                   "[W-ROBOT-SWITCH-GAP]")
     flips = int(metrics.get("configuration_flips_in_passes", 0))
     if flips:
         out.append(f"robot: the arm changes configuration {flips} time(s) inside a contact pass ({metrics['robot']}), "
