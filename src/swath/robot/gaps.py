@@ -320,8 +320,8 @@ def air_splits(trajectory, solution, model, cell, check, *, clearance: float, ma
     b = solution.branch
     q = solution.q
     low = 0
-    for j in np.flatnonzero((b[1:] != b[:-1]) & (b[1:] >= 0) & (b[:-1] >= 0)) + 1:
-        if min(near[j - 1], near[j]) >= clearance:
+    for j in (np.flatnonzero((b[1:] != b[:-1]) & (b[1:] >= 0) & (b[:-1] >= 0)) + 1).tolist():
+        if min(float(near[j - 1]), float(near[j])) >= clearance:
             continue
         a = j - 1
         lo = max(0, j - 1 - max_back)
@@ -348,8 +348,8 @@ def air_splits(trajectory, solution, model, cell, check, *, clearance: float, ma
         keep = tcp_grazes_table(hits.body_a, hits.body_b, hits.depth, invert=True)
         bad = np.zeros(n, bool)
         bad[air[np.unique(hits.pose[keep])]] = True
-        for s, e in _runs(bad):
-            lo_, hi_ = max(s - 1, 0), min(e + 1, n)
+        for r0, r1 in _runs(bad):
+            lo_, hi_ = max(int(r0) - 1, 0), min(int(r1) + 1, n)
             drop[lo_:hi_] |= ~on[lo_:hi_]              # never a contact sample: the gap's ends stay on the passes
             hits_air += 1
     return drop, low, hits_air

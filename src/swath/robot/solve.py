@@ -261,7 +261,8 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         todo = (reason == 0).reshape(-1)
         inside = np.zeros(len(flat), bool)
         if todo.any():
-            inside[todo] = margins.arm_part.hits(flat[todo], np.eye(4) if part2base is None else part2base)
+            at = np.eye(4) if part2base is None else part2base
+            inside[todo] = margins.arm_part.hits(flat[todo], at)  # type: ignore[attr-defined]
         reason = np.where(inside.reshape(n, nb), 6, reason)
     reason = np.where((reason == 0) & jumps, 4, reason)
     return q, reason == 0, reason

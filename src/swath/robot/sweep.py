@@ -263,6 +263,11 @@ def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore,
         via = ik_near(model, cell, mid, 0.5 * (top0 + top1), max_change=math.pi)
         if via is not None:
             chains.append(((via,), mid))
+    # a change of shoulder or elbow swings the wrist past the shoulder and the tool down beside the part:
+    # through the arm raised (joints 2 and 3 where the wrist centre is highest), the others half-way
+    raised = _raised_via(model, cell, top0, top1)
+    if raised is not None:
+        chains.append(raised)
     for vias, mid in chains:
         sw = check.sweep(np.array([top0] + [v[0] for v in vias] + [top1]), ignore=ignore)
         a_poses, a_q = app[0][::-1], app[1][::-1]
@@ -276,6 +281,35 @@ def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore,
         branch = np.r_[np.full(nr, b0), [v[1] for v in vias], np.full(na, b1)].astype(int)
         after = np.r_[np.zeros(nr + nv, bool), np.ones(na, bool)]
         yield _Plan(poses, q, jm, via_flag, branch, after, sw, h if direct else 0.0, direction, nv)
+
+
+def _raised_joints(model, ref) -> np.ndarray:
+    """(2,) joints 2 and 3, rad, inside the limits, that put the wrist centre (the chain frame of joint 5)
+    within 20 mm of its highest above the base with joints 1, 4–6 at zero (a grid of about 5° steps),
+    the nearest to ``ref`` (2,) rad among them."""
+    lo, hi = model.lower[1:3], model.upper[1:3]
+    n = np.maximum(2, np.ceil((hi - lo) / math.radians(5.0)).astype(int) + 1)
+    a, b = np.meshgrid(np.linspace(lo[0], hi[0], n[0]), np.linspace(lo[1], hi[1], n[1]), indexing="ij")
+    q = np.zeros((a.size, model.chain.n_joints))
+    q[:, 1], q[:, 2] = a.ravel(), b.ravel()
+    z = model.chain.frames(q)[:, 4, 2, 3]
+    top = np.flatnonzero(z >= z.max() - 0.02)
+    k = top[int(np.argmin(np.abs(q[top, 1:3] - np.asarray(ref, dtype=float)).max(axis=1)))]
+    return q[k, 1:3]
+
+
+def _raised_via(model, cell, q0, q1):
+    """A joint-move via-point with the arm raised between ``q0`` and ``q1`` (6,) rad: joints 1 and 4–6
+    half-way, joints 2 and 3 at :func:`_raised_joints`; ``((q, branch slot),), tcp2part`` or None."""
+    if model.chain.n_joints != 6:
+        return None
+    q = 0.5 * (np.asarray(q0, dtype=float) + np.asarray(q1, dtype=float))
+    q[1:3] = _raised_joints(model, q[1:3])
+    tcp2part = cell.tcp2part(model.fk(q[None]))[0]
+    got = ik_near(model, cell, tcp2part, q, max_change=1e-6)
+    if got is None:
+        return None
+    return ((got[0], got[1]),), tcp2part
 
 
 def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, clearance: float,
