@@ -167,3 +167,35 @@ def test_a_change_where_the_old_configuration_cannot_retract_moves_into_a_gap():
     _, _, sweeps = clear_joint_moves(tr2, sol2, model, cell, check, clearance=0.02)
     changes = [s for s in sweeps if s.branch_change]
     assert len(changes) == 1 and changes[0].ok and changes[0].final.min_distance >= 0.02
+
+
+@pytest.mark.parametrize("robot", ["ur10e", "irb4600"])
+def test_the_raised_via_point_lifts_the_wrist_above_both_ends(robot):
+    """The via-point a shoulder or elbow change may pass through: joints 1, 4 and 6 half-way, the wrist
+    centre higher than at either end of the move, clear of the elbow singularity, inside the limits,
+    and a configuration the inverse kinematics gives back (its branch slot is the one written)."""
+    from swath.robot import Cell
+    from swath.robot.sweep import _raised_via
+
+    model = get_robot(robot)
+    rng = np.random.default_rng(3)
+    cell = Cell()
+    done = 0
+    for _ in range(20):
+        q0, q1 = rng.uniform(0.6 * model.lower, 0.6 * model.upper, size=(2, 6))
+        got = _raised_via(model, cell, q0, q1)
+        if got is None:
+            continue
+        (q, slot), = got[0]
+        assert np.allclose(q[[0, 3, 5]], 0.5 * (q0 + q1)[[0, 3, 5]], atol=1e-6)
+        z = model.chain.frames(np.array([q0, q1, q]))[:, 4, 2, 3]
+        bent = model.singularity_measures(np.array([q0, q1]))["elbow"] >= 0.3
+        # within the 50 mm band and the 5° grid's step (under 0.07 m at these reaches) of the highest
+        assert z[2] > max([z[k] for k in (0, 1) if bent[k]], default=-np.inf) - 0.12
+        assert z[2] > 0.5 * model.reach
+        assert model.singularity_measures(q[None])["elbow"][0] >= 0.3
+        assert np.all(q >= model.lower) and np.all(q <= model.upper)
+        back = model.ik(model.fk(q[None]))[0, slot]
+        assert np.allclose(np.cos(back), np.cos(q), atol=1e-6) and np.allclose(np.sin(back), np.sin(q), atol=1e-6)
+        done += 1
+    assert done >= 15

@@ -285,26 +285,36 @@ def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore,
 
 def _raised_joints(model, ref) -> np.ndarray:
     """(2,) joints 2 and 3, rad, inside the limits, that put the wrist centre (the chain frame of joint 5)
-    within 20 mm of its highest above the base with joints 1, 4–6 at zero (a grid of about 5° steps),
-    the nearest to ``ref`` (2,) rad among them."""
+    within 50 mm of its highest above the base with joints 1 and 4–6 at ``ref``'s, clear of the elbow
+    and shoulder singularities (|sin| of the elbow ≥ 0.3, the wrist centre ≥ 0.1 m off axis 1; a grid
+    of about 5° steps), the nearest to ``ref`` among them; ``ref[1:3]`` when none is."""
+    ref = np.asarray(ref, dtype=float)
     lo, hi = model.lower[1:3], model.upper[1:3]
     n = np.maximum(2, np.ceil((hi - lo) / math.radians(5.0)).astype(int) + 1)
     a, b = np.meshgrid(np.linspace(lo[0], hi[0], n[0]), np.linspace(lo[1], hi[1], n[1]), indexing="ij")
-    q = np.zeros((a.size, model.chain.n_joints))
+    q = np.tile(ref, (a.size, 1))
     q[:, 1], q[:, 2] = a.ravel(), b.ravel()
-    z = model.chain.frames(q)[:, 4, 2, 3]
-    top = np.flatnonzero(z >= z.max() - 0.02)
-    k = top[int(np.argmin(np.abs(q[top, 1:3] - np.asarray(ref, dtype=float)).max(axis=1)))]
+    m = model.singularity_measures(q)
+    ok = (m["elbow"] >= 0.3) & (m["shoulder_m"] >= 0.1)
+    if not ok.any():
+        return ref[1:3].copy()
+    z = np.where(ok, model.chain.frames(q)[:, 4, 2, 3], -np.inf)
+    top = np.flatnonzero(z >= z.max() - 0.05)
+    k = top[int(np.argmin(np.abs(q[top, 1:3] - ref[1:3]).max(axis=1)))]
     return q[k, 1:3]
 
 
 def _raised_via(model, cell, q0, q1):
-    """A joint-move via-point with the arm raised between ``q0`` and ``q1`` (6,) rad: joints 1 and 4–6
-    half-way, joints 2 and 3 at :func:`_raised_joints`; ``((q, branch slot),), tcp2part`` or None."""
+    """A joint-move via-point with the arm raised between ``q0`` and ``q1`` (6,) rad: joints 1, 4 and 6
+    half-way, joint 5 half-way unless that is near the wrist singularity (then ``q0``'s), joints 2 and 3
+    at :func:`_raised_joints`; ``((q, branch slot),), tcp2part`` or None."""
     if model.chain.n_joints != 6:
         return None
-    q = 0.5 * (np.asarray(q0, dtype=float) + np.asarray(q1, dtype=float))
-    q[1:3] = _raised_joints(model, q[1:3])
+    q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    q = 0.5 * (q0 + q1)
+    if abs(math.sin(q[4])) < 0.3:
+        q[4] = q0[4]
+    q[1:3] = _raised_joints(model, q)
     tcp2part = cell.tcp2part(model.fk(q[None]))[0]
     got = ik_near(model, cell, tcp2part, q, max_change=1e-6)
     if got is None:
