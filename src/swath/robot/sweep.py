@@ -265,13 +265,15 @@ def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore,
             chains.append(((via,), mid))
     # a change of shoulder or elbow swings the wrist past the shoulder and the tool down beside the part:
     # through the arm raised (joints 2 and 3 where the wrist centre is highest), the others half-way
-    raised = _raised_via(model, cell, top0, top1)
-    if raised is not None:
-        chains.append(raised)
+    # (and, that failing, raised with the start's wrist, then the wrist turned to the end's up there)
+    if _arm_changes(model, b0, b1):
+        chains += _raised_chains(model, cell, top0, top1)
     for vias, mid in chains:
         sw = check.sweep(np.array([top0] + [v[0] for v in vias] + [top1]), ignore=ignore)
         a_poses, a_q = app[0][::-1], app[1][::-1]
-        poses = np.concatenate([ret[0][1:]] + [mid[None]] * len(vias) + [a_poses[:-1]])
+        mids = np.reshape(mid, (-1, 4, 4))
+        poses = np.concatenate([ret[0][1:]] + [mids[min(k, len(mids) - 1)][None] for k in range(len(vias))]
+                               + [a_poses[:-1]])
         q = np.concatenate([ret[1][1:]] + [v[0][None] for v in vias] + [a_q[:-1]])
         nr, nv, na = len(ret[0]) - 1, len(vias), len(a_q) - 1
         # rows: the retract's (linear), the via-points and the approach's top (joint-move targets), the
@@ -304,6 +306,22 @@ def _raised_joints(model, ref) -> np.ndarray:
     return q[k, 1:3]
 
 
+def _arm_changes(model, b0: int, b1: int) -> bool:
+    """Whether branch ``b1`` differs from ``b0`` in more than the wrist (its name up to ``-wrist``)."""
+    names = model.branch_names
+    if not (0 <= b0 < len(names) and 0 <= b1 < len(names)):
+        return b0 != b1
+    return names[b0].split("-wrist")[0] != names[b1].split("-wrist")[0]
+
+
+def _slot(model, cell, q):
+    """``((q, branch slot), tcp2part)`` of joint values ``q`` (6,) rad, or None where the inverse
+    kinematics does not give them back (a singular configuration)."""
+    tcp2part = cell.tcp2part(model.fk(q[None]))[0]
+    got = ik_near(model, cell, tcp2part, q, max_change=1e-6)
+    return None if got is None else ((got[0], got[1]), tcp2part)
+
+
 def _raised_via(model, cell, q0, q1):
     """A joint-move via-point with the arm raised between ``q0`` and ``q1`` (6,) rad: joints 1, 4 and 6
     half-way, joint 5 half-way unless that is near the wrist singularity (then ``q0``'s), joints 2 and 3
@@ -315,11 +333,24 @@ def _raised_via(model, cell, q0, q1):
     if abs(math.sin(q[4])) < 0.3:
         q[4] = q0[4]
     q[1:3] = _raised_joints(model, q)
-    tcp2part = cell.tcp2part(model.fk(q[None]))[0]
-    got = ik_near(model, cell, tcp2part, q, max_change=1e-6)
-    if got is None:
-        return None
-    return ((got[0], got[1]),), tcp2part
+    got = _slot(model, cell, q)
+    return None if got is None else ((got[0],), got[1])
+
+
+def _raised_chains(model, cell, q0, q1) -> list:
+    """Via-point chains through the raised arm (:func:`_raised_via`): the one via-point, then two: the
+    arm raised with ``q0``'s wrist (joints 4–6), and the wrist turned to ``q1``'s up there."""
+    out = []
+    one = _raised_via(model, cell, q0, q1)
+    if one is not None:
+        out.append(one)
+        q_top = one[0][0][0]
+        first, second = q_top.copy(), q_top.copy()
+        first[3:], second[3:] = np.asarray(q0, dtype=float)[3:], np.asarray(q1, dtype=float)[3:]
+        a, b = _slot(model, cell, first), _slot(model, cell, second)
+        if a is not None and b is not None:
+            out.append(((a[0], b[0]), np.stack([a[1], b[1]])))
+    return out
 
 
 def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, clearance: float,
