@@ -339,14 +339,15 @@ def _raised_via(model, cell, q0, q1):
 
 def _raised_chains(model, cell, q0, q1) -> list:
     """Via-point chains through the raised arm (:func:`_raised_via`): the one via-point, then two: the
-    arm raised with ``q0``'s wrist (joints 4–6), and the wrist turned to ``q1``'s up there."""
+    arm raised with ``q0``'s joints 1 and 4–6, and turned to ``q1``'s up there (raise, turn, lower)."""
     out = []
     one = _raised_via(model, cell, q0, q1)
     if one is not None:
         out.append(one)
         q_top = one[0][0][0]
         first, second = q_top.copy(), q_top.copy()
-        first[3:], second[3:] = np.asarray(q0, dtype=float)[3:], np.asarray(q1, dtype=float)[3:]
+        keep = [0, 3, 4, 5]
+        first[keep], second[keep] = np.asarray(q0, dtype=float)[keep], np.asarray(q1, dtype=float)[keep]
         a, b = _slot(model, cell, first), _slot(model, cell, second)
         if a is not None and b is not None:
             out.append(((a[0], b[0]), np.stack([a[1], b[1]])))
