@@ -232,6 +232,13 @@ CODES: dict[str, WarningCode] = dict([
           "clearance, and no lift (a retract away from the part, with a raised via-point) tried kept it clear.",
           "Move the part (`--base`, or `--place`) so that one configuration serves the whole job, or give more "
           "room above the part.", "robot"),
+    entry("W-ROBOT-SWITCH-GAP", "",
+          "A configuration change came right where the old configuration could not retract from the part, or "
+          "an air link of the plan hit the table, a fixture or the robot itself; the end of the pass before the "
+          "change (or the air link) was replaced by a retract, a joint move at the clearance and an approach, and "
+          "coverage and removal are computed on what the robot runs.",
+          "Move the part (`--base`, or `--place`) so that one configuration serves the whole job; keep the air "
+          "links clear of fixtures.", "robot"),
     # --- the cell -------------------------------------------------------------------------------------------
     entry("W-CELL-DEFAULT-TOOL", "",
           "No tool was described: a 3-inch random-orbital sander (holder, spindle, 175 mm TCP) is assumed for "

@@ -264,3 +264,92 @@ def solution_after_split(solution, trajectory, q, src, model):
     clearance = None if solution.clearance is None else clearance_from_contact(trajectory)
     return replace(solution, q=q, branch=np.where(reach, branch, -1), reachable=reach, switches=switches,
                    stretches=[], measures=measures, warning=None, joint_move=joint_move, clearance=clearance)
+
+
+def _retracts(model, cell, pose, q, clearance: float) -> bool:
+    """Whether the TCP can go straight back along its tool axis by 2.5 ``clearance`` (m) from ``pose``
+    on the configuration ``q`` (no joint jumping): the gap's retract and room above it for the first
+    lifts of :func:`swath.robot.sweep.clear_joint_moves`."""
+    from .sweep import straight_line
+
+    return straight_line(model, cell, pose, -2.5 * clearance * pose[:3, 2], q) is not None
+
+
+def air_splits(trajectory, solution, model, cell, check, *, clearance: float, max_back: int = 400) -> tuple:
+    """Samples to run as a gap (retract, joint move, approach) instead of as planned, and why.
+
+    Two cases, both handed to :func:`split_unreachable` as if unreachable:
+
+    * **a low configuration change**: a branch change whose step comes within ``clearance`` of the
+      part where the old configuration cannot retract (it ends exactly where the pad leaves the pass)
+      or the new one cannot rise.  The samples back to the last one the old configuration can retract
+      from (at most ``max_back``, within its pass) and on to the first the new one can rise from are
+      dropped, so the change happens in the gap's joint move, at the clearance and checked along its sweep;
+    * **an air link that hits something** (the TCP under the table top beside the part, the arm
+      against itself): its colliding samples, and one either side, are dropped; the gap's joint move
+      goes over them at the clearance, lifted higher where its sweep still hits.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    solution : JointSolution
+    model : RobotModel
+    cell : Cell
+    check : SweepCheck
+        The job's collision scene.
+    clearance : float
+        m.
+    max_back : int
+        Samples of a pass given up at most to retract before a change.
+
+    Returns
+    -------
+    drop : (n,) bool
+        Samples to drop (besides the unreachable ones).
+    low_switches, air_hits : int
+        How many changes and colliding air links were turned into gaps.
+    """
+    n = len(trajectory)
+    drop = np.zeros(n, bool)
+    reach = np.asarray(solution.reachable, bool)
+    if n < 2 or not reach.any():
+        return drop, 0, 0
+    poses = poses_from_trajectory(trajectory)
+    on = np.asarray(trajectory.contact, bool) & (np.asarray(trajectory.pass_index) >= 0)
+    near = solution.clearance if solution.clearance is not None else np.zeros(n)
+    b = solution.branch
+    q = solution.q
+    low = 0
+    for j in (np.flatnonzero((b[1:] != b[:-1]) & (b[1:] >= 0) & (b[:-1] >= 0)) + 1).tolist():
+        if min(float(near[j - 1]), float(near[j])) >= clearance:
+            continue
+        a = j - 1
+        lo = max(0, j - 1 - max_back)
+        while a >= lo and reach[a] and b[a] == b[j - 1] and not _retracts(model, cell, poses[a], q[a], clearance):
+            a -= 1
+        e = j
+        hi = min(n, j + max_back)
+        while e < hi and reach[e] and b[e] == b[j] and not _retracts(model, cell, poses[e], q[e], clearance):
+            e += 1
+        if a == j - 1 and e == j:
+            continue                                  # both ends rise: the sweep's lift handles it
+        if a < lo or e >= hi or not reach[max(a, 0)] or not reach[min(e, n - 1)]:
+            continue                                  # no end to rise from: left to the sweep and its warning
+        drop[a + 1:e] = True
+        low += 1
+    # air samples (not in contact, reached, not dropped) whose configuration hits something
+    air = np.flatnonzero(~on & reach & ~drop)
+    hits_air = 0
+    if len(air):
+        frames = model.chain.frames(q[air])
+        hits = check.scene.check(frames)
+        from .collision import tcp_grazes_table
+
+        keep = tcp_grazes_table(hits.body_a, hits.body_b, hits.depth, invert=True)
+        bad = np.zeros(n, bool)
+        bad[air[np.unique(hits.pose[keep])]] = True
+        for r0, r1 in _runs(bad):
+            lo_, hi_ = max(int(r0) - 1, 0), min(int(r1) + 1, n)
+            drop[lo_:hi_] |= ~on[lo_:hi_]              # never a contact sample: the gap's ends stay on the passes
+            hits_air += 1
+    return drop, low, hits_air

@@ -357,7 +357,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     def score(x, y, yaw, rotation=0.0):
         part2base = part2base_of(x, y, yaw)
         tool = cell.tcp2flange @ make_transform(rot_z(rotation))
-        q, feas, _ = branch_table(part2base @ sample @ np.linalg.inv(tool), model, margins, same_pass=no_pass)
+        q, feas, _ = branch_table(part2base @ sample @ np.linalg.inv(tool), model, margins, same_pass=no_pass,
+                                  part2base=part2base)
         best = feas.sum(axis=0).argmax()
         ok = feas[:, best]
         manip = model.singularity_measures(q[ok, best])["manipulability"].mean() if ok.any() else 0.0

@@ -64,6 +64,10 @@ class Margins:
         of the collision check, :func:`swath.robot.collision.link_bodies`; the base column excepted)
         dip below it is not feasible, so the arm stays above the table (elbow up where the elbow
         would go down).  None (default): no floor.
+    arm_part : ArmPartCheck or None
+        The part for :class:`swath.robot.arm_part.ArmPartCheck`: a configuration that puts a link
+        capsule into the part is not feasible, so the branch chosen (and the placement searched)
+        keeps the arm out of it.  None (default): not checked.
     """
 
     wrist: float = math.sin(math.radians(5.0))
@@ -72,6 +76,7 @@ class Margins:
     joint_limit: float = 0.0
     max_step: float = 0.5
     floor_z: float | None = None
+    arm_part: object | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -176,7 +181,8 @@ def segments(trajectory) -> list[tuple[int, int, bool]]:
     return out
 
 
-def branch_table(flange2base, model: RobotModel, margins: Margins | None = None, *, seed=None, same_pass=None):
+def branch_table(flange2base, model: RobotModel, margins: Margins | None = None, *, seed=None, same_pass=None,
+                 part2base=None):
     """Every branch's unwrapped joint values and feasibility along a pose sequence.
 
     Parameters
@@ -191,6 +197,8 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         True where sample i and i−1 belong to one contact pass; only there does a step larger than
         ``margins.max_step`` count as a jump (on air links a large joint move is a real motion,
         e.g. the tool turning round between passes).  Default: everywhere.
+    part2base : (4, 4) float, optional
+        The part's placement, m, for ``margins.arm_part`` (default identity).
 
     Returns
     -------
@@ -199,7 +207,7 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
     feasible : (n, B) bool
     reason : (n, B) int
         0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump, 5 the arm below
-        ``margins.floor_z``.
+        ``margins.floor_z``, 6 the arm in the part (``margins.arm_part``).
     """
     margins = Margins() if margins is None else margins
     raw = model.ik(flange2base, seed=seed)
@@ -249,6 +257,13 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         low = np.zeros(len(flat), bool)
         low[valid] = arm_below(model, flat[valid], margins.floor_z)
         reason = np.where((reason == 0) & low.reshape(n, nb), 5, reason)
+    if margins.arm_part is not None:
+        todo = (reason == 0).reshape(-1)
+        inside = np.zeros(len(flat), bool)
+        if todo.any():
+            at = np.eye(4) if part2base is None else part2base
+            inside[todo] = margins.arm_part.hits(flat[todo], at)  # type: ignore[attr-defined]
+        reason = np.where(inside.reshape(n, nb), 6, reason)
     reason = np.where((reason == 0) & jumps, 4, reason)
     return q, reason == 0, reason
 
@@ -276,7 +291,7 @@ def arm_below(model: RobotModel, q, floor_z: float, *, chunk: int = 20000) -> np
 
 _REASONS = {1: "no inverse-kinematics solution (out of reach)", 2: "outside the joint limits",
             3: "too close to a singularity", 4: "a joint would jump between samples",
-            5: "the arm would dip into the table"}
+            5: "the arm would dip into the table", 6: "the arm would hit the part"}
 
 
 def _run_lengths(feasible: np.ndarray) -> np.ndarray:
@@ -517,7 +532,8 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
     n = len(trajectory)
     same_pass = np.zeros(n, bool)
     same_pass[1:] = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0)
-    q_all, feasible, reason = branch_table(flange, model, margins, seed=seed, same_pass=same_pass)
+    q_all, feasible, reason = branch_table(flange, model, margins, seed=seed, same_pass=same_pass,
+                                          part2base=cell.part2base)
     clearance = clearance_from_contact(trajectory)
     branch = choose_branches(feasible, segs, clearance)
     rows = np.arange(n)

@@ -162,6 +162,11 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     say = progress or (lambda message, done, total: None)
     # with the part's mesh and a table (given, or assumed under the part's lowest point), the arm stays above it
     on_table = surface is not None and margins.floor_z is None and (cell.table is not None or cell.auto_table)
+    if surface is not None and margins.arm_part is None:
+        from .arm_part import ArmPartCheck
+
+        # the branches and the placement keep the arm's links out of the part
+        margins = replace(margins, arm_part=ArmPartCheck(model, surface.vertices, surface.faces))
     if place:
         floor = (cell.table.top_z if cell.table is not None else table_z) if on_table else None
         placement = search_placement(trajectory, model, cell, table_z=table_z, keep_out=keep_out,
@@ -182,18 +187,33 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     solution = solve_trajectory(trajectory, model, cell, margins=margins, strict=strict, warn=False)
     first_warning, gaps, n_unreachable = solution.warning, [], int((~solution.reachable).sum())
     n_planned, planned_fraction, planned_stretches = len(trajectory), solution.reachable_fraction, len(solution.stretches)
-    if split_gaps and n_unreachable and solution.reachable.any():
+    check = None
+    n_low, n_air = 0, 0
+    if surface is not None:
+        from .sweep import SweepCheck
+
+        check = SweepCheck(model, cell, np.asarray(surface.vertices), np.asarray(surface.faces))
+        if split_gaps and solution.reachable.any():
+            from .gaps import air_splits
+
+            # configuration changes too low to retract from, and air links that hit something, become gaps
+            drop, n_low, n_air = air_splits(trajectory, solution, model, cell, check, clearance=clearance)
+            if drop.any():
+                solution = replace(solution, reachable=solution.reachable & ~drop,
+                                   q=np.where(drop[:, None], np.nan, solution.q),
+                                   branch=np.where(drop, -1, solution.branch))
+    n_dropped = int((~solution.reachable).sum())
+    if split_gaps and n_dropped and solution.reachable.any():
         from .gaps import solution_after_split, split_unreachable
 
-        say(f"robot: {n_unreachable} unreachable poses become air moves (retract, joint move, approach)", 0, 1)
+        say(f"robot: {n_dropped} poses become air moves (retract, joint move, approach)", 0, 1)
         trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
         solution = solution_after_split(solution, trajectory, q_moves, src, model)
     sweeps = None
-    if surface is not None and solution.joint_moves.any():
-        from .sweep import SweepCheck, clear_joint_moves
+    if check is not None and solution.joint_moves.any():
+        from .sweep import clear_joint_moves
 
         say(f"robot: {int(solution.joint_moves.sum())} joint moves checked along their sweep", 0, 1)
-        check = SweepCheck(model, cell, np.asarray(surface.vertices), np.asarray(surface.faces))
         trajectory, solution, sweeps = clear_joint_moves(trajectory, solution, model, cell, check, clearance=clearance)
     t_ik = time.perf_counter() - t0
     retimed, solution, rt = retime_and_resample(trajectory, solution, model, cell)
@@ -218,6 +238,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         "min_joint_limit_margin_rad": float(np.nanmin(meas["joint_limit_margin_rad"])) if len(idx) else float("nan"),
         "min_wrist_sin": float(np.nanmin(meas["wrist"])) if len(idx) else float("nan"),
         "n_unreachable_poses": n_unreachable, "n_gaps": len(gaps),
+        "n_low_switch_gaps": n_low, "n_air_collision_gaps": n_air,
         "gap_contact_length_m": float(sum(g.contact_length for g in gaps)),
         "gaps": [g.as_record() for g in gaps],
         **cell.as_record(),
@@ -328,6 +349,12 @@ def robot_warnings(solution: JointSolution, metrics: dict, *, first_warning: str
     elif sentence:
         out.append(f"robot: {sentence} The programs leave these samples out, so the robot moves straight "
                    "across them.")
+    low, air = int(metrics.get("n_low_switch_gaps", 0)), int(metrics.get("n_air_collision_gaps", 0))
+    if low or air:
+        out.append(f"robot: {low} configuration change(s) the old configuration could not retract from, and {air} "
+                   "air link(s) that hit the cell or the robot, run as gaps instead (retract, joint move at the "
+                   "clearance, approach); coverage and removal are computed on what the robot runs "
+                   "[W-ROBOT-SWITCH-GAP]")
     flips = int(metrics.get("configuration_flips_in_passes", 0))
     if flips:
         out.append(f"robot: the arm changes configuration {flips} time(s) inside a contact pass ({metrics['robot']}), "

@@ -263,10 +263,17 @@ def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore,
         via = ik_near(model, cell, mid, 0.5 * (top0 + top1), max_change=math.pi)
         if via is not None:
             chains.append(((via,), mid))
+    # a change of shoulder or elbow swings the wrist past the shoulder and the tool down beside the part:
+    # through the arm raised (joints 2 and 3 where the wrist centre is highest), the others half-way
+    # (and, that failing, raised with the start's wrist, then the wrist turned to the end's up there)
+    if _arm_changes(model, b0, b1):
+        chains += _raised_chains(model, cell, top0, top1)
     for vias, mid in chains:
         sw = check.sweep(np.array([top0] + [v[0] for v in vias] + [top1]), ignore=ignore)
         a_poses, a_q = app[0][::-1], app[1][::-1]
-        poses = np.concatenate([ret[0][1:]] + [mid[None]] * len(vias) + [a_poses[:-1]])
+        mids = np.reshape(mid, (-1, 4, 4))
+        poses = np.concatenate([ret[0][1:]] + [mids[min(k, len(mids) - 1)][None] for k in range(len(vias))]
+                               + [a_poses[:-1]])
         q = np.concatenate([ret[1][1:]] + [v[0][None] for v in vias] + [a_q[:-1]])
         nr, nv, na = len(ret[0]) - 1, len(vias), len(a_q) - 1
         # rows: the retract's (linear), the via-points and the approach's top (joint-move targets), the
@@ -276,6 +283,75 @@ def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore,
         branch = np.r_[np.full(nr, b0), [v[1] for v in vias], np.full(na, b1)].astype(int)
         after = np.r_[np.zeros(nr + nv, bool), np.ones(na, bool)]
         yield _Plan(poses, q, jm, via_flag, branch, after, sw, h if direct else 0.0, direction, nv)
+
+
+def _raised_joints(model, ref) -> np.ndarray:
+    """(2,) joints 2 and 3, rad, inside the limits, that put the wrist centre (the chain frame of joint 5)
+    within 50 mm of its highest above the base with joints 1 and 4–6 at ``ref``'s, clear of the elbow
+    and shoulder singularities (|sin| of the elbow ≥ 0.3, the wrist centre ≥ 0.1 m off axis 1; a grid
+    of about 5° steps), the nearest to ``ref`` among them; ``ref[1:3]`` when none is."""
+    ref = np.asarray(ref, dtype=float)
+    lo, hi = model.lower[1:3], model.upper[1:3]
+    n = np.maximum(2, np.ceil((hi - lo) / math.radians(5.0)).astype(int) + 1)
+    a, b = np.meshgrid(np.linspace(lo[0], hi[0], n[0]), np.linspace(lo[1], hi[1], n[1]), indexing="ij")
+    q = np.tile(ref, (a.size, 1))
+    q[:, 1], q[:, 2] = a.ravel(), b.ravel()
+    m = model.singularity_measures(q)
+    ok = (m["elbow"] >= 0.3) & (m["shoulder_m"] >= 0.1)
+    if not ok.any():
+        return ref[1:3].copy()
+    z = np.where(ok, model.chain.frames(q)[:, 4, 2, 3], -np.inf)
+    top = np.flatnonzero(z >= z.max() - 0.05)
+    k = top[int(np.argmin(np.abs(q[top, 1:3] - ref[1:3]).max(axis=1)))]
+    return q[k, 1:3]
+
+
+def _arm_changes(model, b0: int, b1: int) -> bool:
+    """Whether branch ``b1`` differs from ``b0`` in more than the wrist (its name up to ``-wrist``)."""
+    names = model.branch_names
+    if not (0 <= b0 < len(names) and 0 <= b1 < len(names)):
+        return b0 != b1
+    return names[b0].split("-wrist")[0] != names[b1].split("-wrist")[0]
+
+
+def _slot(model, cell, q):
+    """``((q, branch slot), tcp2part)`` of joint values ``q`` (6,) rad, or None where the inverse
+    kinematics does not give them back (a singular configuration)."""
+    tcp2part = cell.tcp2part(model.fk(q[None]))[0]
+    got = ik_near(model, cell, tcp2part, q, max_change=1e-6)
+    return None if got is None else ((got[0], got[1]), tcp2part)
+
+
+def _raised_via(model, cell, q0, q1):
+    """A joint-move via-point with the arm raised between ``q0`` and ``q1`` (6,) rad: joints 1, 4 and 6
+    half-way, joint 5 half-way unless that is near the wrist singularity (then ``q0``'s), joints 2 and 3
+    at :func:`_raised_joints`; ``((q, branch slot),), tcp2part`` or None."""
+    if model.chain.n_joints != 6:
+        return None
+    q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    q = 0.5 * (q0 + q1)
+    if abs(math.sin(q[4])) < 0.3:
+        q[4] = q0[4]
+    q[1:3] = _raised_joints(model, q)
+    got = _slot(model, cell, q)
+    return None if got is None else ((got[0],), got[1])
+
+
+def _raised_chains(model, cell, q0, q1) -> list:
+    """Via-point chains through the raised arm (:func:`_raised_via`): the one via-point, then two: the
+    arm raised with ``q0``'s joints 1 and 4–6, and turned to ``q1``'s up there (raise, turn, lower)."""
+    out = []
+    one = _raised_via(model, cell, q0, q1)
+    if one is not None:
+        out.append(one)
+        q_top = one[0][0][0]
+        first, second = q_top.copy(), q_top.copy()
+        keep = [0, 3, 4, 5]
+        first[keep], second[keep] = np.asarray(q0, dtype=float)[keep], np.asarray(q1, dtype=float)[keep]
+        a, b = _slot(model, cell, first), _slot(model, cell, second)
+        if a is not None and b is not None:
+            out.append(((a[0], b[0]), np.stack([a[1], b[1]])))
+    return out
 
 
 def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, clearance: float,
