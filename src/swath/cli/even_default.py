@@ -168,7 +168,7 @@ def even_metrics(settings, removal, trajectory, figures: dict, tool) -> dict:
     out["target_depth_m"] = settings.target_depth
     out["cycle_time_allowed_ratio"] = settings.cycle_time_factor
     const = figures.get("constant_feed_cycle_time_s")
-    if const and not figures.get("plain_plan_kept"):
+    if const and (figures.get("plain_feed_optimised") or not figures.get("plain_plan_kept")):
         out["cycle_time_ratio"] = float(trajectory.duration / const)
     mean = interior_mean(removal, tool.pad_radius)
     out["interior_removal_mean_m"] = mean
@@ -185,12 +185,16 @@ def summary_line(m: dict) -> str:
     """The CLI's line on the even-removal default (from :func:`even_metrics`), or ``""``."""
     if not m.get("even_removal_default"):
         return ""
-    if m.get("plain_plan_kept"):
+    if m.get("plain_plan_kept") and not m.get("plain_feed_optimised"):
         return (f"  even removal (default): the plain plan removes more evenly here (interior CoV "
                 f"{m['plain_interior_removal_cov']:.3f} against {m['even_plan_interior_removal_cov']:.3f}) and is "
                 f"written; {m['length_ratio']:.2f} L*")
     target = m.get("target_depth_m")
-    parts = ["  even removal (default; --constant-feed for a plain plan): target depth "
+    lead = ("" if not m.get("plain_plan_kept") else
+            f"  even removal (default): the plain plan's passes remove more evenly here than the least-ripple "
+            f"spacing (interior CoV {m['plain_interior_removal_cov']:.3f} against "
+            f"{m['even_plan_interior_removal_cov']:.3f} at constant feed); the feed is optimised along them\n")
+    parts = [lead + "  even removal (default; --constant-feed for a plain plan): target depth "
              + (f"{target * 1e6:.3g} um" if target else "from the target map")]
     if m.get("cycle_time_ratio") is not None:
         parts.append(f", cycle time {m['cycle_time_ratio']:.2f}x the constant feed's "
@@ -220,10 +224,10 @@ def keep_evener(trajectory, removal, feed, even: dict):
     if not optimised > plain:
         return trajectory, removal, feed
     even["constant_feed_kept"] = True
-    even["warnings"] = [(
+    even.setdefault("warnings", []).append(
         f"even removal: the optimised feed removes less evenly (interior CoV {optimised:.3f}) than the same passes at "
         f"constant feed ({plain:.3f}) in the simulation, so the constant-feed trajectory is written: the part's "
-        "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")]
+        "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")
     return constant_trajectory, constant_removal, None
 
 
@@ -252,11 +256,12 @@ def plain_run(surface, tool, plain, *, part=None) -> tuple:
     return toolpath, trajectory, removal
 
 
-def plain_if_evener(run: tuple, removal, even: dict):
+def plain_if_evener(run: tuple, removal, even: dict, *, feed_follows: bool = False):
     """``run`` (the plain plan's ``(toolpath, trajectory, removal)``, :func:`plain_run`) when it removes
     more evenly on the interior than the default job's ``removal``, else None.  The figures go into
     ``even`` (``plain_interior_removal_cov``, ``plain_cycle_time_s``, ``even_plan_interior_removal_cov``,
-    ``plain_plan_kept``), with a warning when the plain plan is kept.
+    ``plain_plan_kept``), with a warning when the plain plan is kept (``feed_follows``: its feed is
+    optimised next, as the job does when the comparison is made at constant feed).
 
     The least-ripple spacing is worked out on the part's representative curvature
     (:mod:`swath.cli.curved_spacing`); where the curvature varies over the part, or a scan's
@@ -273,6 +278,9 @@ def plain_if_evener(run: tuple, removal, even: dict):
     even["warnings"] = warnings
     warnings.append(f"even removal: the plain plan (covering spacing, flat pad, constant feed) removes more evenly on "
                     f"this part (interior CoV {cov_plain:.3f}) than the least-ripple spacing with the lead "
-                    f"({cov_even:.3f}) in the simulation, so the plain plan is written: the spacing worked out on the "
-                    "part's representative curvature does not fit it everywhere [W-EVEN-PLAIN-KEPT]")
+                    f"({cov_even:.3f}) in the simulation, so the plain plan's passes are written"
+                    + (" (the feed then optimised along them, kept where the simulation finds it evener)"
+                       if feed_follows else "")
+                    + ": the spacing worked out on the part's representative curvature does not fit it everywhere "
+                    "[W-EVEN-PLAIN-KEPT]")
     return run

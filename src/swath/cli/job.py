@@ -420,8 +420,13 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,
                                                                           surface, even, progress=say,
                                                                           plain=plain_run)
-        if even is not None and even.get("plain_plan_kept"):      # the plain plan, not the feed, is written
-            (toolpath, trajectory, _), settings = even.pop("_plain"), replace(plain, constant_feed=False)
+        if even is not None and even.get("plain_plan_kept"):      # the plain plan's passes are written ...
+            (toolpath, trajectory, plain_removal), settings = even.pop("_plain"), replace(plain, constant_feed=False)
+            # ... with the feed optimised along them: where the curvature changes the contact width along a
+            # pass, the feed follows it (blade: interior CoV 0.66 -> 0.57 at 1.4x the cycle time)
+            settings = replace(settings, optimise_feed=True, target_floor="fastest")
+            settings, trajectory, feed, feed_metrics = stages.even_feed_stage(
+                toolpath, tool, settings, trajectory, surface, even, progress=say, constant=plain_removal)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
     if process_stage.wants_wear_stage(tool, settings):
@@ -458,6 +463,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if even is not None and "_constant" in even and force is None and robot is None \
             and wear_and_holds["rate_scale"] is None:
         trajectory, removal, feed = even_default.keep_evener(trajectory, removal, feed, even)
+        if even.get("plain_plan_kept") and feed is not None:
+            even["plain_feed_optimised"] = True
         if "_plain" in even:
             kept = even_default.plain_if_evener(even.pop("_plain"), removal, even)
             if kept is not None:

@@ -310,7 +310,8 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None
     return timed, result, metrics
 
 
-def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | None, progress=None, plain=None):
+def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | None, progress=None, plain=None,
+                    constant=None):
     """The job's feed stage (:func:`feed_stage`), choosing the target depth first when the job
     leaves it to the even-removal default (:mod:`swath.cli.even_default`).
 
@@ -324,9 +325,11 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     ``plain`` (a callable returning the plain plan's ``(toolpath, trajectory, removal)``,
     :func:`~swath.cli.even_default.plain_run`) is run after the constant-feed simulation: when the
     plain plan already removes more evenly than these passes at constant feed, the feed is not
-    optimised (``even["plain_plan_kept"]``; measured on the panel, the blade and the scans, the
-    optimised feed then never caught up with it); else it is kept in ``even["_plain"]`` for the
-    job's comparison after the final simulation.
+    optimised on these passes (``even["plain_plan_kept"]``; measured on the panel, the blade and the
+    scans, it then never caught up with it): the job optimises the feed on the plain plan's passes
+    instead; else it is kept in ``even["_plain"]`` for the
+    job's comparison after the final simulation.  ``constant``: the removal of ``trajectory``,
+    when already simulated.
 
     Returns
     -------
@@ -344,15 +347,16 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
         say("optimising the feed (dwell) to the target depth", 0, 1)
         return (settings, *feed_stage(toolpath, tool, settings, trajectory, surface, progress=say))
     factor = settings.cycle_time_factor
-    say("simulating the passes at constant feed (to choose the target depth)", 0, 1)
-    constant = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
-                                sampling=settings.removal_sampling)
+    if constant is None:
+        say("simulating the passes at constant feed (to choose the target depth)", 0, 1)
+        constant = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
+                                    sampling=settings.removal_sampling)
     depth, figures = even_default.choose_target_depth(constant, trajectory.duration, factor, tool.pad_radius)
     even.update(figures)
     if plain is not None:
         say("planning the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
         run = plain()
-        if even_default.plain_if_evener(run, constant, even) is not None:
+        if even_default.plain_if_evener(run, constant, even, feed_follows=True) is not None:
             even["_plain"] = run
             return settings, trajectory, None, {}
         even["_plain"] = run
@@ -363,9 +367,9 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
         timed, result, metrics = feed_stage(toolpath, tool, replace(settings, feed_simulate_check=False), trajectory,
                                             surface, progress=say, rounds=DEFAULT_JOB_FEED_ROUNDS)
     except InfeasibleError as exc:        # the default's own target: the plain plan, said, rather than no plan
-        even["warnings"] = [(
+        even.setdefault("warnings", []).append(
             f"even removal: the feed could not be optimised to the default target {depth * 1e6:.3g} um ({exc}); the "
-            "same passes are written at constant feed [W-EVEN-FEED-WORSE]")]
+            "same passes are written at constant feed [W-EVEN-FEED-WORSE]")
         even["constant_feed_kept"] = True
         return settings, trajectory, None, {}
     reached = timed.duration / trajectory.duration
