@@ -42,6 +42,12 @@ def _skeleton(node, names: dict) -> str | None:
 WARNING_LISTS = ("warnings",)
 
 
+def _setdefault_of_warnings(node) -> bool:
+    """Whether ``node`` is ``something.setdefault("warnings", ...)`` (a job's warning list made on first use)."""
+    return (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "setdefault"
+            and bool(node.args) and isinstance(node.args[0], ast.Constant) and node.args[0].value in WARNING_LISTS)
+
+
 def _warning_texts() -> list[tuple[str, str]]:
     """``(where, text)`` of every warning in the library's source."""
     found = []
@@ -73,7 +79,8 @@ def _warning_texts() -> list[tuple[str, str]]:
                         found.append((where, text))
                 elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
                         and node.func.attr == "append" and node.args and (lists_of_warnings or (
-                            isinstance(node.func.value, ast.Name) and node.func.value.id in WARNING_LISTS)):
+                            isinstance(node.func.value, ast.Name) and node.func.value.id in WARNING_LISTS)
+                            or _setdefault_of_warnings(node.func.value)):
                     text = _skeleton(node.args[0], names)
                     if text is not None:
                         found.append((where, text))

@@ -224,10 +224,11 @@ def keep_evener(trajectory, removal, feed, even: dict):
     if not optimised > plain:
         return trajectory, removal, feed
     even["constant_feed_kept"] = True
-    even.setdefault("warnings", []).append(
+    message = (
         f"even removal: the optimised feed removes less evenly (interior CoV {optimised:.3f}) than the same passes at "
         f"constant feed ({plain:.3f}) in the simulation, so the constant-feed trajectory is written: the part's "
         "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")
+    even.setdefault("warnings", []).append(message)
     return constant_trajectory, constant_removal, None
 
 

@@ -470,7 +470,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             if kept is not None:
                 (toolpath, trajectory, removal), feed, settings = kept, None, replace(plain, constant_feed=False)
     if even is not None:
-        even.pop("_plain", None)
+        even.pop("_plain", None)                 # the comparisons not made (a robot, force or wear stage re-timed)
+        even.pop("_constant", None)
         if feed is None:                              # the feed figures describe a trajectory not written
             extra_metrics = {k: v for k, v in extra_metrics.items() if not k.startswith("feed_")}
     if force is not None and len(force.holds.get("dwell", ())):

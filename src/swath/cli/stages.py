@@ -367,9 +367,9 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
         timed, result, metrics = feed_stage(toolpath, tool, replace(settings, feed_simulate_check=False), trajectory,
                                             surface, progress=say, rounds=DEFAULT_JOB_FEED_ROUNDS)
     except InfeasibleError as exc:        # the default's own target: the plain plan, said, rather than no plan
-        even.setdefault("warnings", []).append(
-            f"even removal: the feed could not be optimised to the default target {depth * 1e6:.3g} um ({exc}); the "
-            "same passes are written at constant feed [W-EVEN-FEED-WORSE]")
+        message = (f"even removal: the feed could not be optimised to the default target {depth * 1e6:.3g} um ({exc}); "
+                   "the same passes are written at constant feed [W-EVEN-FEED-WORSE]")
+        even.setdefault("warnings", []).append(message)
         even["constant_feed_kept"] = True
         return settings, trajectory, None, {}
     reached = timed.duration / trajectory.duration
