@@ -306,22 +306,33 @@ def accumulate_removal(grid: SampleGrid, positions: np.ndarray, axes: np.ndarray
     speed = float(tool.spindle_speed if rotary else tool.spindle_speed * tool.orbit_radius)
     R = float(tool.pad_radius)
 
-    def run(t: int) -> None:
-        lo, hi = t * P // len(out), (t + 1) * P // len(out)
-        if hi > lo:
-            _removal(grid.points, grid.normals, grid.areas, grid.origin, grid.cell, grid.dims, grid.start,
-                     positions[lo:hi], axes[lo:hi], target[lo:hi], weight[lo:hi], float(tool.k),
-                     float(tool.preston), rotary, speed, R, BALL * R, out[t], sinks[lo:hi])
+    def run(t: int, lo: int, hi: int) -> None:
+        _removal(grid.points, grid.normals, grid.areas, grid.origin, grid.cell, grid.dims, grid.start,
+                 positions[lo:hi], axes[lo:hi], target[lo:hi], weight[lo:hi], float(tool.k),
+                 float(tool.preston), rotary, speed, R, BALL * R, out[t], sinks[lo:hi])
 
-    if len(out) == 1 or P < 2 * len(out):
-        for t in range(len(out)):
-            run(t)
-    elif executor is not None:
-        list(executor.map(run, range(len(out))))
-    else:
-        with ThreadPoolExecutor(max_workers=min(len(out), default_threads())) as pool:
-            list(pool.map(run, range(len(out))))
+    run_over_accumulators(run, P, len(out), executor)
     return out, sinks
+
+
+def run_over_accumulators(run, n_poses: int, n_accumulators: int, executor=None) -> None:
+    """Call ``run(t, lo, hi)`` for each accumulator ``t`` with its share ``lo:hi`` of the poses, on
+    threads (``executor``, or a pool of :func:`default_threads`) when there are enough poses.
+
+    Each accumulator is written by one call only, so the threads never share an array."""
+    def one(t: int) -> None:
+        lo, hi = t * n_poses // n_accumulators, (t + 1) * n_poses // n_accumulators
+        if hi > lo:
+            run(t, lo, hi)
+
+    if n_accumulators == 1 or n_poses < 2 * n_accumulators:
+        for t in range(n_accumulators):
+            one(t)
+    elif executor is not None:
+        list(executor.map(one, range(n_accumulators)))
+    else:
+        with ThreadPoolExecutor(max_workers=min(n_accumulators, default_threads())) as pool:
+            list(pool.map(one, range(n_accumulators)))
 
 
 def depth_in_input_order(grid: SampleGrid, out: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..errors import InputError
-from .kernels import BALL, SampleGrid, _buffers, _gather, default_threads, jit
+from .kernels import BALL, SampleGrid, _buffers, _gather, jit, run_over_accumulators
 from .tool import Tool
 
 #: Three-point Gauss-Legendre nodes on [0, 1] and their weights (sum 1).
@@ -300,22 +300,13 @@ def accumulate_swept_removal(grid: SampleGrid, positions: np.ndarray, axes: np.n
     speed = float(tool.spindle_speed if rotary else tool.spindle_speed * tool.orbit_radius)
     R = float(tool.pad_radius)
 
-    def run(t: int) -> None:
-        lo, hi = t * P // len(out), (t + 1) * P // len(out)
-        if hi > lo:
-            _swept_removal(grid.points, grid.normals, grid.areas, grid.origin, grid.cell, grid.dims, grid.start,
-                           positions[lo:hi], axes[lo:hi], stretch[lo:hi], reach[lo:hi], target[lo:hi],
-                           weight[lo:hi], float(tool.k), float(tool.preston), rotary, speed, R, BALL * R, out[t],
-                           sinks[lo:hi])
+    def run(t: int, lo: int, hi: int) -> None:
+        _swept_removal(grid.points, grid.normals, grid.areas, grid.origin, grid.cell, grid.dims, grid.start,
+                       positions[lo:hi], axes[lo:hi], stretch[lo:hi], reach[lo:hi], target[lo:hi],
+                       weight[lo:hi], float(tool.k), float(tool.preston), rotary, speed, R, BALL * R, out[t],
+                       sinks[lo:hi])
 
-    if len(out) == 1 or P < 2 * len(out):
-        for t in range(len(out)):
-            run(t)
-    elif executor is not None:
-        list(executor.map(run, range(len(out))))
-    else:
-        with ThreadPoolExecutor(max_workers=min(len(out), default_threads())) as pool:
-            list(pool.map(run, range(len(out))))
+    run_over_accumulators(run, P, len(out), executor)
     return sinks
 
 
