@@ -330,7 +330,13 @@ def test_shared_meshes_at_every_spacing(name):
         tp = raster(s, TOOL, spacing=spacing, point_spacing=5e-3)
         m = tp.metadata
         assert m["spacing_m"] == spacing and m["n_passes"] == len(tp.passes) >= 1
-        assert m["n_planes"] == max(math.ceil(np.ptp(s.vertices @ np.array(m["cross_direction"])) / spacing), 1)
+        # a given spacing is measured on the surface across the passes: each piece's extent there is
+        # at least its extent along the cross direction
+        extents = m["plane_extent_m"]
+        assert m["spacing_on"] == "surface" and len(extents) == m["n_pieces"]
+        assert m["n_planes"] == sum(max(math.ceil(e / spacing), 1) for e in extents)
+        if m["n_pieces"] == 1:
+            assert extents[0] >= np.ptp(s.vertices @ np.array(m["cross_direction"])) * (1 - 1e-12)
         for key in ("angle_rad", "feed_direction", "dropped_fragments", "point_spacing_m", "spacing_rule"):
             assert key in m
         check_toolpath(s, tp, 5e-3)
@@ -338,8 +344,10 @@ def test_shared_meshes_at_every_spacing(name):
 
 def test_wavy_mesh_drops_short_fragments_and_counts_them():
     s = load_shared("noether_wavy_mesh_with_hole.ply")
-    a = raster(s, TOOL, spacing=0.02, point_spacing=5e-3, direction=0.0, fill_gaps=False)
-    b = raster(s, TOOL, spacing=0.02, point_spacing=5e-3, min_pass_length=0.0, direction=0.0, fill_gaps=False)
+    # planes 20 mm apart along the cross direction, where a plane grazes the hole's rim
+    a = raster(s, TOOL, spacing=0.02, point_spacing=5e-3, direction=0.0, fill_gaps=False, spacing_on="projection")
+    b = raster(s, TOOL, spacing=0.02, point_spacing=5e-3, min_pass_length=0.0, direction=0.0, fill_gaps=False,
+               spacing_on="projection")
     assert a.metadata["min_pass_length_m"] == pytest.approx(R / 4)
     assert a.metadata["dropped_fragments"] >= 1 and b.metadata["dropped_fragments"] == 0
     assert len(b.passes) == len(a.passes) + a.metadata["dropped_fragments"]

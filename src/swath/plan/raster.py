@@ -34,7 +34,7 @@ AUTO_ANGLES = (0.0, math.pi / 4, math.pi / 2, 3 * math.pi / 4)
 
 def raster(surface, tool, *, spacing: float | None = None, direction=None, point_spacing: float = 1e-3,
            min_pass_length: float | None = None, cross_direction=None, fill_gaps: bool | None = None,
-           edge_margin: float | None = None, progress=None) -> ToolPath:
+           edge_margin: float | None = None, spacing_on: str | None = None, progress=None) -> ToolPath:
     """Cover a surface with parallel plane slices, visited in snake order.
 
     Parameters
@@ -80,8 +80,8 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         surface it leaves untouched is measured the same way, in ``predicted_gap_fraction``, with a
         warning in ``metadata["warnings"]`` above :data:`GAP_WARN_SHARE`.
     edge_margin : float, optional
-        Least distance (m, along the cross direction) from each piece's extent to its outermost
-        planes.  None (default): the planes keep ``spacing`` and the margin is what is left,
+        Least distance (m, along the cross direction or on the surface, as ``spacing_on`` says)
+        from each piece's extent to its outermost planes.  None (default): the planes keep ``spacing`` and the margin is what is left,
         anywhere in ``(0, spacing / 2]`` — on the flat plate with a rotary pad at its least-ripple
         spacing 6.5 mm, the pad more than half off the part.  Given: where the margin left would
         be smaller, the outermost planes move in to ``edge_margin`` (at most half the spacing of
@@ -89,6 +89,15 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         spread evenly between them (spacing below ``spacing``: same contact length, the edge no
         farther from a pass than the middle between two passes); ``math.inf`` spreads the planes
         evenly over every piece.  See :func:`plane_offsets` for what it did to the removal.
+    spacing_on : {"surface", "projection"}, optional
+        Where ``spacing`` (and ``edge_margin``) is measured.  ``"surface"``: on the surface across
+        the passes, the planes placed at equal steps of the mean surface distance between them
+        (:func:`swath.plan.surface_planes.surface_plane_offsets`), so on a part sloping by θ across
+        the passes they lie ``spacing`` apart there, not ``spacing / cos θ``.  ``"projection"``:
+        along the cross direction, equally spaced planes.  None (default): ``"surface"`` for a
+        given ``spacing``, ``"projection"`` for the default covering spacing (worked out in
+        projection: the chord times the slope factor).  The same planes on a part flat across the
+        passes.
     progress : callable, optional
         Unused (raster is fast); accepted so every planner has the same call shape.
 
@@ -107,7 +116,8 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         largest margin of any piece), spacing_rule, edge_rule (how ``edge_margin`` placed the
         outer planes), plane_spacing_m (per piece,
         the mean distance between its planes, below spacing_m where ``edge_margin`` moved them),
-        predicted_gap_fraction (not with a given spacing and ``fill_gaps=False``), and
+        plane_extent_m (per piece, its extent across the planes), spacing_on (margins, spacings and
+        extents are measured there), predicted_gap_fraction (not with a given spacing and ``fill_gaps=False``), and
         ``warnings`` when that share is above :data:`GAP_WARN_SHARE`.
 
     Raises
@@ -126,6 +136,10 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
     min_pass_length = check_min_pass_length(min_pass_length, tool.pad_radius)
     if edge_margin is not None and not edge_margin >= 0:                  # NaN fails too
         raise InputError(f"edge_margin must be a length >= 0 in m, math.inf or None, got {edge_margin!r}")
+    if spacing_on is None:
+        spacing_on = "projection" if spacing is None else "surface"
+    if spacing_on not in SPACING_ON:
+        raise InputError(f"spacing_on must be one of {', '.join(SPACING_ON)}, got {spacing_on!r}")
     angle, vector = split_direction(direction)
     if fill_gaps is None and spacing is None:
         fill_gaps = True                      # a spacing the user fixed is honoured (None: measured, not topped up)
@@ -133,7 +147,7 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
     if angle is None and vector is None and cross_direction is None:
         return _auto_direction(surface, tool, spacing=spacing, point_spacing=point_spacing,
                                min_pass_length=min_pass_length, fill_gaps=fill_gaps, edge_margin=edge_margin,
-                               t_start=t_start)
+                               spacing_on=spacing_on, t_start=t_start)
     feed, cross = feed_and_cross(surface, angle=angle or 0.0, direction=vector)
     direction_rule = "given direction" if vector is not None else "given angle"
     if cross_direction is not None:
@@ -148,8 +162,11 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         direction_rule = "given cutting-plane normal"
     return _plan_along(surface, tool, feed, cross, angle=angle or 0.0, direction_rule=direction_rule, spacing=spacing,
                        point_spacing=point_spacing, min_pass_length=min_pass_length, fill_gaps=fill_gaps,
-                       edge_margin=edge_margin, t_start=t_start)
+                       edge_margin=edge_margin, spacing_on=spacing_on, t_start=t_start)
 
+
+#: Where a raster's spacing is measured (``raster(spacing_on=...)``).
+SPACING_ON = ("surface", "projection")
 
 #: Predicted untouched share of the surface above which a plan warns.
 GAP_WARN_SHARE = 5e-3
@@ -160,7 +177,8 @@ GAP_WARN_SHARE = 5e-3
 PASS_ALLOWANCE = 0.1
 
 
-def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, fill_gaps, edge_margin, t_start):
+def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, fill_gaps, edge_margin, t_start,
+                    spacing_on="surface"):
     """Plan along each of :data:`AUTO_ANGLES` and keep the cheapest: contact length plus
     :data:`PASS_ALLOWANCE` per pass, fill passes included (near-ties within 2 % go to the earlier
     angle, the principal axis first)."""
@@ -169,7 +187,8 @@ def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, f
         feed, cross = feed_and_cross(surface, angle=a)
         passes, finish = _plan_along(surface, tool, feed, cross, angle=a, direction_rule="candidate",
                                      spacing=spacing, point_spacing=point_spacing, min_pass_length=min_pass_length,
-                                     fill_gaps=fill_gaps, edge_margin=edge_margin, t_start=t_start, defer_fill=True)
+                                     fill_gaps=fill_gaps, edge_margin=edge_margin, spacing_on=spacing_on,
+                                     t_start=t_start, defer_fill=True)
         planned.append((a, sum(p.length for p in passes) + PASS_ALLOWANCE * len(passes), finish))
     # Fill passes only add to a candidate's cost: the candidates are completed cheapest first, and
     # one that costs more than 1.02 times a completed one before its fill passes cannot be chosen,
@@ -205,7 +224,7 @@ def _auto_direction(surface, tool, *, spacing, point_spacing, min_pass_length, f
 
 
 def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, point_spacing, min_pass_length,
-                fill_gaps, t_start, edge_margin=None, defer_fill=False):
+                fill_gaps, t_start, edge_margin=None, spacing_on="surface", defer_fill=False):
     """The raster plan with this feed and cutting-plane normal (see :func:`raster`); with
     ``defer_fill``, the planes' passes and ``finish(fill_gaps) -> ToolPath``, which completes it."""
     choice = None
@@ -220,12 +239,14 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
     # Planes for each connected piece over its own extent, so no piece is left between two planes.
     pieces = surface.face_pieces()
     passes, n_planes, margin, dropped, dropped_length, n_slices = [], 0, 0.0, 0, 0.0, 0
-    plane_spacing = []
+    plane_spacing, plane_extent = [], []
+    heights = surface.vertices @ cross
     for k, faces in enumerate(pieces):
-        piece_v = surface.vertices[piece_vertices(surface, pieces, k)]
-        offsets, m = plane_offsets(piece_v @ cross, spacing, edge_margin=edge_margin or 0.0)
+        offsets, m, steps, extent = piece_offsets(surface, pieces, k, heights, cross, spacing,
+                                                  edge_margin=edge_margin or 0.0, spacing_on=spacing_on)
         margin = max(margin, m)
-        plane_spacing.append(float(np.mean(np.diff(offsets))) if len(offsets) > 1 else float(spacing))
+        plane_extent.append(extent)
+        plane_spacing.append(float(np.mean(steps)) if len(steps) else float(spacing))
         n_planes += len(offsets)
         slices = slice_mesh(surface.vertices, surface.faces[faces], cross, offsets, values=surface.normals,
                             edges=piece_edges(surface, pieces, k))
@@ -261,7 +282,7 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
             spacing_rule=rule, edge_rule=("spacing kept, margin what is left" if edge_margin is None else
                                           "planes spread evenly" if math.isinf(edge_margin) else
                                           f"outer planes at least {1e3 * edge_margin:.4g} mm in"),
-            plane_spacing_m=plane_spacing,
+            plane_spacing_m=plane_spacing, plane_extent_m=plane_extent, spacing_on=spacing_on,
         )
         if gap is not None:
             metadata["predicted_gap_fraction"] = gap
@@ -353,6 +374,26 @@ def piece_vertices(surface, pieces, k: int) -> np.ndarray:
     """Sorted indices of the vertices of piece ``k`` of ``surface.face_pieces()`` (``pieces``),
     computed once per surface and shared by the candidate directions."""
     return surface_memo(surface, ("piece_vertices", len(pieces), k), lambda: np.unique(surface.faces[pieces[k]]))
+
+
+def piece_offsets(surface, pieces, k: int, heights: np.ndarray, cross: np.ndarray, spacing: float, *,
+                  edge_margin: float = 0.0, spacing_on: str = "surface") -> tuple[np.ndarray, float, np.ndarray, float]:
+    """The cutting planes of piece ``k`` of ``surface.face_pieces()`` (``pieces``): their offsets
+    ``(p,)`` along ``cross`` (m), the margin left at each end, the steps between neighbours
+    ``(p - 1,)`` and the piece's extent across the planes (m), all three measured where
+    ``spacing_on`` says (:func:`raster`); ``heights`` are ``surface.vertices @ cross`` (m).  Where
+    every face of the piece is parallel to ``cross`` (within 1e-9), the surface's steps are the
+    projected ones and :func:`plane_offsets` places them."""
+    from .surface_planes import surface_plane_offsets
+
+    ids = piece_vertices(surface, pieces, k)
+    faces = pieces[k]
+    normals = surface.face_normals[faces]
+    if spacing_on == "surface" and np.abs(normals @ cross).max() > 1e-9:
+        return surface_plane_offsets(heights, surface.faces[faces], surface.face_areas[faces], normals, cross, spacing,
+                                     edge_margin=edge_margin, vertex_ids=ids)
+    offsets, margin = plane_offsets(heights[ids], spacing, edge_margin=edge_margin)
+    return offsets, margin, np.diff(offsets), float(np.ptp(heights[ids]))
 
 
 def plane_offsets(heights: np.ndarray, spacing: float, *, edge_margin: float = 0.0) -> tuple[np.ndarray, float]:
