@@ -13,11 +13,19 @@ at the lead of those in :data:`LEAD_CHOICES_DEG` and the job's that ripples leas
 ``spacing = choice.spacing``, the uniform planner at ``overlap = choice.overlap``.  On a part
 flatter than :data:`FLAT_SAGITTA` over the pad the plane's spacing stays.
 
+The re-plans keep the first plan's raster direction (when the job left it free): the curvature was
+read along those passes, and a raster choosing its direction afresh at the new spacing may turn
+across the part's strongest curvature, which the spacing was not chosen for.
+
 Either way the contact length is then held within the budget: the plane's ``L* = A / 2R`` and the
 quadric's ``w_max / d`` are local estimates, the fill passes and the pass ends add length, and the
 panel's plan came out at 1.6 L* for a 1.5 budget.  While the plan's contact length over the
 part's coverage bound (:func:`swath.contact.coverage_lower_bound`, the figure ``metrics.json``
-states) exceeds the budget (by more than :data:`BUDGET_TOLERANCE`), the spacing widens by that excess and the part is planned again.
+states) exceeds the budget (by more than :data:`BUDGET_TOLERANCE`), the spacing widens and the
+part is planned again: the uniform planner's by that excess, the raster's to the least spacing
+with as few planes as that excess asks (:func:`fewest_planes_spacing`), the one nearest the
+least-ripple spacing.  The raster measures a spacing it is given on the surface across the passes
+(``spacing_on = "surface"``, :mod:`swath.plan.surface_planes`), as the ripple model means it.
 """
 
 from __future__ import annotations
@@ -58,8 +66,9 @@ def fewest_planes_spacing(spacing: float, widened: float, extents) -> float:
     no plane, the least spacing that drops one.  ``extents``: the plan's ``plane_extent_m`` (m, per
     piece); without it, ``widened``.
 
-    On the panel the half-pad lead's 49.5 mm gave nine passes along its 403 mm (1.70 L*, budget
-    1.5): 15.8 % wider is 57.4 mm and seven passes, while 50.4 mm already gives eight (1.51 L*).
+    On the panel the quadric's 49.5 mm gave nine passes across its 403 mm (1.70 L*, budget 1.5):
+    15.8 % wider is 57.3 mm and eight passes, which 50.4 mm already gives (1.51 L*, interior CoV
+    0.050 at constant feed against 0.080 at 53 mm and 11°).
     """
     if not extents:
         return widened
