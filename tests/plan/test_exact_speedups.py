@@ -8,7 +8,8 @@ from scipy.spatial import cKDTree
 from swath.contact import Tool
 from swath.examples import doubly_curved_panel, flat_plate
 from swath.plan import gaps
-from swath.plan.gaps import within_reach
+from swath.plan.gaps import CoverageCheck, within_reach
+from swath.plan.raster import raster
 from swath.plan.slicing import level_sets
 from swath.plan.uniform_layout import _band_widths
 from swath.plan.uniform_model import _Context, _vertex_gradient_directions
@@ -222,3 +223,43 @@ def test_compiled_frontier_is_the_numpy_one(context, rng):
         np.testing.assert_array_equal(got, expected)
         assert got.dtype == expected.dtype
     assert 0 < len(context.frontier(d < 0.3 * d.max())) < len(d)
+
+
+def _all_pairs_within(points, others, reach):
+    return bool(np.min(np.linalg.norm(points[:, None, :] - others[None, :, :], axis=2)) <= reach)
+
+
+def test_fill_pass_reach_test_is_the_answer_of_every_pair(rng):
+    from swath.plan.gaps import _comes_within
+
+    others = rng.random((50, 3)) * [0.3, 0.01, 0.01]
+    for _ in range(200):
+        points = rng.random((rng.integers(1, 400), 3)) * 0.3
+        reach = float(rng.uniform(0.001, 0.08))
+        assert _comes_within(points, others, reach) == _all_pairs_within(points, others, reach)
+    # exactly at reach (a 3-4-5 triangle), just inside and just outside
+    points, others = np.array([[0.0, 0.003, 0.004], [1.0, 1.0, 1.0]]), np.zeros((1, 3))
+    assert _comes_within(points, others, 0.005) and _all_pairs_within(points, others, 0.005)
+    below = np.nextafter(0.005, 0)
+    assert _comes_within(points, others, below) == _all_pairs_within(points, others, below)
+    assert not _comes_within(points, others, 0.0049)
+
+
+def test_gap_patches_are_the_connected_uncovered_samples_in_label_order(rng):
+    """Grouping the uncovered samples by component with one sort gives the patches of testing each
+    label in turn: the same members, in the same order, patches in label order."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    surface = doubly_curved_panel(spacing=8e-3)
+    tp = raster(surface, TOOL, spacing=0.09, fill_gaps=False)
+    check = CoverageCheck(surface, TOOL, np.asarray(tp.metadata["feed_direction"]))
+    patches = check.gap_patches(tp.passes, min_share=0.0)
+    free = np.flatnonzero(~check.covered(tp.passes))
+    pairs = cKDTree(check.points[free]).query_pairs(1.5 * check.step, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(free), len(free)))
+    _, label = connected_components(graph, directed=False)
+    expected = [free[label == lab] for lab in np.unique(label)]
+    assert len(patches) == len(expected) > 1
+    for got, want in zip(patches, expected):
+        np.testing.assert_array_equal(got, want)

@@ -82,6 +82,7 @@ class CoverageCheck:
         self._pad_tree = surface_memo(surface, ("pad_tree", tool), lambda: cKDTree(pad.points))
         self._neighbours = lambda: surface_memo(surface, ("pad_neighbours", tool),
                                                 lambda: pad_neighbours(self._pad_tree, R * 2.0 ** np.arange(-1, 3)))
+        self._least: list[tuple[float, np.ndarray]] | None = None
         self.surface = surface
         self.tool = tool
         self.total = float(surface.area)
@@ -103,12 +104,19 @@ class CoverageCheck:
         d, near = self._pad_tree.query(centre)
         need = 2.0 * (rho + d) * (1.0 + 1e-9) + SURE_MARGIN
         out = np.full(len(centre), float(self.pad_half_chord.min()))
-        for radius, indptr, indices in reversed(self._neighbours()):      # the largest radius first
+        for radius, least in reversed(self._least_by_radius()):           # the largest radius first
             ok = need <= radius
             if ok.any():
-                least = np.minimum.reduceat(self.pad_half_chord[indices], indptr[:-1])
                 out[ok] = least[near[ok]]
         return out * (1.0 + CHORD_TOLERANCE)
+
+    def _least_by_radius(self) -> list[tuple[float, np.ndarray]]:
+        """``(radius, least (p,))`` per radius of :func:`pad_neighbours`: the least half chord (m) of
+        the pad-scale samples within that radius of each pad-scale sample; made once per check."""
+        if self._least is None:
+            self._least = [(radius, np.minimum.reduceat(self.pad_half_chord[indices], indptr[:-1]))
+                           for radius, indptr, indices in self._neighbours()]
+        return self._least
 
     def _sample(self, pass_points: np.ndarray) -> None:
         """Halve the surface to the step where a sample may be out of reach of ``pass_points``."""
@@ -200,9 +208,12 @@ class CoverageCheck:
         graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else \
             coo_matrix((n, n))
         _, label = connected_components(graph, directed=False)
+        # the samples of each label in increasing order (a stable sort), labels in increasing order
+        order = np.argsort(label, kind="stable")
+        cuts = np.flatnonzero(np.diff(label[order])) + 1
         out = []
-        for lab in np.unique(label):
-            idx = free[label == lab]
+        for members in np.split(order, cuts):
+            idx = free[members]
             if self.areas[idx].sum() >= min_share * self.total:
                 out.append(idx)
         return out
@@ -359,10 +370,25 @@ def fill_passes(check: CoverageCheck, patches, slicer, feed, cross, pad_radius: 
             edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(int), [0]])))
             runs = edges.reshape(-1, 2)
             a, b = max(runs, key=lambda r: r[1] - r[0])
-            if b - a >= 2 and np.min(np.linalg.norm(p[:, None, :] - pts[None, a:b:max((b - a) // 50, 1)], axis=2)) \
-                    <= 2 * pad_radius:
+            if b - a >= 2 and _comes_within(p, pts[a:b:max((b - a) // 50, 1)], 2 * pad_radius):
                 out.append((pts[a:b], nrm[a:b], off))
     return out
+
+
+def _comes_within(points: np.ndarray, others: np.ndarray, reach: float) -> bool:
+    """Whether some of ``points`` ``(s, 3)`` lies within ``reach`` (m) of some of ``others`` ``(q, 3)``,
+    the distance being ``np.linalg.norm`` of the difference: the answer of comparing every pair,
+    found by a nearest-neighbour query and the exact distances of the nearest pair only (all pairs
+    near the reach only when the query's rounding could decide otherwise)."""
+    d = cKDTree(others).query(points)[0]
+    slack = reach * (1.0 + 1e-9)
+    near = d <= slack                        # a pair within reach is surely among these
+    if not near.any():
+        return False
+    best = points[int(np.argmin(d))]
+    if np.min(np.linalg.norm(best[None, :] - others, axis=1)) <= reach:
+        return True
+    return bool(np.min(np.linalg.norm(points[near][:, None, :] - others[None, :, :], axis=2)) <= reach)
 
 
 #: At most this many rounds of fill passes (each round fills the gaps the previous ones left).
