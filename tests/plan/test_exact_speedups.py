@@ -263,3 +263,125 @@ def test_gap_patches_are_the_connected_uncovered_samples_in_label_order(rng):
     assert len(patches) == len(expected) > 1
     for got, want in zip(patches, expected):
         np.testing.assert_array_equal(got, want)
+
+
+def _chain_by_graph_search(ends: np.ndarray, seg_face: np.ndarray, n_nodes: int):
+    """The chains as the slicer found them before the compiled walk: closed loops cut at their
+    lowest-numbered segment, one depth-first traversal from a virtual root joined to one end of
+    every chain visiting each chain in order."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components, depth_first_order
+
+    S = len(ends)
+    adj = sp.coo_matrix((np.ones(2 * S), (np.r_[ends[:, 0], ends[:, 1]], np.r_[ends[:, 1], ends[:, 0]])),
+                        shape=(n_nodes, n_nodes)).tocsr()
+    _, label = connected_components(adj, directed=False)
+    degree = np.bincount(ends.ravel(), minlength=n_nodes)
+    n_comp = int(label.max()) + 1
+    seg_label = label[ends[:, 0]]
+    open_ends = np.bincount(label, weights=(degree == 1), minlength=n_comp)
+    has_seg = np.bincount(seg_label, minlength=n_comp) > 0
+    is_loop = has_seg & (open_ends == 0)
+
+    # Cut each loop at its first segment.
+    comp_first_seg = np.full(n_comp, -1)
+    first_idx = np.unique(seg_label, return_index=True)
+    comp_first_seg[first_idx[0]] = first_idx[1]
+    cut = comp_first_seg[is_loop]
+    keep = np.ones(S, bool)
+    keep[cut] = False
+    kept = ends[keep]
+
+    # Start of each chain: the loop's cut segment's first node, or the lowest-numbered open end.
+    start = np.full(n_comp, -1)
+    start[np.nonzero(is_loop)[0]] = ends[cut, 0]
+    openers = np.nonzero(degree == 1)[0]
+    lab_open = label[openers]
+    uniq_lab, first_open = np.unique(lab_open, return_index=True)
+    start[uniq_lab] = openers[first_open]
+    comps = np.nonzero(has_seg)[0]
+    root = n_nodes
+    rows = np.r_[kept[:, 0], kept[:, 1], np.full(len(comps), root)]
+    cols = np.r_[kept[:, 1], kept[:, 0], start[comps]]
+    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_nodes + 1, n_nodes + 1)).tocsr()
+    order = depth_first_order(g, root, directed=True, return_predecessors=False)[1:]
+    lab = label[order]
+    breaks = np.nonzero(lab[1:] != lab[:-1])[0] + 1
+    chains = np.split(order, breaks)
+
+    # Face of each consecutive pair, looked up by the sorted node pair.
+    seg_key = np.minimum(ends[:, 0], ends[:, 1]) * np.int64(n_nodes) + np.maximum(ends[:, 0], ends[:, 1])
+    key_order = np.argsort(seg_key)
+    sorted_keys = seg_key[key_order]
+    loop_of = dict(zip(np.nonzero(is_loop)[0].tolist(), cut.tolist()))
+    faces_out, closed_out, chains_out = [], [], []
+    for ch in chains:
+        comp = int(label[ch[0]])
+        if comp in loop_of:
+            ch = np.append(ch, ch[0])
+        u, v = ch[:-1], ch[1:]
+        k = np.minimum(u, v) * np.int64(n_nodes) + np.maximum(u, v)
+        faces_out.append(seg_face[key_order[np.searchsorted(sorted_keys, k)]])
+        closed_out.append(comp in loop_of)
+        chains_out.append(ch)
+    return chains_out, closed_out, faces_out
+
+
+def _random_chains(rng, n_chains):
+    """Segments (S, 2) of random open chains and loops over shuffled node numbers, in random order,
+    with some nodes left without a segment."""
+    sizes = rng.integers(1, 12, n_chains)
+    loops = rng.random(n_chains) < 0.4
+    n_nodes = int(sizes.sum() + n_chains + 5)
+    label = rng.permutation(n_nodes)
+    segs, at = [], 0
+    for k, loop in zip(sizes, loops):
+        path = list(range(at, at + k + 1))
+        at += k + 1
+        pairs = list(zip(path[:-1], path[1:]))
+        if loop and k >= 2:
+            pairs.append((path[-1], path[0]))
+        segs += [p if rng.random() < 0.5 else p[::-1] for p in pairs]
+    ends = label[np.array(segs)]
+    return ends[rng.permutation(len(ends))], n_nodes
+
+
+def test_compiled_chain_walk_gives_the_chains_of_the_graph_search(rng):
+    from swath.plan.slicing import _chain
+
+    for n_chains in (1, 2, 5, 40):
+        for _ in range(20):
+            ends, n_nodes = _random_chains(rng, n_chains)
+            seg_face = rng.permutation(len(ends)) + 100
+            got = _chain(ends, seg_face, n_nodes)
+            want = _chain_by_graph_search(ends, seg_face, n_nodes)
+            assert len(got[0]) == len(want[0]) == n_chains
+            for g, w in zip(got[0], want[0]):
+                np.testing.assert_array_equal(g, w)
+            assert got[1] == want[1]
+            for g, w in zip(got[2], want[2]):
+                np.testing.assert_array_equal(g, w)
+
+
+def test_slices_of_a_scan_with_holes_and_a_non_manifold_edge_are_those_of_the_graph_search(monkeypatch):
+    from swath.io.mesh import load_mesh
+    from swath.plan import slicing
+
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+
+    name = "noether_wavy_mesh_with_hole.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    V, F = surface.vertices, surface.faces
+    F = np.vstack([F, [[F[0, 0], F[0, 1], F[5, 2]]]])            # a third face on an edge: a branch
+    c = np.array([0.3, 1.0, 0.05])
+    h = V @ (c / np.linalg.norm(c))
+    offsets = np.linspace(h.min(), h.max(), 61)[1:-1]
+    fast = slicing.slice_mesh(V, F, c, offsets, values=surface.normals)
+    monkeypatch.setattr(slicing, "_chain", _chain_by_graph_search)
+    slow = slicing.slice_mesh(V, F, c, offsets, values=surface.normals)
+    assert len(fast) == len(slow) > 60
+    for a, b in zip(fast, slow):
+        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_array_equal(a.faces, b.faces)
+        np.testing.assert_array_equal(a.values, b.values)
+        assert (a.plane, a.closed) == (b.plane, b.closed)
