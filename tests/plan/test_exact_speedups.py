@@ -364,10 +364,9 @@ def test_compiled_chain_walk_gives_the_chains_of_the_graph_search(rng):
 
 
 def test_slices_of_a_scan_with_holes_and_a_non_manifold_edge_are_those_of_the_graph_search(monkeypatch):
+    from conftest import SHARED_MESH_UNITS, shared_mesh
     from swath.io.mesh import load_mesh
     from swath.plan import slicing
-
-    from conftest import SHARED_MESH_UNITS, shared_mesh
 
     name = "noether_wavy_mesh_with_hole.ply"
     surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
@@ -385,3 +384,31 @@ def test_slices_of_a_scan_with_holes_and_a_non_manifold_edge_are_those_of_the_gr
         np.testing.assert_array_equal(a.faces, b.faces)
         np.testing.assert_array_equal(a.values, b.values)
         assert (a.plane, a.closed) == (b.plane, b.closed)
+
+
+def test_plane_slicer_gives_the_slices_of_the_whole_mesh():
+    """Fill passes slice one piece again and again: looking only at the faces a plane can cut
+    gives the polylines of slicing every face, bit for bit, through vertices and on long slivers."""
+    from swath.io.mesh import load_mesh
+    from swath.plan.slicing import PlaneSlicer, slice_mesh
+
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+
+    for name in ("noether_wavy_mesh_with_hole.ply", "crs_part_5.stl"):
+        surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+        V, F = surface.vertices, surface.faces
+        c = np.array([0.2, 1.0, 0.1])
+        slicer = PlaneSlicer(V, F, c, values=surface.normals)
+        h = slicer.heights
+        offsets = np.concatenate([np.linspace(h.min(), h.max(), 41), h[::max(len(h) // 20, 1)]])   # through vertices too
+        n_cut = 0
+        for d in offsets:
+            got, want = slicer(d), slice_mesh(V, F, c, [d], values=surface.normals)
+            assert len(got) == len(want)
+            n_cut += len(got)
+            for a, b in zip(got, want):
+                np.testing.assert_array_equal(a.points, b.points)
+                np.testing.assert_array_equal(a.faces, b.faces)
+                np.testing.assert_array_equal(a.values, b.values)
+                assert (a.plane, a.closed) == (b.plane, b.closed)
+        assert n_cut >= 40                                  # most planes cut the part

@@ -167,7 +167,7 @@ def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, valu
 
 def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, levels, *,
                values: np.ndarray | None = None, face_mask: np.ndarray | None = None,
-               merge_tolerance: float = MERGE_TOLERANCE, edges=None) -> list[SlicePolyline]:
+               merge_tolerance: float = MERGE_TOLERANCE, edges=None, rows=None) -> list[SlicePolyline]:
     """Level sets ``field = level`` of a per-vertex scalar field, chained into polylines.
 
     The field is interpolated linearly over each triangle; a plane slice is the level set of
@@ -191,6 +191,10 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
     edges : tuple, optional
         ``mesh_edges(faces)`` if the caller extracts many level sets of one mesh (not with
         ``face_mask``).
+    rows : (k,) int, optional
+        With one level, no ``face_mask`` and ``edges``: increasing indices of the faces that may be
+        cut, including every face the level cuts (:class:`PlaneSlicer`); the others are not looked
+        at, and the answer is the one of looking at all.
 
     Returns
     -------
@@ -219,8 +223,13 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
         # lies below the level and some does not, the same test on vertex flags, and no per-face
         # minimum, maximum or search.
         under = h < d_sorted[0]
-        u0, u1, u2 = under[F[:, 0]], under[F[:, 1]], under[F[:, 2]]
-        pair_face = np.flatnonzero((u0 | u1 | u2) & ~(u0 & u1 & u2))
+        if rows is not None and face_mask is None:
+            Fr = F[rows]
+            u0, u1, u2 = under[Fr[:, 0]], under[Fr[:, 1]], under[Fr[:, 2]]
+            pair_face = np.asarray(rows, np.int64)[(u0 | u1 | u2) & ~(u0 & u1 & u2)]
+        else:
+            u0, u1, u2 = under[F[:, 0]], under[F[:, 1]], under[F[:, 2]]
+            pair_face = np.flatnonzero((u0 | u1 | u2) & ~(u0 & u1 & u2))
         total = len(pair_face)
         if total == 0:
             return []
@@ -295,6 +304,61 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
         out.append(SlicePolyline(p[keep_pt], sf[long], v, plane, bool(is_closed)))
     out.sort(key=lambda pl: pl.plane)
     return out
+
+
+class PlaneSlicer:
+    """One mesh cut by single planes of one normal, again and again (the fill passes of a plan).
+
+    ``slicer(offset)`` is ``slice_mesh(vertices, faces, normal, [offset], values=values, edges=edges)``,
+    the same polylines bit for bit, found among the faces the plane can cut only: the faces sorted
+    by their lowest corner height, those whose lowest corner lies less than the tallest face's
+    height span below the plane are tested as :func:`level_sets` tests them.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        m.
+    faces : (m, 3) int
+    normal : (3,) float
+        The planes' common normal (any length, not zero).
+    values : (n, q) float, optional
+        Per-vertex values interpolated to the points.
+    edges : tuple, optional
+        ``mesh_edges(faces)``, when the caller has it.
+    """
+
+    def __init__(self, vertices, faces, normal, *, values=None, edges=None):
+        self.vertices = np.asarray(vertices, float)
+        self.faces = np.asarray(faces, np.int64)
+        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3 or self.faces.ndim != 2 or self.faces.shape[1] != 3:
+            raise InputError(f"expected vertices (n, 3) and faces (m, 3), got {self.vertices.shape} and "
+                             f"{self.faces.shape}")
+        c = np.asarray(normal, float).reshape(-1)
+        if c.shape != (3,) or not np.isfinite(c).all() or np.linalg.norm(c) == 0:
+            raise InputError(f"the plane normal must be a finite, non-zero 3-vector, got {normal!r}")
+        c = c / np.linalg.norm(c)                          # as slice_mesh takes it
+        self.heights = self.vertices @ c
+        self.values = values
+        self.edges = mesh_edges(self.faces) if edges is None else edges
+        hf = self.heights[self.faces]
+        low = np.minimum(np.minimum(hf[:, 0], hf[:, 1]), hf[:, 2])
+        high = np.maximum(np.maximum(hf[:, 0], hf[:, 1]), hf[:, 2])
+        self._order = np.argsort(low, kind="stable")
+        self._low = low[self._order]
+        # a face the plane d cuts has low < d <= high, so low >= d - span: the slack covers the rounding
+        self._span = float((high - low).max()) * (1.0 + 1e-9) + 1e-12 if len(low) else 0.0
+
+    def __call__(self, offset: float) -> list[SlicePolyline]:
+        d = float(offset)
+        if not np.isfinite(d):
+            raise InputError("plane offsets must be finite")
+        if len(self.faces) == 0:
+            return []
+        a = int(np.searchsorted(self._low, d - self._span, side="left"))
+        b = int(np.searchsorted(self._low, d, side="left"))             # low < d
+        rows = np.sort(self._order[a:b])
+        return level_sets(self.vertices, self.faces, self.heights, [d], values=self.values, edges=self.edges,
+                          rows=rows)
 
 
 def _chain(ends: np.ndarray, seg_face: np.ndarray, n_nodes: int):
