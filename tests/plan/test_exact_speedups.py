@@ -389,10 +389,9 @@ def test_slices_of_a_scan_with_holes_and_a_non_manifold_edge_are_those_of_the_gr
 def test_plane_slicer_gives_the_slices_of_the_whole_mesh():
     """Fill passes slice one piece again and again: looking only at the faces a plane can cut
     gives the polylines of slicing every face, bit for bit, through vertices and on long slivers."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
     from swath.io.mesh import load_mesh
     from swath.plan.slicing import PlaneSlicer, slice_mesh
-
-    from conftest import SHARED_MESH_UNITS, shared_mesh
 
     for name in ("noether_wavy_mesh_with_hole.ply", "crs_part_5.stl"):
         surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
