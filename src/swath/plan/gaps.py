@@ -118,25 +118,30 @@ class CoverageCheck:
                            for radius, indptr, indices in self._neighbours()]
         return self._least
 
+    def _drop(self, grid, top: float, n_pass_points: int, xyz, faces) -> np.ndarray:
+        """(k,) bool: the triangles ``faces`` (k, 3) of ``xyz`` surely within reach of a pass point of
+        ``grid`` (no sample reaches more than ``top``, m), set aside unsplit (see the class)."""
+        tri = xyz[faces]
+        centre = tri.mean(axis=1)
+        rho = np.sqrt(((tri - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1)
+        out = np.zeros(len(faces), bool)
+        some = np.flatnonzero(rho + SURE_MARGIN < top)
+        if len(some) == 0 or n_pass_points == 0:
+            return out
+        # a pass point within (least reach - rho) of the centre is within reach of every point
+        # of the triangle; the margin outweighs the rounding of these distances many times over
+        room = self._least_reach(centre[some], rho[some]) - rho[some] - SURE_MARGIN
+        sure = room > 0
+        out[some[sure]] = grid.within(centre[some[sure]], room[sure])
+        return out
+
     def _sample(self, pass_points: np.ndarray) -> None:
         """Halve the surface to the step where a sample may be out of reach of ``pass_points``."""
         top = float(self.pad_half_chord.max()) * (1.0 + CHORD_TOLERANCE)      # no sample reaches more
         grid = self._grid = PointGrid(pass_points, top)
 
         def drop(xyz, faces):
-            tri = xyz[faces]
-            centre = tri.mean(axis=1)
-            rho = np.sqrt(((tri - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1)
-            out = np.zeros(len(faces), bool)
-            some = np.flatnonzero(rho + SURE_MARGIN < top)
-            if len(some) == 0 or len(pass_points) == 0:
-                return out
-            # a pass point within (least reach - rho) of the centre is within reach of every point
-            # of the triangle; the margin outweighs the rounding of these distances many times over
-            room = self._least_reach(centre[some], rho[some]) - rho[some] - SURE_MARGIN
-            sure = room > 0
-            out[some[sure]] = grid.within(centre[some[sure]], room[sure])
-            return out
+            return self._drop(grid, top, len(pass_points), xyz, faces)
 
         base = surface_memo(self.surface, ("coverage_base", self.tool, self.step),
                             lambda: _coverage_base(self.surface, self._pad_tree, self.step))
@@ -155,9 +160,15 @@ class CoverageCheck:
         self._known = np.zeros(len(v), bool)
         self._known[gone.ravel()] = True
         self.half_chord = np.zeros(len(v))
-        nearest = np.concatenate([base.nearest, self._pad_tree.query(v[n0:])[1]]) if len(v) > n0 else base.nearest
         todo = np.flatnonzero(~self._known)
-        self.half_chord[todo] = self.pad_half_chord[nearest[todo]]
+        # the nearest pad-scale sample of each sample that may be uncovered (the surface's own
+        # vertices have theirs already)
+        nearest = np.empty(len(todo), np.int64)
+        old = todo < n0
+        nearest[old] = base.nearest[todo[old]]
+        if not old.all():
+            nearest[~old] = self._pad_tree.query(v[todo[~old]])[1]
+        self.half_chord[todo] = self.pad_half_chord[nearest]
 
     def covered(self, passes) -> np.ndarray:
         """(s,) bool: samples within half a chord of a pass point (``s`` = ``len(self.points)``).
