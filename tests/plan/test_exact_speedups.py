@@ -411,3 +411,18 @@ def test_plane_slicer_gives_the_slices_of_the_whole_mesh():
                 np.testing.assert_array_equal(a.values, b.values)
                 assert (a.plane, a.closed) == (b.plane, b.closed)
         assert n_cut >= 40                                  # most planes cut the part
+
+
+def test_component_labels_are_those_of_the_sparse_graph_search(rng):
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from swath.plan.gaps import component_labels
+
+    for n, e in ((1, 0), (5, 0), (50, 30), (2000, 1500), (2000, 4000)):
+        pairs = rng.integers(0, n, (e, 2))
+        graph = coo_matrix((np.ones(e), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        count, expected = connected_components(graph, directed=False)
+        got = component_labels(n, pairs)
+        np.testing.assert_array_equal(got, expected)
+        assert got.max() + 1 == count

@@ -14,8 +14,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..contact.widths import pad_scale_samples, patch_widths, surface_memo
@@ -215,10 +213,7 @@ class CoverageCheck:
         if len(free) == 0:
             return []
         pairs = cKDTree(self.points[free]).query_pairs(1.5 * self.step, output_type="ndarray")
-        n = len(free)
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else \
-            coo_matrix((n, n))
-        _, label = connected_components(graph, directed=False)
+        label = component_labels(len(free), pairs)
         # the samples of each label in increasing order (a stable sort), labels in increasing order
         order = np.argsort(label, kind="stable")
         cuts = np.flatnonzero(np.diff(label[order])) + 1
@@ -228,6 +223,44 @@ class CoverageCheck:
             if self.areas[idx].sum() >= min_share * self.total:
                 out.append(idx)
         return out
+
+
+def component_labels(n: int, pairs: np.ndarray) -> np.ndarray:
+    """(n,) int: the connected component of each of ``n`` nodes joined by ``pairs`` ``(e, 2)``,
+    numbered in the order of their lowest node, as
+    ``scipy.sparse.csgraph.connected_components(..., directed=False)`` numbers them (a compiled
+    union-find instead of a sparse matrix)."""
+    pairs = np.ascontiguousarray(np.asarray(pairs, np.int64).reshape(-1, 2))
+    return _component_labels(int(n), pairs)
+
+
+@jit()
+def _component_labels(n, pairs):   # pragma: no cover - compiled
+    parent = np.arange(n)
+    for e in range(len(pairs)):
+        a, b = pairs[e, 0], pairs[e, 1]
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        while parent[b] != b:
+            parent[b] = parent[parent[b]]
+            b = parent[b]
+        if a < b:
+            parent[b] = a
+        elif b < a:
+            parent[a] = b
+    label = np.empty(n, np.int64)
+    count = 0
+    for v in range(n):                  # a root is its component's lowest node: numbered first
+        r = v
+        while parent[r] != r:
+            r = parent[r]
+        if r == v:
+            label[v] = count
+            count += 1
+        else:
+            label[v] = label[r]
+    return label
 
 
 @dataclass(frozen=True)
@@ -319,17 +352,39 @@ class PointGrid:
 
 @jit()
 def _within_reach_kernel(samples, reach, points, lo, cell, dims, start):   # pragma: no cover - compiled
+    # The sample's own cell first, then the neighbours whose box comes within reach (the others
+    # hold no point within reach: the slack outweighs the rounding of the binning many times over).
     out = np.zeros(len(samples), np.bool_)
+    steps = np.array([0, -1, 1])
     for s in range(len(samples)):
         x, y, z = samples[s, 0], samples[s, 1], samples[s, 2]
         r = reach[s]
+        slack = r * (1.0 + 1e-9) + 1e-12
         ci = int(np.floor((x - lo[0]) / cell))
         cj = int(np.floor((y - lo[1]) / cell))
         ck = int(np.floor((z - lo[2]) / cell))
         found = False
-        for i in range(max(ci - 1, 0), min(ci + 2, dims[0])):
-            for j in range(max(cj - 1, 0), min(cj + 2, dims[1])):
-                for k in range(max(ck - 1, 0), min(ck + 2, dims[2])):
+        for a in range(3):
+            i = ci + steps[a]
+            if i < 0 or i >= dims[0]:
+                continue
+            gx = max(lo[0] + i * cell - x, x - (lo[0] + (i + 1) * cell), 0.0)
+            if gx > slack:
+                continue
+            for b in range(3):
+                j = cj + steps[b]
+                if j < 0 or j >= dims[1]:
+                    continue
+                gy = max(lo[1] + j * cell - y, y - (lo[1] + (j + 1) * cell), 0.0)
+                if gx * gx + gy * gy > slack * slack:
+                    continue
+                for e in range(3):
+                    k = ck + steps[e]
+                    if k < 0 or k >= dims[2]:
+                        continue
+                    gz = max(lo[2] + k * cell - z, z - (lo[2] + (k + 1) * cell), 0.0)
+                    if gx * gx + gy * gy + gz * gz > slack * slack:
+                        continue
                     c = (i * dims[1] + j) * dims[2] + k
                     for q in range(start[c], start[c + 1]):
                         dx = points[q, 0] - x
