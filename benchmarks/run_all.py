@@ -9,13 +9,16 @@ Each part runs in its own process (``--one PART``), so the peak resident memory 
 that process:
 
 * the default job, ``swath plan PART --units U`` (raster planner, nothing else given), runs through
-  the CLI's own ``main``; its ``metrics.json`` gives the stage times ``load_s``, ``plan_s`` (plan and
-  order), ``trajectory_s``, ``simulate_s`` (and ``feed_s`` / ``pad_study_s`` when the job ran them),
+  the CLI's own ``main``; its ``metrics.json`` gives the stage times ``load_s``, ``spacing_s`` (the
+  default job's spacing search: the plans at the spacings tried, the curvature read from them),
+  ``plan_s`` (the plan kept and its order), ``trajectory_s``, ``simulate_s`` (and ``feed_s`` /
+  ``pad_study_s`` when the job ran them),
   here read on the process's CPU clock (the job's stage clocks are pointed at ``time.process_time``:
   on a loaded machine a stage's wall time measures the other work as much as swath's);
   ``report_s`` is the rest of the job's CPU time (the report, its pictures and the files);
-* ``plan_warm_s``: the plan stage (CPU s) once more on the loaded part, in the same process (imports done,
-  compiled kernels loaded): what the stage itself costs, without the process's first-use costs;
+* ``plan_warm_s``: the raster planner alone at its default spacing, plan and order (CPU s), on the loaded
+  part in the same process (imports done, compiled kernels loaded): what the planner itself costs,
+  without the process's first-use costs and without a spacing search;
 * ``slice_s``: CPU s of ``trimesh.intersections.mesh_multiplane`` cutting the part with the plan's own planes
   (same normal, count and spacing), best of 3: the reference of the raster plan stage, and
   ``plan / slice`` the ratio of the warm plan stage to it (issue "Fast by default": at most 7 on
@@ -48,7 +51,7 @@ from common import REPO, SHARED_MESH_UNITS, SHARED_MESHES
 BUILT_IN = ("example:plate", "example:panel", "example:blade", "example:hub")
 QUICK = ("example:plate", "snp_part_scan.ply", "crs_part_5.stl")
 UNIFORM = ("snp_part_scan.ply", "crs_part_5.stl")
-STAGES = ("load_s", "plan_s", "trajectory_s", "feed_s", "simulate_s", "pad_study_s")
+STAGES = ("load_s", "spacing_s", "plan_s", "trajectory_s", "feed_s", "simulate_s", "pad_study_s")
 #: Issue "Fast by default": the raster plan stage's budget (s) and its ratio to the slicing
 #: reference on meshes over this many faces.
 PLAN_BUDGET_S, SLICE_RATIO_BUDGET, SLICE_RATIO_FACES = 1.0, 7.0, 10_000
@@ -169,24 +172,26 @@ def markdown(rows: list[dict], uniform: list[dict], info: dict) -> str:
         "## The default job, stage by stage",
         "",
         "`swath plan PART` with nothing else given (raster planner), each part in a fresh process. Stage times "
-        "are CPU seconds of the job's own stage clocks (`metrics.json`, the clocks read on the CPU clock); *other "
+        "are CPU seconds of the job's own stage clocks (`metrics.json`, the clocks read on the CPU clock); "
+        "*spacing* the default job's spacing search (`spacing_s`: the plans at the spacings it tried and the "
+        "curvature read from them), *plan* the plan the job keeps and its order (`plan_s`); *other "
         "stages* the softer-pad study and the feed optimisation when the job ran them; *report* the rest of the "
         "job's CPU time (report, pictures, files); *job wall* the job's wall time; *peak* the process's peak "
         "resident memory.",
         "",
-        "| part | faces | passes | coverage | removal CoV | cycle time s | load | plan | trajectory | simulate "
-        "| other stages | report | job CPU | job wall | peak MB |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| part | faces | passes | coverage | removal CoV | cycle time s | load | spacing | plan | trajectory "
+        "| simulate | other stages | report | job CPU | job wall | peak MB |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         if "failed" in r:
-            lines.append(f"| {r['part']} | FAILED: {r['failed']} |" + " |" * 13)
+            lines.append(f"| {r['part']} | FAILED: {r['failed']} |" + " |" * 14)
             continue
         other = sum(r.get(k, 0.0) for k in ("feed_s", "pad_study_s"))
         lines.append(
             f"| {r['part']} | {r.get('faces', '')} | {r['n_passes']} | {cell(r['coverage_fraction'], '.3f')} "
             f"| {cell(r['removal_cov'], '.3f')} | {cell(r['cycle_time_s'], '.1f')} | {r.get('load_s', 0):.2f} "
-            f"| {r.get('plan_s', 0):.2f} | {r.get('trajectory_s', 0):.2f} | {r.get('simulate_s', 0):.2f} "
+            f"| {r.get('spacing_s', 0):.2f} | {r.get('plan_s', 0):.2f} | {r.get('trajectory_s', 0):.2f} | {r.get('simulate_s', 0):.2f} "
             f"| {other:.2f} | {r['report_s']:.2f} | {r['job_cpu_s']:.1f} | {r['job_s']:.1f} | {r['peak_MB']:.0f} |")
     lines += [
         "",
@@ -195,8 +200,10 @@ def markdown(rows: list[dict], uniform: list[dict], info: dict) -> str:
         f"Budget (issue \"Fast by default\"): the plan stage at most {PLAN_BUDGET_S:g} s on every shared mesh, and at "
         f"most {SLICE_RATIO_BUDGET:g}x the slicing reference on meshes over {SLICE_RATIO_FACES // 1000}k faces. "
         "All CPU seconds (the wall-clock budget holds on a quiet machine, where wall and CPU time agree). "
-        "*plan (job)* is `plan_s` of the job (it includes the process's first imports of the planning code and "
-        "the loading of its compiled kernels); *plan (warm)* the same plan once more in the same process; "
+        "*plan (job)* is `plan_s` of the job: the plan it keeps, at the spacing its search chose, and the order "
+        "(the search, `spacing_s`, is timed apart and pays the process's first imports of the planning code and "
+        "the loading of its compiled kernels); *plan (warm)* the raster planner alone at its own default spacing "
+        "(plan and order) once more in the same process; "
         "*slicing* is `trimesh.intersections.mesh_multiplane` cutting the part with the plan's planes (best of 3). "
         "*within budget* judges the job's plan stage (what the user waits for) and, after the slash, the warm "
         "plan; the slicing ratio is the warm plan's. *plan hash*: the first digits of the SHA-256 of the ordered "

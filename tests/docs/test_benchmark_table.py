@@ -67,3 +67,12 @@ def test_uniform_ratio_and_failed_rows():
     line = next(ln for ln in text.split("## Uniform")[1].splitlines() if ln.startswith("| crs |"))
     assert "| 8.0 | 20.0 | 2.50 | 6.0 | 15.0 | 2.50 |" in line
     assert "| bad.ply | FAILED: over 900 s |" in text
+
+
+def test_the_spacing_search_has_its_own_column_and_counts_in_the_job_cpu():
+    rows = [_row("curved", 20_000, 0.5, 0.1, spacing_s=2.25, plan_s=0.75)]
+    text = run_all.markdown(rows, [], INFO)
+    line = next(ln for ln in text.split("## Raster plan stage")[0].splitlines() if ln.startswith("| curved |"))
+    assert "| 0.10 | 2.25 | 0.75 | 0.50 | 0.50 |" in line          # load, spacing, plan, trajectory, simulate
+    assert _plan_row(text, "curved").startswith("| curved | 20000 | 0.75 | 0.50 |")
+    assert "spacing_s" in run_all.STAGES

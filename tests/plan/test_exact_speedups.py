@@ -8,7 +8,8 @@ from scipy.spatial import cKDTree
 from swath.contact import Tool
 from swath.examples import doubly_curved_panel, flat_plate
 from swath.plan import gaps
-from swath.plan.gaps import within_reach
+from swath.plan.gaps import CoverageCheck, within_reach
+from swath.plan.raster import raster
 from swath.plan.slicing import level_sets
 from swath.plan.uniform_layout import _band_widths
 from swath.plan.uniform_model import _Context, _vertex_gradient_directions
@@ -222,3 +223,206 @@ def test_compiled_frontier_is_the_numpy_one(context, rng):
         np.testing.assert_array_equal(got, expected)
         assert got.dtype == expected.dtype
     assert 0 < len(context.frontier(d < 0.3 * d.max())) < len(d)
+
+
+def _all_pairs_within(points, others, reach):
+    return bool(np.min(np.linalg.norm(points[:, None, :] - others[None, :, :], axis=2)) <= reach)
+
+
+def test_fill_pass_reach_test_is_the_answer_of_every_pair(rng):
+    from swath.plan.gaps import _comes_within
+
+    others = rng.random((50, 3)) * [0.3, 0.01, 0.01]
+    for _ in range(200):
+        points = rng.random((rng.integers(1, 400), 3)) * 0.3
+        reach = float(rng.uniform(0.001, 0.08))
+        assert _comes_within(points, others, reach) == _all_pairs_within(points, others, reach)
+    # exactly at reach (a 3-4-5 triangle), just inside and just outside
+    points, others = np.array([[0.0, 0.003, 0.004], [1.0, 1.0, 1.0]]), np.zeros((1, 3))
+    assert _comes_within(points, others, 0.005) and _all_pairs_within(points, others, 0.005)
+    below = np.nextafter(0.005, 0)
+    assert _comes_within(points, others, below) == _all_pairs_within(points, others, below)
+    assert not _comes_within(points, others, 0.0049)
+
+
+def test_gap_patches_are_the_connected_uncovered_samples_in_label_order(rng):
+    """Grouping the uncovered samples by component with one sort gives the patches of testing each
+    label in turn: the same members, in the same order, patches in label order."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    surface = doubly_curved_panel(spacing=8e-3)
+    tp = raster(surface, TOOL, spacing=0.09, fill_gaps=False)
+    check = CoverageCheck(surface, TOOL, np.asarray(tp.metadata["feed_direction"]))
+    patches = check.gap_patches(tp.passes, min_share=0.0)
+    free = np.flatnonzero(~check.covered(tp.passes))
+    pairs = cKDTree(check.points[free]).query_pairs(1.5 * check.step, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(free), len(free)))
+    _, label = connected_components(graph, directed=False)
+    expected = [free[label == lab] for lab in np.unique(label)]
+    assert len(patches) == len(expected) > 1
+    for got, want in zip(patches, expected):
+        np.testing.assert_array_equal(got, want)
+
+
+def _chain_by_graph_search(ends: np.ndarray, seg_face: np.ndarray, n_nodes: int):
+    """The chains as the slicer found them before the compiled walk: closed loops cut at their
+    lowest-numbered segment, one depth-first traversal from a virtual root joined to one end of
+    every chain visiting each chain in order."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components, depth_first_order
+
+    S = len(ends)
+    adj = sp.coo_matrix((np.ones(2 * S), (np.r_[ends[:, 0], ends[:, 1]], np.r_[ends[:, 1], ends[:, 0]])),
+                        shape=(n_nodes, n_nodes)).tocsr()
+    _, label = connected_components(adj, directed=False)
+    degree = np.bincount(ends.ravel(), minlength=n_nodes)
+    n_comp = int(label.max()) + 1
+    seg_label = label[ends[:, 0]]
+    open_ends = np.bincount(label, weights=(degree == 1), minlength=n_comp)
+    has_seg = np.bincount(seg_label, minlength=n_comp) > 0
+    is_loop = has_seg & (open_ends == 0)
+
+    # Cut each loop at its first segment.
+    comp_first_seg = np.full(n_comp, -1)
+    first_idx = np.unique(seg_label, return_index=True)
+    comp_first_seg[first_idx[0]] = first_idx[1]
+    cut = comp_first_seg[is_loop]
+    keep = np.ones(S, bool)
+    keep[cut] = False
+    kept = ends[keep]
+
+    # Start of each chain: the loop's cut segment's first node, or the lowest-numbered open end.
+    start = np.full(n_comp, -1)
+    start[np.nonzero(is_loop)[0]] = ends[cut, 0]
+    openers = np.nonzero(degree == 1)[0]
+    lab_open = label[openers]
+    uniq_lab, first_open = np.unique(lab_open, return_index=True)
+    start[uniq_lab] = openers[first_open]
+    comps = np.nonzero(has_seg)[0]
+    root = n_nodes
+    rows = np.r_[kept[:, 0], kept[:, 1], np.full(len(comps), root)]
+    cols = np.r_[kept[:, 1], kept[:, 0], start[comps]]
+    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_nodes + 1, n_nodes + 1)).tocsr()
+    order = depth_first_order(g, root, directed=True, return_predecessors=False)[1:]
+    lab = label[order]
+    breaks = np.nonzero(lab[1:] != lab[:-1])[0] + 1
+    chains = np.split(order, breaks)
+
+    # Face of each consecutive pair, looked up by the sorted node pair.
+    seg_key = np.minimum(ends[:, 0], ends[:, 1]) * np.int64(n_nodes) + np.maximum(ends[:, 0], ends[:, 1])
+    key_order = np.argsort(seg_key)
+    sorted_keys = seg_key[key_order]
+    loop_of = dict(zip(np.nonzero(is_loop)[0].tolist(), cut.tolist()))
+    faces_out, closed_out, chains_out = [], [], []
+    for ch in chains:
+        comp = int(label[ch[0]])
+        if comp in loop_of:
+            ch = np.append(ch, ch[0])
+        u, v = ch[:-1], ch[1:]
+        k = np.minimum(u, v) * np.int64(n_nodes) + np.maximum(u, v)
+        faces_out.append(seg_face[key_order[np.searchsorted(sorted_keys, k)]])
+        closed_out.append(comp in loop_of)
+        chains_out.append(ch)
+    return chains_out, closed_out, faces_out
+
+
+def _random_chains(rng, n_chains):
+    """Segments (S, 2) of random open chains and loops over shuffled node numbers, in random order,
+    with some nodes left without a segment."""
+    sizes = rng.integers(1, 12, n_chains)
+    loops = rng.random(n_chains) < 0.4
+    n_nodes = int(sizes.sum() + n_chains + 5)
+    label = rng.permutation(n_nodes)
+    segs, at = [], 0
+    for k, loop in zip(sizes, loops):
+        path = list(range(at, at + k + 1))
+        at += k + 1
+        pairs = list(zip(path[:-1], path[1:]))
+        if loop and k >= 2:
+            pairs.append((path[-1], path[0]))
+        segs += [p if rng.random() < 0.5 else p[::-1] for p in pairs]
+    ends = label[np.array(segs)]
+    return ends[rng.permutation(len(ends))], n_nodes
+
+
+def test_compiled_chain_walk_gives_the_chains_of_the_graph_search(rng):
+    from swath.plan.slicing import _chain
+
+    for n_chains in (1, 2, 5, 40):
+        for _ in range(20):
+            ends, n_nodes = _random_chains(rng, n_chains)
+            seg_face = rng.permutation(len(ends)) + 100
+            got = _chain(ends, seg_face, n_nodes)
+            want = _chain_by_graph_search(ends, seg_face, n_nodes)
+            assert len(got[0]) == len(want[0]) == n_chains
+            for g, w in zip(got[0], want[0]):
+                np.testing.assert_array_equal(g, w)
+            assert got[1] == want[1]
+            for g, w in zip(got[2], want[2]):
+                np.testing.assert_array_equal(g, w)
+
+
+def test_slices_of_a_scan_with_holes_and_a_non_manifold_edge_are_those_of_the_graph_search(monkeypatch):
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io.mesh import load_mesh
+    from swath.plan import slicing
+
+    name = "noether_wavy_mesh_with_hole.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    V, F = surface.vertices, surface.faces
+    F = np.vstack([F, [[F[0, 0], F[0, 1], F[5, 2]]]])            # a third face on an edge: a branch
+    c = np.array([0.3, 1.0, 0.05])
+    h = V @ (c / np.linalg.norm(c))
+    offsets = np.linspace(h.min(), h.max(), 61)[1:-1]
+    fast = slicing.slice_mesh(V, F, c, offsets, values=surface.normals)
+    monkeypatch.setattr(slicing, "_chain", _chain_by_graph_search)
+    slow = slicing.slice_mesh(V, F, c, offsets, values=surface.normals)
+    assert len(fast) == len(slow) > 60
+    for a, b in zip(fast, slow):
+        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_array_equal(a.faces, b.faces)
+        np.testing.assert_array_equal(a.values, b.values)
+        assert (a.plane, a.closed) == (b.plane, b.closed)
+
+
+def test_plane_slicer_gives_the_slices_of_the_whole_mesh():
+    """Fill passes slice one piece again and again: looking only at the faces a plane can cut
+    gives the polylines of slicing every face, bit for bit, through vertices and on long slivers."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io.mesh import load_mesh
+    from swath.plan.slicing import PlaneSlicer, slice_mesh
+
+    for name in ("noether_wavy_mesh_with_hole.ply", "crs_part_5.stl"):
+        surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+        V, F = surface.vertices, surface.faces
+        c = np.array([0.2, 1.0, 0.1])
+        slicer = PlaneSlicer(V, F, c, values=surface.normals)
+        h = slicer.heights
+        offsets = np.concatenate([np.linspace(h.min(), h.max(), 41), h[::max(len(h) // 20, 1)]])   # through vertices too
+        n_cut = 0
+        for d in offsets:
+            got, want = slicer(d), slice_mesh(V, F, c, [d], values=surface.normals)
+            assert len(got) == len(want)
+            n_cut += len(got)
+            for a, b in zip(got, want):
+                np.testing.assert_array_equal(a.points, b.points)
+                np.testing.assert_array_equal(a.faces, b.faces)
+                np.testing.assert_array_equal(a.values, b.values)
+                assert (a.plane, a.closed) == (b.plane, b.closed)
+        assert n_cut >= 40                                  # most planes cut the part
+
+
+def test_component_labels_are_those_of_the_sparse_graph_search(rng):
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from swath.plan.gaps import component_labels
+
+    for n, e in ((1, 0), (5, 0), (50, 30), (2000, 1500), (2000, 4000)):
+        pairs = rng.integers(0, n, (e, 2))
+        graph = coo_matrix((np.ones(e), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        count, expected = connected_components(graph, directed=False)
+        got = component_labels(n, pairs)
+        np.testing.assert_array_equal(got, expected)
+        assert got.max() + 1 == count

@@ -260,14 +260,18 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
     return options
 
 
-def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=None, choose_lead: bool = False):
+def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=None, choose_lead: bool = False,
+              timings: dict | None = None):
     """Run the job's planner on ``surface`` and order its passes; returns a ToolPath.
     ``progress(stage, done, total)`` hears about long planning steps; ``tool`` is the job's tool
     (default :func:`swath.cli.stages.job_tool`, built from the settings and the calibration).  With a
     ``part`` (its selection set), the passes are cut where the pad would touch a keep-out or cross
     the edge margin (:func:`swath.segment.select.keep_clear`) before they are ordered.  ``choose_lead``:
     the least-ripple spacing may choose the lead too (:func:`swath.cli.curved_spacing.curved_spacing_plan`;
-    the plan's ``metadata["ripple_lead_rad"]``)."""
+    the plan's ``metadata["ripple_lead_rad"]``).  ``timings`` (a dict): with a spacing search
+    (``settings.optimise_spacing``), ``timings["spacing_s"]`` is set to the time (s) the search took
+    besides the planner call whose passes the job keeps (the plans at the spacings tried, the
+    curvature read from them, the ripple models)."""
     from ..order import order_toolpath, route_links
     from ..plan import get_planner, planner_options
     from .stages import job_tool
@@ -280,7 +284,14 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
     if settings.optimise_spacing:
         from .stages import spacing_plan
 
-        toolpath = spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead)
+        if progress is not None:
+            progress(f"choosing the spacing ({settings.optimise_spacing})", 0, 1)
+        calls: list[float] = []
+        t0 = time.perf_counter()
+        toolpath = spacing_plan(surface, tool, _timed(planner, calls), settings, arguments, choose_lead=choose_lead)
+        if timings is not None:
+            # the last plan is the one kept (a search ends with the plan at the spacing chosen)
+            timings["spacing_s"] = time.perf_counter() - t0 - (calls[-1] if calls else 0.0)
     elif settings.segment == "auto":
         from .stages import segmented_plan
 
@@ -293,6 +304,20 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
         toolpath = keep_clear(toolpath, part, settings.pad_radius)
     ordered = order_toolpath(toolpath, method=order_method(toolpath, settings), **order_options(toolpath, settings))
     return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius, units=settings.units)
+
+
+def _timed(planner, calls: list):
+    """``planner``, appending the time (s) each call takes to ``calls``."""
+    import functools
+
+    @functools.wraps(planner)
+    def run(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return planner(*args, **kwargs)
+        finally:
+            calls.append(time.perf_counter() - t0)
+    return run
 
 
 def order_options(toolpath, settings) -> dict:
@@ -398,12 +423,16 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     else:
         t0 = time.perf_counter()
         say(f"planning ({settings.planner})", 0, 1)
+        searched_spacing: dict = {}
         toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"),
-                             choose_lead=plain is not None)       # the default job chose the lead: on a curved part, again
+                             choose_lead=plain is not None,       # the default job chose the lead: on a curved part, again
+                             timings=searched_spacing)
         lead = toolpath.metadata.get("ripple_lead_rad")
         if plain is not None and lead is not None and lead != settings.lead():
             settings = replace(settings, lead_angle=lead)
-        timings["plan_s"] = time.perf_counter() - t0
+        # the spacing search, when the job ran one, is its own stage: plan_s is the plan kept and its order
+        timings.update(searched_spacing)
+        timings["plan_s"] = time.perf_counter() - t0 - searched_spacing.get("spacing_s", 0.0)
         log.info("%d passes, %.3f m in contact", len(toolpath.passes), toolpath.contact_length)
 
         t0 = time.perf_counter()

@@ -46,6 +46,7 @@ a wavelength of about ``R`` that turns the tool far faster than the angular-spee
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -159,7 +160,12 @@ def lattice_cov(tool: Tool, offsets, weights, period: float, *, n: int = 1024, l
     return float(total.std() / total.mean())
 
 
-_RADIAL_NODES, _RADIAL_WEIGHTS = np.polynomial.legendre.leggauss(256)
+@functools.cache
+def _radial_rule() -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights (256) on [-1, 1], made on first use: the eigenvalue solve
+    behind them costs up to 0.4 s of CPU where a threaded BLAS shares a busy machine, and only the
+    weave model needs them."""
+    return np.polynomial.legendre.leggauss(256)
 
 
 def _footprint_transform(tool: Tool, k) -> np.ndarray:
@@ -169,8 +175,9 @@ def _footprint_transform(tool: Tool, k) -> np.ndarray:
     from scipy.special import j0
 
     R = tool.pad_radius
-    r = 0.5 * R * (_RADIAL_NODES + 1.0)
-    w = 0.5 * R * _RADIAL_WEIGHTS * r * tool.relative_speed(r)
+    nodes, weights = _radial_rule()
+    r = 0.5 * R * (nodes + 1.0)
+    w = 0.5 * R * weights * r * tool.relative_speed(r)
     kk = np.asarray(k, float)
     return (j0(kk.reshape(-1, 1) * r[None, :]) @ w).reshape(kk.shape) / w.sum()
 

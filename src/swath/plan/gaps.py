@@ -14,8 +14,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..contact.widths import pad_scale_samples, patch_widths, surface_memo
@@ -82,6 +80,7 @@ class CoverageCheck:
         self._pad_tree = surface_memo(surface, ("pad_tree", tool), lambda: cKDTree(pad.points))
         self._neighbours = lambda: surface_memo(surface, ("pad_neighbours", tool),
                                                 lambda: pad_neighbours(self._pad_tree, R * 2.0 ** np.arange(-1, 3)))
+        self._least: list[tuple[float, np.ndarray]] | None = None
         self.surface = surface
         self.tool = tool
         self.total = float(surface.area)
@@ -103,12 +102,36 @@ class CoverageCheck:
         d, near = self._pad_tree.query(centre)
         need = 2.0 * (rho + d) * (1.0 + 1e-9) + SURE_MARGIN
         out = np.full(len(centre), float(self.pad_half_chord.min()))
-        for radius, indptr, indices in reversed(self._neighbours()):      # the largest radius first
+        for radius, least in reversed(self._least_by_radius()):           # the largest radius first
             ok = need <= radius
             if ok.any():
-                least = np.minimum.reduceat(self.pad_half_chord[indices], indptr[:-1])
                 out[ok] = least[near[ok]]
         return out * (1.0 + CHORD_TOLERANCE)
+
+    def _least_by_radius(self) -> list[tuple[float, np.ndarray]]:
+        """``(radius, least (p,))`` per radius of :func:`pad_neighbours`: the least half chord (m) of
+        the pad-scale samples within that radius of each pad-scale sample; made once per check."""
+        if self._least is None:
+            self._least = [(radius, np.minimum.reduceat(self.pad_half_chord[indices], indptr[:-1]))
+                           for radius, indptr, indices in self._neighbours()]
+        return self._least
+
+    def _drop(self, grid, top: float, n_pass_points: int, xyz, faces) -> np.ndarray:
+        """(k,) bool: the triangles ``faces`` (k, 3) of ``xyz`` surely within reach of a pass point of
+        ``grid`` (no sample reaches more than ``top``, m), set aside unsplit (see the class)."""
+        tri = xyz[faces]
+        centre = tri.mean(axis=1)
+        rho = np.sqrt(((tri - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1)
+        out = np.zeros(len(faces), bool)
+        some = np.flatnonzero(rho + SURE_MARGIN < top)
+        if len(some) == 0 or n_pass_points == 0:
+            return out
+        # a pass point within (least reach - rho) of the centre is within reach of every point
+        # of the triangle; the margin outweighs the rounding of these distances many times over
+        room = self._least_reach(centre[some], rho[some]) - rho[some] - SURE_MARGIN
+        sure = room > 0
+        out[some[sure]] = grid.within(centre[some[sure]], room[sure])
+        return out
 
     def _sample(self, pass_points: np.ndarray) -> None:
         """Halve the surface to the step where a sample may be out of reach of ``pass_points``."""
@@ -116,19 +139,7 @@ class CoverageCheck:
         grid = self._grid = PointGrid(pass_points, top)
 
         def drop(xyz, faces):
-            tri = xyz[faces]
-            centre = tri.mean(axis=1)
-            rho = np.sqrt(((tri - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1)
-            out = np.zeros(len(faces), bool)
-            some = np.flatnonzero(rho + SURE_MARGIN < top)
-            if len(some) == 0 or len(pass_points) == 0:
-                return out
-            # a pass point within (least reach - rho) of the centre is within reach of every point
-            # of the triangle; the margin outweighs the rounding of these distances many times over
-            room = self._least_reach(centre[some], rho[some]) - rho[some] - SURE_MARGIN
-            sure = room > 0
-            out[some[sure]] = grid.within(centre[some[sure]], room[sure])
-            return out
+            return self._drop(grid, top, len(pass_points), xyz, faces)
 
         base = surface_memo(self.surface, ("coverage_base", self.tool, self.step),
                             lambda: _coverage_base(self.surface, self._pad_tree, self.step))
@@ -147,9 +158,15 @@ class CoverageCheck:
         self._known = np.zeros(len(v), bool)
         self._known[gone.ravel()] = True
         self.half_chord = np.zeros(len(v))
-        nearest = np.concatenate([base.nearest, self._pad_tree.query(v[n0:])[1]]) if len(v) > n0 else base.nearest
         todo = np.flatnonzero(~self._known)
-        self.half_chord[todo] = self.pad_half_chord[nearest[todo]]
+        # the nearest pad-scale sample of each sample that may be uncovered (the surface's own
+        # vertices have theirs already)
+        nearest = np.empty(len(todo), np.int64)
+        old = todo < n0
+        nearest[old] = base.nearest[todo[old]]
+        if not old.all():
+            nearest[~old] = self._pad_tree.query(v[todo[~old]])[1]
+        self.half_chord[todo] = self.pad_half_chord[nearest]
 
     def covered(self, passes) -> np.ndarray:
         """(s,) bool: samples within half a chord of a pass point (``s`` = ``len(self.points)``).
@@ -196,16 +213,54 @@ class CoverageCheck:
         if len(free) == 0:
             return []
         pairs = cKDTree(self.points[free]).query_pairs(1.5 * self.step, output_type="ndarray")
-        n = len(free)
-        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else \
-            coo_matrix((n, n))
-        _, label = connected_components(graph, directed=False)
+        label = component_labels(len(free), pairs)
+        # the samples of each label in increasing order (a stable sort), labels in increasing order
+        order = np.argsort(label, kind="stable")
+        cuts = np.flatnonzero(np.diff(label[order])) + 1
         out = []
-        for lab in np.unique(label):
-            idx = free[label == lab]
+        for members in np.split(order, cuts):
+            idx = free[members]
             if self.areas[idx].sum() >= min_share * self.total:
                 out.append(idx)
         return out
+
+
+def component_labels(n: int, pairs: np.ndarray) -> np.ndarray:
+    """(n,) int: the connected component of each of ``n`` nodes joined by ``pairs`` ``(e, 2)``,
+    numbered in the order of their lowest node, as
+    ``scipy.sparse.csgraph.connected_components(..., directed=False)`` numbers them (a compiled
+    union-find instead of a sparse matrix)."""
+    pairs = np.ascontiguousarray(np.asarray(pairs, np.int64).reshape(-1, 2))
+    return _component_labels(int(n), pairs)
+
+
+@jit()
+def _component_labels(n, pairs):   # pragma: no cover - compiled
+    parent = np.arange(n)
+    for e in range(len(pairs)):
+        a, b = pairs[e, 0], pairs[e, 1]
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        while parent[b] != b:
+            parent[b] = parent[parent[b]]
+            b = parent[b]
+        if a < b:
+            parent[b] = a
+        elif b < a:
+            parent[a] = b
+    label = np.empty(n, np.int64)
+    count = 0
+    for v in range(n):                  # a root is its component's lowest node: numbered first
+        r = v
+        while parent[r] != r:
+            r = parent[r]
+        if r == v:
+            label[v] = count
+            count += 1
+        else:
+            label[v] = label[r]
+    return label
 
 
 @dataclass(frozen=True)
@@ -297,17 +352,39 @@ class PointGrid:
 
 @jit()
 def _within_reach_kernel(samples, reach, points, lo, cell, dims, start):   # pragma: no cover - compiled
+    # The sample's own cell first, then the neighbours whose box comes within reach (the others
+    # hold no point within reach: the slack outweighs the rounding of the binning many times over).
     out = np.zeros(len(samples), np.bool_)
+    steps = np.array([0, -1, 1])
     for s in range(len(samples)):
         x, y, z = samples[s, 0], samples[s, 1], samples[s, 2]
         r = reach[s]
+        slack = r * (1.0 + 1e-9) + 1e-12
         ci = int(np.floor((x - lo[0]) / cell))
         cj = int(np.floor((y - lo[1]) / cell))
         ck = int(np.floor((z - lo[2]) / cell))
         found = False
-        for i in range(max(ci - 1, 0), min(ci + 2, dims[0])):
-            for j in range(max(cj - 1, 0), min(cj + 2, dims[1])):
-                for k in range(max(ck - 1, 0), min(ck + 2, dims[2])):
+        for a in range(3):
+            i = ci + steps[a]
+            if i < 0 or i >= dims[0]:
+                continue
+            gx = max(lo[0] + i * cell - x, x - (lo[0] + (i + 1) * cell), 0.0)
+            if gx > slack:
+                continue
+            for b in range(3):
+                j = cj + steps[b]
+                if j < 0 or j >= dims[1]:
+                    continue
+                gy = max(lo[1] + j * cell - y, y - (lo[1] + (j + 1) * cell), 0.0)
+                if gx * gx + gy * gy > slack * slack:
+                    continue
+                for e in range(3):
+                    k = ck + steps[e]
+                    if k < 0 or k >= dims[2]:
+                        continue
+                    gz = max(lo[2] + k * cell - z, z - (lo[2] + (k + 1) * cell), 0.0)
+                    if gx * gx + gy * gy + gz * gz > slack * slack:
+                        continue
                     c = (i * dims[1] + j) * dims[2] + k
                     for q in range(start[c], start[c + 1]):
                         dx = points[q, 0] - x
@@ -359,10 +436,25 @@ def fill_passes(check: CoverageCheck, patches, slicer, feed, cross, pad_radius: 
             edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.astype(int), [0]])))
             runs = edges.reshape(-1, 2)
             a, b = max(runs, key=lambda r: r[1] - r[0])
-            if b - a >= 2 and np.min(np.linalg.norm(p[:, None, :] - pts[None, a:b:max((b - a) // 50, 1)], axis=2)) \
-                    <= 2 * pad_radius:
+            if b - a >= 2 and _comes_within(p, pts[a:b:max((b - a) // 50, 1)], 2 * pad_radius):
                 out.append((pts[a:b], nrm[a:b], off))
     return out
+
+
+def _comes_within(points: np.ndarray, others: np.ndarray, reach: float) -> bool:
+    """Whether some of ``points`` ``(s, 3)`` lies within ``reach`` (m) of some of ``others`` ``(q, 3)``,
+    the distance being ``np.linalg.norm`` of the difference: the answer of comparing every pair,
+    found by a nearest-neighbour query and the exact distances of the nearest pair only (all pairs
+    near the reach only when the query's rounding could decide otherwise)."""
+    d = cKDTree(others).query(points)[0]
+    slack = reach * (1.0 + 1e-9)
+    near = d <= slack                        # a pair within reach is surely among these
+    if not near.any():
+        return False
+    best = points[int(np.argmin(d))]
+    if np.min(np.linalg.norm(best[None, :] - others, axis=1)) <= reach:
+        return True
+    return bool(np.min(np.linalg.norm(points[near][:, None, :] - others[None, :, :], axis=2)) <= reach)
 
 
 #: At most this many rounds of fill passes (each round fills the gaps the previous ones left).

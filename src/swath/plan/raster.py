@@ -442,13 +442,24 @@ def plane_offsets(heights: np.ndarray, spacing: float, *, edge_margin: float = 0
 def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacing):
     """Add fill passes where the plan leaves the surface untouched; returns the passes (sorted by
     piece, level and position along the feed), how many were added and the predicted gap share."""
-    from .common import slice_passes
     from .gaps import CoverageCheck, fill_passes, fill_rounds
+    from .slicing import PlaneSlicer
 
     check = CoverageCheck(surface, tool, feed)
     piece_of_vertex = np.full(len(surface.vertices), -1)
     for k, faces in enumerate(pieces):
         piece_of_vertex[surface.faces[faces].ravel()] = k
+    slicers: dict = {}
+
+    def slice_piece(k, offset):
+        # slice_passes(surface, pieces[k], cross, offset, feed, point_spacing, edges=...), with the
+        # piece's faces, face normals and heights taken once for all its fill passes
+        if k not in slicers:
+            slicers[k] = (PlaneSlicer(surface.vertices, surface.faces[pieces[k]], cross, values=surface.normals,
+                                      edges=piece_edges(surface, pieces, k)),
+                          surface.face_normals[pieces[k]])
+        cut, face_normals = slicers[k]
+        return [(p.points, p.normals) for p in plane_passes(cut(offset), feed, face_normals, point_spacing)]
 
     def fills_for(patches, passes):
         # each pass's mean position across the feed, and its piece: the fill takes the level of the
@@ -460,10 +471,8 @@ def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacin
             nearest = surface.kdtree.query(check.points[idx[len(idx) // 2]])[1]
             k = int(max(piece_of_vertex[nearest], 0))
 
-            edges_k = piece_edges(surface, pieces, k)
-
-            def slicer(offset, faces=pieces[k], edges=edges_k):
-                return slice_passes(surface, faces, cross, offset, feed, point_spacing, edges=edges)
+            def slicer(offset, k=k):
+                return slice_piece(k, offset)
 
             for pts, nrm, off in fill_passes(check, [idx], slicer, feed, cross, tool.pad_radius):
                 level = int(np.argmin(np.where(piece == k, np.abs(off - across), np.inf)))

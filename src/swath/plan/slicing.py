@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..surface.cells import jit
 from ..surface.topology import mesh_edges
 
 log = logging.getLogger("swath.plan")
@@ -166,7 +167,7 @@ def slice_mesh(vertices: np.ndarray, faces: np.ndarray, normal, offsets, *, valu
 
 def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, levels, *,
                values: np.ndarray | None = None, face_mask: np.ndarray | None = None,
-               merge_tolerance: float = MERGE_TOLERANCE, edges=None) -> list[SlicePolyline]:
+               merge_tolerance: float = MERGE_TOLERANCE, edges=None, rows=None) -> list[SlicePolyline]:
     """Level sets ``field = level`` of a per-vertex scalar field, chained into polylines.
 
     The field is interpolated linearly over each triangle; a plane slice is the level set of
@@ -190,6 +191,10 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
     edges : tuple, optional
         ``mesh_edges(faces)`` if the caller extracts many level sets of one mesh (not with
         ``face_mask``).
+    rows : (k,) int, optional
+        With one level, no ``face_mask`` and ``edges``: increasing indices of the faces that may be
+        cut, including every face the level cuts (:class:`PlaneSlicer`); the others are not looked
+        at, and the answer is the one of looking at all.
 
     Returns
     -------
@@ -218,8 +223,13 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
         # lies below the level and some does not, the same test on vertex flags, and no per-face
         # minimum, maximum or search.
         under = h < d_sorted[0]
-        u0, u1, u2 = under[F[:, 0]], under[F[:, 1]], under[F[:, 2]]
-        pair_face = np.flatnonzero((u0 | u1 | u2) & ~(u0 & u1 & u2))
+        if rows is not None and face_mask is None:
+            Fr = F[rows]
+            u0, u1, u2 = under[Fr[:, 0]], under[Fr[:, 1]], under[Fr[:, 2]]
+            pair_face = np.asarray(rows, np.int64)[(u0 | u1 | u2) & ~(u0 & u1 & u2)]
+        else:
+            u0, u1, u2 = under[F[:, 0]], under[F[:, 1]], under[F[:, 2]]
+            pair_face = np.flatnonzero((u0 | u1 | u2) & ~(u0 & u1 & u2))
         total = len(pair_face)
         if total == 0:
             return []
@@ -296,69 +306,173 @@ def level_sets(vertices: np.ndarray, faces: np.ndarray, field: np.ndarray, level
     return out
 
 
+class PlaneSlicer:
+    """One mesh cut by single planes of one normal, again and again (the fill passes of a plan).
+
+    ``slicer(offset)`` is ``slice_mesh(vertices, faces, normal, [offset], values=values, edges=edges)``,
+    the same polylines bit for bit, found among the faces the plane can cut only: the faces sorted
+    by their lowest corner height, those whose lowest corner lies less than the tallest face's
+    height span below the plane are tested as :func:`level_sets` tests them.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        m.
+    faces : (m, 3) int
+    normal : (3,) float
+        The planes' common normal (any length, not zero).
+    values : (n, q) float, optional
+        Per-vertex values interpolated to the points.
+    edges : tuple, optional
+        ``mesh_edges(faces)``, when the caller has it.
+    """
+
+    def __init__(self, vertices, faces, normal, *, values=None, edges=None):
+        self.vertices = np.asarray(vertices, float)
+        self.faces = np.asarray(faces, np.int64)
+        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3 or self.faces.ndim != 2 or self.faces.shape[1] != 3:
+            raise InputError(f"expected vertices (n, 3) and faces (m, 3), got {self.vertices.shape} and "
+                             f"{self.faces.shape}")
+        c = np.asarray(normal, float).reshape(-1)
+        if c.shape != (3,) or not np.isfinite(c).all() or np.linalg.norm(c) == 0:
+            raise InputError(f"the plane normal must be a finite, non-zero 3-vector, got {normal!r}")
+        c = c / np.linalg.norm(c)                          # as slice_mesh takes it
+        self.heights = self.vertices @ c
+        self.values = values
+        self.edges = mesh_edges(self.faces) if edges is None else edges
+        hf = self.heights[self.faces]
+        low = np.minimum(np.minimum(hf[:, 0], hf[:, 1]), hf[:, 2])
+        high = np.maximum(np.maximum(hf[:, 0], hf[:, 1]), hf[:, 2])
+        self._order = np.argsort(low, kind="stable")
+        self._low = low[self._order]
+        # a face the plane d cuts has low < d <= high, so low >= d - span: the slack covers the rounding
+        self._span = float((high - low).max()) * (1.0 + 1e-9) + 1e-12 if len(low) else 0.0
+
+    def __call__(self, offset: float) -> list[SlicePolyline]:
+        d = float(offset)
+        if not np.isfinite(d):
+            raise InputError("plane offsets must be finite")
+        if len(self.faces) == 0:
+            return []
+        a = int(np.searchsorted(self._low, d - self._span, side="left"))
+        b = int(np.searchsorted(self._low, d, side="left"))             # low < d
+        rows = np.sort(self._order[a:b])
+        return level_sets(self.vertices, self.faces, self.heights, [d], values=self.values, edges=self.edges,
+                          rows=rows)
+
+
 def _chain(ends: np.ndarray, seg_face: np.ndarray, n_nodes: int):
     """Order the segments of a graph whose nodes have degree <= 2 into chains.
 
-    Returns lists of node sequences, closed flags and per-segment faces.  Closed loops are cut at
-    their lowest-numbered segment (which becomes the closing segment); one depth-first traversal
-    from a virtual root joined to one end of every chain then visits each chain in order.
+    Returns lists of node sequences, closed flags and per-segment faces.  A chain starts at its
+    lowest-numbered open end; a closed loop is cut at its lowest-numbered segment (which becomes
+    the closing segment) and starts at that segment's first node.  Chains come in the order of
+    their first nodes.  One compiled walk along the segments (:func:`_walk_chains`); the same
+    chains, in the same order, as sparse graph searches find them (components, then one depth-first
+    traversal), which cost more than the walk on a slice of a few hundred segments.
     """
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components, depth_first_order
+    ends = np.ascontiguousarray(ends, np.int64)
+    if len(ends) == 0:
+        return [], [], []
+    nodes, node_start, seg, closed = _walk_chains(ends, int(n_nodes))
+    faces = np.asarray(seg_face)[seg]
+    chains, faces_out = [], []
+    for i in range(len(node_start) - 1):
+        a, b = node_start[i], node_start[i + 1]
+        chains.append(nodes[a:b])
+        faces_out.append(faces[a - i:b - i - 1])
+    return chains, [bool(c) for c in closed], faces_out
 
+
+@jit()
+def _walk_chains(ends, n_nodes):   # pragma: no cover - compiled
+    """The chains of a graph of segments ``ends`` (S, 2) on ``n_nodes`` nodes of degree <= 2 (see
+    :func:`_chain`): the nodes of every chain one after another, where each chain's nodes start
+    ``(c + 1,)``, the segment of each step (``len(nodes) - c``, chain after chain) and the closed flags."""
     S = len(ends)
-    adj = sp.coo_matrix((np.ones(2 * S), (np.r_[ends[:, 0], ends[:, 1]], np.r_[ends[:, 1], ends[:, 0]])),
-                        shape=(n_nodes, n_nodes)).tocsr()
-    _, label = connected_components(adj, directed=False)
-    degree = np.bincount(ends.ravel(), minlength=n_nodes)
-    n_comp = int(label.max()) + 1
-    seg_label = label[ends[:, 0]]
-    open_ends = np.bincount(label, weights=(degree == 1), minlength=n_comp)
-    has_seg = np.bincount(seg_label, minlength=n_comp) > 0
-    is_loop = has_seg & (open_ends == 0)
-
-    # Cut each loop at its first segment.
-    comp_first_seg = np.full(n_comp, -1)
-    first_idx = np.unique(seg_label, return_index=True)
-    comp_first_seg[first_idx[0]] = first_idx[1]
-    cut = comp_first_seg[is_loop]
-    keep = np.ones(S, bool)
-    keep[cut] = False
-    kept = ends[keep]
-
-    # Start of each chain: the loop's cut segment's first node, or the lowest-numbered open end.
-    start = np.full(n_comp, -1)
-    start[np.nonzero(is_loop)[0]] = ends[cut, 0]
-    openers = np.nonzero(degree == 1)[0]
-    lab_open = label[openers]
-    uniq_lab, first_open = np.unique(lab_open, return_index=True)
-    start[uniq_lab] = openers[first_open]
-    comps = np.nonzero(has_seg)[0]
-    root = n_nodes
-    rows = np.r_[kept[:, 0], kept[:, 1], np.full(len(comps), root)]
-    cols = np.r_[kept[:, 1], kept[:, 0], start[comps]]
-    g = sp.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n_nodes + 1, n_nodes + 1)).tocsr()
-    order = depth_first_order(g, root, directed=True, return_predecessors=False)[1:]
-    lab = label[order]
-    breaks = np.nonzero(lab[1:] != lab[:-1])[0] + 1
-    chains = np.split(order, breaks)
-
-    # Face of each consecutive pair, looked up by the sorted node pair.
-    seg_key = np.minimum(ends[:, 0], ends[:, 1]) * np.int64(n_nodes) + np.maximum(ends[:, 0], ends[:, 1])
-    key_order = np.argsort(seg_key)
-    sorted_keys = seg_key[key_order]
-    loop_of = dict(zip(np.nonzero(is_loop)[0].tolist(), cut.tolist()))
-    faces_out, closed_out, chains_out = [], [], []
-    for ch in chains:
-        comp = int(label[ch[0]])
-        if comp in loop_of:
-            ch = np.append(ch, ch[0])
-        u, v = ch[:-1], ch[1:]
-        k = np.minimum(u, v) * np.int64(n_nodes) + np.maximum(u, v)
-        faces_out.append(seg_face[key_order[np.searchsorted(sorted_keys, k)]])
-        closed_out.append(comp in loop_of)
-        chains_out.append(ch)
-    return chains_out, closed_out, faces_out
+    nbr = np.full((n_nodes, 2), -1, np.int64)          # the (up to) two segments at each node
+    degree = np.zeros(n_nodes, np.int64)
+    for s in range(S):
+        for e in range(2):
+            v = ends[s, e]
+            if degree[v] < 2:
+                nbr[v, degree[v]] = s
+            degree[v] += 1
+    # each component's start node and, for a loop, the segment it is cut at
+    seen = np.zeros(n_nodes, np.bool_)
+    start = np.full(n_nodes, -1, np.int64)
+    cut = np.full(n_nodes, -1, np.int64)              # indexed by start node
+    n_chains = 0
+    stack = np.empty(n_nodes, np.int64)
+    for v0 in range(n_nodes):
+        if seen[v0] or degree[v0] == 0:
+            continue
+        # the component of v0: its lowest open end and its lowest segment
+        top = 0
+        stack[top] = v0
+        seen[v0] = True
+        low_open = -1
+        low_seg = S
+        while top >= 0:
+            v = stack[top]
+            top -= 1
+            if degree[v] == 1 and (low_open < 0 or v < low_open):
+                low_open = v
+            for j in range(min(degree[v], 2)):
+                s = nbr[v, j]
+                if s < low_seg:
+                    low_seg = s
+                w = ends[s, 1] if ends[s, 0] == v else ends[s, 0]
+                if not seen[w]:
+                    seen[w] = True
+                    top += 1
+                    stack[top] = w
+        if low_open >= 0:
+            start[n_chains] = low_open
+            cut[n_chains] = -1
+        else:
+            start[n_chains] = ends[low_seg, 0]
+            cut[n_chains] = low_seg
+        n_chains += 1
+    order = np.argsort(start[:n_chains], kind="mergesort")
+    nodes = np.empty(S + 2 * n_chains, np.int64)
+    seg = np.empty(S + n_chains, np.int64)
+    node_start = np.empty(n_chains + 1, np.int64)
+    closed = np.zeros(n_chains, np.bool_)
+    used = np.zeros(S, np.bool_)
+    k = 0
+    m = 0
+    for i in range(n_chains):
+        c = order[i]
+        v = start[c]
+        node_start[i] = k
+        if cut[c] >= 0:
+            used[cut[c]] = True
+            closed[i] = True
+        nodes[k] = v
+        k += 1
+        while True:
+            nxt = -1
+            for j in range(min(degree[v], 2)):
+                s = nbr[v, j]
+                if not used[s]:
+                    nxt = s
+                    break
+            if nxt < 0:
+                break
+            used[nxt] = True
+            seg[m] = nxt
+            m += 1
+            v = ends[nxt, 1] if ends[nxt, 0] == v else ends[nxt, 0]
+            nodes[k] = v
+            k += 1
+        if cut[c] >= 0:                                 # the loop closes over its cut segment
+            seg[m] = cut[c]
+            m += 1
+            nodes[k] = start[c]
+            k += 1
+    node_start[n_chains] = k
+    return nodes[:k], node_start, seg[:m], closed
 
 
 def resample(polyline: SlicePolyline, spacing: float) -> SurfaceSamples:

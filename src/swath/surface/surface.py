@@ -231,13 +231,18 @@ class Surface:
         return geometry.normalize(n)
 
     def face_pieces(self) -> list[np.ndarray]:
-        """Face indices ``(k,) int`` of each connected piece (faces sharing vertices), largest first."""
+        """Face indices ``(k,) int`` of each connected piece (faces sharing vertices), largest first
+        (read-only arrays, computed once: every candidate direction of a plan asks again)."""
+        return list(self._face_pieces)
+
+    @cached_property
+    def _face_pieces(self) -> tuple[np.ndarray, ...]:
         n, label = topology.vertex_components(len(self.vertices), self.faces)
         face_label = label[self.faces[:, 0]]
         groups = [np.flatnonzero(face_label == i) for i in range(n)]
         groups = [g for g in groups if len(g)]
         groups.sort(key=lambda g: -float(self.face_areas[g].sum()))
-        return groups
+        return tuple(_ro(g) for g in groups)
 
     def sub_surface(self, face_index, *, name: str | None = None) -> Surface:
         """The surface made of the faces ``face_index`` ``(k,) int`` only (vertices renumbered)."""
