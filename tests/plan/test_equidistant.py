@@ -281,9 +281,10 @@ def test_blade_passes_are_geodesically_equidistant_and_raster_is_not():
     assert np.mean(g) == pytest.approx(d, rel=1e-3)
     assert spread(g) < 0.02                                        # measured 0.02 %
     check_on_surface(s, tp, 1e-3)
-    # The raster along the same feed, same spacing: its planes cut the leading edge at a slant.
+    # The raster along the same feed, same spacing: its planes sit at equal steps of the mean
+    # surface distance, but they cut the leading edge at a slant, so the gaps still vary.
     tr = raster(s, TOOL, spacing=d, direction=tp.metadata["feed_direction"])
-    assert spread(blade_gaps(tr)) > 0.03                           # measured 5.8 %
+    assert 0.01 < spread(blade_gaps(tr)) < 0.045                   # measured 2.6 % (5.8 % in projection)
     # Left to choose, the planner runs the passes round the profile instead: the chord across them
     # is along the straight span, the whole pad, so the path is about a third as long.
     auto = equidistant(s, TOOL)
