@@ -140,8 +140,11 @@ def test_whole_part_fill_closes_the_gaps_between_regions(hub_plan):
     from swath.plan.gaps import CoverageCheck
 
     hub, tool, regions, spacing = hub_plan
-    plain = plan_regions(hub, tool, raster, regions, spacing=spacing, fill_gaps=False)
-    filled = plan_regions(hub, tool, raster, regions, spacing=spacing, fill_gaps=False, fill_whole_part=True)
+    # the covering spacing along the cross direction: on the hub's slopes the passes then lie farther
+    # apart than it (on the surface, spacing_on="surface", they leave no gap to fill)
+    plain = plan_regions(hub, tool, raster, regions, spacing=spacing, fill_gaps=False, spacing_on="projection")
+    filled = plan_regions(hub, tool, raster, regions, spacing=spacing, fill_gaps=False, fill_whole_part=True,
+                          spacing_on="projection")
     check = CoverageCheck(hub, tool, regions[0].direction)
     before = check.gap_fraction(list(plain.passes))
     assert before > 1e-3                                      # the regions' passes alone leave gaps
