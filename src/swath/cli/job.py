@@ -402,8 +402,6 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         say(f"planning ({settings.planner})", 0, 1)
         toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"),
                              choose_lead=plain is not None)       # the default job chose the lead: on a curved part, again
-        if plain is None or not settings.optimise_feed:
-            surface.forget()                # no plan follows: the planners' shared models are released
         lead = toolpath.metadata.get("ripple_lead_rad")
         if plain is not None and lead is not None and lead != settings.lead():
             settings = replace(settings, lead_angle=lead)
@@ -414,6 +412,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         say("timing trajectory", 0, 1)
         trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
         timings["trajectory_s"] = time.perf_counter() - t0
+        if plain is None or not settings.optimise_feed:
+            surface.forget()                # no plan follows: the planners' shared models are released
 
     extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
     even: dict | None = {} if settings.optimise_feed and even_default.is_even(settings) else None
