@@ -8,6 +8,7 @@ atomically: it appears complete, or not at all.
 from __future__ import annotations
 
 import difflib
+import functools
 import json
 import logging
 import math
@@ -417,6 +418,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         t0 = time.perf_counter()
         searched = search_target_cov(surface, tool, settings, progress=say,
                                      plan_options={"tool": tool, "part": part_info.get("part")})
+        surface.forget()                                  # the candidates' shared planning models
         settings = searched.chosen.settings               # the job goes on with the chosen candidate
         toolpath, trajectory = searched.chosen.toolpath, searched.chosen.trajectory
         timings["target_cov_search_s"] = time.perf_counter() - t0
@@ -439,13 +441,15 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         say("timing trajectory", 0, 1)
         trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
         timings["trajectory_s"] = time.perf_counter() - t0
+        if plain is None or not settings.optimise_feed:
+            surface.forget()                # no plan follows: the planners' shared models are released
 
     extra_metrics, figures, force, robot, feed = {}, {}, None, None, None
     even: dict | None = {} if settings.optimise_feed and even_default.is_even(settings) else None
     if settings.optimise_feed:
         t0 = time.perf_counter()
         plain_run = None if plain is None or even is None else (
-            lambda: even_default.plain_run(surface, tool, plain, part=part_info.get("part")))
+            lambda: _released(surface, even_default.plain_run(surface, tool, plain, part=part_info.get("part"))))
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,
                                                                           surface, even, progress=say,
                                                                           plain=plain_run)
@@ -458,6 +462,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
                 toolpath, tool, settings, trajectory, surface, even, progress=say, constant=plain_removal)
         extra_metrics.update(feed_metrics)
         timings["feed_s"] = time.perf_counter() - t0
+        surface.forget()
     if process_stage.wants_wear_stage(tool, settings):
         t0 = time.perf_counter()
         say("pad wear and media changes", 0, 1)
@@ -577,10 +582,14 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             from ..io.patch_files import save_patch
 
             save_patch(part_info["patch"], tmp / "patch.json", part_info.get("footprint"))
+        feed_plots = None
         if feed is not None:
+            from ..core.beside import Beside
             from ..report.feed_plots import write_feed_plots
 
-            figures.update(write_feed_plots(tmp, feed))
+            # drawn by a forked child while this process draws the report's own figures (the same files)
+            feed_plots = Beside(write_feed_plots, tmp, feed)
+            figures[_FEED_PLOTS] = None                  # their place among the figures
         if searched is not None:
             from ..report.target_cov_plot import write_target_cov_plot
 
@@ -596,10 +605,29 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             traces = robot_traces(robot)          # the arm, its reach and the stretches it skips
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                      metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}",
-                     extra_figures=figures,
+                     extra_figures=figures if feed_plots is None else functools.partial(_in_place, figures,
+                                                                                         feed_plots.result),
                      scene_traces=None if robot is None else stages.cell_scene(robot, metrics, surface) + (traces or []))
     say("done", 1, 1)
     return metrics
+
+
+#: Where the feed figures, drawn beside the report, go among the job's figures.
+_FEED_PLOTS = "<feed plots>"
+
+
+def _in_place(figures: dict, drawn) -> dict:
+    """``figures`` with the entry :data:`_FEED_PLOTS` replaced, in place, by the figures ``drawn()`` returns."""
+    out: dict = {}
+    for name, path in figures.items():
+        out.update(drawn() if name == _FEED_PLOTS else {name: path})
+    return out
+
+
+def _released(surface, result):
+    """``result``, once the planners' models shared on ``surface`` are released (the last plan of the job is made)."""
+    surface.forget()
+    return result
 
 
 def _judge_on_part(part, trajectory, tool, settings, force, say) -> dict:

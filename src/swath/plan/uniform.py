@@ -44,7 +44,7 @@ from ..core.cpus import usable_cpus
 from ..errors import InfeasibleError, InputError
 from .common import feed_and_cross
 from .uniform_layout import _layout, _seed_curves, _toolpath
-from .uniform_model import _Context, load_touch_kernel
+from .uniform_model import _Context, load_touch_kernel, shared_context
 
 log = logging.getLogger("swath.plan")
 
@@ -150,16 +150,16 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         # child process finishes, this one loads what every candidate needs (the pad-touch kernel,
         # the cost's imports), which forked workers then inherit.
         cost = cost or length_cost
-        return _auto(functools.cache(lambda: _Context(*context_args[:3], max_turn_curvature=context_args[3],
-                                                      beside=workers != 1,
-                                                      while_building=functools.partial(_prepare_candidates, tool,
-                                                                                       cost))),
+        return _auto(functools.cache(lambda: shared_context(*context_args[:3], max_turn_curvature=context_args[3],
+                                                            beside=workers != 1,
+                                                            while_building=functools.partial(_prepare_candidates,
+                                                                                             tool, cost))),
                      overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
                      cost=cost, progress=progress, workers=workers, context_args=context_args)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
-    ctx = _Context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1)
+    ctx = shared_context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1)
     if isinstance(direction, (int, float)) and math.isfinite(direction):
         return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
@@ -525,7 +525,9 @@ def _per_piece(surface, tool, pieces, options) -> ToolPath:
     """Plan every connected piece with :func:`uniform` and join them (``Pass.region`` = piece)."""
     passes, metas, covered = [], [], 0.0
     for k, faces in enumerate(pieces):
-        sub = surface.sub_surface(faces, name=f"{surface.name}[piece {k}]")
+        # the same piece surface on every call, so its working mesh is shared (shared_context)
+        sub = surface.memo(("uniform piece", k), functools.partial(surface.sub_surface, faces,
+                                                                   name=f"{surface.name}[piece {k}]"))
         tp = uniform(sub, tool, **options)
         passes += [p.replace(region=k) for p in tp.passes]
         metas.append(tp.metadata)

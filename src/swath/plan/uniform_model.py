@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import time
@@ -226,6 +227,36 @@ class _Context:
         closest, normals = self.project(poses)
         cap = self.widths.patch.sink[self.widths.inverse[self.nearest_vertices(closest)]]
         return touched_samples(self._grid, closest - self._origin, -normals, self.tool, max_sink=cap)
+
+
+def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = math.inf, beside: bool = True,
+                   while_building: Callable[[], object] | None = None) -> _Context:
+    """The :class:`_Context` of ``surface`` for ``tool`` and ``work_spacing``, built once and kept
+    on the surface (:meth:`swath.surface.Surface.memo`): the default job plans the same part
+    several times (the curvature probe, the re-plan at the chosen spacing and lead, the
+    length-budget re-plans, the plain plan compared with it), and the working mesh, its
+    distance solver's factorisation, width model and gradient operator depend on none of what
+    changes between them (the overlap, the seed, the candidate direction).  A call with another
+    ``max_turn_curvature`` (the feed or angular limit) gets a shallow copy with it set.  The
+    plans are the same as with a context built for each call: nothing in the context changes
+    after it is built.  ``beside`` and ``while_building`` as for :class:`_Context` (used only
+    when it is built).  ``surface.forget("uniform model")`` releases it."""
+    key = ("uniform model", tool, None if work_spacing is None else float(work_spacing))
+    built: list = []
+
+    def build():
+        built.append(True)
+        return _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature, beside=beside,
+                        while_building=while_building)
+
+    ctx = surface.memo(key, build)
+    if not built:
+        log.info("uniform: working mesh of %s reused (%d vertices)", surface.name or "the part", len(ctx.work.vertices))
+    if ctx.max_turn_curvature == float(max_turn_curvature):
+        return ctx
+    other = copy.copy(ctx)
+    other.max_turn_curvature = float(max_turn_curvature)
+    return other
 
 
 def _vertex_gradient_directions(gradient: FaceGradient, field: np.ndarray, normals: np.ndarray,

@@ -45,9 +45,10 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
         Job settings with units in their key names (``pad_radius_m``, ``force_n``, ...).
     title : str, optional
         Report title; default ``"swath report — <part name>"``.
-    extra_figures : dict of str -> Path, optional
+    extra_figures : dict of str -> Path, or a callable returning one, optional
         PNGs other stages wrote into ``out_dir`` (force trace, joint plots, ...), shown after the
-        standard figures.
+        standard figures.  A callable is called once the standard figures are drawn (figures
+        still being drawn elsewhere meanwhile).
     scene_traces : list of plotly traces, optional
         More of the 3D view in the part frame: the robot cell and where collisions happen
         (:func:`swath.report.cell_view.cell_traces`).
@@ -66,7 +67,7 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
     settings = dict(settings or {})
     paths = {"metrics": write_metrics_json(out_dir / "metrics.json", metrics, settings)}
     pngs = write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal)
-    pngs.update(extra_figures or {})
+    pngs.update((extra_figures() if callable(extra_figures) else extra_figures) or {})
     paths.update(pngs)
     paths["html"] = write_report_html(out_dir / "report.html", surface=surface, toolpath=toolpath,
                                       trajectory=trajectory, removal=removal, metrics=metrics,

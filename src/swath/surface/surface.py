@@ -85,10 +85,29 @@ class Surface:
                 value = _ro(value)          # as the property itself returns it
             self.__dict__.setdefault(name, value)
 
+    def memo(self, key, build):
+        """``build()`` for this surface, computed once per ``key`` (hashable) and kept with the
+        surface: a model that several calls on the same part share (the uniform planner's working
+        mesh and distance solver), instead of each building it again.  Kept for the surface's
+        lifetime, never pickled (a copy sent to another process builds its own), and released
+        by :meth:`forget`.  ``build`` must depend only on this surface and what ``key`` names."""
+        memos = self.__dict__.setdefault("_memos", {})
+        if key not in memos:
+            memos[key] = build()
+        return memos[key]
+
+    def forget(self, kind=None) -> None:
+        """Drop the values of :meth:`memo` (those whose key is a tuple starting with ``kind``, or all)."""
+        memos = self.__dict__.get("_memos", {})
+        for key in [k for k in memos if kind is None or (isinstance(k, tuple) and k[:1] == (kind,))]:
+            del memos[key]
+
     def __getstate__(self) -> dict:
         # The closest-point tree is a libigl object that cannot be pickled; it is rebuilt on use.
+        # The memos (a distance solver in C++) stay with this process.
         state = dict(self.__dict__)
         state.pop("_closest_point_tree", None)
+        state.pop("_memos", None)
         return state
 
     def __repr__(self) -> str:
