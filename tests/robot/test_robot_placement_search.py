@@ -123,7 +123,7 @@ def test_the_safety_cap_stops_the_search_and_warns(plate_trajectory, monkeypatch
     best, calls, _ = _search(plate_trajectory, monkeypatch, clock=_slow_clock(1000.0))
     assert len(calls) == best.solved == 1
     assert len(best.warnings) == 1 and "[W-ROBOT-PLACE-CAPPED]" in best.warnings[0]
-    assert "180 s safety cap after solving 1 of up to" in best.warnings[0]
+    assert "600 s safety cap after solving 1 of up to" in best.warnings[0]
 
 
 def test_the_cli_shows_the_placement_time_left(plate_trajectory, monkeypatch, capsys):

@@ -277,7 +277,7 @@ def _decimate(trajectory, max_samples: int):
 
 #: Wall-clock cap of the placement search, s: a last resort only (the search stops by counting its
 #: work, so its answer does not depend on the machine's speed or load); reaching it is warned.
-SAFETY_CAP_S = 180.0
+SAFETY_CAP_S = 600.0
 
 _now = time.perf_counter          # the clock of the safety cap (a test replaces it)
 
@@ -488,8 +488,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
             seen.add(where)
             order.append(s_)
     best: tuple | None = None
-    warnings = []
-    trials = []
+    warnings: list[str] = []
+    trials: list[dict] = []
 
     def capped() -> bool:
         if not trials or _now() - t_cap <= safety_cap_s:
