@@ -531,7 +531,8 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         for r in rotations:
             if r != r0 and not capped():
                 solve(part2base, (x_, y_, yaw_, r))
-    say(message, total, total)
+    if done < total:                    # stopped early: the step is done
+        say(message, total, total)
     if best is None:
         raise InputError("placement search solved no cell; give n_refine or max_refine >= 1")
     (frac, _, _, m), trial, part2base, params = best
