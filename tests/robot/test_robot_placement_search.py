@@ -110,6 +110,7 @@ def test_the_work_budget_is_honoured_and_counted(plate_trajectory, monkeypatch):
     assert best.ik_poses == best.evaluated * n_sample + best.solved * coarse
     # the best trial is the answer
     top = max(best.trials, key=lambda t: (t["reachable_fraction"], t["thresholds_kept"], -t["arm_changes"],
+                                          min(t["min_joint_limit_margin_rad"], math.radians(10)),
                                           t["mean_manipulability"]))
     assert best.reachable_fraction == top["reachable_fraction"]
     assert (best.x, best.y) == pytest.approx((top["x_m"], top["y_m"]), abs=1e-12)

@@ -21,7 +21,8 @@ tool-axis freedom), to stay away from joint limits and singularities.
    tool-axis rotations.
 3. The best few cells are solved on the trajectory (decimated to at most ``refine_samples``
    samples) with :func:`swath.robot.solve.solve_trajectory`; the best of those by the same ranking
-   (with fewer shoulder/elbow changes preferred before manipulability) wins.
+   (with fewer shoulder/elbow changes, then a joint-limit margin up to twice its warning threshold,
+   preferred before manipulability) wins.
 
 The search's work is counted, not timed (a fixed number of cells scored and at most ``max_refine``
 solved), so its answer does not depend on the machine's speed or load; a wall-clock safety cap
@@ -104,7 +105,8 @@ class Placement:
     trials : tuple of dict
         The cells solved on the trajectory, in order: ``x_m``, ``y_m``, ``yaw_rad``,
         ``tool_rotation_rad``, ``reachable_fraction``, ``thresholds_kept`` (0..3),
-        ``arm_changes`` (shoulder/elbow branch changes), ``mean_manipulability``.
+        ``arm_changes`` (shoulder/elbow branch changes), ``min_joint_limit_margin_rad``,
+        ``mean_manipulability``.
     warnings : tuple of str
         The search's warnings (the safety cap reached).
     """
@@ -508,11 +510,14 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         done += len(coarse)
         ok = sol.reachable
         m = float(np.nanmean(sol.measures["manipulability"])) if ok.any() else 0.0
-        # reached first, then the thresholds kept, then fewest shoulder/elbow changes, then manipulability
-        k = (sol.reachable_fraction, _clear_of_warnings(model, sol.q[ok]), -_arm_changes(sol), m)
+        margin = float(np.nanmin(sol.measures["joint_limit_margin_rad"])) if ok.any() else 0.0
+        # reached first, then the thresholds kept, then fewest shoulder/elbow changes, then the joint-limit
+        # margin up to twice its warning threshold, then manipulability
+        k = (sol.reachable_fraction, _clear_of_warnings(model, sol.q[ok]), -_arm_changes(sol),
+             min(margin, 2 * WARN_JOINT_LIMIT_MARGIN), m)
         trials.append({"x_m": float(part2base[0, 3]), "y_m": float(part2base[1, 3]), "yaw_rad": float(params[2]),
                        "tool_rotation_rad": float(params[3]), "reachable_fraction": k[0], "thresholds_kept": k[1],
-                       "arm_changes": -k[2], "mean_manipulability": m})
+                       "arm_changes": -k[2], "min_joint_limit_margin_rad": margin, "mean_manipulability": m})
         if best is None or k > best[0]:
             best = (k, trial, part2base, params)
         say(message, done, total)
@@ -535,7 +540,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         say(message, total, total)
     if best is None:
         raise InputError("placement search solved no cell; give n_refine or max_refine >= 1")
-    (frac, _, _, m), trial, part2base, params = best
+    (frac, _, _, _, m), trial, part2base, params = best
     yaw = math.atan2(part2base[1, 0], part2base[0, 0])
     elapsed = time.perf_counter() - t_start
     log.info("placement for %s: (%.3f, %.3f, %.3f) m, yaw %.0f deg, tool turned %.0f deg, %.2f %% reachable "
