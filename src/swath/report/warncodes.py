@@ -232,6 +232,13 @@ CODES: dict[str, WarningCode] = dict([
           "clearance, and no lift (a retract away from the part, with a raised via-point) tried kept it clear.",
           "Move the part (`--base`, or `--place`) so that one configuration serves the whole job, or give more "
           "room above the part.", "robot"),
+    entry("W-ROBOT-PLACE-CAPPED", "",
+          "The placement search (`--place`) ran past its wall-clock safety cap (600 s) and stopped before it had "
+          "solved every cell its work budget allows; the search is otherwise counted in work, so only a very slow "
+          "or loaded machine gets here, and the placement it chose may differ from the one a quicker machine "
+          "chooses.",
+          "Run the job again on a quieter machine, or give the placement the metrics record (`robot_x_m`, "
+          "`robot_y_m`, `robot_yaw_rad`) as `--base`.", "robot"),
     entry("W-ROBOT-SWITCH-GAP", "",
           "A configuration change came right where the old configuration could not retract from the part, or "
           "an air link of the plan hit the table, a fixture or the robot itself; the end of the pass before the "

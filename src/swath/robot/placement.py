@@ -20,9 +20,15 @@ tool-axis freedom), to stay away from joint limits and singularities.
    reached configurations keep, then manipulability), followed by a local refinement and the
    tool-axis rotations.
 3. The best few cells are solved on the trajectory (decimated to at most ``refine_samples``
-   samples) with :func:`swath.robot.solve.solve_trajectory`; the best of those by the same ranking wins.
+   samples) with :func:`swath.robot.solve.solve_trajectory`; the best of those by the same ranking
+   (with fewer shoulder/elbow changes, then a joint-limit margin up to twice its warning threshold,
+   preferred before manipulability) wins.
 
-``progress(message, done, total)`` hears about each step; ``time_budget`` (s) caps step 3.
+The search's work is counted, not timed (a fixed number of cells scored and at most ``max_refine``
+solved), so its answer does not depend on the machine's speed or load; a wall-clock safety cap
+(:data:`SAFETY_CAP_S`) is a last resort, warned when reached.  The arm-in-part test runs on a
+distance grid (:mod:`swath.robot.placement_grid`), which gives the k-d tree's answers faster.
+``progress(message, done, total)`` hears about the search in poses put through inverse kinematics.
 """
 
 from __future__ import annotations
@@ -94,6 +100,15 @@ class Placement:
         Horizontal distance of the part's footprint from the base axis, m (≥ ``keep_out``).
     time_s : float
         Wall time of the search, s.
+    ik_poses : int
+        Poses put through inverse kinematics by the search (its work).
+    trials : tuple of dict
+        The cells solved on the trajectory, in order: ``x_m``, ``y_m``, ``yaw_rad``,
+        ``tool_rotation_rad``, ``reachable_fraction``, ``thresholds_kept`` (0..3),
+        ``arm_changes`` (shoulder/elbow branch changes), ``min_joint_limit_margin_rad``,
+        ``mean_manipulability``.
+    warnings : tuple of str
+        The search's warnings (the safety cap reached).
     """
 
     cell: Cell
@@ -109,13 +124,17 @@ class Placement:
     keep_out: float = 0.0
     clearance: float = float("nan")
     time_s: float = 0.0
+    ik_poses: int = 0
+    trials: tuple = ()
+    warnings: tuple = ()
 
     def as_record(self) -> dict:
         return {"x_m": self.x, "y_m": self.y, "z_m": self.z, "yaw_rad": self.yaw,
                 "reachable_fraction": self.reachable_fraction, "placement_score": self.score,
                 "placements_evaluated": self.evaluated, "placements_solved": self.solved,
                 "tool_rotation_rad": self.tool_rotation, "keep_out_m": self.keep_out,
-                "part_clearance_from_base_axis_m": self.clearance, "placement_search_s": self.time_s}
+                "part_clearance_from_base_axis_m": self.clearance, "placement_search_s": self.time_s,
+                "placement_ik_poses": self.ik_poses}
 
 
 def _placement(x, y, z_origin, yaw) -> np.ndarray:
@@ -258,12 +277,42 @@ def _decimate(trajectory, max_samples: int):
                    extra={k_: v[idx] for k_, v in trajectory.extra.items()})
 
 
+#: Wall-clock cap of the placement search, s: a last resort only (the search stops by counting its
+#: work, so its answer does not depend on the machine's speed or load); reaching it is warned.
+SAFETY_CAP_S = 600.0
+
+_now = time.perf_counter          # the clock of the safety cap (a test replaces it)
+
+
+def _arm_changes(solution) -> int:
+    """Branch changes of a solution that change the shoulder or the elbow (not only the wrist)."""
+    def arm(name: str) -> str:
+        return name.rsplit("-wrist", 1)[0]
+    return sum(arm(s["from"]) != arm(s["to"]) for s in solution.switches)
+
+
+def _fast_margins(margins: Margins) -> Margins:
+    """``margins`` with its arm-in-part check answered from a distance grid (the same answers,
+    :mod:`swath.robot.placement_grid`), when it is an :class:`ArmPartCheck`."""
+    check = margins.arm_part
+    if check is None or not (hasattr(check, "tree") and hasattr(check, "links")) or hasattr(check, "distance"):
+        return margins
+    from .placement_grid import GridArmPartCheck
+
+    return replace(margins, arm_part=GridArmPartCheck(check))
+
+
 def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *, table_z: float = 0.0,
                      n_xy: int = 9, yaws=None, margins: Margins | None = None, n_sample: int = 150,
-                     n_refine: int = 4, max_refine: int = 32, keep_out: float | None = None,
+                     n_refine: int = 4, max_refine: int = 8, keep_out: float | None = None,
                      tool_rotations=None, n_ik: int = 48, refine_samples: int = 6000,
-                     time_budget: float = 40.0, points=None, progress=None) -> Placement:
+                     safety_cap_s: float = SAFETY_CAP_S, points=None, progress=None) -> Placement:
     """Search the part placement that reaches the whole job with the largest margin.
+
+    The search's work is counted, not timed: ``n_ik`` grid cells, at most 26 neighbours of the best
+    and 3 × (tool rotations) cells are scored on ``n_sample`` contact samples, and at most
+    ``max_refine`` cells are solved on the trajectory, so the same input gives the same placement on
+    any machine under any load.
 
     Parameters
     ----------
@@ -279,14 +328,17 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     yaws : sequence of float, optional
         Part yaw angles, rad (default 0, 90°, 180°, 270°).
     margins : Margins, optional
-        Default :class:`Margins`.
+        Default :class:`Margins`.  Its arm-in-part check, if any, is answered from a distance grid
+        during the search (:mod:`swath.robot.placement_grid`; the same answers).
     n_sample : int
         Contact samples scored per grid cell.
     n_refine : int
-        Best cells solved on the (decimated) trajectory.
+        Best cells solved on the (decimated) trajectory at least.
     max_refine : int
-        While none of the cells solved so far reaches every pose, further cells are solved, up to
-        this many in all and within ``time_budget``.
+        The work budget: while none of the cells solved so far reaches every pose, further cells
+        are solved, up to this many in all; then the other tool rotations are solved on the best
+        of them (unless it already reaches every pose, keeps the three warning thresholds and
+        changes neither shoulder nor elbow).
     keep_out : float, optional
         Keep-out radius about the base axis, m (default :func:`default_keep_out`).
     tool_rotations : sequence of float, optional
@@ -295,12 +347,15 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         Grid cells scored by IK (the best by the fraction of the part within reach).
     refine_samples : int
         The trajectory is decimated to about this many samples for the refinement solves.
-    time_budget : float
-        Seconds after which no further refinement solve starts.
+    safety_cap_s : float
+        Wall-clock last resort, s: no further solve starts after this (default :data:`SAFETY_CAP_S`,
+        far above what the budget takes); reaching it is warned (``W-ROBOT-PLACE-CAPPED``), since
+        the answer then depends on the machine's speed.
     points : (n, 3) float, optional
         The part's points for the footprint, part frame, m (default: the trajectory's positions).
     progress : callable, optional
-        ``progress(message, done, total)``.
+        ``progress(message, done, total)``: one message for the whole search, with ``done`` and
+        ``total`` in poses put through inverse kinematics (``total`` the budget's, reached at the end).
 
     Returns
     -------
@@ -313,7 +368,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         the keep-out cylinder.
     """
     t_start = time.perf_counter()
-    say = progress or (lambda message, done, total: None)
+    t_cap = _now()
     cell = Cell() if cell is None else cell
     margins = Margins() if margins is None else margins
     keep_out = default_keep_out(model) if keep_out is None else float(keep_out)
@@ -321,6 +376,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     rotations = (0.0, math.pi / 2, -math.pi / 2, math.pi) if tool_rotations is None else tuple(tool_rotations)
     pts = trajectory.position if points is None else np.asarray(points, dtype=float)
     check_fits_reach(pts, model, cell, keep_out=keep_out)
+    margins = _fast_margins(margins)
     hull = _hull(pts[:, :2])
     tcp2part = poses_from_trajectory(trajectory)
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
@@ -354,7 +410,11 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         p = far_pts @ part2base[:2, :2].T + part2base[:2, 3]
         return float(np.mean(np.linalg.norm(p, axis=1) <= reach))
 
+    work = 0
+
     def score(x, y, yaw, rotation=0.0):
+        nonlocal work
+        work += len(sample)
         part2base = part2base_of(x, y, yaw)
         tool = cell.tcp2flange @ make_transform(rot_z(rotation))
         q, feas, _ = branch_table(part2base @ sample @ np.linalg.inv(tool), model, margins, same_pass=no_pass,
@@ -378,15 +438,25 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         raise InfeasibleError(f"no placement on the search grid keeps the part outside the {keep_out:.2f} m keep-out "
                               f"cylinder within {reach:.2f} m of the base; lower the keep-out (--keep-out) or "
                               "give the placement (--base)")
+    # a stable sort on the reach alone: ties keep the grid's order, so the same cells are scored every time
     candidates.sort(key=lambda c: c[0], reverse=True)
     candidates = candidates[:n_ik]
-    say(f"placement: scoring {len(candidates)} of {n_xy * n_xy * len(yaws)} grid cells by IK "
-        f"(keep-out {keep_out:.2f} m)", 0, len(candidates))
+    coarse = _decimate(trajectory, refine_samples)
+    n_rot = sum(r != 0.0 for r in rotations)
+    # the work budget in poses through inverse kinematics: the grid cells, the 26 neighbours of the best,
+    # the tool rotations on the best 3, and the trajectory solves
+    limit = max(n_refine, max_refine)
+    total = (len(candidates) + 26 + 3 * n_rot) * len(sample) + (limit + n_rot) * len(coarse)
+    message = (f"placement search for {model.name}: {len(candidates)} + 26 + {3 * n_rot} cells scored on "
+               f"{len(sample)} poses, up to {limit} + {n_rot} solved on {len(coarse)} poses")
+    done = 0
+    say = progress or (lambda message, done, total: None)
+    say(message, 0, total)
     scored = []
-    for i, (_, x, y, yaw) in enumerate(candidates):
+    for _, x, y, yaw in candidates:
         scored.append(score(x, y, yaw))
-        if (i + 1) % 20 == 0:
-            say("placement: grid cells scored", i + 1, len(candidates))
+        done += len(sample)
+        say(message, done, total)
     key = lambda s: (s[0], s[1], s[2])                      # noqa: E731
     scored.sort(key=key, reverse=True)
     # local refinement around the best cell: half steps in x, y and 22.5° in yaw (kept out of the cylinder)
@@ -394,49 +464,93 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
     dx = 0.5 * (xs[1] - xs[0]) if len(xs) > 1 else 0.1
     local = [(x0 + i * dx, y0 + j * dx, yaw0 + k * math.pi / 8)
              for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1) if (i, j, k) != (0, 0, 0)]
-    scored += [score(*c) for c in local if clearance(part2base_of(*c)) >= keep_out]
+    for c in local:
+        if clearance(part2base_of(*c)) >= keep_out:
+            scored.append(score(*c))
+        done += len(sample)
+        say(message, done, total)
     scored.sort(key=key, reverse=True)
     # the tool-axis rotation: tried on the best few cells
     top = [s[4] for s in scored[:3]]
-    scored += [score(x, y, yaw, r) for x, y, yaw, _ in top for r in rotations if r != 0.0]
+    for x, y, yaw, _ in top:
+        for r in rotations:
+            if r != 0.0:
+                scored.append(score(x, y, yaw, r))
+                done += len(sample)
+                say(message, done, total)
+    done = (len(candidates) + 26 + 3 * n_rot) * len(sample)
     scored.sort(key=key, reverse=True)
-    limit = max(n_refine, max_refine)
-    say(f"placement: grid scored; solving the best cells on the trajectory (at least {n_refine}, up to {limit} "
-        f"until one reaches every pose, {time_budget:.0f} s budget)", 0, limit)
-    coarse = _decimate(trajectory, refine_samples)
+    # the cells solved: distinct positions in score order, each with its best-scoring tool rotation; then
+    # the other tool rotations on the best of them
+    order, seen = [], set()
+    for s_ in scored:
+        x_, y_, yaw_, _ = s_[4]
+        where = (round(x_, 6), round(y_, 6), round(math.remainder(yaw_, 2 * math.pi), 6))
+        if where not in seen:
+            seen.add(where)
+            order.append(s_)
     best: tuple | None = None
-    solved = 0
-    t_refine = time.perf_counter()
-    for i, (_, _, _, part2base, params) in enumerate(scored[:max(n_refine, max_refine)]):
-        if i >= n_refine and best is not None and best[0][0] >= 1.0:
-            break
-        if i >= 1 and time.perf_counter() - t_start > time_budget:
-            log.info("placement: time budget of %.0f s spent after %d solves", time_budget, solved)
-            break
+    warnings: list[str] = []
+    trials: list[dict] = []
+
+    def capped() -> bool:
+        if not trials or _now() - t_cap <= safety_cap_s:
+            return False
+        warnings.append(f"robot: the placement search reached its {safety_cap_s:.0f} s safety cap after solving "
+                        f"{len(trials)} of up to {limit + n_rot} cells (the machine is slow or loaded), so it stopped "
+                        "early and its answer may differ from the same search on a quicker machine; give the "
+                        "placement (--base) to be sure of it [W-ROBOT-PLACE-CAPPED]")
+        return True
+
+    def solve(part2base, params):
+        nonlocal best, done, work
+        work += len(coarse)
         trial = replace(cell.with_base(part2base), tcp2flange=cell.tcp2flange @ make_transform(rot_z(params[3])))
         sol = solve_trajectory(coarse, model, trial, margins=margins, warn=False)   # a trial, not the answer
-        solved += 1
+        done += len(coarse)
         ok = sol.reachable
         m = float(np.nanmean(sol.measures["manipulability"])) if ok.any() else 0.0
-        k = (sol.reachable_fraction, _clear_of_warnings(model, sol.q[ok]), m)
+        margin = float(np.nanmin(sol.measures["joint_limit_margin_rad"])) if ok.any() else 0.0
+        # reached first, then the thresholds kept, then fewest shoulder/elbow changes, then the joint-limit
+        # margin up to twice its warning threshold, then manipulability
+        k = (sol.reachable_fraction, _clear_of_warnings(model, sol.q[ok]), -_arm_changes(sol),
+             min(margin, 2 * WARN_JOINT_LIMIT_MARGIN), m)
+        trials.append({"x_m": float(part2base[0, 3]), "y_m": float(part2base[1, 3]), "yaw_rad": float(params[2]),
+                       "tool_rotation_rad": float(params[3]), "reachable_fraction": k[0], "thresholds_kept": k[1],
+                       "arm_changes": -k[2], "min_joint_limit_margin_rad": margin, "mean_manipulability": m})
         if best is None or k > best[0]:
             best = (k, trial, part2base, params)
-        say(f"placement: {solved} cell(s) solved, best {100 * best[0][0]:.2f} % reached, "
-            f"{best[0][1]} of 3 warning thresholds kept", 0, 1)
-        if solved == 1:
-            log.debug("placement: one refinement solve took %.2f s", time.perf_counter() - t_refine)
+        say(message, done, total)
+
+    stopped = False
+    for i, (_, _, _, part2base, params) in enumerate(order[:limit]):
+        if i >= n_refine and best is not None and best[0][0] >= 1.0:
+            break
+        if capped():
+            stopped = True
+            break
+        solve(part2base, params)
+    if best is not None and not stopped and best[0][:3] != (1.0, 3, 0):
+        x_, y_, yaw_, r0 = best[3]
+        part2base = best[2]
+        for r in rotations:
+            if r != r0 and not capped():
+                solve(part2base, (x_, y_, yaw_, r))
+    if done < total:                    # stopped early: the step is done
+        say(message, total, total)
     if best is None:
         raise InputError("placement search solved no cell; give n_refine or max_refine >= 1")
-    (frac, _, m), trial, part2base, params = best
+    (frac, _, _, _, m), trial, part2base, params = best
     yaw = math.atan2(part2base[1, 0], part2base[0, 0])
     elapsed = time.perf_counter() - t_start
     log.info("placement for %s: (%.3f, %.3f, %.3f) m, yaw %.0f deg, tool turned %.0f deg, %.2f %% reachable "
              "(%d cells solved, %.1f s)", model.name, *part2base[:3, 3], math.degrees(yaw), math.degrees(params[3]),
-             100 * frac, solved, elapsed)
+             100 * frac, len(trials), elapsed)
     return Placement(cell=trial, x=float(part2base[0, 3]), y=float(part2base[1, 3]), z=float(part2base[2, 3]),
                      yaw=yaw, reachable_fraction=float(frac), score=float(m), evaluated=len(scored),
-                     solved=solved, tool_rotation=float(params[3]), keep_out=keep_out,
-                     clearance=clearance(part2base), time_s=elapsed)
+                     solved=len(trials), tool_rotation=float(params[3]), keep_out=keep_out,
+                     clearance=clearance(part2base), time_s=elapsed, ik_poses=work, trials=tuple(trials),
+                     warnings=tuple(warnings))
 
 
 def _point_in_convex(poly: np.ndarray) -> bool:

@@ -164,9 +164,11 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     on_table = surface is not None and margins.floor_z is None and (cell.table is not None or cell.auto_table)
     if surface is not None and margins.arm_part is None:
         from .arm_part import ArmPartCheck
+        from .placement_grid import GridArmPartCheck
 
-        # the branches and the placement keep the arm's links out of the part
-        margins = replace(margins, arm_part=ArmPartCheck(model, surface.vertices, surface.faces))
+        # the branches and the placement keep the arm's links out of the part (the check's answers,
+        # looked up in a distance grid)
+        margins = replace(margins, arm_part=GridArmPartCheck(ArmPartCheck(model, surface.vertices, surface.faces)))
     if place:
         floor = (cell.table.top_z if cell.table is not None else table_z) if on_table else None
         placement = search_placement(trajectory, model, cell, table_z=table_z, keep_out=keep_out,
@@ -255,6 +257,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
                               cell=cell)
     if sweeps:
         warnings += sweep_warnings(sweeps, clearance)
+    if placement is not None:
+        warnings += list(placement.warnings)
     if warn:
         for w in warnings:
             log.warning("%s", w)
