@@ -8,7 +8,6 @@ atomically: it appears complete, or not at all.
 from __future__ import annotations
 
 import difflib
-import functools
 import json
 import logging
 import math
@@ -17,6 +16,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, ClassVar
 
 from ..errors import InputError
+from . import jobwrap
 from .settings import JobSettings, load_job_toml, settings_from_mapping  # noqa: F401  (the job's inputs)
 
 if TYPE_CHECKING:                   # the trajectory stage is imported only when a job times a path
@@ -289,7 +289,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
             progress(f"choosing the spacing ({settings.optimise_spacing})", 0, 1)
         calls: list[float] = []
         t0 = time.perf_counter()
-        toolpath = spacing_plan(surface, tool, _timed(planner, calls), settings, arguments, choose_lead=choose_lead)
+        toolpath = spacing_plan(surface, tool, jobwrap.timed(planner, calls), settings, arguments, choose_lead=choose_lead)
         if timings is not None:
             # the last plan is the one kept (a search ends with the plan at the spacing chosen)
             timings["spacing_s"] = time.perf_counter() - t0 - (calls[-1] if calls else 0.0)
@@ -305,20 +305,6 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
         toolpath = keep_clear(toolpath, part, settings.pad_radius)
     ordered = order_toolpath(toolpath, method=order_method(toolpath, settings), **order_options(toolpath, settings))
     return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius, units=settings.units)
-
-
-def _timed(planner, calls: list):
-    """``planner``, appending the time (s) each call takes to ``calls``."""
-    import functools
-
-    @functools.wraps(planner)
-    def run(*args, **kwargs):
-        t0 = time.perf_counter()
-        try:
-            return planner(*args, **kwargs)
-        finally:
-            calls.append(time.perf_counter() - t0)
-    return run
 
 
 def order_options(toolpath, settings) -> dict:
@@ -449,7 +435,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.optimise_feed:
         t0 = time.perf_counter()
         plain_run = None if plain is None or even is None else (
-            lambda: _released(surface, even_default.plain_run(surface, tool, plain, part=part_info.get("part"))))
+            lambda: jobwrap.released(surface, even_default.plain_run(surface, tool, plain, part=part_info.get("part"))))
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,
                                                                           surface, even, progress=say,
                                                                           plain=plain_run)
@@ -589,7 +575,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
             # drawn by a forked child while this process draws the report's own figures (the same files)
             feed_plots = Beside(write_feed_plots, tmp, feed)
-            figures[_FEED_PLOTS] = None                  # their place among the figures
+            figures[jobwrap.FEED_PLOTS] = None                  # their place among the figures
         if searched is not None:
             from ..report.target_cov_plot import write_target_cov_plot
 
@@ -605,29 +591,11 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             traces = robot_traces(robot)          # the arm, its reach and the stretches it skips
         write_report(tmp, surface=surface, toolpath=toolpath, trajectory=trajectory, removal=removal,
                      metrics=metrics, settings=_jsonable(record), title=f"swath plan — {surface.name}",
-                     extra_figures=figures if feed_plots is None else functools.partial(_in_place, figures,
-                                                                                         feed_plots.result),
+                     extra_figures=figures if feed_plots is None else (
+                         lambda: jobwrap.in_place(figures, feed_plots.result)),
                      scene_traces=None if robot is None else stages.cell_scene(robot, metrics, surface) + (traces or []))
     say("done", 1, 1)
     return metrics
-
-
-#: Where the feed figures, drawn beside the report, go among the job's figures.
-_FEED_PLOTS = "<feed plots>"
-
-
-def _in_place(figures: dict, drawn) -> dict:
-    """``figures`` with the entry :data:`_FEED_PLOTS` replaced, in place, by the figures ``drawn()`` returns."""
-    out: dict = {}
-    for name, path in figures.items():
-        out.update(drawn() if name == _FEED_PLOTS else {name: path})
-    return out
-
-
-def _released(surface, result):
-    """``result``, once the planners' models shared on ``surface`` are released (the last plan of the job is made)."""
-    surface.forget()
-    return result
 
 
 def _judge_on_part(part, trajectory, tool, settings, force, say) -> dict:
