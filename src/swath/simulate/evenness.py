@@ -154,3 +154,26 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
     profile = group_means(np.stack([kpass, lateral], axis=1))
     out["across_profile_cov"] = float(np.sqrt(np.sum(ac * (profile - pass_mean) ** 2) / ac.sum()) / mu_c)
     return out
+
+
+def evenness_metrics(removal, trajectory, tool) -> dict:
+    """:func:`evenness_split`'s figures for ``metrics.json``, each key prefixed ``evenness_``; an
+    empty dict when the trajectory has fewer than two passes (no spacing to split by)."""
+    from .ripple import pass_period
+
+    d = pass_period(trajectory)
+    if not (np.isfinite(d) and d > 0):
+        return {}
+    return {f"evenness_{k}": v for k, v in evenness_split(removal, trajectory, tool, spacing=d).items()}
+
+
+def split_line(m: dict) -> str:
+    """The CLI's line on where the interior CoV comes from (``evenness_*`` metrics), or ``""``."""
+    if not np.isfinite(m.get("evenness_interior_cov", float("nan"))):
+        return ""
+    share = {k: 100 * m[f"evenness_{k}_variance_fraction"] for k in
+             ("within_cells", "along_passes", "between_passes", "band")}
+    return (f"  interior CoV {m['evenness_interior_cov']:.3f}: of its variance {share['within_cells']:.0f} % is the ripple "
+            f"across the passes, {share['along_passes']:.0f} % along them, {share['between_passes']:.0f} % between "
+            f"passes, {share['band']:.0f} % the band one spacing inside the edge (CoV without it "
+            f"{m['evenness_cov_without_band']:.3f})")
