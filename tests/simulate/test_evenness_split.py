@@ -77,4 +77,14 @@ def test_the_parts_add_up_and_the_band_is_what_lies_near_the_edge(plate):
     mu = 1 - 0.2 * f
     band_var, core_var = f * ((0.8 - mu) ** 2 + (0.05 * 0.8) ** 2), (1 - f) * ((1 - mu) ** 2 + 0.05**2)
     assert s["band_variance_fraction"] == pytest.approx(band_var / (band_var + core_var), rel=0.05)
-    assert s["cov_without_band"] == pytest.approx(0.05, rel=0.1)
+    assert s["core_cov"] == pytest.approx(0.05, rel=0.1)
+
+
+def test_the_metrics_name_their_units(plate):
+    from swath.report.metrics import keys_without_unit
+    from swath.simulate.evenness import evenness_metrics
+
+    tool, trajectory, samples, *_ = plate
+    m = evenness_metrics(RemovalMap(samples, np.full(len(samples.vertices), 1e-6)), trajectory, tool)
+    assert m and keys_without_unit(m) == []
+    assert m["evenness_interior_cov"] == pytest.approx(0.0, abs=1e-9)

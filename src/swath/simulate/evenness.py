@@ -20,7 +20,7 @@ their mean) exactly into parts that add up:
     feed does);
   - **within cells**: what is left inside one period across the passes: the ripple.
 
-Each part is stated as its share of ``V`` and as a CoV ``sqrt(part) / μ``; ``cov_without_band``
+Each part is stated as its share of ``V`` and as a CoV ``sqrt(part) / μ``; ``core_cov``
 is the CoV of the core alone (its own mean).  Also stated: ``across_profile_cov``, the ripple of
 the removal profile across the passes averaged along them (per pass, the depth in bins of the
 lateral offset, each bin's mean about the pass's mean, area-weighted over the core).
@@ -86,7 +86,7 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
     Returns
     -------
     dict
-        ``interior_cov``, ``band_area_fraction``, ``band_variance_fraction``, ``cov_without_band``,
+        ``interior_cov``, ``band_area_fraction``, ``band_variance_fraction``, ``core_cov``,
         ``between_passes_variance_fraction``, ``along_passes_variance_fraction``,
         ``within_cells_variance_fraction`` (the four fractions add to 1), the same as CoVs
         (``band_cov``, ``between_passes_cov``, ``along_passes_cov``, ``within_cells_cov``:
@@ -107,7 +107,7 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
     core = samples.farther_from_boundary(tool.pad_radius + band) & inner
     idx = np.flatnonzero(inner)
     nan = float("nan")
-    keys = ("interior_cov", "band_area_fraction", "band_variance_fraction", "cov_without_band",
+    keys = ("interior_cov", "band_area_fraction", "band_variance_fraction", "core_cov",
             "between_passes_variance_fraction", "along_passes_variance_fraction", "within_cells_variance_fraction",
             "band_cov", "between_passes_cov", "along_passes_cov", "within_cells_cov", "across_profile_cov",
             "band_mean_over_core_mean_ratio")
@@ -131,7 +131,7 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
     cidx = idx[in_core]
     kpass, travel, offset = _label_samples(samples.vertices[cidx], samples.normals[cidx], trajectory)
     mu_c = float(np.average(zc, weights=ac))
-    out["cov_without_band"] = float(np.sqrt(_weighted_var(zc, ac, mu_c)) / mu_c)
+    out["core_cov"] = float(np.sqrt(_weighted_var(zc, ac, mu_c)) / mu_c)
     out["band_mean_over_core_mean_ratio"] = float(np.average(zb, weights=ab) / mu_c) if ab.sum() > 0 else nan
     # the core's share of V (about the interior mean), split by the law of total variance
 
@@ -176,4 +176,4 @@ def split_line(m: dict) -> str:
     return (f"  interior CoV {m['evenness_interior_cov']:.3f}: of its variance {share['within_cells']:.0f} % is the ripple "
             f"across the passes, {share['along_passes']:.0f} % along them, {share['between_passes']:.0f} % between "
             f"passes, {share['band']:.0f} % the band one spacing inside the edge (CoV without it "
-            f"{m['evenness_cov_without_band']:.3f})")
+            f"{m['evenness_core_cov']:.3f})")
