@@ -38,25 +38,23 @@ def _label_samples(points: np.ndarray, normals: np.ndarray, trajectory):
     along that pass (m) and the sample's signed offset across the travel direction (m)."""
     from scipy.spatial import cKDTree
 
-    from .ripple import _travel_directions
-
     live = np.flatnonzero(trajectory.contact & (trajectory.pass_index >= 0))
     if len(live) < 2:
         raise InputError("the trajectory has fewer than two in-contact samples; nothing to split")
-    pos_all = trajectory.position[live]
+    pos = trajectory.position[live]
     labels = trajectory.pass_index[live]
-    same = np.concatenate([[False], labels[1:] == labels[:-1]])
-    step = np.where(same, np.linalg.norm(np.diff(pos_all, axis=0, prepend=pos_all[:1]), axis=1), 0.0)
+    same = np.concatenate([[False], labels[1:] == labels[:-1]])        # the sample before is of the same pass
+    step = np.where(same, np.linalg.norm(np.diff(pos, axis=0, prepend=pos[:1]), axis=1), 0.0)
     travel = np.cumsum(step)
     starts = np.flatnonzero(~same)
     travel = travel - np.repeat(travel[starts], np.diff(np.append(starts, len(travel))))
-    pos, tangent = _travel_directions(trajectory)
-    tree_all = cKDTree(pos_all)
-    _, nearest = tree_all.query(points)
-    _, tnear = cKDTree(pos).query(points)
-    across = np.cross(normals, tangent[tnear])
-    across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-12)
-    offset = np.einsum("ij,ij->i", points - pos_all[nearest], across)
+    # travel directions by central differences within each pass
+    after = np.append(same[1:], False)
+    forward = np.where(after[:, None], np.roll(pos, -1, axis=0), pos) - np.where(same[:, None], np.roll(pos, 1, axis=0), pos)
+    _, nearest = cKDTree(pos).query(points)
+    across = np.cross(normals, forward[nearest])
+    across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-300)
+    offset = np.einsum("ij,ij->i", points - pos[nearest], across)
     return labels[nearest], travel[nearest], offset
 
 
@@ -136,13 +134,17 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
     # the core's share of V (about the interior mean), split by the law of total variance
 
     def group_means(key):
-        _, inv = np.unique(key, axis=0, return_inverse=True)
+        _, inv = np.unique(key, return_inverse=True)
         inv = inv.ravel()
         wsum = np.bincount(inv, weights=ac)
         return (np.bincount(inv, weights=ac * zc) / wsum)[inv]
 
-    pass_mean = group_means(kpass[:, None])
-    cell_mean = group_means(np.stack([kpass, np.floor(travel / d).astype(np.int64)], axis=1))
+    def joint(second):                       # one integer key per (pass, second) pair
+        second = second - second.min()
+        return kpass.astype(np.int64) * (int(second.max()) + 1) + second
+
+    pass_mean = group_means(kpass)
+    cell_mean = group_means(joint(np.floor(travel / d).astype(np.int64)))
     between = float(np.sum(ac * (pass_mean - mu) ** 2) / total_w)
     along = float(np.sum(ac * (cell_mean - pass_mean) ** 2) / total_w)
     within = float(np.sum(ac * (zc - cell_mean) ** 2) / total_w)
@@ -151,7 +153,7 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
         out[f"{name}_variance_fraction"] = part / V if V > 0 else nan
         out[f"{name}_cov"] = float(np.sqrt(max(part, 0.0)) / mu)
     lateral = np.clip(np.floor((offset / d + 0.5) * bins), 0, bins - 1).astype(np.int64)
-    profile = group_means(np.stack([kpass, lateral], axis=1))
+    profile = group_means(joint(lateral))
     out["across_profile_cov"] = float(np.sqrt(np.sum(ac * (profile - pass_mean) ** 2) / ac.sum()) / mu_c)
     return out
 
