@@ -91,7 +91,11 @@ def test_the_uniform_planner_gets_the_quadrics_overlap():
     from swath.feed import ripple_overlap
 
     # wider passes than the plane's overlap in the bowl (the quadric's spacing is wider)
-    assert tp.metadata["ripple_overlap"] < ripple_overlap(TOOL, lead_angle=TOOL.half_pad_lead, max_length_ratio=1.5)
+    assert tp.metadata["ripple_overlap_fraction"] < ripple_overlap(TOOL, lead_angle=TOOL.half_pad_lead, max_length_ratio=1.5)
+    from swath.report.metrics import keys_without_unit
+
+    # the plan's record goes into metrics.json's settings: every figure in it names its unit (W-METRIC-UNIT)
+    assert keys_without_unit({"plan": dict(tp.metadata)}) == []
 
 
 def _run_default(tmp_path, name):

@@ -136,6 +136,11 @@ def test_the_default_job_states_figures_the_written_trajectory_confirms(tmp_path
     assert mean == pytest.approx(m["interior_removal_mean_m"], rel=0.02)
     assert m["target_depth_reached_fraction"] == pytest.approx(mean / m["target_depth_m"], rel=0.02)
     assert 0.8 < m["target_depth_reached_fraction"] < 1.1
+    # where the interior CoV comes from: the four shares of its variance add up, and it is the stated CoV
+    assert m["evenness_interior_cov"] == pytest.approx(m["interior_removal_cov"], rel=1e-6)
+    shares = [m[f"evenness_{k}_variance_fraction"] for k in ("band", "between_passes", "along_passes", "within_cells")]
+    assert sum(shares) == pytest.approx(1.0, abs=1e-6) and min(shares) >= 0
+    assert f"interior CoV {m['interior_removal_cov']:.3f}: of its variance" in printed
     v = tr.feed[tr.contact]
     assert m["feed_used_max_m_per_s"] == pytest.approx(v.max(), rel=1e-3) and v.max() <= 0.05 * 1.001
     assert v.min() <= m["feed_used_p2_m_per_s"] < 0.9 * v.max()           # the feed varies along the passes
@@ -175,3 +180,47 @@ def test_where_the_plain_plan_wins_its_passes_get_the_optimised_feed(tmp_path, c
     assert v.min() < 0.5 * v.max()                              # the feed varies along the passes
     removal = simulate_removal(tr, example_part("blade"), Tool(), sample_spacing=4e-3)
     assert removal.metrics["interior_removal_cov"] == pytest.approx(m["interior_removal_cov"], abs=0.005)
+
+
+@pytest.mark.parametrize("ratio", [1.40, 1.70])
+def test_the_lead_is_settled_for_the_spacing_the_plan_has(ratio):
+    from swath.contact import Tool
+    from swath.examples import example_part
+    from swath.feed import ripple_cov
+    from swath.plan import raster
+
+    tool = Tool()
+    spacing = ratio * tool.pad_radius
+    plate = example_part("plate")
+    toolpath = raster(plate, tool, spacing=spacing, direction=0.0)
+    assert np.median(even_default.local_spacings(toolpath)) == pytest.approx(spacing, rel=0.01)
+    toolpath.metadata.update(ripple_model="curved", ripple_lead_rad=math.radians(15.0))
+    even_default.settle_plan_lead(toolpath, plate, tool)
+    leads = [0.0, tool.half_pad_lead, math.radians(11.0), math.radians(15.0)]
+    # on a plane the quadric's profile is the plane's: the lead with the least analytic ripple at that spacing
+    # (from 15°, each clearly less: a fifth or more)
+    best = min(leads, key=lambda a: ripple_cov(tool, spacing, lead_angle=a))
+    assert toolpath.metadata["ripple_lead_rad"] == pytest.approx(best)
+    assert toolpath.metadata["lead_ripple_cov"] == pytest.approx(ripple_cov(tool, spacing, lead_angle=best), abs=0.01)
+    assert toolpath.metadata["lead_ripple_spacing_m"] == pytest.approx(spacing, rel=0.01)
+
+
+def test_a_plane_spacing_keeps_its_lead():
+    from swath.contact import Tool
+    from swath.examples import example_part
+    from swath.plan import raster
+
+    tool = Tool()
+    toolpath = raster(example_part("plate"), tool, spacing=0.06, direction=0.0)
+    toolpath.metadata.update(ripple_model="plane", ripple_lead_rad=0.3)
+    even_default.settle_plan_lead(toolpath, example_part("plate"), tool)
+    assert toolpath.metadata["ripple_lead_rad"] == 0.3 and "lead_ripple_cov" not in toolpath.metadata
+
+
+def test_a_kept_constant_feed_states_no_share_of_the_target():
+    m = {"even_removal_default": True, "constant_feed_kept": True, "target_depth_m": 3.1e-6, "cycle_time_ratio": 1.0,
+         "cycle_time_allowed_ratio": 1.5, "interior_removal_mean_m": 1.95e-6, "length_ratio": 1.51,
+         "lead_angle_deg": 7.0}
+    text = even_default.summary_line(m)
+    assert "the constant feed is written" in text and "W-EVEN-FEED-WORSE" in text
+    assert "% of the target" not in text and "interior depth 1.95 um" in text

@@ -53,7 +53,10 @@ def test_a_plan_reaching_10_percent_on_the_plate_is_the_shortest_that_does(tmp_p
     assert "target cov candidates" in (out / "report.html").read_text()
 
 
-def test_out_of_reach_is_refused_with_the_least_reachable_cov_and_its_cost():
+def test_out_of_reach_is_refused_with_the_least_reachable_cov_and_its_cost(monkeypatch):
+    import swath.cli.target_cov as search
+
+    monkeypatch.setattr(search, "FEED_CANDIDATES", 0)       # constant feed only: the figures are the ripple run's
     settings = JobSettings(part="example:plate", out="unused", target_cov=0.06, sample_spacing=COARSE)
     surface, tool = example_part("plate"), settings.tool()
     base = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE, constant_feed=True)
@@ -74,6 +77,26 @@ def test_out_of_reach_is_refused_with_the_least_reachable_cov_and_its_cost():
     assert float(found.group(1)) == pytest.approx(m["interior_removal_cov"] * 100, abs=0.06)
     assert float(found.group(2)) == pytest.approx(m["contact_length_m"] / m["coverage_lower_bound_m"], abs=0.006)
     assert int(found.group(3)) == pytest.approx(timed.duration, abs=1)
+
+
+def test_when_no_constant_feed_reaches_it_the_optimised_feed_may():
+    # the plate's least-ripple passes, the pad led by half its radius, remove with an interior CoV of
+    # about 0.09 at constant feed and 0.06 with the feed optimised (docs: the even-removal default)
+    settings = JobSettings(part="example:plate", out="unused", target_cov=0.075, sample_spacing=COARSE)
+    surface, tool = example_part("plate"), settings.tool()
+    ripple = JobSettings(part="example:plate", out="unused", sample_spacing=COARSE, optimise_spacing="ripple",
+                         constant_feed=True, lead_angle=None)
+    found = search_target_cov(surface, tool, settings, candidates=[("ripple", ripple)])
+    constant, chosen = found.candidates[0], found.chosen
+    assert constant.interior_removal_cov > 0.075 and chosen is not constant
+    assert chosen.label.startswith("ripple, feed optimised to ") and chosen.settings.target_depth > 0
+    assert chosen.interior_removal_cov <= 0.075
+    # the written trajectory's own simulation confirms it, and it runs within the cycle-time factor
+    again = simulate_removal(chosen.trajectory, surface, tool, sample_spacing=COARSE, sampling="lattice")
+    assert again.metrics["interior_removal_cov"] == pytest.approx(chosen.interior_removal_cov, abs=0.005)
+    assert constant.cycle_time_s < chosen.cycle_time_s <= 1.5 * constant.cycle_time_s * 1.01
+    rows = found.metrics(0.075)["target_cov_candidates"]
+    assert [r["feed"] for r in rows] == ["constant", "optimised"] and rows[1]["reached"]
 
 
 def test_the_plane_floor_is_the_least_ripple_over_the_candidates():

@@ -142,7 +142,7 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
     -------
     ToolPath
         Its ``metadata`` gains ``ripple_spacing_m`` (the spacing asked, raster), or
-        ``ripple_overlap`` (uniform), ``ripple_model`` (``"plane"`` or ``"curved"``),
+        ``ripple_overlap_fraction`` (uniform), ``ripple_model`` (``"plane"`` or ``"curved"``),
         ``ripple_lead_rad`` (the lead the spacing is for) and ``ripple_length_ratio`` (its contact
         length over the coverage bound).
     """
@@ -187,6 +187,6 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         toolpath = plan(value)
         ratio = toolpath.contact_length / bound
     meta = {"ripple_model": model, "ripple_lead_rad": float(lead), "ripple_length_ratio": float(ratio),
-            ("ripple_overlap" if uniform else "ripple_spacing_m"): float(value)}
+            ("ripple_overlap_fraction" if uniform else "ripple_spacing_m"): float(value)}
     toolpath.metadata.update(meta)
     return toolpath

@@ -66,6 +66,106 @@ def resolve(settings):
     return replace(settings, **changes) if changes else settings
 
 
+#: Quantiles of the plan's local pass spacing the lead is judged over (:func:`settle_lead`).
+SPACING_QUANTILES = (0.1, 0.3, 0.5, 0.7, 0.9)
+
+#: The plan's lead changes (:func:`settle_plan_lead`) only where another lead is predicted to ripple
+#: less than this fraction of its ripple: the quadric is one representative curvature.  On the panel
+#: (uniform planner) 5.8 % at 7° against 9.4 % at 11° (0.62; simulated 0.070 against 0.096); on
+#: crs_part_5, whose curvature varies, 7.8 % against 8.6 % (0.91), and the simulation found 7°
+#: worse (0.226 against 0.204).
+LEAD_SWITCH_RATIO = 0.8
+
+
+def local_spacings(toolpath, *, step: float = 2e-3) -> np.ndarray:
+    """The distance (m) from points of every pass (about ``step`` m apart along it) to the nearest
+    point of another pass: the plan's local pass spacing, one figure per point ``(k,)``."""
+    from scipy.spatial import cKDTree
+
+    pts, labels = [], []
+    for k, p in enumerate(toolpath.passes):
+        q = np.asarray(p.points, float)
+        if len(q) < 2:
+            continue
+        travel = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(q, axis=0), axis=1))])
+        keep = np.concatenate([[True], np.diff(np.floor(travel / step)) > 0])
+        pts.append(q[keep])
+        labels.append(np.full(int(keep.sum()), k))
+    if len(pts) < 2:
+        return np.zeros(0)
+    points, label = np.vstack(pts), np.concatenate(labels)
+    out = []
+    for k in np.unique(label):
+        mine = label == k
+        out.append(cKDTree(points[~mine]).query(points[mine])[0])
+    return np.concatenate(out)
+
+
+def settle_lead(toolpath, surface, tool, leads) -> tuple[float, dict, dict] | None:
+    """The lead (rad, one of ``leads``) whose cross-profile on the passes' representative quadric
+    ripples least at the spacing the plan actually has, or None with fewer than two passes.
+
+    The least-ripple spacing chooses its lead for the spacing it asks for; the plan then lays its
+    passes where the planner can (the uniform planner by the local width) and the length budget
+    may widen them, so the real spacing differs, and a steep lead's ripple rises fast away from
+    its best spacing.  On the panel with the uniform planner the lead was chosen at 11° for the
+    spacing asked; the plan's passes came 54 mm apart, where the quadric ripples 9.3 % at 11° and
+    5.7 % at 7° (simulated interior CoV 0.096 and 0.070, the same passes).  Each lead is judged by
+    the root mean square of its ripple (:func:`swath.feed.curved_ripple.quadric_cross_profile`
+    summed over straight passes) over the quantiles :data:`SPACING_QUANTILES` of the plan's
+    local spacings (:func:`local_spacings`).
+
+    Returns
+    -------
+    (float, dict, dict) or None
+        The lead; ``lead_ripple_spacing_m`` (the median local spacing) with ``lead_ripple_cov``
+        (the chosen lead's predicted ripple); and every lead's predicted ripple, by lead (rad).
+    """
+    from ..feed.curved_ripple import CELLS_PER_RADIUS, _lattice_ripple, pass_curvatures, quadric_cross_profile
+
+    spacings = local_spacings(toolpath)
+    if len(spacings) == 0:
+        return None
+    d = np.quantile(spacings, SPACING_QUANTILES)
+    k_feed, k_cross = pass_curvatures(toolpath, surface)
+    R = tool.pad_radius
+    u = (np.arange(-2 * CELLS_PER_RADIUS, 2 * CELLS_PER_RADIUS) + 0.5) * (R / CELLS_PER_RADIUS)
+    scored = []
+    for lead in leads:
+        profile = quadric_cross_profile(tool, u, k_feed, k_cross, lead_angle=float(lead))
+        ripple = float(np.sqrt(np.mean([_lattice_ripple(u, profile, float(x)) ** 2 for x in d])))
+        scored.append((ripple, float(lead)))
+        log.info("lead %.1f deg at the plan's spacing %.1f mm (%.1f..%.1f): ripple %.3f", math.degrees(lead),
+                 d[2] * 1e3, d[0] * 1e3, d[-1] * 1e3, ripple)
+    ripple, lead = min(scored)
+    return lead, {"lead_ripple_spacing_m": float(d[2]), "lead_ripple_cov": ripple}, {a: r for r, a in scored}
+
+
+def settle_plan_lead(toolpath, surface, tool) -> None:
+    """In the default job, on a curved part (``toolpath.metadata["ripple_model"] == "curved"``):
+    choose the lead again among the half-pad lead and
+    :data:`swath.cli.curved_spacing.LEAD_CHOICES_DEG` for the spacing the plan has
+    (:func:`settle_lead`), and record it in ``toolpath.metadata`` (``ripple_lead_rad``, with
+    ``lead_ripple_spacing_m`` and ``lead_ripple_cov``).  A plane's spacing keeps its lead."""
+    from .curved_spacing import LEAD_CHOICES_DEG
+
+    if toolpath.metadata.get("ripple_model") != "curved":
+        return
+    leads = sorted({float(tool.half_pad_lead), *(math.radians(a) for a in LEAD_CHOICES_DEG)})
+    settled = settle_lead(toolpath, surface, tool, leads)
+    if settled is None:
+        return
+    lead, figures, by_lead = settled
+    chosen = float(toolpath.metadata.get("ripple_lead_rad", tool.half_pad_lead))
+    current = by_lead.get(chosen)
+    if current is not None and not figures["lead_ripple_cov"] < LEAD_SWITCH_RATIO * current:
+        lead, figures["lead_ripple_cov"] = chosen, current          # not clearly better: the lead stays
+    if lead != chosen:
+        log.info("the plan's passes lie %.1f mm apart: lead %.1f deg (chosen for the spacing asked: %.1f deg)",
+                 figures["lead_ripple_spacing_m"] * 1e3, math.degrees(lead), math.degrees(chosen))
+    toolpath.metadata.update(figures, ripple_lead_rad=lead)
+
+
 def wants_target_depth(settings) -> bool:
     """Whether the job's target depth is still to be chosen (:func:`choose_target_depth`)."""
     return settings.optimise_feed and settings.target_depth is None and settings.target_map is None
@@ -172,7 +272,8 @@ def even_metrics(settings, removal, trajectory, figures: dict, tool) -> dict:
         out["cycle_time_ratio"] = float(trajectory.duration / const)
     mean = interior_mean(removal, tool.pad_radius)
     out["interior_removal_mean_m"] = mean
-    if settings.target_depth:
+    if settings.target_depth and not figures.get("constant_feed_kept"):
+        # (the constant feed written does not aim at the target: no fraction of it is stated)
         out["target_depth_reached_fraction"] = mean / settings.target_depth
     out["length_ratio"] = float(m["contact_length_m"] / m["coverage_lower_bound_m"])
     out["lead_angle_deg"] = math.degrees(settings.lead())
@@ -194,8 +295,13 @@ def summary_line(m: dict) -> str:
             f"  even removal (default): the plain plan's passes remove more evenly here than the least-ripple "
             f"spacing (interior CoV {m['plain_interior_removal_cov']:.3f} against "
             f"{m['even_plan_interior_removal_cov']:.3f} at constant feed); the feed is optimised along them\n")
-    parts = [lead + "  even removal (default; --constant-feed for a plain plan): target depth "
-             + (f"{target * 1e6:.3g} um" if target else "from the target map")]
+    if m.get("constant_feed_kept"):
+        parts = [lead + "  even removal (default; --constant-feed for a plain plan): the constant feed is written, the "
+                 "feed optimised to " + (f"{target * 1e6:.3g} um" if target else "the target map")
+                 + " removed less evenly (W-EVEN-FEED-WORSE)"]
+    else:
+        parts = [lead + "  even removal (default; --constant-feed for a plain plan): target depth "
+                 + (f"{target * 1e6:.3g} um" if target else "from the target map")]
     if m.get("cycle_time_ratio") is not None:
         parts.append(f", cycle time {m['cycle_time_ratio']:.2f}x the constant feed's "
                      f"(allowed {m['cycle_time_allowed_ratio']:g}x)")

@@ -415,6 +415,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"),
                              choose_lead=plain is not None,       # the default job chose the lead: on a curved part, again
                              timings=searched_spacing)
+        if plain is not None:
+            even_default.settle_plan_lead(toolpath, surface, tool)    # ... for the spacing the plan has
         lead = toolpath.metadata.get("ripple_lead_rad")
         if plain is not None and lead is not None and lead != settings.lead():
             settings = replace(settings, lead_angle=lead)
@@ -527,6 +529,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.ripple import removal_ripple
 
     metrics.update(removal_ripple(removal, trajectory, tool))      # the mid-spatial ripple across the passes
+    from ..simulate.evenness import evenness_metrics
+
+    metrics.update(evenness_metrics(removal, trajectory, tool))    # where the interior CoV comes from
     metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float))
                     and not isinstance(v, bool) and k.endswith(("_m", "_rad", "_s")) and k not in metrics})
     metrics.update(timings)

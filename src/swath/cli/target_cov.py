@@ -8,8 +8,13 @@ job's own pipeline (:func:`swath.cli.job.make_plan`, :func:`swath.trajectory.tim
 * the pass spacing: the planner's own covering spacing (the shortest path), or the least-ripple
   spacing (:func:`swath.feed.ripple_spacing`, for the uniform planner its overlap) within a length
   budget of 1.5, 2.0 or 2.5 times the coverage bound L*;
-* the lead angle: 0, auto (half the pad presses, ``Tool.half_pad_lead``), 11° or 15°;
-* the feed: constant (the job's ``--feed``).
+* the lead angle: 0, auto (half the pad presses, ``Tool.half_pad_lead``), 11° or 15°, or, as the
+  default job chooses it, on the part's curvature (:func:`swath.cli.curved_spacing.curved_spacing_plan`
+  with the lead chosen, then :func:`swath.cli.even_default.settle_plan_lead`): on a convex part the
+  raster's own direction at another lead can read other curvatures and lay other passes;
+* the feed: constant (the job's ``--feed``), and when no candidate reaches the target at constant
+  feed, the :data:`FEED_CANDIDATES` evenest with the feed optimised as the default job does it
+  (:func:`swath.cli.stages.even_feed_stage`: the target depth within the cycle-time factor).
 
 All candidates are planned and timed first (cheap), then simulated in order of cycle time, the
 shortest first; the first whose interior removal CoV is at or below the target is the plan.  When
@@ -34,6 +39,8 @@ log = logging.getLogger(__name__)
 LEADS: tuple = (0.0, None, math.radians(11.0), math.radians(15.0))
 #: The length budgets (multiples of L*) the least-ripple spacing may use.
 BUDGETS: tuple = (1.5, 2.0, 2.5)
+#: How many of the evenest constant-feed candidates get the optimised feed when none reaches the target.
+FEED_CANDIDATES = 2
 
 
 @dataclass(frozen=True)
@@ -73,6 +80,7 @@ class Candidate:
         return {"label": self.label, "planner": s.planner, "spacing_rule": s.optimise_spacing or "cover",
                 "length_budget_ratio": s.length_budget if s.optimise_spacing else None,
                 "lead_angle_rad": s.lead(), "cycle_time_s": self.cycle_time_s,
+                "feed": "optimised" if s.target_depth else "constant", "target_depth_m": s.target_depth,
                 "length_ratio": None if math.isnan(self.length_ratio) else self.length_ratio,
                 "interior_removal_cov": cov, "simulated": cov is not None,
                 "reached": cov is not None and cov <= target}
@@ -95,15 +103,19 @@ def _lead_words(lead) -> str:
     return "lead auto" if lead is None else f"lead {math.degrees(lead):.0f}°"
 
 
-def candidate_settings(settings) -> list[tuple[str, Any]]:
-    """The candidates' ``(label, JobSettings)``: the covering spacing flat, and the least-ripple
-    spacing within each of :data:`BUDGETS` at each of :data:`LEADS`."""
+def candidate_settings(settings) -> list[tuple]:
+    """The candidates' ``(label, JobSettings, choose_lead)``: the covering spacing flat, and the
+    least-ripple spacing within each of :data:`BUDGETS` at each of :data:`LEADS` and with the
+    lead chosen on the part's curvature (``choose_lead`` True, as the default job does)."""
     base = replace(settings, target_cov=None, optimise_spacing=None, spacing=None, overlap=None)
-    out = [(f"{settings.planner}, covering spacing, lead 0°", replace(base, lead_angle=0.0))]
+    out: list[tuple] = [(f"{settings.planner}, covering spacing, lead 0°", replace(base, lead_angle=0.0), False)]
     for budget in BUDGETS:
+        ripple = replace(base, optimise_spacing="ripple", length_budget=budget)
         for lead in LEADS:
             out.append((f"{settings.planner}, least-ripple spacing within {budget:g} L*, {_lead_words(lead)}",
-                        replace(base, optimise_spacing="ripple", length_budget=budget, lead_angle=lead)))
+                        replace(ripple, lead_angle=lead), False))
+        out.append((f"{settings.planner}, least-ripple spacing within {budget:g} L*, lead on the curvature",
+                    replace(ripple, lead_angle=None), True))
     return out
 
 
@@ -150,8 +162,9 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
         The job's tool (calibrated, if the job is).
     settings : JobSettings
         With ``target_cov`` (a fraction, e.g. 0.05).
-    candidates : list of (str, JobSettings), optional
-        The candidates (default :func:`candidate_settings`).
+    candidates : list of (str, JobSettings) or (str, JobSettings, bool), optional
+        The candidates (default :func:`candidate_settings`); the third item, True: the plan
+        chooses its lead on the part's curvature.
     progress : callable, optional
         ``progress(stage, done, total)``.
     plan_options : dict, optional
@@ -171,16 +184,25 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
 
     say = progress or (lambda stage, done, total: None)
     target = float(settings.target_cov)
-    pool: list[tuple[str, Any]] = candidate_settings(settings) if candidates is None else list(candidates)
+    pool: list[tuple] = candidate_settings(settings) if candidates is None else list(candidates)
     planned, seen = [], set()
-    for i, (label, cand) in enumerate(pool):
+    for i, entry in enumerate(pool):
+        label, cand, choose = entry[0], entry[1], bool(entry[2]) if len(entry) > 2 else False
         say(f"--target-cov: planning candidate {i + 1} of {len(pool)} ({label})", i, len(pool))
         try:
-            toolpath = make_plan(surface, cand, **(plan_options or {}))
+            toolpath = make_plan(surface, cand, choose_lead=choose, **(plan_options or {}))
         except SwathError as exc:               # e.g. no direction the uniform planner can lay at that overlap
             log.warning("--target-cov: candidate %s cannot be planned on %s (%s); left out [W-TARGET-COV-CANDIDATE]",
                         label, surface.name, exc)
             continue
+        if choose:
+            from .even_default import settle_plan_lead
+
+            settle_plan_lead(toolpath, surface, tool)
+            lead = toolpath.metadata.get("ripple_lead_rad")
+            if lead is not None:
+                cand = replace(cand, lead_angle=float(lead))
+                label = f"{label} ({math.degrees(float(lead)):.0f}°)"
         # a larger budget whose least-ripple spacing is the smaller budget's lays the same passes
         same = (round(cand.lead(), 9), len(toolpath.passes), round(toolpath.contact_length, 6))
         if same in seen:
@@ -207,9 +229,45 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
                  done.cycle_time_s)
         if cov <= target:
             return SearchResult(done, tried + planned[i + 1:])
+    fed = []
+    for cand in sorted(tried, key=lambda c: float(c.interior_removal_cov or 0.0))[:FEED_CANDIDATES]:
+        say(f"--target-cov: optimising the feed along {cand.label}", 0, 1)
+        with_feed = _with_feed(cand, surface, tool, settings)
+        if with_feed is None:
+            continue
+        fed.append(with_feed)
+        log.info("target CoV %.3f: %s: CoV %.3f, %.2f L*, %.0f s", target, with_feed.label,
+                 with_feed.interior_removal_cov, with_feed.length_ratio, with_feed.cycle_time_s)
+    reached = [c for c in fed if (c.interior_removal_cov or 0.0) <= target]
+    tried += fed
+    if reached:
+        return SearchResult(min(reached, key=lambda c: c.cycle_time_s), tried)
     best = min(tried, key=lambda c: (c.interior_removal_cov, c.cycle_time_s))
     least = float(best.interior_removal_cov or 0.0)
     raise InfeasibleError(
         f"--target-cov {target * 100:.3g} % is out of reach on {surface.name}: least reachable "
         f"{least * 100:.1f} % at {best.length_ratio:.2f} L*, {best.cycle_time_s:.0f} s "
         f"({best.label}; {len(tried)} candidates simulated). Ask for {least * 100:.1f} % or more")
+
+
+def _with_feed(cand: Candidate, surface, tool, settings) -> Candidate | None:
+    """``cand`` (simulated at constant feed) with the feed optimised along its passes as the default
+    job does it (the target depth chosen within ``cand.settings.cycle_time_factor``), simulated; None
+    when the feed cannot be optimised to that target.  Its settings keep ``optimise_feed`` False:
+    the trajectory already runs the optimised feed."""
+    from ..simulate import simulate_removal
+    from . import stages
+
+    s = replace(cand.settings, optimise_feed=True, constant_feed=False, target_depth=None, target_floor="fastest",
+                lead_angle=cand.settings.lead())          # the lead the candidate was timed with
+    s, timed, result, _ = stages.even_feed_stage(cand.toolpath, tool, s, cand.trajectory, surface, {},
+                                                 constant=cand.removal)
+    if result is None or s.target_depth is None:
+        return None
+    removal = simulate_removal(timed, surface, tool, sample_spacing=settings.sample_spacing,
+                               sampling=settings.removal_sampling)
+    m = removal.metrics
+    return Candidate(replace(s, optimise_feed=False), f"{cand.label}, feed optimised to {s.target_depth * 1e6:.2g} um",
+                     cand.toolpath, timed, float(timed.duration),
+                     length_ratio=float(m["contact_length_m"] / m["coverage_lower_bound_m"]),
+                     interior_removal_cov=float(m["interior_removal_cov"]), removal=removal)
