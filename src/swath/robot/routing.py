@@ -10,9 +10,9 @@ job's :class:`~swath.robot.sweep.SweepCheck` at the same ≤ 2° steps as everyt
    shoulder-first ordering, two via-points);
 2. **a bidirectional random tree** (RRT-Connect) in joint space, inside the box the ends span
    widened by ``widen`` rad per joint (within the joint limits), grown from both ends with a seeded
-   random generator and a fixed number of iterations, so the same job gives the same path on any
-   machine and under any load; the path found is shortened by joining each node to the farthest
-   later node it sees directly.
+   random generator, a fixed number of iterations and a fixed budget of checked segments, so the
+   same job gives the same path on any machine and under any load; the path found is shortened by
+   joining each node to the farthest later node it sees directly.
 
 The via-points returned are the rows the programs write as joint-move targets.
 """
@@ -20,16 +20,19 @@ The via-points returned are the rows the programs write as joint-move targets.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: Joint groups moved one at a time: the base, the arm, the wrist.
 GROUPS = ((0,), (1, 2), (3, 4, 5))
 
 
 def route_joint_move(check, q0, q1, *, required: float, ignore=(), lower=None, upper=None, widen: float = math.pi / 2,
-                     step: float = 0.35, iterations: int = 250, seed: int = 0):
+                     step: float = 0.35, iterations: int = 250, max_checks: int = 300, seed: int = 0):
     """Via-points of a joint path from ``q0`` to ``q1`` whose sweep keeps the rules, or None.
 
     Parameters
@@ -50,6 +53,8 @@ def route_joint_move(check, q0, q1, *, required: float, ignore=(), lower=None, u
         Largest joint change of one tree edge, rad.
     iterations : int
         Tree growth steps at most.
+    max_checks : int
+        Segments checked at most (each a sweep at ≤ 2° steps); the search gives up after them.
     seed : int
         Seed of the random generator.
 
@@ -68,9 +73,25 @@ def route_joint_move(check, q0, q1, *, required: float, ignore=(), lower=None, u
     def clean(a, b) -> bool:
         key = (a.tobytes(), b.tobytes())
         if key not in cache:
-            cache[key] = check.sweep(np.array([a, b]), ignore=ignore).ok(required)
+            if len(cache) >= max_checks:
+                raise _GiveUp
+            # distances above the required one need not be exact
+            cache[key] = check.sweep(np.array([a, b]), ignore=ignore, cap=required + 1e-3).ok(required)
         return cache[key]
 
+    try:
+        return _route(clean, q0, q1, lower, upper, widen, step, iterations, seed)
+    except _GiveUp:
+        log.debug("routing: gave up after %d checked segments", max_checks)
+        return None
+
+
+class _GiveUp(Exception):
+    """The routing's budget of checked segments is spent."""
+
+
+def _route(clean, q0, q1, lower, upper, widen: float, step: float, iterations: int, seed: int):
+    """:func:`route_joint_move` on a ``clean(a, b)`` segment test."""
     if clean(q0, q1):
         return np.zeros((0, 6))
     for order in itertools.permutations(GROUPS):

@@ -106,13 +106,15 @@ class SweepCheck:
         self.max_step = max_step
         self.cap = cap
 
-    def sweep(self, q_nodes, *, ignore=()) -> Sweep:
+    def sweep(self, q_nodes, *, ignore=(), cap: float | None = None) -> Sweep:
         """The joint path through ``q_nodes`` (k, 6) rad, straight in joint space between nodes;
         pairs of body names in ``ignore`` are not counted as hits (bodies that already touch where
-        the path starts or ends on the job's own path: a lift cannot part them)."""
+        the path starts or ends on the job's own path: a lift cannot part them).  ``cap`` (m,
+        default :attr:`cap`): distances above it need not be exact (a smaller one is quicker, and
+        enough to tell whether a required distance is kept)."""
         q_fine, _ = interpolate_joints(np.asarray(q_nodes, dtype=float), max_step=self.max_step)
         frames = self.model.chain.frames(q_fine)
-        d, who = self.scene.distances(frames, "the part", cap=self.cap)
+        d, who = self.scene.distances(frames, "the part", cap=self.cap if cap is None else cap)
         k = int(np.argmin(d))
         pairs = tuple(sorted(self._pairs(frames) - set(ignore)))
         return Sweep(min_distance=float(d[k]), nearest=who[k], hits=pairs)
