@@ -66,3 +66,24 @@ def test_a_clean_straight_move_gets_no_via_point(post_scene):
     q1 = q0.copy()
     q1[5] += 0.5                                         # a turn of wrist 3 in place
     assert route_joint_move(check, q0, q1, required=0.02).shape == (0, 6)
+
+
+def test_a_ur_elbow_is_kept_within_half_a_turn():
+    """A UR10e's elbow is limited to ±180°: across a configuration change from a run ending with the
+    elbow at −162.6° to one at +140.6°, the turns are aligned to +140.6° (the arm unfolds through the
+    stretched elbow), not to −219.4° (the 2π-equivalent nearest the last, through the folded arm: the
+    joint move that swept the wrist into the base column on snp_part_scan), while wrist 3 still takes
+    the equivalent nearest the last run."""
+    from swath.robot.solve import align_turns
+
+    model = get_robot("ur10e")
+    assert model.lower[2] == pytest.approx(-math.pi) and model.upper[2] == pytest.approx(math.pi)
+    assert np.all(np.delete(model.upper, 2) == pytest.approx(2 * math.pi))
+    q0 = np.radians([8.0, -82.8, -162.6, 12.7, 36.2, 86.9])
+    q1 = np.radians([117.1, -104.7, 140.6, -7.4, 84.3, 209.1 - 360.0])
+    out = align_turns(np.array([q0, q1]), model.lower, model.upper, np.array([True, True]))
+    assert math.degrees(out[1, 2]) == pytest.approx(140.6, abs=1e-9)
+    assert math.degrees(out[1, 5]) == pytest.approx(209.1, abs=1e-9)       # −150.9° + 360°: nearer 86.9°
+    # with the elbow allowed ±360° the same alignment folds the arm
+    folded = align_turns(np.array([q0, q1]), np.full(6, -2 * math.pi), np.full(6, 2 * math.pi), np.array([True, True]))
+    assert math.degrees(folded[1, 2]) == pytest.approx(140.6 - 360.0, abs=1e-9)
