@@ -114,10 +114,9 @@ class SweepCheck:
         enough to tell whether a required distance is kept)."""
         q_fine, _ = interpolate_joints(np.asarray(q_nodes, dtype=float), max_step=self.max_step)
         frames = self.model.chain.frames(q_fine)
-        d, who = self.scene.distances(frames, "the part", cap=self.cap if cap is None else cap)
-        k = int(np.argmin(d))
+        d, who, _ = self.scene.min_distance(frames, "the part", cap=self.cap if cap is None else cap)
         pairs = tuple(sorted(self._pairs(frames) - set(ignore)))
-        return Sweep(min_distance=float(d[k]), nearest=who[k], hits=pairs)
+        return Sweep(min_distance=d, nearest=who, hits=pairs)
 
     def touching(self, q) -> set:
         """Pairs of body names that touch at the joint values ``q`` (k, 6) rad."""
