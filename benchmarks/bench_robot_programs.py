@@ -11,11 +11,12 @@ JointTrajectory YAML and joints.csv; then the job's collision check runs on what
 ``--fixed`` part:robot:pose row uses that part2base (``--base``) instead of the search.  The table
 reports, read back from the written files where a file says it:
 
+* ``at`` the part's placement (x, y in m, yaw in deg), ``solved`` the cells the search solved;
 * ``sw`` branch changes, ``sw_in_contact`` branch changes between two contact samples of a pass,
-  ``sw_clear_mm`` the smallest distance to the part (mesh) of the swept tool, TCP and arm along the
-  whole joint move of any branch change, against the job's clearance ``clear_mm``; ``jmoves`` joint
-  moves written as such, ``lifted`` those lifted or given via-points, ``not_clear`` those no lift
-  cleared;
+  ``sw_clear_mm`` the smallest distance to the part (mesh) of the swept tool, TCP, pad disc and arm
+  along the whole joint move of any branch change, against the job's clearance ``clear_mm``;
+  ``jmoves`` joint moves written as such, ``lifted`` those lifted or given via-points, ``routed``
+  those routed through via-points found in joint space, ``not_clear`` those nothing cleared;
 * ``dq_contact`` the largest joint step between contact samples of a pass (rad; must be ≤ 0.05);
 * ``fk_mm``, ``fk_deg`` FK of every row of joints.csv and of the ROS YAML against its TCP pose;
 * ``force_deg`` the largest angle between a contact sample's tool z (minus the surface normal: lead
@@ -84,7 +85,11 @@ def program_row(name: str, trajectory, robot: str, out: Path, clearance: float, 
     ang = commanded_force_angles(ProgramInput(tr, sol, res.model, res.cell))
     b = sol.branch
     change = (b[1:] != b[:-1]) & (b[1:] >= 0) & (b[:-1] >= 0)
+    p2b = res.cell.part2base
+    routed = sum("routed" in r["lift_direction"] for r in m.get("joint_move_sweeps", []))
     return {"part": name, "robot": res.model.name, "base": "search" if base is None else "fixed",
+            "at": f"{p2b[0, 3]:.3f},{p2b[1, 3]:.3f},{math.degrees(math.atan2(p2b[1, 0], p2b[0, 0])):.0f}",
+            "solved": m.get("placements_solved", 0), "routed": routed,
             "poses": len(trajectory), "rows": len(idx),
             "reach_%": 100 * m["reachable_fraction"], "sw": int(change.sum()),
             "sw_in_contact": m["branch_changes_in_contact"], "sw_clear_mm": 1e3 * m["min_switch_clearance_m"],
@@ -97,9 +102,9 @@ def program_row(name: str, trajectory, robot: str, out: Path, clearance: float, 
             "coll_s": rep.seconds, "hits": len(rep.events)}
 
 
-COLUMNS = [("part", "s"), ("robot", "s"), ("base", "s"), ("poses", "d"), ("rows", "d"), ("reach_%", ".1f"),
-           ("sw", "d"), ("sw_in_contact", "d"), ("sw_clear_mm", ".1f"), ("clear_mm", ".0f"), ("jmoves", "d"),
-           ("lifted", "d"), ("not_clear", "d"), ("dq_contact", ".4f"), ("fk_mm", ".1e"), ("fk_deg", ".1e"),
+COLUMNS = [("part", "s"), ("robot", "s"), ("base", "s"), ("at", "s"), ("solved", "d"), ("poses", "d"), ("rows", "d"),
+           ("reach_%", ".1f"), ("sw", "d"), ("sw_in_contact", "d"), ("sw_clear_mm", ".1f"), ("clear_mm", ".0f"),
+           ("jmoves", "d"), ("lifted", "d"), ("routed", "d"), ("not_clear", "d"), ("dq_contact", ".4f"), ("fk_mm", ".1e"), ("fk_deg", ".1e"),
            ("force_deg", ".2f"), ("dt_ms", ".1f"), ("ros_v0", ".1g"), ("T0_s", ".1f"), ("T_s", ".1f"),
            ("place_s", ".1f"), ("wall_s", ".1f"), ("coll_s", ".1f"), ("hits", "d")]
 

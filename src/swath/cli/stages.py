@@ -145,7 +145,7 @@ def robot_stage(trajectory, surface, settings, *, progress=None):
         return positioner_robot_stage(trajectory, surface, settings, options, progress=progress)
     result = run_robot_stage(trajectory, **options, out_dir=None, surface=surface,
                              force=settings.force, warn=False,      # the job reports result.warnings
-                             clearance=settings.clearance,
+                             clearance=settings.clearance, pad_radius=settings.pad_radius,
                              progress=None if progress is None else (lambda m, d, n: progress(m, d, n)))
     metrics = {k if k.startswith("robot") else f"robot_{k}": v for k, v in result.metrics.items()}
     report = check_job_collisions(result.trajectory, result.solution, result.model, result.cell,

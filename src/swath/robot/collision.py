@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..cell import Body, Capsule, Cell, CollisionScene, Mesh, MovingBody, default_table
+from ..cell import Body, Capsule, Cell, CollisionScene, Cylinder, Mesh, MovingBody, default_table
 from ..errors import SwathError
 
 log = logging.getLogger(__name__)
@@ -32,6 +32,12 @@ TCP_BODY = "tool centre point"
 #: Radius of that body in the job's collision check, m: the TCP itself, so that a pad driven into a
 #: fixture, the table or the robot is found (against the part it is never checked).
 TCP_RADIUS = 1e-3
+
+#: Name of the pad disc in a scene built with ``pad_radius`` (:func:`job_scene`).
+PAD_BODY = "tool pad"
+
+#: Thickness of that disc behind the pad face, m.
+PAD_THICKNESS = 2e-3
 
 
 class CollisionError(SwathError):
@@ -161,7 +167,7 @@ class CollisionReport:
 
 
 def job_scene(model, cell: Cell, part_vertices=None, part_faces=None, *,
-              tcp_radius: float | None = None) -> tuple[CollisionScene, Cell]:
+              tcp_radius: float | None = None, pad_radius: float | None = None) -> tuple[CollisionScene, Cell]:
     """The collision scene of a job and its cell (with the default table put in when assumed).
 
     Parameters
@@ -176,6 +182,12 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None, *,
         Also a small body at the TCP (a capsule of this radius, m), named ``"tool centre point"``,
         never checked against the part (the pad is meant to touch it): for measuring how far the
         TCP stays from the part (:meth:`CollisionScene.distances`) on air moves.
+    pad_radius : float, optional
+        Also the pad: a disc of this radius (m) and :data:`PAD_THICKNESS` behind the pad face,
+        centred on the TCP and normal to the tool z-axis, named ``"tool pad"``.  It is measured by
+        :meth:`CollisionScene.distances` (how near the pad's rim comes to the part on an air move)
+        but never checked for collisions (in contact it lies on the part, and on a part standing on
+        its table at its lowest point, on the table).
     """
     from dataclasses import replace
 
@@ -195,6 +207,12 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None, *,
     if tcp_radius is not None:
         tools.append(MovingBody(Body(TCP_BODY, Capsule(tcp_radius, tcp_radius), cell.tcp2flange), link=n))
         skip.add((TCP_BODY, "the part"))
+    if pad_radius is not None:
+        pad2tcp = np.eye(4)
+        pad2tcp[2, 3] = -0.5 * PAD_THICKNESS                 # behind the face, away from the part
+        tools.append(MovingBody(Body(PAD_BODY, Cylinder(pad_radius, PAD_THICKNESS), cell.tcp2flange @ pad2tcp),
+                                link=n))
+        skip.update((PAD_BODY, b.name) for b in static)
     moving = links + tools
     if links and links[0].link == 0:        # the robot stands on (or through) its table
         skip.add((links[0].body.name, "table"))
@@ -202,6 +220,8 @@ def job_scene(model, cell: Cell, part_vertices=None, part_faces=None, *,
     for i, a in enumerate(moving):
         for j in range(i + 1, len(moving)):
             b = moving[j]
+            if PAD_BODY in (a.body.name, b.body.name):
+                continue
             if b.link - a.link >= 3 and not (b.link == n and a.link >= n - 2):
                 self_pairs.append((i, j))
     return CollisionScene(static, moving, skip=skip, self_pairs=self_pairs), cell

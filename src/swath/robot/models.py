@@ -190,11 +190,14 @@ def _ur_model(name: str) -> RobotModel:
     import ur_analytic_ik
 
     d, a = _UR_DH[name]
+    # the elbow turns ±180° at most: beyond it the forearm would fold through the upper arm (UR's own
+    # software and ROS description limit it the same); the other joints turn ±360°
+    upper = np.array([2, 2, 1, 2, 2, 2]) * math.pi
     return RobotModel(
-        name=name, chain=dh_chain(d, a, _UR_ALPHA), lower=np.full(6, -2 * math.pi), upper=np.full(6, 2 * math.pi),
+        name=name, chain=dh_chain(d, a, _UR_ALPHA), lower=-upper, upper=upper,
         max_speed=np.array(_UR_SPEED_DEG[name]) * DEG, max_accel=np.full(6, 4 * math.pi), reach=_UR_REACH[name],
         kind="ur", ur_solver=getattr(ur_analytic_ik, name), dh=(d, a, _UR_ALPHA),
-        source=f"UR {name} DH parameters and e-Series datasheet (±360°, speeds); acceleration 720°/s² assumed",
+        source=f"UR {name} DH parameters and e-Series datasheet (±360°, the elbow ±180°; speeds); acceleration 720°/s² assumed",
     )
 
 

@@ -99,7 +99,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
                     margins: Margins | None = None, strict: bool = False, force: float = 20.0,
                     surface=None, reach_vertices: int = 1500, warn: bool = True, keep_out: float | None = None,
                     split_gaps: bool = True, clearance: float = 0.02, progress=None,
-                    force_program: str = "native") -> RobotResult:
+                    force_program: str = "native", pad_radius: float = 0.0381) -> RobotResult:
     """Solve, re-time and write robot programs for a trajectory.
 
     Parameters
@@ -146,6 +146,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         ``progress(message, done, total)`` for the placement search and the solves.
     force_program : str
         ``native`` (force control of the controller) or ``position`` (position-only programs).
+    pad_radius : float
+        Radius of the pad, m: its rim counts in the distance a swept joint move keeps from the part.
 
     Returns
     -------
@@ -194,7 +196,7 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
     if surface is not None:
         from .sweep import SweepCheck
 
-        check = SweepCheck(model, cell, np.asarray(surface.vertices), np.asarray(surface.faces))
+        check = SweepCheck(model, cell, np.asarray(surface.vertices), np.asarray(surface.faces), pad_radius=pad_radius)
         if split_gaps and solution.reachable.any():
             from .gaps import air_splits
 

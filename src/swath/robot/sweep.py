@@ -4,7 +4,8 @@ A joint move (a configuration change on an air link, the crossing of an unreacha
 in the air) is driven by the controller as a straight line in joint space; between its two ends the
 tool and the arm sweep wherever that line takes them.  :class:`SweepCheck` follows the line at joint
 steps of at most 2° and measures there the smallest distance of the swept bodies (the arm's link
-capsules, the tool's bodies and the TCP) to the part, and whether any body hits the table, a fixture
+capsules, the tool's bodies, the TCP and the pad, a disc of the pad's radius at the TCP normal to the
+tool axis) to the part, and whether any body hits the table, a fixture
 or the robot itself.
 
 :func:`clear_joint_moves` holds every joint move of a solved job to two rules:
@@ -16,7 +17,10 @@ or the robot itself.
 A move that breaks a rule is lifted: a straight retract away from the part (along the tool axis, or
 straight up in the base frame) to a few heights in turn, the joint move there, and a straight
 approach back down to where it landed; where the straight joint line between the lifted ends still
-dips too low, a via-point raised above the middle of the move is tried.  The first candidate that
+dips too low, a via-point raised above the middle of the move is tried.  Where none of these keeps the
+rules (a wall or a post across the move, the arm's own links in the way), via-points are searched in
+joint space between the move's ends or the lowest clean lifted ends (:mod:`swath.robot.routing`: one
+joint group at a time, then a seeded random tree).  The first candidate that
 keeps both rules is taken (the lowest lift); the rows it adds are the rows the programs write (each
 via-point a joint-move target of its own), so what was checked is what the robot is told to do.
 When no candidate keeps the rules the move is left as planned (or replaced by the candidate that
@@ -26,12 +30,14 @@ collides, and the robot stage warns of one that stays too low.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..cell import SANDER_3IN
 from .collision import MAX_JOINT_STEP, TCP_RADIUS, interpolate_joints, job_scene, tcp_grazes_table
 from .joint_moves import insert_samples
 from .pose import matrix_to_quat, poses_from_trajectory
@@ -49,7 +55,7 @@ class Sweep:
     Attributes
     ----------
     min_distance : float
-        Smallest distance of the swept bodies (links, tool bodies, TCP) to the part, m (exact below
+        Smallest distance of the swept bodies (links, tool bodies, TCP, pad) to the part, m (exact below
         :attr:`SweepCheck.cap`, a lower bound above it).
     nearest : str
         The body that came nearest.
@@ -86,24 +92,31 @@ class SweepCheck:
         Largest joint step between checked poses, rad (default 2°).
     cap : float
         Distances above this need not be exact, m.
+    pad_radius : float or None
+        Radius of the pad, m (default the 3-inch sander's, 38.1 mm): a disc at the TCP normal to the
+        tool axis whose distance to the part counts with the other bodies' (its rim comes nearer a
+        tilted surface than the TCP does); None: the TCP point alone.
     """
 
-    def __init__(self, model, cell, part_vertices, part_faces, *, max_step: float = MAX_JOINT_STEP, cap: float = 0.3):
+    def __init__(self, model, cell, part_vertices, part_faces, *, max_step: float = MAX_JOINT_STEP, cap: float = 0.3,
+                 pad_radius: float | None = SANDER_3IN["pad_radius"]):
         self.model = model
-        self.scene, self.cell = job_scene(model, cell, part_vertices, part_faces, tcp_radius=TCP_RADIUS)
+        self.scene, self.cell = job_scene(model, cell, part_vertices, part_faces, tcp_radius=TCP_RADIUS,
+                                          pad_radius=pad_radius)
         self.max_step = max_step
         self.cap = cap
 
-    def sweep(self, q_nodes, *, ignore=()) -> Sweep:
+    def sweep(self, q_nodes, *, ignore=(), cap: float | None = None) -> Sweep:
         """The joint path through ``q_nodes`` (k, 6) rad, straight in joint space between nodes;
         pairs of body names in ``ignore`` are not counted as hits (bodies that already touch where
-        the path starts or ends on the job's own path: a lift cannot part them)."""
+        the path starts or ends on the job's own path: a lift cannot part them).  ``cap`` (m,
+        default :attr:`cap`): distances above it need not be exact (a smaller one is quicker, and
+        enough to tell whether a required distance is kept)."""
         q_fine, _ = interpolate_joints(np.asarray(q_nodes, dtype=float), max_step=self.max_step)
         frames = self.model.chain.frames(q_fine)
-        d, who = self.scene.distances(frames, "the part", cap=self.cap)
-        k = int(np.argmin(d))
+        d, who, _ = self.scene.min_distance(frames, "the part", cap=self.cap if cap is None else cap)
         pairs = tuple(sorted(self._pairs(frames) - set(ignore)))
-        return Sweep(min_distance=float(d[k]), nearest=who[k], hits=pairs)
+        return Sweep(min_distance=d, nearest=who, hits=pairs)
 
     def touching(self, q) -> set:
         """Pairs of body names that touch at the joint values ``q`` (k, 6) rad."""
@@ -270,19 +283,60 @@ def _chains(model, cell, check, ret, app, b0, b1, h, direction, up_part, ignore,
         chains += _raised_chains(model, cell, top0, top1)
     for vias, mid in chains:
         sw = check.sweep(np.array([top0] + [v[0] for v in vias] + [top1]), ignore=ignore)
-        a_poses, a_q = app[0][::-1], app[1][::-1]
-        mids = np.reshape(mid, (-1, 4, 4))
-        poses = np.concatenate([ret[0][1:]] + [mids[min(k, len(mids) - 1)][None] for k in range(len(vias))]
-                               + [a_poses[:-1]])
-        q = np.concatenate([ret[1][1:]] + [v[0][None] for v in vias] + [a_q[:-1]])
-        nr, nv, na = len(ret[0]) - 1, len(vias), len(a_q) - 1
-        # rows: the retract's (linear), the via-points and the approach's top (joint-move targets), the
-        # approach's others (linear); a via-only chain has no approach rows: its last target is the landing
-        jm = np.r_[np.zeros(nr, bool), np.ones(nv, bool), np.ones(min(na, 1), bool), np.zeros(max(na - 1, 0), bool)]
-        via_flag = np.r_[np.zeros(nr, bool), np.ones(nv, bool), np.zeros(na, bool)]
-        branch = np.r_[np.full(nr, b0), [v[1] for v in vias], np.full(na, b1)].astype(int)
-        after = np.r_[np.zeros(nr + nv, bool), np.ones(na, bool)]
-        yield _Plan(poses, q, jm, via_flag, branch, after, sw, h if direct else 0.0, direction, nv)
+        yield _plan(ret, app, vias, mid, sw, b0, b1, h if direct else 0.0, direction)
+
+
+def _plan(ret, app, vias, mid, sw: Sweep, b0: int, b1: int, lift: float, direction: str) -> _Plan:
+    """The rows of a retract ``ret`` and an approach ``app`` ((poses, q), each from the job's path
+    upward) joined through ``vias`` ((q, branch slot) each) whose TCP poses are ``mid`` ((k, 4, 4),
+    or one (4, 4) for all)."""
+    a_poses, a_q = app[0][::-1], app[1][::-1]
+    mids = np.reshape(mid, (-1, 4, 4))
+    poses = np.concatenate([ret[0][1:]] + [mids[min(k, len(mids) - 1)][None] for k in range(len(vias))]
+                           + [a_poses[:-1]])
+    q = np.concatenate([ret[1][1:]] + [v[0][None] for v in vias] + [a_q[:-1]])
+    nr, nv, na = len(ret[0]) - 1, len(vias), len(a_q) - 1
+    # rows: the retract's (linear), the via-points and the approach's top (joint-move targets), the
+    # approach's others (linear); a via-only chain has no approach rows: its last target is the landing
+    jm = np.r_[np.zeros(nr, bool), np.ones(nv, bool), np.ones(min(na, 1), bool), np.zeros(max(na - 1, 0), bool)]
+    via_flag = np.r_[np.zeros(nr, bool), np.ones(nv, bool), np.zeros(na, bool)]
+    branch = np.r_[np.full(nr, b0), [v[1] for v in vias], np.full(na, b1)].astype(int)
+    after = np.r_[np.zeros(nr + nv, bool), np.ones(na, bool)]
+    return _Plan(poses, q, jm, via_flag, branch, after, sw, lift, direction, nv)
+
+
+def _routed(model, cell, check: SweepCheck, p0, p1, q0, q1, b0, b1, clearance: float, up_part, ignore, need: float,
+            *, attempts: int = 2):
+    """Joint moves routed through via-points found in joint space (:func:`swath.robot.routing.route_joint_move`)
+    between the move's own ends when they keep ``need`` (m) from the part, then between the lowest
+    clean lifted ends; at most ``attempts`` routings."""
+    from .routing import route_joint_move
+
+    ends = []
+    q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    if check.sweep(np.array([q0, q0]), ignore=ignore).ok(need) and check.sweep(np.array([q1, q1]), ignore=ignore).ok(need):
+        ends.append(((p0[None], q0[None]), (p1[None], q1[None]), 0.0, "routed"))
+    for factor in LIFTS:
+        h = factor * clearance
+        for direction, d0, d1 in (("tool axis", -p0[:3, 2], -p1[:3, 2]), ("up", up_part, up_part)):
+            ret = straight_line(model, cell, p0, h * d0, q0)
+            app = straight_line(model, cell, p1, h * d1, q1)
+            if ret is None or app is None or check.sweep(ret[1], ignore=ignore).hits \
+                    or check.sweep(app[1], ignore=ignore).hits:
+                continue
+            ends.append((ret, app, h, f"{direction}, routed"))
+            break
+    for ret, app, lift, direction in ends[:attempts]:
+        found = route_joint_move(check, ret[1][-1], app[1][-1], required=need, ignore=ignore)
+        if found is None:
+            continue
+        slots = [_slot(model, cell, v) for v in found]
+        if any(sl is None for sl in slots):
+            continue                                      # a via-point the controller could not be given
+        vias = [sl[0] for sl in slots]
+        mids = np.array([sl[1] for sl in slots]) if slots else ret[0][-1]
+        sw = check.sweep(np.array([ret[1][-1]] + [v[0] for v in vias] + [app[1][-1]]), ignore=ignore)
+        yield _plan(ret, app, vias, mids, sw, b0, b1, lift, direction)
 
 
 def _raised_joints(model, ref) -> np.ndarray:
@@ -399,8 +453,10 @@ def clear_joint_moves(trajectory, solution, model, cell, check: SweepCheck, *, c
         chosen = None
         if not planned.ok(need):
             best = None
-            for cand in _candidates(model, cell, check, poses[i - 1], poses[i], solution.q[i - 1], solution.q[i],
-                                    b0, b1, clearance, up_part, ignore):
+            args = (model, cell, check, poses[i - 1], poses[i], solution.q[i - 1], solution.q[i], b0, b1, clearance,
+                    up_part, ignore)
+            # the simple fixes first (lifts, a raised via-point), then via-points found in joint space
+            for cand in itertools.chain(_candidates(*args), _routed(*args, need)):
                 if cand.sweep.ok(need):
                     chosen = cand
                     break
