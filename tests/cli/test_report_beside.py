@@ -3,7 +3,8 @@ job's figures, and a figure drawn beside is the file drawn here."""
 
 from pathlib import Path
 
-from swath.cli.job import _FEED_PLOTS, _in_place
+from swath.cli.jobwrap import FEED_PLOTS as _FEED_PLOTS
+from swath.cli.jobwrap import in_place as _in_place
 from swath.core.beside import Beside
 
 
