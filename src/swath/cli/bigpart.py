@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .bigpart_work import RayExecutor
 from .settings import JobSettings
 
 log = logging.getLogger(__name__)
@@ -241,14 +242,12 @@ class RayStart:
             signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(signum))
         self._args = (workers, address)
         self._ready, self._released = threading.Event(), threading.Event()
-        self._value = None
+        self._value: RayExecutor | None = None
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, name="swath-ray-start", daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
-        from .bigpart_work import RayExecutor
-
         notice = logging.getLogger("ray._private.worker")
         level = notice.level
         notice.setLevel(logging.ERROR)

@@ -58,7 +58,7 @@ def load_region(path: str, *, owned_only: bool, tile, axis):
     return Surface(vertices, faces, name=f"{name}_region{tile.index}")
 
 
-def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -> dict:
+def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -> tuple:
     """Plan, time and (``settings.optimise_feed``) feed-optimise one region (see the module notes).
 
     With ``optimise_feed``, the feed is optimised on the region's extended mesh over the passes of
@@ -127,7 +127,7 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
     return trajectory, out
 
 
-def simulate_region(path: str, tile, axis, settings, *trajectories) -> dict:
+def simulate_region(path: str, tile, axis, settings, *trajectories) -> tuple[None, dict]:
     """Simulate the removal of ``trajectories`` (those reaching the region, in any order) on the
     region's extended mesh and keep the samples it owns.
 
