@@ -193,7 +193,8 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
             else:
                 Path(work_dir).mkdir(parents=True, exist_ok=True)
             where = folder if folder is not None else Path(str(work_dir))
-            split = split_part(settings, regions, where, workers, starting, executor, say)
+            known = workers or (None if address else os.cpu_count() or 1)     # a cluster's size: once joined
+            split = split_part(settings, regions, where, known, starting, executor, say)
             executor, tasks = split["executor"], split["tasks"]
         say(f"{len(tasks.tiles)} regions of {split['name']} ({split['n_faces']} faces), {executor.where}", 0, 1)
         tasks.run()
@@ -296,8 +297,9 @@ def one_blas_thread(active: bool):
 
 def split_part(settings: JobSettings, regions, where: Path, workers, starting, executor, say) -> dict:
     """Read the part, cut it into regions and write each region's file to ``where``, starting each
-    region's plan as soon as its file is written once the executor is up (``starting``: a future of
-    it, waited for at the end).  Returns ``executor``, ``tasks`` (the
+    region's plan as soon as its file is written once the executor is up (``starting``: a
+    :class:`RayStart` of it, waited for at the end; ``workers``: their count, None if only the
+    executor knows it).  Returns ``executor``, ``tasks`` (the
     :class:`~swath.cli.bigpart_schedule.RegionTasks`), ``name``, ``n_faces``, ``spacing``,
     ``axis``, ``feed``, ``band`` (m) and ``timings`` (s)."""
     from ..segment.tiles import face_heights, principal_axes, span_tiles, submesh
@@ -323,7 +325,7 @@ def split_part(settings: JobSettings, regions, where: Path, workers, starting, e
         t0 = time.perf_counter()                      # "auto" needs the cluster's size, known once it is joined
         executor = starting.result()
         waited += time.perf_counter() - t0
-    n_workers = executor.workers if executor is not None else (workers or os.cpu_count() or 1)
+    n_workers = executor.workers if executor is not None else (workers or 1)
     n_regions = region_count(regions, len(faces), n_workers, n_planes)
     band = BAND_RADII * tool.pad_radius
     tiles = span_tiles(heights_v, spacing, n_regions, band=band)
