@@ -176,3 +176,131 @@ def test_submesh_keeps_the_faces_and_only_their_vertices_in_order():
     used = np.unique(faces[keep])
     np.testing.assert_array_equal(v, vertices[used])              # the used vertices, in their old order
     np.testing.assert_array_equal(v[f], vertices[faces[keep]])    # the same triangles
+
+
+def test_trajectory_csv_from_the_regions_rows_is_the_joined_trajectory(small_blade, tmp_path):
+    m = run_big_part(_settings(small_blade[1], tmp_path / "three"), regions=3)
+    assert m["trajectory_rows_by"] == "regions"
+    text = (tmp_path / "three" / "trajectory.csv").read_text()
+    assert text == m["trajectory"].to_csv_text()            # byte for byte
+    # every task ran once, each after what it needs: a simulation after the plans reaching it,
+    # a region's rows after the plans of the regions before it
+    tasks = m["tasks"]
+    assert sorted((t["task"], t["region"]) for t in tasks) == sorted(
+        (kind, k) for kind in ("plan", "simulate", "rows") for k in range(3))
+    end = {(t["task"], t["region"]): t["end_s"] for t in tasks}
+    for t in tasks:
+        k = t["region"]
+        before = {"plan": [], "simulate": [j for j in (k - 1, k, k + 1) if 0 <= j < 3], "rows": range(k + 1)}
+        assert all(end[("plan", j)] <= t["start_s"] + 1e-3 for j in before[t["task"]])
+    assert (tmp_path / "three" / "tasks.csv").read_text().startswith("task,region,worker,start_s,end_s,cpu_s")
+
+
+def test_rows_of_each_part_concatenate_to_the_joined_csv():
+    from swath.trajectory import Trajectory
+    from swath.trajectory.join import Ends, csv_header, csv_rows, join_offsets, join_trajectories
+
+    rng = np.random.default_rng(7)
+
+    def part(n, n_pass, extra):
+        t = np.cumsum(rng.uniform(0.01, 0.1, n)) + rng.uniform(0, 5)
+        contact = np.zeros(n, bool)
+        contact[2:-2] = True
+        pass_index = np.where(contact, np.minimum(np.arange(n) * n_pass // n, n_pass - 1), -1)
+        q = rng.normal(size=(n, 4))
+        return Trajectory(t, rng.normal(size=(n, 3)), q / np.linalg.norm(q, axis=1)[:, None], contact,
+                          rng.uniform(0.01, 0.05, n), pass_index, extra={k: rng.normal(size=n) for k in extra})
+
+    parts = [part(40, 3, ("force",)), part(25, 2, ("force",)), part(31, 4, ("force",))]
+    joined = join_trajectories(parts, link_speed=0.3)
+    shifts, first, link = join_offsets([Ends.of(p) for p in parts], link_speed=0.3)
+    assert first == [0, 3, 5]
+    assert link == pytest.approx(joined.metadata["join_link_length_m"])
+    # the move between parts takes its length over the link speed
+    gap = np.linalg.norm(parts[1].position[0] - parts[0].position[-1])
+    assert shifts[1] + parts[1].t[0] - (parts[0].t[-1] + shifts[0]) == pytest.approx(gap / 0.3)
+    text = csv_header(("force",)) + "".join(
+        csv_rows(p, shift=s, first_pass=f, names=("force",)) for p, s, f in zip(parts, shifts, first))
+    assert text == joined.to_csv_text()
+    # a column only a later part has: 0 in the parts without it, as join_trajectories fills it
+    parts[1] = part(25, 2, ("force", "wear"))
+    joined = join_trajectories(parts, link_speed=0.3)
+    shifts, first, _ = join_offsets([Ends.of(p) for p in parts], link_speed=0.3)
+    names = ("force", "wear")
+    assert csv_header(names) + "".join(csv_rows(p, shift=s, first_pass=f, names=names)
+                                       for p, s, f in zip(parts, shifts, first)) == joined.to_csv_text()
+    with pytest.raises(InputError, match="at least one"):
+        join_offsets([], link_speed=0.3)
+
+
+def test_work_order_starts_at_the_heavier_end_and_idle_figures():
+    from swath.cli.bigpart_schedule import idle_figures, work_order
+
+    assert work_order([5, 4, 3, 1]) == [0, 1, 2, 3]
+    assert work_order([1, 3, 4, 5]) == [3, 2, 1, 0]
+    assert work_order([2, 9, 2]) == [0, 1, 2]                   # the middle region counts for neither half
+    timeline = [{"worker": 1, "start_s": 1.0, "end_s": 4.0}, {"worker": 2, "start_s": 1.5, "end_s": 3.0},
+                {"worker": 1, "start_s": 4.0, "end_s": 6.0}, {"worker": 2, "start_s": 3.0, "end_s": 5.0}]
+    # span 1..6 s; busy 3 + 1.5 + 2 + 2 s; at the end worker 2 idles 1 s
+    assert idle_figures(timeline, 2) == pytest.approx({"regions_s": 5.0, "tasks_busy_s": 8.5, "tail_idle_s": 1.0})
+    # a third worker that ran nothing idles the whole span
+    assert idle_figures(timeline, 3)["tail_idle_s"] == pytest.approx(6.0)
+
+
+def test_region_tasks_respect_their_needs_whatever_order_they_finish_in(tmp_path):
+    """The scheduler on an executor whose tasks finish in a random order: at most ``workers`` run,
+    each starts only once what it needs has finished, and every task runs once."""
+    from swath.cli.bigpart import reaching
+    from swath.cli.bigpart_schedule import RegionTasks
+    from swath.trajectory.join import Ends
+
+    class Shuffled:
+        workers = 3
+
+        def __init__(self, seed):
+            self.rng = np.random.default_rng(seed)
+            self.running: list = []
+            self.finished: set = set()
+            self.log: list = []
+            self.args: dict = {}
+
+        @property
+        def in_flight(self):
+            return len(self.running)
+
+        def submit(self, key, fn, args):
+            self.log.append((key, set(self.finished), len(self.running) + 1))
+            self.args[key] = args
+            self.running.append(key)
+
+        def handle(self, key):
+            return key
+
+        def next_done(self):
+            key = self.running.pop(int(self.rng.integers(len(self.running))))
+            self.finished.add(key)
+            info = {"pid": 1, "started": 0.0, "ended": 1.0, "cpu_s": 1.0}
+            if key[0] == "plan":
+                info["ends"] = Ends(0.0, 2.0, (0.0, 0.0, float(key[1])), (1.0, 0.0, float(key[1])), 2, (), 10, False)
+            return key, info
+
+    tiles = span_tiles(np.linspace(0.0, 1.0, 50), 0.05, 6, band=0.06)
+    reach = [reaching(tiles, k) for k in range(6)]
+    assert reach[0] == [0, 1] and reach[3] == [2, 3, 4]
+    for seed in range(5):
+        ex = Shuffled(seed)
+        tasks = RegionTasks(ex, tiles, reach, list(range(6)), plan_args=(), simulate_args=(), link_speed=0.5,
+                            rows_folder=tmp_path)
+        for k in range(6):
+            tasks.file_ready(k, f"region{k}")
+        tasks.run()
+        assert len(ex.log) == 18 and len({key for key, _, _ in ex.log}) == 18
+        assert max(n for _, _, n in ex.log) <= 3
+        for (kind, k), done, _ in ex.log:
+            needs = reach[k] if kind == "simulate" else range(k + 1) if kind == "rows" else []
+            assert all(("plan", j) in done for j in needs)
+        # the rows tasks got the offsets the regions before them give: 2 s and 2 passes each, and a
+        # move of sqrt(2) m at 0.5 m/s from one region's end to the next one's start
+        for k in range(6):
+            _, _, shift, first_pass, names = ex.args[("rows", k)]
+            assert shift == pytest.approx(k * (2.0 + math.sqrt(2.0) / 0.5)) and first_pass == 2 * k and names == ()

@@ -22,18 +22,20 @@ from __future__ import annotations
 
 import csv
 import io
-import itertools
 import logging
 import math
+import os
 import shutil
 import tempfile
 import time
+from contextlib import contextmanager
 from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from .bigpart_work import RayExecutor
 from .settings import JobSettings
 
 log = logging.getLogger(__name__)
@@ -129,7 +131,7 @@ def region_count(regions, n_faces: int, workers: int, n_planes: int) -> int:
 
 
 def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None = 1, address: str | None = None,
-                 executor=None, progress=None, work_dir: str | None = None) -> dict:
+                 executor=None, progress=None, work_dir: str | None = None, use_ray: bool | None = None) -> dict:
     """Plan a big part region by region and write the stitched job to ``settings.out``.
 
     Parameters
@@ -143,39 +145,170 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     address : str, optional
         A Ray cluster to run on (``ray://host:10001`` or ``auto``); None: a local Ray.
     executor : optional
-        An executor with ``put``, ``run`` and ``close`` (:mod:`swath.cli.bigpart_work`) instead;
-        closed at the end.
+        An executor (:mod:`swath.cli.bigpart_work`) to run the tasks on instead; closed at the end.
     progress : callable, optional
         ``progress(stage, done, total)``.
     work_dir : str, optional
         Folder for the region files (default: a new folder beside the output, removed at the end);
-        on a cluster it must be one every worker can read.
+        on a cluster it must be one every worker can read and write.
+    use_ray : bool, optional
+        Run on Ray even with one worker (True), or never (False); None: on Ray unless ``workers``
+        is 1 and there is no ``address``.  A Ray of our own starts while the part is read and split.
 
     Returns
     -------
     dict
         The metrics written to ``metrics.json`` (keys with units), with ``regions`` (the rows of
-        ``regions.csv``), ``stitched`` (per region: its owned removal samples ``points``, ``depth``,
+        ``regions.csv``), ``tasks`` (the rows of ``tasks.csv``: when each task ran, on which
+        worker), ``stitched`` (per region: its owned removal samples ``points``, ``depth``,
         ``area``, ``interior``) and ``trajectory`` (the stitched Trajectory).
     """
     from ..io.atomic import atomic_directory, check_output_dir
-    from ..report.metrics import write_metrics_json
-    from ..segment.tiles import face_heights, principal_axes, span_tiles, submesh
-    from ..trajectory.join import join_trajectories
-    from . import bigpart_work, stages
+    from .bigpart_schedule import idle_figures
 
     say = progress or (lambda stage, done, total: None)
     check_settings(settings)
     check_output_dir(settings.out, overwrite=settings.overwrite)
     if workers is not None and workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
-    if workers == 1 and address:
+    on_ray = use_ray if use_ray is not None else not (workers == 1 and not address)
+    if workers == 1 and address and use_ray is None:
         raise InputError("--workers 1 runs the regions in this process; drop --address, or ask for more workers")
     region_count(regions, 0, 1, 1)                 # a count that is no count is refused before the part is read
+    wall0 = time.perf_counter()
+    epoch0 = time.time()
+    cpu0 = time.process_time()
+    folder = None
+    starting = None
+    try:
+        if executor is None and on_ray:
+            starting = RayStart(workers, address)
+        elif executor is None:
+            from .bigpart_work import InlineExecutor
+
+            executor = InlineExecutor()
+        with one_blas_thread(starting is not None):   # no BLAS threads while Ray's processes are forked
+            if work_dir is None:
+                folder = Path(tempfile.mkdtemp(prefix=".swath-regions-", dir=Path(settings.out).resolve().parent))
+            else:
+                Path(work_dir).mkdir(parents=True, exist_ok=True)
+            where = folder if folder is not None else Path(str(work_dir))
+            known = workers or (None if address else os.cpu_count() or 1)     # a cluster's size: once joined
+            split = split_part(settings, regions, where, known, starting, executor, say)
+            executor, tasks = split["executor"], split["tasks"]
+        say(f"{len(tasks.tiles)} regions of {split['name']} ({split['n_faces']} faces), {executor.where}", 0, 1)
+        tasks.run()
+        t0 = time.perf_counter()
+        trajectories = [executor.result(("plan", k)) for k in range(len(tasks.tiles))]
+        split["timings"]["results_s"] = time.perf_counter() - t0
+        executor_workers, executor_where = executor.workers, executor.where
+        with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
+            metrics = stitch(settings, split, tasks, trajectories, tmp, epoch0=epoch0)
+            metrics.update(workers=int(executor_workers), where=executor_where)
+            metrics.update(idle_figures(metrics["tasks"], int(executor_workers)))
+            finish(settings, metrics, tmp, wall_s=time.perf_counter() - wall0, driver_cpu_s=time.process_time() - cpu0)
+    finally:
+        if starting is not None and executor is None:
+            try:
+                executor = starting.result()         # a Ray that started after the job failed is shut down too
+            except Exception:                        # noqa: BLE001 - the job's own error is the one raised
+                executor = None
+        if executor is not None:
+            executor.close()
+        if starting is not None:
+            starting.release()
+        if folder is not None:
+            shutil.rmtree(folder, ignore_errors=True)
+    say("done", 1, 1)
+    return metrics
+
+
+class RayStart:
+    """A :class:`~swath.cli.bigpart_work.RayExecutor` started in a thread of its own: Ray's start is
+    mostly waiting for its processes, and this process reads and splits the part meanwhile.
+
+    The thread lives until :meth:`release` (after the executor is closed): Ray's processes are tied
+    to the life of the thread that started them (they get a signal when it ends).  Ray's notice
+    that it cannot set its SIGTERM handler outside the main thread is dropped; the handler it would
+    set (exit, so that the job's folders are removed) is set here, from the main thread.
+    """
+
+    def __init__(self, workers: int | None, address: str | None):
+        import signal
+        import sys
+        import threading
+
+        if threading.current_thread() is threading.main_thread() \
+                and signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
+            signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(signum))
+        self._args = (workers, address)
+        self._ready, self._released = threading.Event(), threading.Event()
+        self._value: RayExecutor | None = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="swath-ray-start", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        notice = logging.getLogger("ray._private.worker")
+        level = notice.level
+        notice.setLevel(logging.ERROR)
+        try:
+            self._value = RayExecutor(*self._args)
+        except BaseException as exc:                     # noqa: BLE001 - raised in the main thread by result()
+            self._error = exc
+        finally:
+            notice.setLevel(level)
+            self._ready.set()
+        self._released.wait()
+
+    def done(self) -> bool:
+        """Whether Ray is up (or failed to start)."""
+        return self._ready.is_set()
+
+    def result(self):
+        """The executor, once Ray is up (waits for it); Ray's error if it could not start."""
+        self._ready.wait()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+    def release(self) -> None:
+        """Let the thread end (after the executor is closed)."""
+        self._released.set()
+        self._thread.join(timeout=10)
+
+
+@contextmanager
+def one_blas_thread(active: bool):
+    """BLAS on one thread inside the block when ``active``: a process forked while OpenBLAS's
+    threads work can hang (its fork handler waits for them), and Ray forks its processes from this
+    one while the part is read and split."""
+    if not active:
+        yield
+        return
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:                          # pragma: no cover - threadpoolctl is a dependency
+        yield
+        return
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
+def split_part(settings: JobSettings, regions, where: Path, workers, starting, executor, say) -> dict:
+    """Read the part, cut it into regions and write each region's file to ``where``, starting each
+    region's plan as soon as its file is written once the executor is up (``starting``: a
+    :class:`RayStart` of it, waited for at the end; ``workers``: their count, None if only the
+    executor knows it).  Returns ``executor``, ``tasks`` (the
+    :class:`~swath.cli.bigpart_schedule.RegionTasks`), ``name``, ``n_faces``, ``spacing``,
+    ``axis``, ``feed``, ``band`` (m) and ``timings`` (s)."""
+    from ..segment.tiles import face_heights, principal_axes, span_tiles, submesh
+    from . import stages
+    from .bigpart_schedule import RegionTasks, work_order
+
     tool = stages.job_tool(settings)
     timings: dict = {}
-    wall0 = t0 = time.perf_counter()
-    cpu0 = time.process_time()
+    t0 = time.perf_counter()
     say("loading part", 0, 1)
     vertices, faces, name = load_arrays(settings)
     axis, feed_direction = principal_axes(vertices)
@@ -187,61 +320,77 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         spacing = default_spacing(vertices, faces, axis, tool, name)
         timings["spacing_s"] = time.perf_counter() - t0
     n_planes = max(math.ceil(float(np.ptp(heights_v)) / spacing), 1)
-    if executor is None:
-        executor = bigpart_work.InlineExecutor() if workers == 1 and not address else \
-            bigpart_work.RayExecutor(workers, address)
-    folder = None
-    try:
-        n_regions = region_count(regions, len(faces), executor.workers, n_planes)
-        tiles = span_tiles(heights_v, spacing, n_regions, band=BAND_RADII * tool.pad_radius)
-        if work_dir is None:
-            folder = Path(tempfile.mkdtemp(prefix=".swath-regions-", dir=Path(settings.out).resolve().parent))
-        else:
-            Path(work_dir).mkdir(parents=True, exist_ok=True)
-        where = folder if folder is not None else Path(str(work_dir))
-        t0 = time.perf_counter()
-        h_faces = face_heights(vertices, faces, axis)
-        paths = []
-        for tile in tiles:
-            v, f = submesh(vertices, faces, tile.reaches(h_faces))
-            path = where / f"region{tile.index:04d}.npz"
-            np.savez(path, vertices=v, faces=f.astype(np.int32 if len(v) < 2**31 else np.int64), name=name)
-            paths.append(str(path))
-        n_faces, area_note = len(faces), name
-        del vertices, faces, heights_v, h_faces            # the workers read their regions from the files
-        timings["split_s"] = time.perf_counter() - t0
-        say(f"{n_regions} regions of {name} ({n_faces} faces), {executor.where}", 0, 1)
-        axis_l, feed_l = axis.tolist(), feed_direction.tolist()
-        all_planes = np.concatenate([t.offsets for t in tiles])
-        done_plan, done_sim = itertools.count(1), itertools.count(1)     # regions finished, in any order
-        t0 = time.perf_counter()
-        planned = executor.run(bigpart_work.plan_region,
-                               [(paths[k], tiles[k], axis_l, feed_l, settings, all_planes) for k in range(n_regions)],
-                               on_done=lambda i, r: say("planning regions", next(done_plan), n_regions))
-        timings["regions_plan_s"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        refs = [executor.put(r["trajectory"]) for r in planned]
-        calls = [(paths[k], tiles[k], axis_l, settings, *[refs[j] for j in reaching(tiles, k)])
-                 for k in range(n_regions)]
-        simulated = executor.run(bigpart_work.simulate_region, calls,
-                                 on_done=lambda i, r: say("simulating regions", next(done_sim), n_regions))
-        timings["regions_simulate_s"] = time.perf_counter() - t0
-    finally:
-        executor.close()
-        if folder is not None:
-            shutil.rmtree(folder, ignore_errors=True)
+    waited = 0.0
+    if executor is None and workers is None and regions == "auto":
+        t0 = time.perf_counter()                      # "auto" needs the cluster's size, known once it is joined
+        executor = starting.result()
+        waited += time.perf_counter() - t0
+    n_workers = executor.workers if executor is not None else (workers or 1)
+    n_regions = region_count(regions, len(faces), n_workers, n_planes)
+    band = BAND_RADII * tool.pad_radius
+    tiles = span_tiles(heights_v, spacing, n_regions, band=band)
     t0 = time.perf_counter()
-    trajectory = join_trajectories([r["trajectory"] for r in planned], link_speed=settings.links().speed)
-    metrics = stitched_metrics(simulated, tool.pad_radius)
+    h_faces = face_heights(vertices, faces, axis)
+    owned = [int(np.count_nonzero(t.owns(h_faces))) for t in tiles]
+    order = work_order(owned)
+    axis_l, feed_l = axis.tolist(), feed_direction.tolist()
+    all_planes = np.concatenate([t.offsets for t in tiles])
+    reach = [reaching(tiles, k) for k in range(n_regions)]
+    n_faces = len(faces)
+
+    def new_tasks(executor):
+        return RegionTasks(executor, tiles, reach, order, plan_args=(axis_l, feed_l, settings, all_planes),
+                           simulate_args=(axis_l, settings), link_speed=settings.links().speed,
+                           rows_folder=where, progress=say)
+    tasks = None
+    for k in order:                                    # the files in the work order: the first can start at once
+        v, f = submesh(vertices, faces, tiles[k].reaches(h_faces))
+        path = where / f"region{k:04d}.npz"
+        np.savez(path, vertices=v, faces=f.astype(np.int32 if len(v) < 2**31 else np.int64), name=name)
+        if executor is None and starting.done():
+            executor = starting.result()
+        if tasks is None and executor is not None and not getattr(executor, "inline", False):
+            tasks = new_tasks(executor)               # on Ray: the regions written so far start now
+            for j in order[:order.index(k)]:
+                tasks.file_ready(j, str(where / f"region{j:04d}.npz"))
+        if tasks is not None:
+            tasks.file_ready(k, str(path))
+            tasks.fill()
+    del vertices, faces, heights_v, h_faces            # the workers read their regions from the files
+    timings["split_s"] = time.perf_counter() - t0
+    if executor is None:
+        t0 = time.perf_counter()
+        executor = starting.result()
+        waited += time.perf_counter() - t0
+    if tasks is None:
+        tasks = new_tasks(executor)
+    for k in order:
+        if k not in tasks.paths:
+            tasks.file_ready(k, str(where / f"region{k:04d}.npz"))
+    timings["ray_wait_s"] = waited
+    return {"executor": executor, "tasks": tasks, "name": name, "n_faces": n_faces, "spacing": float(spacing),
+            "axis": axis_l, "feed": feed_l, "band": band, "pad_radius": tool.pad_radius, "timings": timings}
+
+
+def stitch(settings: JobSettings, split: dict, tasks, trajectories: list, tmp: Path, *, epoch0: float) -> dict:
+    """The stitched job's metrics; writes ``trajectory.csv`` (the rows tasks' files after one header,
+    or, if a region has an extra column the ones before it lacked, from the joined trajectory),
+    ``regions.csv`` and ``tasks.csv`` to ``tmp``."""
+    from ..trajectory.join import csv_header, join_trajectories
+
+    t0 = time.perf_counter()
+    planned, simulated = tasks.results("plan"), tasks.results("simulate")
+    trajectory = join_trajectories(trajectories, link_speed=settings.links().speed)
+    metrics = stitched_metrics(simulated, split["pad_radius"])
     metrics.update(cycle_time_s=trajectory.duration, contact_length_m=trajectory.contact_length,
                    air_length_m=trajectory.air_length, n_passes=int(sum(r["n_passes"] for r in planned)),
-                   n_part_faces=n_faces, n_regions=n_regions, spacing_m=float(spacing),
-                   region_band_m=BAND_RADII * tool.pad_radius, long_axis=axis_l, pass_direction=feed_l,
+                   n_part_faces=split["n_faces"], n_regions=len(tasks.tiles), spacing_m=split["spacing"],
+                   region_band_m=split["band"], long_axis=split["axis"], pass_direction=split["feed"],
                    removal_sample_spacing_m=float(max(r["sample_spacing_m"] for r in simulated)),
-                   workers=int(executor.workers), where=executor.where, part_name=area_note)
+                   part_name=split["name"])
     per_worker: dict = {}
     cpu: dict = {}
-    for r in planned + simulated:
+    for r in tasks.info.values():
         per_worker[r["pid"]] = max(per_worker.get(r["pid"], 0), r["peak_rss_bytes"])
         cpu[r["pid"]] = cpu.get(r["pid"], 0.0) + r["cpu_s"]
     metrics["worker_peak_rss_bytes"] = sorted(per_worker.values(), reverse=True)
@@ -250,24 +399,40 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     # speed-up the split allows whatever else the machine runs)
     metrics["regions_cpu_s"] = float(sum(cpu.values()))
     metrics["busiest_worker_cpu_s"] = float(max(cpu.values()))
-    rows = region_rows(tiles, planned, simulated)
-    timings["stitch_s"] = time.perf_counter() - t0
-    metrics.update(timings)
-    say("writing output", 0, 1)
+    rows = region_rows(tasks.tiles, planned, simulated)
+    timeline = tasks.timeline(epoch0)
+    metrics["stitch_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
+    names = tuple(trajectory.extra)
+    if all(tasks.rows_names[k] == names for k in range(len(tasks.tiles))):
+        with open(tmp / "trajectory.csv", "w", encoding="utf-8", newline="") as out:
+            out.write(csv_header(names))
+            for k in range(len(tasks.tiles)):
+                with open(tasks.rows_path(k), encoding="utf-8", newline="") as part:
+                    shutil.copyfileobj(part, out, 1 << 20)
+        metrics["trajectory_rows_by"] = "regions"
+    else:
+        log.info("a region's trajectory has extra columns the ones before it lack: trajectory.csv written here")
         trajectory.write_csv(tmp / "trajectory.csv")
-        (tmp / "regions.csv").write_text(rows_csv(rows))
-        # this process's own CPU time (reading, splitting, stitching; not the workers') and the wall
-        # time, both up to here: the figures of the job's serial part
-        metrics.update(wall_s=time.perf_counter() - wall0, driver_cpu_s=time.process_time() - cpu0,
-                       write_s=time.perf_counter() - t0)
-        write_metrics_json(tmp / "metrics.json", metrics, settings.as_record())
-    say("done", 1, 1)
-    metrics["regions"] = rows
-    metrics["stitched"] = simulated                 # per region: owned samples, depth, area, interior
-    metrics["trajectory"] = trajectory
+        metrics["trajectory_rows_by"] = "driver"
+    (tmp / "regions.csv").write_text(rows_csv(rows))
+    (tmp / "tasks.csv").write_text(rows_csv(timeline))
+    metrics["write_s"] = time.perf_counter() - t0
+    metrics.update(split["timings"])
+    metrics.update(regions=rows, tasks=timeline, stitched=simulated, trajectory=trajectory)
     return metrics
+
+
+def finish(settings: JobSettings, metrics: dict, tmp: Path, *, wall_s: float, driver_cpu_s: float) -> None:
+    """Write ``metrics.json`` to ``tmp``: the figures of ``metrics`` that are not tables or arrays,
+    with the wall time and this process's own CPU time (reading, splitting, stitching, writing; not
+    the workers'), both up to here: the figures of the job's serial part."""
+    from ..report.metrics import write_metrics_json
+
+    metrics.update(wall_s=wall_s, driver_cpu_s=driver_cpu_s)
+    skip = ("regions", "tasks", "stitched", "trajectory")
+    write_metrics_json(tmp / "metrics.json", {k: v for k, v in metrics.items() if k not in skip},
+                       settings.as_record())
 
 
 def reaching(tiles, k: int) -> list[int]:

@@ -1,17 +1,24 @@
 """The work of one region of a big part, and where it runs (this process, or Ray).
 
-Two tasks per region (:mod:`swath.cli.bigpart` runs them):
+Three tasks per region (:mod:`swath.cli.bigpart_schedule` runs them as soon as what they need is
+there):
 
 * :func:`plan_region` reads the region's mesh from its file, slices its passes on the whole part's
   planes, routes and times them and (with ``optimise_feed``) optimises the feed on the owned area;
-  it returns the region's trajectory.
+  its result is the region's trajectory.
 * :func:`simulate_region` reads the same file and simulates the removal on the extended mesh (the
   owned area and a band each side) of every trajectory whose passes reach it, its own and its
   neighbours'; it returns the depth at the samples the region owns.
+* :func:`write_rows` writes the region's stretch of the joined ``trajectory.csv`` to a file, once
+  the regions before it are timed (their ends give its time shift and first pass number).
 
-Every task returns its worker's peak resident memory (``ru_maxrss``) and process id, so the peak
-per worker can be reported.  :class:`InlineExecutor` runs the tasks one after the other in this
-process; :class:`RayExecutor` runs them as one-CPU Ray tasks on a local Ray or a cluster.
+Each task returns ``(result, info)``: the result (a trajectory, or None) stays where it was made
+and goes to the tasks that need it (on Ray, through the object store, not through this process);
+the info (a small dict, and the owned removal samples) comes back here.  Every info holds its
+worker's peak resident memory (``ru_maxrss``), process id, CPU time and start and end times, so the
+peak per worker and the timeline of the run can be reported.  :class:`InlineExecutor` runs the
+tasks one at a time in this process; :class:`RayExecutor` runs them as one-CPU Ray tasks on a local
+Ray or a cluster.
 """
 
 from __future__ import annotations
@@ -51,7 +58,7 @@ def load_region(path: str, *, owned_only: bool, tile, axis):
     return Surface(vertices, faces, name=f"{name}_region{tile.index}")
 
 
-def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -> dict:
+def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -> tuple:
     """Plan, time and (``settings.optimise_feed``) feed-optimise one region (see the module notes).
 
     With ``optimise_feed``, the feed is optimised on the region's extended mesh over the passes of
@@ -63,18 +70,22 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
 
     Returns
     -------
-    dict
-        ``trajectory`` (Trajectory), ``n_passes``, ``n_faces`` (owned), ``feed_metrics`` (dict),
-        ``plan_s``, ``trajectory_s``, ``feed_s``, ``load_s``, ``cpu_s`` (the task's CPU time, all its
-        threads), ``peak_rss_bytes``, ``pid``.
+    trajectory : Trajectory
+        The region's own passes, timed.
+    info : dict
+        ``ends`` (:class:`swath.trajectory.join.Ends` of the trajectory), ``n_passes``, ``n_faces``
+        (owned), ``feed_metrics`` (dict), ``plan_s``, ``trajectory_s``, ``feed_s``, ``load_s``,
+        ``cpu_s`` (the task's CPU time, all its threads), ``peak_rss_bytes``, ``pid``, ``started``
+        and ``ended`` (s since the epoch).
     """
     from ..order import route_links
     from ..plan.sections import section_passes
     from ..trajectory import time_path
     from ..trajectory.constraints import FeedProfile
+    from ..trajectory.join import Ends
     from . import stages
 
-    cpu0 = time.process_time()
+    cpu0, started = time.process_time(), time.time()
     t0 = time.perf_counter()
     owned = load_region(path, owned_only=True, tile=tile, axis=axis)
     out: dict = {"load_s": time.perf_counter() - t0, "n_faces": len(owned.faces)}
@@ -110,28 +121,32 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
         trajectory = time_path(own, settings.constraints() + [profile], links=settings.links(),
                                lead_angle=settings.lead())
         out["feed_s"] = time.perf_counter() - t0
-    out.update(trajectory=trajectory, n_passes=len(toolpath.passes), contact_length_m=toolpath.contact_length,
-               cpu_s=time.process_time() - cpu0, peak_rss_bytes=peak_rss_bytes(), pid=os.getpid())
-    return out
+    out.update(ends=Ends.of(trajectory), n_passes=len(toolpath.passes), contact_length_m=toolpath.contact_length,
+               cpu_s=time.process_time() - cpu0, peak_rss_bytes=peak_rss_bytes(), pid=os.getpid(), started=started,
+               ended=time.time())
+    return trajectory, out
 
 
-def simulate_region(path: str, tile, axis, settings, *trajectories) -> dict:
+def simulate_region(path: str, tile, axis, settings, *trajectories) -> tuple[None, dict]:
     """Simulate the removal of ``trajectories`` (those reaching the region, in any order) on the
     region's extended mesh and keep the samples it owns.
 
     Returns
     -------
-    dict
+    None
+        (nothing for other tasks)
+    info : dict
         ``points`` (k, 3) float32 and ``depth``, ``area`` (k,) float (m, m²) of the owned samples,
         ``interior`` (k,) bool (more than a pad radius from the part's open boundary: the band
         keeps the region's own cut edges farther than that from every owned sample),
-        ``sample_spacing_m``, ``simulate_s``, ``load_s``, ``cpu_s``, ``peak_rss_bytes``, ``pid``.
+        ``sample_spacing_m``, ``simulate_s``, ``load_s``, ``cpu_s``, ``peak_rss_bytes``, ``pid``,
+        ``started``, ``ended``.
     """
     from ..simulate import simulate_removal
     from ..trajectory.join import join_trajectories
     from . import stages
 
-    cpu0 = time.process_time()
+    cpu0, started = time.process_time(), time.time()
     t0 = time.perf_counter()
     surface = load_region(path, owned_only=False, tile=tile, axis=axis)
     load_s = time.perf_counter() - t0
@@ -143,43 +158,73 @@ def simulate_region(path: str, tile, axis, settings, *trajectories) -> dict:
     samples = removal.surface
     owned = tile.owns(np.asarray(samples.vertices) @ np.asarray(axis, float))
     interior = samples.farther_from_boundary(tool.pad_radius)
-    return {"points": np.asarray(samples.vertices[owned], np.float32), "depth": removal.depth[owned],
+    return None, {"points": np.asarray(samples.vertices[owned], np.float32), "depth": removal.depth[owned],
             "area": np.asarray(samples.vertex_areas)[owned], "interior": interior[owned],
             "sample_spacing_m": removal.metrics["removal_sample_spacing_m"],
             "simulate_s": time.perf_counter() - t0, "load_s": load_s, "cpu_s": time.process_time() - cpu0,
-            "peak_rss_bytes": peak_rss_bytes(),
-            "pid": os.getpid()}
+            "peak_rss_bytes": peak_rss_bytes(), "pid": os.getpid(), "started": started, "ended": time.time()}
+
+
+def write_rows(trajectory, path: str, shift: float, first_pass: int, names) -> tuple[None, dict]:
+    """Write ``trajectory``'s stretch of the joined ``trajectory.csv`` (rows only, see
+    :func:`swath.trajectory.join.csv_rows`) to ``path``; returns ``(None, info)`` with ``rows_s``,
+    ``bytes``, ``cpu_s``, ``peak_rss_bytes``, ``pid``, ``started``, ``ended``."""
+    from ..trajectory.join import csv_rows
+
+    cpu0, started = time.process_time(), time.time()
+    t0 = time.perf_counter()
+    text = csv_rows(trajectory, shift=shift, first_pass=first_pass, names=names)
+    with open(path, "w", encoding="utf-8", newline="") as fh:
+        fh.write(text)
+    return None, {"rows_s": time.perf_counter() - t0, "bytes": len(text), "cpu_s": time.process_time() - cpu0,
+                  "peak_rss_bytes": peak_rss_bytes(), "pid": os.getpid(), "started": started, "ended": time.time()}
 
 
 class InlineExecutor:
-    """Runs the region tasks one after the other in this process."""
+    """Runs the region tasks one at a time in this process, each when it is submitted."""
 
     workers = 1
     where = "in this process"
+    inline = True
 
-    def put(self, value):
-        return value
+    def __init__(self):
+        self._results: dict = {}
+        self._done: list = []
 
-    def run(self, fn, calls, on_done=None) -> list:
-        """``[fn(*args) for args in calls]``; ``on_done(i, result)`` after each."""
-        out = []
-        for i, args in enumerate(calls):
-            out.append(fn(*args))
-            if on_done is not None:
-                on_done(i, out[-1])
-        return out
+    @property
+    def in_flight(self) -> int:
+        return len(self._done)
+
+    def submit(self, key, fn, args) -> None:
+        """Run ``fn(*args)`` (``(result, info)``) now; :meth:`next_done` hands out its info."""
+        result, info = fn(*args)
+        self._results[key] = result
+        self._done.append((key, info))
+
+    def handle(self, key):
+        """The result of task ``key``, to pass to another task."""
+        return self._results[key]
+
+    def result(self, key):
+        """The result of the finished task ``key``."""
+        return self._results[key]
+
+    def next_done(self) -> tuple:
+        """``(key, info)`` of a finished task not handed out yet."""
+        return self._done.pop(0)
 
     def close(self) -> None:
-        pass
+        self._results.clear()
 
 
 class RayExecutor:
-    """Runs the region tasks as one-CPU Ray tasks, at most ``workers`` at a time.
+    """Runs the region tasks as one-CPU Ray tasks.
 
     Without an ``address`` a local Ray with ``workers`` CPUs is started (its workers import this
     swath) and shut down by :meth:`close`; with one (``ray://host:10001``, ``auto``) the cluster is
     joined and this swath shipped to its workers.  The region files must then lie on a folder the
-    workers can read (see :mod:`swath.cli.bigpart`).
+    workers can read (see :mod:`swath.cli.bigpart`).  A task's result stays in Ray's object store
+    and goes from there to the tasks given its :meth:`handle`; only its info comes to this process.
     """
 
     def __init__(self, workers: int | None, address: str | None = None):
@@ -192,6 +237,9 @@ class RayExecutor:
 
         self._ray = ray
         self.started = False
+        self._remotes: dict = {}
+        self._results: dict = {}
+        self._running: dict = {}
         if not ray.is_initialized():
             if address:
                 ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
@@ -212,32 +260,40 @@ class RayExecutor:
         self.workers = workers or int(ray.cluster_resources().get("CPU", 1))
         self.where = f"on Ray at {address}" if address else f"on a local Ray with {self.workers} workers"
 
-    def put(self, value):
-        return self._ray.put(value)
+    @property
+    def in_flight(self) -> int:
+        return len(self._running)
 
-    def run(self, fn, calls, on_done=None) -> list:
-        """``fn(*args)`` for each of ``calls`` as Ray tasks (``workers`` in flight); results in call order."""
-        ray = self._ray
-        remote = ray.remote(num_cpus=1, max_retries=0)(fn)
-        queue = list(enumerate(calls))
-        running: dict = {}
-        out: list = [None] * len(queue)
-        while queue or running:
-            while queue and len(running) < self.workers:
-                i, args = queue.pop(0)
-                running[remote.remote(*args)] = i
-            ready, _ = ray.wait(list(running), num_returns=1)
-            for ref in ready:
-                i = running.pop(ref)
-                try:
-                    out[i] = ray.get(ref)
-                except ray.exceptions.RayTaskError as exc:        # the task raised: raise its error here
-                    raise exc.as_instanceof_cause() from None
-                if on_done is not None:
-                    on_done(i, out[i])
-        return out
+    def submit(self, key, fn, args) -> None:
+        """Start ``fn(*args)`` as a Ray task (arguments that are :meth:`handle` s are resolved there)."""
+        remote = self._remotes.get(fn)
+        if remote is None:
+            remote = self._remotes[fn] = self._ray.remote(num_cpus=1, max_retries=0, num_returns=2)(fn)
+        result_ref, info_ref = remote.remote(*args)
+        self._results[key] = result_ref
+        self._running[info_ref] = key
+
+    def handle(self, key):
+        return self._results[key]
+
+    def result(self, key):
+        return self._get(self._results[key])
+
+    def next_done(self) -> tuple:
+        """``(key, info)`` of the next task to finish (waits for one); a task's error is raised here."""
+        ready, _ = self._ray.wait(list(self._running), num_returns=1)
+        key = self._running.pop(ready[0])
+        return key, self._get(ready[0])
+
+    def _get(self, ref):
+        try:
+            return self._ray.get(ref)
+        except self._ray.exceptions.RayTaskError as exc:        # the task raised: raise its error here
+            raise exc.as_instanceof_cause() from None
 
     def close(self) -> None:
+        self._results.clear()
+        self._running.clear()
         if self.started:
             self._ray.shutdown()
             self.started = False
