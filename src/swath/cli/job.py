@@ -510,6 +510,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         timings["pad_study_s"] = time.perf_counter() - t0
 
     metrics = dict(removal.metrics)
+    if robot is not None and extra_metrics.get("robot_n_gaps"):
+        metrics.update(stages.efficiency_after_gaps(metrics, int(extra_metrics["robot_n_gaps"]), tool.pad_radius))
     if even is not None:
         extra_metrics.update(even_default.even_metrics(settings, removal, trajectory,
                                                        {k: v for k, v in even.items() if k != "warnings"},

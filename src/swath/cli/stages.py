@@ -7,6 +7,7 @@ and its metrics (units in the keys); :func:`swath.cli.job.run_job` calls them in
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 
@@ -385,3 +386,24 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
                                                 trajectory, surface, progress=say, rounds=DEFAULT_JOB_FEED_ROUNDS)
     even["_constant"] = (trajectory, constant)          # the fallback when the feed does not even the removal
     return settings, timed, result, metrics
+
+
+def efficiency_after_gaps(metrics: dict, n_gaps: int, pad_radius: float) -> dict:
+    """The efficiency of a trajectory whose passes the robot stage cut at ``n_gaps`` unreachable
+    stretches, bounded again for the ends the cuts add.
+
+    ``covered_lower_bound_m`` integrates ``dA / w_max`` over all the pad touched, and beyond the
+    end of a contact stretch the pad touches a half patch that no path length pays for: a half
+    ellipse of semi-axes ``a <= R`` along the feed and ``b`` across, area ``π a b / 2``, over a
+    widest swath of at least ``2 b``, so at most ``π R / 4`` of bound per end.  A gap adds at most
+    two ends on the part (a cut inside a pass), so the bound the path is compared with is lowered by
+    ``2 · n_gaps · π R / 4``; without it a job cut into many stretches could report an efficiency
+    over 1, which no path can reach.  Returns the metrics to update: ``efficiency``,
+    ``covered_lower_bound_m`` and ``gap_end_allowance_m``.
+    """
+    allowance = 2 * n_gaps * math.pi * pad_radius / 4
+    bound = max(float(metrics["covered_lower_bound_m"]) - allowance, 0.0)
+    length = float(metrics["contact_length_m"])
+    return {"covered_lower_bound_m": bound, "gap_end_allowance_m": allowance,
+            "efficiency": bound / length if length > 0 else float("nan")}
+

@@ -418,7 +418,7 @@ def search_placement(trajectory, model: RobotModel, cell: Cell | None = None, *,
         part2base = part2base_of(x, y, yaw)
         tool = cell.tcp2flange @ make_transform(rot_z(rotation))
         q, feas, _ = branch_table(part2base @ sample @ np.linalg.inv(tool), model, margins, same_pass=no_pass,
-                                  part2base=part2base)
+                                  part2base=part2base, tool=cell.tool)
         best = feas.sum(axis=0).argmax()
         ok = feas[:, best]
         manip = model.singularity_measures(q[ok, best])["manipulability"].mean() if ok.any() else 0.0

@@ -91,7 +91,7 @@ def reachability_map(surface, model: RobotModel, cell: Cell, *, max_vertices: in
         r = rot @ rot_z(2 * math.pi * h / n_headings)
         tcp2part = make_transform(r, verts[idx])
         q, feas, _ = branch_table(cell.flange2base(tcp2part), model, margins, same_pass=np.zeros(m, bool),
-                                  part2base=cell.part2base)
+                                  part2base=cell.part2base, tool=cell.tool)
         flat = q.reshape(-1, 6)
         ok = feas.reshape(-1)
         manip = np.zeros(len(flat))

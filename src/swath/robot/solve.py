@@ -182,7 +182,7 @@ def segments(trajectory) -> list[tuple[int, int, bool]]:
 
 
 def branch_table(flange2base, model: RobotModel, margins: Margins | None = None, *, seed=None, same_pass=None,
-                 part2base=None):
+                 part2base=None, tool=None):
     """Every branch's unwrapped joint values and feasibility along a pose sequence.
 
     Parameters
@@ -199,6 +199,9 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         e.g. the tool turning round between passes).  Default: everywhere.
     part2base : (4, 4) float, optional
         The part's placement, m, for ``margins.arm_part`` (default identity).
+    tool : ToolBody, optional
+        The tool's bodies on the flange: with ``margins.floor_z``, a pose that puts one of them below
+        the table top is not feasible on any branch (the pose fixes the tool, whatever the arm does).
 
     Returns
     -------
@@ -207,7 +210,8 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
     feasible : (n, B) bool
     reason : (n, B) int
         0 feasible, 1 no solution, 2 joint limit, 3 singularity, 4 jump, 5 the arm below
-        ``margins.floor_z``, 6 the arm in the part (``margins.arm_part``).
+        ``margins.floor_z``, 6 the arm in the part (``margins.arm_part``), 7 the tool below
+        ``margins.floor_z``.
     """
     margins = Margins() if margins is None else margins
     raw = model.ik(flange2base, seed=seed)
@@ -257,6 +261,10 @@ def branch_table(flange2base, model: RobotModel, margins: Margins | None = None,
         low = np.zeros(len(flat), bool)
         low[valid] = arm_below(model, flat[valid], margins.floor_z)
         reason = np.where((reason == 0) & low.reshape(n, nb), 5, reason)
+        if tool is not None:
+            from .tool_floor import tool_below
+
+            reason = np.where((reason == 0) & tool_below(tool, flange2base, margins.floor_z)[:, None], 7, reason)
     if margins.arm_part is not None:
         todo = (reason == 0).reshape(-1)
         inside = np.zeros(len(flat), bool)
@@ -291,7 +299,8 @@ def arm_below(model: RobotModel, q, floor_z: float, *, chunk: int = 20000) -> np
 
 _REASONS = {1: "no inverse-kinematics solution (out of reach)", 2: "outside the joint limits",
             3: "too close to a singularity", 4: "a joint would jump between samples",
-            5: "the arm would dip into the table", 6: "the arm would hit the part"}
+            5: "the arm would dip into the table", 6: "the arm would hit the part",
+            7: "the tool would dip into the table"}
 
 
 def _run_lengths(feasible: np.ndarray) -> np.ndarray:
@@ -533,7 +542,7 @@ def solve_trajectory(trajectory, model: RobotModel, cell: Cell | None = None, *,
     same_pass = np.zeros(n, bool)
     same_pass[1:] = (trajectory.pass_index[1:] == trajectory.pass_index[:-1]) & (trajectory.pass_index[1:] >= 0)
     q_all, feasible, reason = branch_table(flange, model, margins, seed=seed, same_pass=same_pass,
-                                          part2base=cell.part2base)
+                                          part2base=cell.part2base, tool=cell.tool)
     clearance = clearance_from_contact(trajectory)
     branch = choose_branches(feasible, segs, clearance)
     rows = np.arange(n)
