@@ -12,8 +12,8 @@ from swath.core import Pass, ToolPath
 from swath.errors import InputError
 from swath.feed import ripple_spacing
 from swath.feed.curved_ripple import (
-    _lattice_ripple,
     curved_ripple_spacing,
+    lattice_ripple,
     pass_curvatures,
     quadric_cross_profile,
 )
@@ -81,7 +81,7 @@ def test_curved_spacing_in_a_bowl_ripples_less_than_the_plane_rule():
     plane = curved_ripple_spacing(TOOL, 0.0, 0.0, lead_angle=lead)
     u = np.linspace(-1.3 * R, 1.3 * R, 1561)
     p = quadric_cross_profile(TOOL, u, k, k, lead_angle=lead)
-    at_plane_ratio = _lattice_ripple(u, p, plane.spacing / (2 * R) * c.width)
+    at_plane_ratio = lattice_ripple(u, p, plane.spacing / (2 * R) * c.width)
     assert at_plane_ratio == pytest.approx(0.145, abs=0.01)
     assert c.cov == pytest.approx(0.084, abs=0.008) and c.spacing / R == pytest.approx(1.61, abs=0.04)
     assert c.max_width / c.spacing <= 1.5 + 1e-9

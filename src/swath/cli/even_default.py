@@ -121,7 +121,7 @@ def settle_lead(toolpath, surface, tool, leads) -> tuple[float, dict, dict] | No
         The lead; ``lead_ripple_spacing_m`` (the median local spacing) with ``lead_ripple_cov``
         (the chosen lead's predicted ripple); and every lead's predicted ripple, by lead (rad).
     """
-    from ..feed.curved_ripple import CELLS_PER_RADIUS, _lattice_ripple, pass_curvatures, quadric_cross_profile
+    from ..feed.curved_ripple import CELLS_PER_RADIUS, lattice_ripple, pass_curvatures, quadric_cross_profile
 
     spacings = local_spacings(toolpath)
     if len(spacings) == 0:
@@ -133,7 +133,7 @@ def settle_lead(toolpath, surface, tool, leads) -> tuple[float, dict, dict] | No
     scored = []
     for lead in leads:
         profile = quadric_cross_profile(tool, u, k_feed, k_cross, lead_angle=float(lead))
-        ripple = float(np.sqrt(np.mean([_lattice_ripple(u, profile, float(x)) ** 2 for x in d])))
+        ripple = float(np.sqrt(np.mean([lattice_ripple(u, profile, float(x)) ** 2 for x in d])))
         scored.append((ripple, float(lead)))
         log.info("lead %.1f deg at the plan's spacing %.1f mm (%.1f..%.1f): ripple %.3f", math.degrees(lead),
                  d[2] * 1e3, d[0] * 1e3, d[-1] * 1e3, ripple)

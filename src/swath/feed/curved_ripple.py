@@ -73,7 +73,7 @@ def quadric_cross_profile(tool: Tool, offsets, k_feed: float, k_cross: float, *,
     return np.interp(np.asarray(offsets, float), u, profile, left=0.0, right=0.0)
 
 
-def _lattice_ripple(u: np.ndarray, p: np.ndarray, d: float, n: int = 256) -> float:
+def lattice_ripple(u: np.ndarray, p: np.ndarray, d: float, n: int = 256) -> float:
     """CoV over one period of the profiles ``p`` (at offsets ``u``) repeated every ``d``."""
     y = (np.arange(n) + 0.5) / n * d
     reach = int(np.ceil(np.abs(u).max() / d)) + 1
@@ -139,7 +139,7 @@ def curved_ripple_spacing(tool: Tool, k_feed: float, k_cross: float, *, lead_ang
     factors = (1.0 - tolerance, 1.0, 1.0 + tolerance) if tolerance > 0 else (1.0,)
 
     def robust(d):
-        return max(_lattice_ripple(u, p, d * f) for f in factors)
+        return max(lattice_ripple(u, p, d * f) for f in factors)
 
     if k_feed == 0.0 and k_cross == 0.0:
         d, cov = ripple_spacing(tool, lead_angle=lead_angle, max_length_ratio=max_length_ratio,
@@ -154,7 +154,7 @@ def curved_ripple_spacing(tool: Tool, k_feed: float, k_cross: float, *, lead_ang
     grid = np.linspace(w_max / max_length_ratio, w_max / min_length_ratio, steps)
     covs = np.array([robust(d) for d in grid])
     k = int(np.argmin(covs))
-    return CurvedSpacing(float(grid[k]), _lattice_ripple(u, p, float(grid[k])), width, w_max, float(covs[k]))
+    return CurvedSpacing(float(grid[k]), lattice_ripple(u, p, float(grid[k])), width, w_max, float(covs[k]))
 
 
 def pass_curvatures(toolpath, surface) -> tuple[float, float]:
