@@ -145,3 +145,39 @@ def test_an_upward_lift_has_one_direction():
     dirs = lift_directions(Cell(), pose)
     assert len(dirs) == 1
     np.testing.assert_allclose(dirs[0], (0.0, 0.0, 1.0), atol=1e-12)
+
+
+def test_a_gap_along_a_downward_facing_edge_keeps_the_arm_above_the_table():
+    """A pass along a lower edge facing 25° below the horizon, with a gap in its middle: the split's
+    retract and approach rows stay above a table the arm clears by 0.5 mm on the pass."""
+    from dataclasses import replace
+
+    from swath.cell import default_sander
+    from swath.robot.gaps import _clear_of_floor
+    from swath.robot.pose import matrix_to_quat
+    from swath.trajectory import Trajectory
+
+    c, s = np.cos(np.radians(25.0)), np.sin(np.radians(25.0))
+    n = 21
+    rot = np.array([[-s, 0.0, c], [0.0, -1.0, 0.0], [c, 0.0, s]])
+    position = np.column_stack([np.full(n, 0.8), np.linspace(-0.05, 0.05, n), np.full(n, 0.2)])
+    tr = Trajectory(t=0.02 * np.arange(n), position=position, quaternion=np.tile(matrix_to_quat(rot[None])[0], (n, 1)),
+                    contact=np.ones(n, bool), feed=np.full(n, 0.05), pass_index=np.zeros(n, int))
+    model = get_robot("ur10e")
+    cell = Cell(tcp2flange=np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.175], [0, 0, 0, 1.0]]),
+                tool=default_sander())
+    sol = solve_trajectory(tr, model, cell, warn=False)
+    assert sol.reachable.all()
+    floor = min(_lowest_clear_floor(model, cell, q) for q in sol.q) - 0.5e-3
+    cut = np.zeros(n, bool)
+    cut[8:13] = True
+    gap = replace(sol, reachable=~cut, q=np.where(cut[:, None], np.nan, sol.q))
+    for floor_z, clear in ((None, False), (floor, True)):
+        run, q, gaps, src = split_unreachable(tr, gap, model, cell, clearance=0.02, floor_z=floor_z)
+        assert len(gaps) == 1 and (src < 0).sum() == 2
+        assert all(_clear_of_floor(model, cell, row, floor) for row in q[src < 0]) is clear
+        # the retract and the approach's start are 20 mm from the pass, the pad off the surface
+        lifted = run.position[src < 0]
+        ends = tr.position[[7, 13]]
+        np.testing.assert_allclose(np.linalg.norm(lifted - ends, axis=1), 0.02, atol=1e-6)
+        assert np.all((lifted - ends) @ rot[:, 2] < -0.018)
