@@ -4,7 +4,8 @@ A pose no configuration reaches cannot be sanded; driving straight across it (wh
 when it skips the sample) would press the pad along a line the plan never made, and counting it as
 sanded overstates the coverage.  :func:`split_unreachable` rebuilds the trajectory the robot actually
 runs: the unreachable samples are dropped, the pad lifts ``clearance`` along minus the tool z-axis at
-the last reached sample (retract), the arm makes a joint move to above the next reached sample, and
+the last reached sample (retract; level or straight up instead where that would take the arm or the
+tool below the table top), the arm makes a joint move to above the next reached sample, and
 lowers onto it (approach).  The joint move is one step flagged :attr:`JointSolution.joint_move`: the
 programs write it as a joint move, :func:`swath.robot.joint_moves.insert_joint_moves` puts its swept
 joints on the trajectory (at most 2° apart), and :func:`swath.robot.sweep.clear_joint_moves` checks
@@ -94,19 +95,62 @@ def _nearest_ik(model, cell, tcp2part, q_ref, *, max_change: float = 0.5) -> np.
     return best if np.max(np.abs(best - q_ref)) <= max_change else None
 
 
-def _lift(model, cell, pose, q_ref, clearance):
-    """Joint values of ``pose`` lifted along minus its tool z by ``clearance`` (or a half, a quarter of
-    it where the full lift is out of reach), rad; ``q_ref`` when no lift is reachable."""
-    for f in (1.0, 0.5, 0.25):
-        p = pose.copy()
-        p[:3, 3] -= f * clearance * p[:3, 2]
-        q = _nearest_ik(model, cell, p, q_ref)
-        if q is not None:
-            return q
-    return np.asarray(q_ref, dtype=float)
+def lift_directions(cell, pose) -> list:
+    """Unit directions (part frame) a lift of ``pose`` may take, in order: back along the tool axis,
+    and, where that goes down in the base frame, the same with its downward part removed (still away
+    from the surface's tangent plane), then straight up.
+
+    At a pass along the part's lower edge the surface normal can point below the horizon; a lift
+    along the tool axis then lowers the tool and the wrist, which hang just above the table there."""
+    up = cell.base2part[:3, :3] @ np.array([0.0, 0.0, 1.0])
+    back = -np.asarray(pose[:3, 2], dtype=float)
+    out = [back]
+    down = float(back @ up)
+    if down < 0.0:
+        level = back - down * up
+        size = float(np.linalg.norm(level))
+        if size > 0.1:
+            out.append(level / size)
+        out.append(up)
+    return out
 
 
-def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0.02, air_speed: float = 0.1):
+def _clear_of_floor(model, cell, q, floor_z) -> bool:
+    """Whether the arm's capsules and the tool's cylinders stay above ``floor_z`` (m, base frame) at ``q``."""
+    if floor_z is None:
+        return True
+    from .solve import arm_below
+    from .tool_floor import tool_below
+
+    q = np.asarray(q, dtype=float)[None]
+    if arm_below(model, q, floor_z)[0]:
+        return False
+    return not (cell.tool is not None and tool_below(cell.tool, model.fk(q), floor_z)[0])
+
+
+def _lift(model, cell, pose, q_ref, clearance, floor_z=None):
+    """Joint values of ``pose`` lifted by ``clearance`` (or a half, a quarter of it where the full lift
+    is out of reach), rad; ``q_ref`` when no lift is reachable.
+
+    The lift goes back along the tool axis; with a table top ``floor_z`` (m, base frame), a lift
+    whose arm or tool would dip below it is replaced by one along the next of
+    :func:`lift_directions` that stays above it."""
+    first = None
+    for d in lift_directions(cell, pose):
+        for f in (1.0, 0.5, 0.25):
+            p = pose.copy()
+            p[:3, 3] += f * clearance * d
+            q = _nearest_ik(model, cell, p, q_ref)
+            if q is None:
+                continue
+            if _clear_of_floor(model, cell, q, floor_z):
+                return q
+            first = q if first is None else first
+    return first if first is not None else np.asarray(q_ref, dtype=float)
+
+
+def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0.02, air_speed: float = 0.1,
+                      floor_z: float | None = None):
     """The trajectory the robot runs: unreachable samples replaced by retract, joint move, approach.
 
     Parameters
@@ -121,6 +165,9 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
         Retract/approach height along minus the tool z-axis, m.
     air_speed : float
         Nominal TCP speed of the retract and approach, m/s (the robot stage re-times to the joint limits).
+    floor_z : float, optional
+        Table top in the base frame, m: the retract and the approach keep the arm and the tool above
+        it (:func:`_lift`; default: no table).
 
     Returns
     -------
@@ -160,12 +207,12 @@ def split_unreachable(trajectory, solution, model, cell, *, clearance: float = 0
             continue
         keep(cursor, a + 1)
         cursor = b
-        qa = _lift(model, cell, poses[a], solution.q[a], clearance)
+        qa = _lift(model, cell, poses[a], solution.q[a], clearance, floor_z)
         if b >= n:                             # the job ends unreachable: retract and stop
             pieces.append((cell.tcp2part(model.fk(qa[None])), np.zeros(1, bool), np.full(1, -1),
                            np.full(1, air_speed), np.full(1, t_lift), qa[None], np.full(1, -1)))
             break
-        qb = _lift(model, cell, poses[b], solution.q[b], clearance)
+        qb = _lift(model, cell, poses[b], solution.q[b], clearance, floor_z)
         q_air = np.array([qa, qb])
         air = cell.tcp2part(model.fk(q_air))
         # at least the time the slowest joint needs at half its speed limit (insert_joint_moves and the

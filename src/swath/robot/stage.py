@@ -211,7 +211,8 @@ def run_robot_stage(trajectory, *, robot: str | RobotModel = "ur10e", cell: Cell
         from .gaps import solution_after_split, split_unreachable
 
         say(f"robot: {n_dropped} poses become air moves (retract, joint move, approach)", 0, 1)
-        trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance)
+        trajectory, q_moves, gaps, src = split_unreachable(trajectory, solution, model, cell, clearance=clearance,
+                                                           floor_z=margins.floor_z)
         solution = solution_after_split(solution, trajectory, q_moves, src, model)
     sweeps = None
     if check is not None and solution.joint_moves.any():
