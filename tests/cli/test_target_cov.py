@@ -67,6 +67,8 @@ def test_out_of_reach_is_refused_with_the_least_reachable_cov_and_its_cost(monke
     text = str(err.value)
     found = re.search(r"least reachable ([0-9.]+) % at ([0-9.]+) L\*, ([0-9]+) s \(ripple", text)
     assert found, text
+    # what it offers to ask for is reachable: never below the least reachable figure once rounded
+    assert float(re.search(r"Ask for ([0-9.]+) % or more", text).group(1)) >= float(found.group(1))
     # the figures are the ripple candidate's own, simulated independently
     trajectory_settings = ripple
     from swath.trajectory import time_path

@@ -246,8 +246,8 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
     least = float(best.interior_removal_cov or 0.0)
     raise InfeasibleError(
         f"--target-cov {target * 100:.3g} % is out of reach on {surface.name}: least reachable "
-        f"{least * 100:.1f} % at {best.length_ratio:.2f} L*, {best.cycle_time_s:.0f} s "
-        f"({best.label}; {len(tried)} candidates simulated). Ask for {least * 100:.1f} % or more")
+        f"{least * 100:.2f} % at {best.length_ratio:.2f} L*, {best.cycle_time_s:.0f} s "
+        f"({best.label}; {len(tried)} candidates simulated). Ask for {math.ceil(least * 1000) / 10:.1f} % or more")
 
 
 def _with_feed(cand: Candidate, surface, tool, settings) -> Candidate | None:
