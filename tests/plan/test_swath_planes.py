@@ -5,34 +5,14 @@ import math
 import numpy as np
 import pytest
 
+from shapes import A1, A2, R1, R2, two_radius_part
 from swath.contact import Tool
 from swath.contact.model import local_patch
-from swath.examples import flat_plate, grid_faces
+from swath.examples import flat_plate
 from swath.plan.raster import raster
 from swath.plan.surface_planes import level_widths
-from swath.surface import Surface
 
 TOOL = Tool()
-R1, A1, R2, A2 = 0.15, 0.8, 0.6, 0.4          # two tangent arcs: radius (m) and the angle each turns (rad)
-START = -0.6                                   # tangent angle at the start (rad): the profile stays within ±0.6 rad
-
-
-def two_radius_part(step: float = 1.5e-3, length: float = 0.24) -> tuple[Surface, np.ndarray, np.ndarray]:
-    """A convex part whose cross-section is an arc of radius R1 followed, tangent to it, by an arc of
-    radius R2, extruded along y; returns the surface and the profile's x and arc length (m)."""
-    th1 = START + np.arange(0.0, R1 * A1, step) / R1
-    th2 = START + A1 + np.arange(0.0, R2 * A2 + step / 2, step) / R2
-    x1, z1 = R1 * (np.sin(th1) - np.sin(START)), R1 * (np.cos(th1) - np.cos(START))
-    xj, zj = R1 * (np.sin(START + A1) - np.sin(START)), R1 * (np.cos(START + A1) - np.cos(START))
-    x2 = xj + R2 * (np.sin(th2) - np.sin(START + A1))
-    z2 = zj + R2 * (np.cos(th2) - np.cos(START + A1))
-    x, z = np.concatenate([x1, x2[1:]]), np.concatenate([z1, z2[1:]])
-    ys = np.linspace(0.0, length, 25)
-    v = np.stack([np.repeat(x, len(ys)), np.tile(ys, len(x)), np.repeat(z, len(ys))], 1)
-    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
-    return Surface(v, grid_faces(len(x), len(ys))), x, arc
-
-
 def test_steps_follow_the_swath_width_of_each_radius():
     surface, x, arc = two_radius_part()
     d = 0.02
@@ -88,3 +68,29 @@ def test_level_widths_median_and_empty_bands():
     # 0.01: the three first samples, median 0.05; 0.06: no sample, the bands beside it interpolated;
     # 0.105: 0.07 either way
     np.testing.assert_allclose(out, [0.05, 0.05 + (0.07 - 0.05) * 0.05 / 0.095, 0.07])
+
+
+def test_at_constant_feed_the_depth_goes_as_one_over_the_step():
+    # Preston: a pass removes the volume k_p F v_rel per metre whatever its width, so under planes that
+    # follow the swath the mean depth goes as 1 / step, w2 / w1 times deeper on the tighter arc: the
+    # ripple ratio is kept, the level is left to the feed
+    from swath.simulate import simulate_removal
+    from swath.trajectory import time_path
+
+    surface, x, arc = two_radius_part(step=2e-3, length=0.24)
+    d = 0.02
+    tp = raster(surface, TOOL, spacing=d, direction=(0.0, 1.0, 0.0), fill_gaps=False, spacing_on="swath")
+    removal = simulate_removal(time_path(tp), surface, TOOL, sample_spacing=3e-3)
+    w1, w2 = local_patch(np.array([1 / R1, 1 / R2]), np.zeros(2), TOOL).width_across(np.zeros(2))
+    v = removal.surface.vertices
+    s = np.interp(v[:, 0], x, arc)
+    inner = (v[:, 1] > TOOL.pad_radius) & (v[:, 1] < 0.24 - TOOL.pad_radius)
+    a = removal.surface.vertex_areas
+
+    def mean(lo, hi):
+        m = inner & (s > lo) & (s < hi)
+        return np.sum(a[m] * removal.depth[m]) / a[m].sum()
+
+    # a pad radius from the part's edges and about half a pad from the junction, where the steps blend
+    narrow, wide = mean(TOOL.pad_radius, 0.09), mean(0.18, 0.30)
+    assert narrow / wide == pytest.approx(w2 / w1, rel=0.05)

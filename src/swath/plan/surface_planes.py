@@ -18,6 +18,13 @@ the planes at equal steps of ``S``.
 On a cylinder of radius ``r`` cut by planes along a direction normal to its axis, ``S`` is the
 arc length ``r φ`` and the offsets come out at ``r sin φ_i`` for equal steps of ``φ``; on a plane
 ``S`` is ``h`` and the offsets are the projected ones.
+
+With ``relative_width`` (the raster's ``spacing_on = "swath"``) the planes sit at equal steps of
+``E(h) = ∫ w_ref / w(h) dS`` instead, ``w(h)`` the swath width along the level (:func:`level_widths`):
+neighbouring planes then lie ``spacing · w / w_ref`` apart on the surface (the harmonic mean of
+``w`` over the step), the ratio of step to width the same everywhere.  A pass removes the same
+volume per metre whatever its width (Preston, the force fixed), so at a constant feed the mean
+depth then goes as ``1 / step``: the ripple's ratio is kept and the level is left to the feed.
 """
 
 from __future__ import annotations
