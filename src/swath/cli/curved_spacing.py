@@ -25,7 +25,10 @@ states) exceeds the budget (by more than :data:`BUDGET_TOLERANCE`), the spacing 
 part is planned again: the uniform planner's by that excess, the raster's to the least spacing
 with as few planes as that excess asks (:func:`fewest_planes_spacing`), the one nearest the
 least-ripple spacing.  The raster measures a spacing it is given on the surface across the passes
-(``spacing_on = "surface"``, :mod:`swath.plan.surface_planes`), as the ripple model means it.
+(``spacing_on = "surface"``, :mod:`swath.plan.surface_planes`), as the ripple model means it; where
+the swath narrows over a good share of the part (:func:`narrow_share`, :data:`NARROW_SHARE`) the
+re-plans keep the ripple model's ratio of spacing to width at every step instead
+(``spacing_on = "swath"``).
 """
 
 from __future__ import annotations
