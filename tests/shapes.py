@@ -72,3 +72,24 @@ def saddle(size: float = 0.4, radius: float = 0.4, n: int = 101) -> Surface:
     X, Y = np.meshgrid(t, t, indexing="ij")
     v = np.stack([X.ravel(), Y.ravel(), ((X**2 - Y**2) / (2 * radius)).ravel()], axis=1)
     return Surface(v, grid_faces(n, n), name="saddle")
+
+
+#: Two tangent arcs (two_radius_part)
+R1, A1, R2, A2 = 0.15, 0.8, 0.6, 0.4          # two tangent arcs: radius (m) and the angle each turns (rad)
+START = -0.6                                   # tangent angle at the start (rad): the profile stays within ±0.6 rad
+
+
+def two_radius_part(step: float = 1.5e-3, length: float = 0.24) -> tuple[Surface, np.ndarray, np.ndarray]:
+    """A convex part whose cross-section is an arc of radius R1 followed, tangent to it, by an arc of
+    radius R2, extruded along y; returns the surface and the profile's x and arc length (m)."""
+    th1 = START + np.arange(0.0, R1 * A1, step) / R1
+    th2 = START + A1 + np.arange(0.0, R2 * A2 + step / 2, step) / R2
+    x1, z1 = R1 * (np.sin(th1) - np.sin(START)), R1 * (np.cos(th1) - np.cos(START))
+    xj, zj = R1 * (np.sin(START + A1) - np.sin(START)), R1 * (np.cos(START + A1) - np.cos(START))
+    x2 = xj + R2 * (np.sin(th2) - np.sin(START + A1))
+    z2 = zj + R2 * (np.cos(th2) - np.cos(START + A1))
+    x, z = np.concatenate([x1, x2[1:]]), np.concatenate([z1, z2[1:]])
+    ys = np.linspace(0.0, length, 25)
+    v = np.stack([np.repeat(x, len(ys)), np.tile(ys, len(x)), np.repeat(z, len(ys))], 1)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
+    return Surface(v, grid_faces(len(x), len(ys))), x, arc

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from shapes import bowl
+from shapes import bowl, two_radius_part
 from swath.cli import curved_spacing
 from swath.cli.main import main
 from swath.cli.settings import settings_from_mapping
@@ -170,7 +170,36 @@ def test_the_default_jobs_panel_passes_lie_along_it_within_a_point_of_the_planes
     m = tp.metadata
     assert m["ripple_model"] == "curved" and m["spacing_on"] == "surface" and m["angle_rad"] == 0.0
     assert m["n_planes"] == 8 and m["spacing_m"] == pytest.approx(m["plane_extent_m"][0] / 8, rel=1e-5)
+    # the pad touches with its whole face all over the panel: no level's swath is narrow
+    assert curved_spacing.narrow_share(panel, TOOL, m["cross_direction"], m["spacing_m"]) == 0.0
     assert m["ripple_length_ratio"] <= 1.5 * 1.02
     trajectory = time_path(tp, settings.constraints(), links=settings.links(), lead_angle=m["ripple_lead_rad"])
     removal = simulate_removal(trajectory, panel, TOOL)
     assert removal.metrics["interior_removal_cov"] < 0.065
+
+
+def test_the_least_ripple_planes_follow_the_swath_where_it_narrows():
+    """Two tangent arcs of 0.15 m and 0.6 m radius, passes along their axis: the swath is 48 mm on
+    the first arc (a third of the extent) and the whole 76 mm pad on the second, so the default
+    job's re-plans follow it; on the example hub only a band at the rim is narrow, and on the panel
+    nothing is (its test above)."""
+    from swath.cli.job import make_plan
+    from swath.examples import example_part
+
+    surface, _, _ = two_radius_part(step=3e-3, length=0.4)
+    settings = _settings(direction=0.0)
+    tp = make_plan(surface, settings, tool=TOOL, choose_lead=True)
+    m = tp.metadata
+    share = curved_spacing.narrow_share(surface, TOOL, m["cross_direction"], m["ripple_spacing_m"])
+    assert abs(m["cross_direction"][1]) < 1e-6 and share == pytest.approx(1 / 3, abs=0.08)
+    assert m["spacing_on"] == "swath" and m["swath_reference_width_m"] == pytest.approx(2 * TOOL.pad_radius, rel=1e-3)
+    assert m["ripple_length_ratio"] <= 1.5 * 1.02
+    # the job's planner options decide when they say
+    given = make_plan(surface, _settings(direction=0.0, planner_options={"spacing_on": "surface"}), tool=TOOL,
+                      choose_lead=True)
+    assert given.metadata["spacing_on"] == "surface"
+    hub = example_part("hub")
+    hub_plan = make_plan(hub, _settings(part="example:hub"), tool=TOOL, choose_lead=True)
+    hub_share = curved_spacing.narrow_share(hub, TOOL, hub_plan.metadata["cross_direction"],
+                                            hub_plan.metadata["ripple_spacing_m"])
+    assert 0 < hub_share < curved_spacing.NARROW_SHARE and hub_plan.metadata["spacing_on"] == "surface"

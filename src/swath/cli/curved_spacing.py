@@ -25,7 +25,10 @@ states) exceeds the budget (by more than :data:`BUDGET_TOLERANCE`), the spacing 
 part is planned again: the uniform planner's by that excess, the raster's to the least spacing
 with as few planes as that excess asks (:func:`fewest_planes_spacing`), the one nearest the
 least-ripple spacing.  The raster measures a spacing it is given on the surface across the passes
-(``spacing_on = "surface"``, :mod:`swath.plan.surface_planes`), as the ripple model means it.
+(``spacing_on = "surface"``, :mod:`swath.plan.surface_planes`), as the ripple model means it; where
+the swath narrows over a good share of the part (:func:`narrow_share`, :data:`NARROW_SHARE`) the
+re-plans keep the ripple model's ratio of spacing to width at every step instead
+(``spacing_on = "swath"``).
 """
 
 from __future__ import annotations
@@ -50,6 +53,20 @@ BUDGET_TOLERANCE = 0.02
 #: 0.35 m bowl the quadric picks 11° (simulated interior CoV 0.063 against 0.089 at the half-pad
 #: lead), on the convex ``bezier_dac_cad`` the flat pad (0.113 against 0.261).
 LEAD_CHOICES_DEG = (0.0, 11.0, 15.0)
+
+#: The raster's least-ripple planes follow the local swath width (``spacing_on = "swath"``, unless
+#: the job's planner options say where to measure the spacing) when the swath along the levels is
+#: narrower than :data:`NARROW_WIDTH` of its median over at least this share of the part's extent
+#: across the passes (:func:`narrow_share`); else they lie equally far apart on the surface.  Two
+#: tangent arcs of 0.15 m and 0.6 m radius (48 and 76 mm swaths, a third of the extent narrow):
+#: interior CoV 0.240 against 0.461 at 1.48 L*.  ``example:hub`` (narrow in one band at its rim,
+#: 3 % of the extent): 0.483 at 1.45 L* against 0.452 at 1.53 L*, so it keeps the surface planes.
+#: On the panel, ``bezier_dac_cad`` and crs_part_5 the pad touches with its whole face at every
+#: sample and both placements give the same planes.
+NARROW_SHARE = 0.2
+
+#: A level's swath counts as narrow below this fraction of the part's median width.
+NARROW_WIDTH = 0.85
 
 #: Re-plans allowed to bring the contact length within the budget.
 BUDGET_ROUNDS = 2
@@ -81,6 +98,30 @@ def fewest_planes_spacing(spacing: float, widened: float, extents) -> float:
             return widened
         return float(np.min(s[many] / (now[many] - 1.0))) * (1.0 + 1e-6)
     return float(max(np.max(s / counts) * (1.0 + 1e-6), spacing))
+
+
+def narrow_share(surface, tool, cross, spacing: float) -> float:
+    """The share of the part's extent across the passes (planes normal to ``cross``, (3,)) whose
+    swath, the median along each level (:func:`swath.plan.surface_planes.level_widths`, over half
+    ``spacing`` (m) either side), is narrower than :data:`NARROW_WIDTH` of the median over the part:
+    levels a quarter of ``spacing`` apart, each piece's counted."""
+    from ..plan.raster import swath_widths_across
+    from ..plan.surface_planes import level_widths
+
+    pieces = surface.face_pieces()
+    widths = swath_widths_across(surface, tool, np.asarray(cross, float), pieces)
+    heights = surface.vertices @ np.asarray(cross, float)
+    narrow = total = 0
+    for k, faces in enumerate(pieces):
+        mine = widths.piece == k
+        if not mine.any():
+            continue
+        h = heights[np.unique(surface.faces[faces])]
+        grid = np.linspace(h.min(), h.max(), max(2, int(math.ceil(4 * np.ptp(h) / spacing)) + 1))
+        w = level_widths(widths.heights[mine], widths.widths[mine], widths.areas[mine], grid, 0.5 * spacing)
+        narrow += int(np.sum(w < NARROW_WIDTH * widths.reference))
+        total += len(grid)
+    return narrow / total if total else 0.0
 
 
 def curved_choice(toolpath, surface, tool, leads, budget: float):
@@ -158,10 +199,19 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
     def plan(value: float):
         if uniform:
             return planner(surface, tool, **{**arguments, "overlap": value})
-        # swath's spacing, not the user's: fill passes still close what it leaves (raster's default)
+        # swath's spacing, not the user's: fill passes still close what it leaves (raster's default);
+        # the planes follow the local swath width unless the job says where to measure the spacing
         return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": value})
 
     toolpath = plan(value)
+    if not uniform and arguments.get("spacing_on") is None:
+        share = narrow_share(surface, tool, toolpath.metadata["cross_direction"], value)
+        follow = share >= NARROW_SHARE
+        log.info("the swath is narrower than %.2f of its median over %.0f %% of the extent across the passes: "
+                 "the planes %s", NARROW_WIDTH, 100 * share,
+                 "follow the local swath width" if follow else "lie equally far apart on the surface")
+        if follow:
+            arguments = {**arguments, "spacing_on": "swath"}
     if not uniform and arguments.get("direction") is None and arguments.get("cross_direction") is None:
         # the curvature is read along these passes: the re-plans keep their direction (left free, the
         # raster may turn to where the spacing was not chosen for: the panel's passes turned across its

@@ -96,7 +96,7 @@ PLANNER_OPTION_SCHEMA: dict[str, Key] = {
     "max_edge": Key("length", positive=True, hi=0.1, bare_max=0.1, hint="mm, e.g. 3mm"),
     "max_passes": Key("count", positive=True), "workers": Key("count", positive=True),
     "fill_gaps": Key("bool"), "distance": Key("str", choices=("fmm", "heat")), "seed": Key("str"),
-    "mode": Key("str", choices=("helix", "rings")), "spacing_on": Key("str", choices=("surface", "projection")),
+    "mode": Key("str", choices=("helix", "rings")), "spacing_on": Key("str", choices=("surface", "projection", "swath")),
 }
 
 #: Other spellings of keys.

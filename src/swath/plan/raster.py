@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -97,7 +98,15 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         along the cross direction, equally spaced planes.  None (default): ``"surface"`` for a
         given ``spacing``, ``"projection"`` for the default covering spacing (worked out in
         projection: the chord times the slope factor).  The same planes on a part flat across the
-        passes.
+        passes.  ``"swath"``: on the surface, with the steps following the local swath width:
+        neighbouring planes lie about ``spacing · w / w_ref`` apart there, ``w`` the contact
+        model's width across the passes along their level (the median over the samples within
+        half a spacing of it) and ``w_ref`` the median over the part, so ``spacing`` is the step
+        where the swath has its median width and the ratio of step to width is the same
+        everywhere (:func:`swath_widths_across`, ``relative_width`` of
+        :func:`swath.plan.surface_planes.surface_plane_offsets`).  Without a ``spacing``,
+        ``"swath"`` places the covering spacing as ``"projection"`` does (that rule already
+        follows the narrowest chord).
     progress : callable, optional
         Unused (raster is fast); accepted so every planner has the same call shape.
 
@@ -117,7 +126,8 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         outer planes), plane_spacing_m (per piece,
         the mean distance between its planes, below spacing_m where ``edge_margin`` moved them),
         plane_extent_m (per piece, its extent across the planes), spacing_on (margins, spacings and
-        extents are measured there), predicted_gap_fraction (not with a given spacing and ``fill_gaps=False``), and
+        extents are measured there; with ``"swath"``, plane_extent_m is the extent in steps at the
+        reference width times ``spacing``, and swath_reference_width_m is ``w_ref``), predicted_gap_fraction (not with a given spacing and ``fill_gaps=False``), and
         ``warnings`` when that share is above :data:`GAP_WARN_SHARE`.
 
     Raises
@@ -140,6 +150,8 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
         spacing_on = "projection" if spacing is None else "surface"
     if spacing_on not in SPACING_ON:
         raise InputError(f"spacing_on must be one of {', '.join(SPACING_ON)}, got {spacing_on!r}")
+    if spacing_on == "swath" and spacing is None:
+        spacing_on = "projection"             # the covering spacing follows the narrowest chord already
     angle, vector = split_direction(direction)
     if fill_gaps is None and spacing is None:
         fill_gaps = True                      # a spacing the user fixed is honoured (None: measured, not topped up)
@@ -166,7 +178,7 @@ def raster(surface, tool, *, spacing: float | None = None, direction=None, point
 
 
 #: Where a raster's spacing is measured (``raster(spacing_on=...)``).
-SPACING_ON = ("surface", "projection")
+SPACING_ON = ("surface", "projection", "swath")
 
 #: Predicted untouched share of the surface above which a plan warns.
 GAP_WARN_SHARE = 5e-3
@@ -241,9 +253,11 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
     passes, n_planes, margin, dropped, dropped_length, n_slices = [], 0, 0.0, 0, 0.0, 0
     plane_spacing, plane_extent = [], []
     heights = surface.vertices @ cross
+    across = swath_widths_across(surface, tool, cross, pieces) if spacing_on == "swath" else None
     for k, faces in enumerate(pieces):
         offsets, m, steps, extent = piece_offsets(surface, pieces, k, heights, cross, spacing,
-                                                  edge_margin=edge_margin or 0.0, spacing_on=spacing_on)
+                                                  edge_margin=edge_margin or 0.0, spacing_on=spacing_on,
+                                                  widths=across)
         margin = max(margin, m)
         plane_extent.append(extent)
         plane_spacing.append(float(np.mean(steps)) if len(steps) else float(spacing))
@@ -284,6 +298,8 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
                                           f"outer planes at least {1e3 * edge_margin:.4g} mm in"),
             plane_spacing_m=plane_spacing, plane_extent_m=plane_extent, spacing_on=spacing_on,
         )
+        if across is not None:
+            metadata["swath_reference_width_m"] = across.reference
         if gap is not None:
             metadata["predicted_gap_fraction"] = gap
             if gap > GAP_WARN_SHARE:
@@ -377,23 +393,101 @@ def piece_vertices(surface, pieces, k: int) -> np.ndarray:
 
 
 def piece_offsets(surface, pieces, k: int, heights: np.ndarray, cross: np.ndarray, spacing: float, *,
-                  edge_margin: float = 0.0, spacing_on: str = "surface") -> tuple[np.ndarray, float, np.ndarray, float]:
+                  edge_margin: float = 0.0, spacing_on: str = "surface",
+                  widths: SwathWidths | None = None) -> tuple[np.ndarray, float, np.ndarray, float]:
     """The cutting planes of piece ``k`` of ``surface.face_pieces()`` (``pieces``): their offsets
     ``(p,)`` along ``cross`` (m), the margin left at each end, the steps between neighbours
     ``(p - 1,)`` and the piece's extent across the planes (m), all three measured where
     ``spacing_on`` says (:func:`raster`); ``heights`` are ``surface.vertices @ cross`` (m).  Where
     every face of the piece is parallel to ``cross`` (within 1e-9), the surface's steps are the
-    projected ones and :func:`plane_offsets` places them."""
-    from .surface_planes import surface_plane_offsets
+    projected ones and :func:`plane_offsets` places them.  ``spacing_on = "swath"`` needs the
+    part's ``widths`` across the passes (:func:`swath_widths_across`)."""
+    from .surface_planes import level_widths, surface_plane_offsets
 
     ids = piece_vertices(surface, pieces, k)
     faces = pieces[k]
     normals = surface.face_normals[faces]
-    if spacing_on == "surface" and np.abs(normals @ cross).max() > 1e-9:
+    if spacing_on == "swath" and widths is not None:
+        mine = widths.piece == k
+        piece = heights[ids]
+        grid = np.linspace(piece.min(), piece.max(), max(2, int(math.ceil(4 * np.ptp(piece) / spacing)) + 1))
+        ratio = (level_widths(widths.heights[mine], widths.widths[mine], widths.areas[mine], grid, 0.5 * spacing)
+                 / widths.reference) if mine.any() else np.ones_like(grid)
+        return surface_plane_offsets(heights, surface.faces[faces], surface.face_areas[faces], normals, cross, spacing,
+                                     edge_margin=edge_margin, vertex_ids=ids, relative_width=(grid, ratio))
+    if spacing_on in ("surface", "swath") and np.abs(normals @ cross).max() > 1e-9:
         return surface_plane_offsets(heights, surface.faces[faces], surface.face_areas[faces], normals, cross, spacing,
                                      edge_margin=edge_margin, vertex_ids=ids)
     offsets, margin = plane_offsets(heights[ids], spacing, edge_margin=edge_margin)
     return offsets, margin, np.diff(offsets), float(np.ptp(heights[ids]))
+
+
+@dataclass(frozen=True)
+class SwathWidths:
+    """The contact model's swath width across the passes of one raster direction, at the part's
+    pad-scale samples (:func:`swath_widths_across`).
+
+    Attributes
+    ----------
+    heights : (s,) float
+        ``x · cross`` of the samples, m.
+    widths : (s,) float
+        The width of the contact patch across the feed ``n × cross`` at each sample, m.
+    areas : (s,) float
+        The area each sample stands for, m².
+    piece : (s,) int
+        The piece of ``surface.face_pieces()`` each sample lies on.
+    reference : float
+        ``w_ref``: the area-weighted median of ``widths``, m.
+    """
+
+    heights: np.ndarray
+    widths: np.ndarray
+    areas: np.ndarray
+    piece: np.ndarray
+    reference: float
+
+
+#: Samples whose surface slopes more steeply than this across the passes (``|n × c|`` below it,
+#: the sine of the angle between the normal and the cutting-plane normal) are left out of the swath
+#: widths: the feed ``n × c`` is ill-defined on a wall facing the planes.
+WIDTH_SLOPE_FLOOR = 0.3
+
+
+def swath_widths_across(surface, tool, cross, pieces) -> SwathWidths:
+    """The swath width across passes cut by planes normal to ``cross`` (unit, (3,)), from the
+    local contact model with curvature fitted over the pad
+    (:func:`swath.contact.widths.pad_scale_samples`, :func:`swath.contact.widths.effective_widths`),
+    for ``raster(spacing_on="swath")``; ``pieces`` is ``surface.face_pieces()``.
+
+    Raises
+    ------
+    InfeasibleError
+        When the model finds contact at no sample (no width to follow).
+    """
+    from ..contact.widths import effective_widths, pad_scale_samples
+
+    samples = pad_scale_samples(surface, tool)
+    w_eff, slope = effective_widths(samples, tool, cross)
+    chord = w_eff / np.maximum(slope, 1e-300)
+    ok = (slope >= WIDTH_SLOPE_FLOOR) & np.isfinite(chord) & (chord > 0)
+    if not ok.any():
+        raise InfeasibleError("spacing_on='swath': the contact model finds no swath width on this part across "
+                              "these passes; use spacing_on='surface'")
+
+    def piece_of_vertex():
+        out = np.full(len(surface.vertices), -1)
+        for k, faces in enumerate(pieces):
+            out[surface.faces[faces].ravel()] = k
+        return out
+
+    owner = surface_memo(surface, ("piece_of_vertex", len(pieces)), piece_of_vertex)
+    piece = owner[surface.kdtree.query(samples.points[ok])[1]]
+    w, a = chord[ok], samples.areas[ok]
+    k = np.argsort(w)
+    cdf = np.cumsum(a[k])
+    reference = float(w[k][min(int(np.searchsorted(cdf, 0.5 * cdf[-1])), len(k) - 1)])
+    return SwathWidths(samples.points[ok] @ np.asarray(cross, float), w, a, piece, reference)
 
 
 def plane_offsets(heights: np.ndarray, spacing: float, *, edge_margin: float = 0.0) -> tuple[np.ndarray, float]:

@@ -18,6 +18,13 @@ the planes at equal steps of ``S``.
 On a cylinder of radius ``r`` cut by planes along a direction normal to its axis, ``S`` is the
 arc length ``r φ`` and the offsets come out at ``r sin φ_i`` for equal steps of ``φ``; on a plane
 ``S`` is ``h`` and the offsets are the projected ones.
+
+With ``relative_width`` (the raster's ``spacing_on = "swath"``) the planes sit at equal steps of
+``E(h) = ∫ w_ref / w(h) dS`` instead, ``w(h)`` the swath width along the level (:func:`level_widths`):
+neighbouring planes then lie ``spacing · w / w_ref`` apart on the surface (the harmonic mean of
+``w`` over the step), the ratio of step to width the same everywhere.  A pass removes the same
+volume per metre whatever its width (Preston, the force fixed), so at a constant feed the mean
+depth then goes as ``1 / step``: the ripple's ratio is kept and the level is left to the feed.
 """
 
 from __future__ import annotations
@@ -107,7 +114,8 @@ def _cumulative(heights: np.ndarray, weights: np.ndarray, edges: np.ndarray) -> 
 
 def surface_plane_offsets(heights: np.ndarray, faces: np.ndarray, face_areas: np.ndarray,
                           face_normals: np.ndarray, cross, spacing: float, *, edge_margin: float = 0.0,
-                          vertex_ids: np.ndarray | None = None) -> tuple[np.ndarray, float, np.ndarray, float]:
+                          vertex_ids: np.ndarray | None = None, relative_width: tuple | None = None
+                          ) -> tuple[np.ndarray, float, np.ndarray, float]:
     """Offsets ``(p,)`` (m, along ``cross``) of planes ``spacing`` apart measured on the surface
     across the passes, centred on the piece.
 
@@ -133,17 +141,25 @@ def surface_plane_offsets(heights: np.ndarray, faces: np.ndarray, face_areas: np
         Least surface distance from the piece's extent to its outermost planes, m.
     vertex_ids : (q,) int, optional
         The piece's vertices (``np.unique(faces)``) when the caller has them.
+    relative_width : ((g,) float, (g,) float), optional
+        Heights ``x · cross`` (m, increasing) and the local swath width there over a reference
+        width, ``w(h) / w_ref`` (:func:`level_widths`): the planes are then placed at equal steps
+        of ``E(h) = ∫ w_ref / w dS`` instead of ``S``, so that neighbouring planes lie about
+        ``spacing · w / w_ref`` apart on the surface, ``spacing`` being the step where the swath
+        is ``w_ref`` wide (the raster's ``spacing_on = "swath"``).  ``edge_margin``, ``margin``
+        and ``extent`` are then measured in ``E`` (metres at the reference width).
 
     Returns
     -------
     offsets : (p,) float
         Plane heights ``x · cross``, m, increasing.
     margin : float
-        The surface distance left at each end, m.
+        The surface distance left at each end, m (in ``E`` with ``relative_width``).
     steps : (p - 1,) float
         The surface distance between neighbouring planes, m.
     extent : float
-        The piece's surface distance across the planes, ``S_total``, m.
+        The piece's surface distance across the planes, ``S_total``, m (``E_total`` with
+        ``relative_width``).
     """
     from .raster import MAX_PLANES
 
@@ -153,7 +169,12 @@ def surface_plane_offsets(heights: np.ndarray, faces: np.ndarray, face_areas: np
     n_bins = int(min(MAX_BINS, max(1, math.ceil(BINS_PER_SPACING * extent / spacing))))
     edges = np.linspace(lo, hi, n_bins + 1)
     s_edges = surface_distance(heights, faces, face_areas, face_normals, cross, edges)
-    total = float(s_edges[-1])
+    e_edges = s_edges
+    if relative_width is not None:
+        grid, ratio = (np.asarray(a, float) for a in relative_width)
+        middle = np.interp(0.5 * (edges[1:] + edges[:-1]), grid, ratio)
+        e_edges = np.concatenate([[0.0], np.cumsum(np.diff(s_edges) / np.clip(middle, *RATIO_CLIP))])
+    total = float(e_edges[-1])
     n = max(int(math.ceil(total / spacing)), 1)
     if n > MAX_PLANES:
         raise InputError(f"spacing {spacing * 1e3:.4g} mm would need {n} cutting planes across "
@@ -164,5 +185,54 @@ def surface_plane_offsets(heights: np.ndarray, faces: np.ndarray, face_areas: np
         margin = min(float(edge_margin), total / (2 * n))
         step = (total - 2 * margin) / (n - 1)
     targets = margin + np.arange(n) * step if n > 1 else np.array([0.5 * total])
-    offsets = np.interp(targets, s_edges, edges)
-    return offsets, margin, np.full(n - 1, step), total
+    offsets = np.interp(targets, e_edges, edges)
+    if relative_width is None:
+        return offsets, margin, np.full(n - 1, step), total
+    return offsets, margin, np.diff(np.interp(offsets, edges, s_edges)), total
+
+
+#: The local swath width over the reference width is held within these bounds when the planes
+#: follow it (``relative_width``): a level where the model finds almost no contact (a sharp ridge, a
+#: few samples on a wall) does not pack the planes, nor a flat strip spread them, beyond a factor 2.
+RATIO_CLIP = (0.5, 2.0)
+
+
+def level_widths(sample_heights: np.ndarray, sample_widths: np.ndarray, sample_areas: np.ndarray,
+                 grid: np.ndarray, half_window: float) -> np.ndarray:
+    """The swath width along the level curves of ``h``: at each height of ``grid`` the
+    area-weighted median of the widths of the samples within ``half_window`` of it.
+
+    Parameters
+    ----------
+    sample_heights : (s,) float
+        ``x · cross`` of the samples, m.
+    sample_widths : (s,) float
+        The contact model's swath width across the pass at each sample, m.
+    sample_areas : (s,) float
+        The area each sample stands for, m².
+    grid : (g,) float
+        Increasing heights, m.
+    half_window : float
+        Half the height band read at each grid height, m (half the spacing: the strip a pass
+        on that level covers alone).
+
+    Returns
+    -------
+    (g,) float
+        Median width at each grid height, m; a band holding no sample takes the width of the
+        nearest bands that hold one (NaN everywhere when there is no sample at all).
+    """
+    order = np.argsort(sample_heights)
+    h, w, a = sample_heights[order], sample_widths[order], sample_areas[order]
+    lo = np.searchsorted(h, grid - half_window, side="left")
+    hi = np.searchsorted(h, grid + half_window, side="right")
+    out = np.full(len(grid), np.nan)
+    for i in np.flatnonzero(hi > lo):
+        ww, aa = w[lo[i]:hi[i]], a[lo[i]:hi[i]]
+        k = np.argsort(ww)
+        cdf = np.cumsum(aa[k])
+        out[i] = ww[k][min(int(np.searchsorted(cdf, 0.5 * cdf[-1])), len(k) - 1)]
+    held = np.isfinite(out)
+    if held.any() and not held.all():
+        out = np.interp(grid, grid[held], out[held])
+    return out
