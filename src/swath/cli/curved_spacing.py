@@ -160,7 +160,8 @@ def curved_choice(toolpath, surface, tool, leads, budget: float):
     return lead, choice
 
 
-def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False):
+def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False,
+                        ridge: bool = False):
     """The job's passes at the least-ripple spacing on the part's curvature, within
     ``settings.length_budget`` times the coverage bound (module notes).
 
@@ -178,6 +179,11 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         On a curved part, also choose the lead among the job's and :data:`LEAD_CHOICES_DEG` (the
         default job, which chose the lead itself): the job then times the passes at
         ``metadata["ripple_lead_rad"]``.
+    ridge : bool
+        A raster whose direction is left free may turn to the uniform planner where the angular
+        speed limit holds its feed round a sharp ridge and the uniform plan removes more evenly
+        (:func:`swath.cli.ridge_turn.uniform_if_evener`; the plan's ``metadata["ridge_planner"]``
+        then says so).
 
     Returns
     -------
@@ -204,6 +210,11 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": value})
 
     toolpath = plan(value)
+    held = None
+    if ridge and not uniform and arguments.get("direction") is None and arguments.get("cross_direction") is None:
+        from .ridge_turn import held_share
+
+        held = held_share(toolpath, settings.feed, settings.max_angular)   # the raster's feed round a ridge
     if not uniform and arguments.get("spacing_on") is None:
         share = narrow_share(surface, tool, toolpath.metadata["cross_direction"], value)
         follow = share >= NARROW_SHARE
@@ -232,11 +243,15 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
             break
         widen = ratio / budget * BUDGET_MARGIN
         log.info("ripple spacing: %.2f L* over the %.2f budget, %.1f %% wider", ratio, budget, 100 * (widen - 1))
-        value = (1.0 - (1.0 - value) * widen if uniform else
+        value = (max(1.0 - (1.0 - value) * widen, 0.0) if uniform else   # the overlap no lower than none
                  fewest_planes_spacing(value, value * widen, toolpath.metadata.get("plane_extent_m")))
         toolpath = plan(value)
         ratio = toolpath.contact_length / bound
     meta = {"ripple_model": model, "ripple_lead_rad": float(lead), "ripple_length_ratio": float(ratio),
             ("ripple_overlap_fraction" if uniform else "ripple_spacing_m"): float(value)}
     toolpath.metadata.update(meta)
+    if held is not None:
+        from .ridge_turn import uniform_if_evener
+
+        return uniform_if_evener(toolpath, surface, tool, settings, held, choose_lead=choose_lead)
     return toolpath

@@ -262,7 +262,7 @@ def planner_arguments(settings: JobSettings, *, progress=None) -> dict:
 
 
 def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=None, choose_lead: bool = False,
-              timings: dict | None = None):
+              timings: dict | None = None, ridge: bool = False):
     """Run the job's planner on ``surface`` and order its passes; returns a ToolPath.
     ``progress(stage, done, total)`` hears about long planning steps; ``tool`` is the job's tool
     (default :func:`swath.cli.stages.job_tool`, built from the settings and the calibration).  With a
@@ -272,7 +272,8 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
     the plan's ``metadata["ripple_lead_rad"]``).  ``timings`` (a dict): with a spacing search
     (``settings.optimise_spacing``), ``timings["spacing_s"]`` is set to the time (s) the search took
     besides the planner call whose passes the job keeps (the plans at the spacings tried, the
-    curvature read from them, the ripple models)."""
+    curvature read from them, the ripple models).  ``ridge``: a raster may turn to the uniform planner
+    where its feed is held round a ridge (:mod:`swath.cli.ridge_turn`; ``metadata["ridge_planner"]``)."""
     from ..order import order_toolpath, route_links
     from ..plan import get_planner, planner_options
     from .stages import job_tool
@@ -289,7 +290,8 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
             progress(f"choosing the spacing ({settings.optimise_spacing})", 0, 1)
         calls: list[float] = []
         t0 = time.perf_counter()
-        toolpath = spacing_plan(surface, tool, jobwrap.timed(planner, calls), settings, arguments, choose_lead=choose_lead)
+        toolpath = spacing_plan(surface, tool, jobwrap.timed(planner, calls), settings, arguments, choose_lead=choose_lead,
+                                ridge=ridge)
         if timings is not None:
             # the last plan is the one kept (a search ends with the plan at the spacing chosen)
             timings["spacing_s"] = time.perf_counter() - t0 - (calls[-1] if calls else 0.0)
@@ -414,7 +416,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         searched_spacing: dict = {}
         toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"),
                              choose_lead=plain is not None,       # the default job chose the lead: on a curved part, again
-                             timings=searched_spacing)
+                             timings=searched_spacing, ridge=plain is not None)
+        if toolpath.metadata.get("ridge_planner"):   # the raster's feed was held round a ridge (cli/ridge_turn.py)
+            settings = replace(settings, planner=toolpath.metadata["ridge_planner"])
         if plain is not None:
             even_default.settle_plan_lead(toolpath, surface, tool)    # ... for the spacing the plan has
         lead = toolpath.metadata.get("ripple_lead_rad")

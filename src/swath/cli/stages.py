@@ -227,12 +227,13 @@ def job_target(settings):
     return target, tolerance
 
 
-def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False):
+def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False, ridge: bool = False):
     """Raster passes placed by ``settings.optimise_spacing``: ``ripple`` plans the raster at the
     spacing whose summed pad cross-profiles, on the part's representative curvature and at the
     job's lead, are flattest within the length budget, or the uniform planner at the overlap that
     gives it (:func:`swath.cli.curved_spacing.curved_spacing_plan`; ``choose_lead``: the lead too, on a
-    curved part); ``greedy`` and ``joint`` place the planes against the
+    curved part; ``ridge``: the uniform planner where the raster's feed is held round a ridge);
+    ``greedy`` and ``joint`` place the planes against the
     job's target depth (:func:`swath.feed.greedy_offsets`, :func:`swath.feed.joint_spacing`) in the
     raster's direction (its automatic choice when none is given).  The feed stage then optimises
     the feed along these passes."""
@@ -242,7 +243,7 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_le
     if method == "ripple":
         from .curved_spacing import curved_spacing_plan
 
-        return curved_spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead)
+        return curved_spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead, ridge=ridge)
     direction = arguments.get("direction")
     if direction is None:
         direction = planner(surface, tool, **arguments).metadata["angle_rad"]

@@ -1,0 +1,200 @@
+"""Passes that turn round a sharp ridge, held back by the tool's angular speed limit.
+
+A pass that crosses a ridge of radius ``r`` turns the tool frame at ``ω = v / r`` (the normal
+turns by the arc's angle over its length).  Under the job's angular speed limit ``ω_max`` the feed
+there is held to ``ω_max · r``: on the blade's 6.35 mm leading edge at the default 1 rad/s that
+is 6.35 mm/s against the 50 mm/s feed, and the pad dwells 7.9 times as long over the nose as over
+the flanks.  No feed programme
+within a 1.5x cycle-time budget undoes that: the flanks would have to run 7.9 times slower.
+
+Nor does a raster along the ridge: its cutting planes are level sets of the height across the
+passes, which folds at the ridge (the blade's planes ``x = const`` cut the upper and the lower
+surface both, two passes 2 mm apart at the nose; interior CoV 0.757 at 1.99 L* with the feed
+optimised).  The uniform planner lays its passes by the distance along the surface and its
+bisection follows the swath narrowing over the ridge, without turning round it (the blade:
+interior CoV 0.373 at 1.43 L* against the raster's 0.573).
+
+So when the even-removal default plans a raster whose direction it chose itself, it measures from
+the first plan's passes alone the share of the contact length where the limit holds the feed
+below :data:`HOLD_FRACTION` of it (:func:`held_share`).  From :data:`HOLD_SHARE` up,
+:func:`uniform_if_evener` plans the part with the uniform planner too and keeps the plan that
+removes more evenly at constant feed in the simulation (the blade: 0.549 against the raster's
+0.729; ``example:hub``, whose rim holds the raster's feed at 22 mm/s over 4.8 % of its passes,
+keeps the raster).  The job's simulation then compares the plan kept with the plain plan.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: The feed counts as held where the angular speed limit allows less than this fraction of it.
+HOLD_FRACTION = 0.5
+
+#: The uniform planner plans the part when the raster's feed is held over at least this share of the
+#: contact length (the blade across its nose: 3.9 %; the plate, the panel, ``bezier_dac_cad`` and
+#: crs_part_5: 0 %).
+HOLD_SHARE = 0.02
+
+#: The uniform plan replaces the raster only where its own held share is below this fraction of the
+#: raster's (the uniform planner chooses its own direction, and may cross the ridge too).
+RELIEF = 0.5
+
+
+def rotation_per_metre(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rate at which the surface normal turns along a pass, rad/m, per segment, and the
+    segments' lengths, m.
+
+    Parameters
+    ----------
+    points : (k, 3) float
+        The pass's points, m.
+    normals : (k, 3) float
+        Unit surface normals there.
+
+    Returns
+    -------
+    rate : (k - 1,) float
+        The angle between neighbouring normals over the segment's length, rad/m (0 on a segment of
+        no length).
+    length : (k - 1,) float
+        m.
+    """
+    p = np.asarray(points, float)
+    n = np.asarray(normals, float)
+    length = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    cos = np.clip(np.einsum("ij,ij->i", n[1:], n[:-1]), -1.0, 1.0)
+    angle = np.arccos(cos)
+    rate = np.divide(angle, length, out=np.zeros_like(angle), where=length > 1e-12)
+    return rate, length
+
+
+def held_share(toolpath, feed: float, omega_max: float | None) -> dict:
+    """Where the angular speed limit holds the feed of ``toolpath``'s passes.
+
+    Parameters
+    ----------
+    toolpath : ToolPath
+    feed : float
+        The job's feed, m/s.
+    omega_max : float or None
+        The tool's angular speed limit, rad/s (None: no limit).
+
+    Returns
+    -------
+    dict
+        ``held_share`` (the share of the contact length where ``omega_max / ρ`` is below
+        :data:`HOLD_FRACTION` times ``feed``, ρ the normal's rotation per metre), ``held_feed_m_per_s``
+        (the feed the limit allows there, length-weighted median; NaN when nowhere held) and
+        ``held_radius_m`` (``1 / ρ`` there, the same median).
+    """
+    nan = float("nan")
+    if omega_max is None or not omega_max > 0:
+        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan}
+    rates, lengths = [], []
+    for p in toolpath.passes:
+        r, s = rotation_per_metre(p.points, p.normals)
+        rates.append(r)
+        lengths.append(s)
+    if not rates:
+        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan}
+    rate, length = np.concatenate(rates), np.concatenate(lengths)
+    total = float(length.sum())
+    cap = omega_max / np.maximum(rate, 1e-12)
+    held = cap < HOLD_FRACTION * feed
+    if not (total > 0 and held.any()):
+        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan}
+    order = np.argsort(cap[held])
+    w = length[held][order]
+    mid = order[min(int(np.searchsorted(np.cumsum(w), 0.5 * w.sum())), len(order) - 1)]
+    extra = float(np.sum(length * np.maximum(feed / cap - 1.0, 0.0)) / total)
+    return {"held_share": float(length[held].sum() / total), "held_feed_m_per_s": float(cap[held][mid]),
+            "held_radius_m": float(1.0 / rate[held][mid]), "extra_dwell": extra}
+
+
+def constant_feed_cov(toolpath, surface, tool, settings) -> float:
+    """The interior removal CoV of ``toolpath``'s passes timed at the job's constant feed and
+    limits, at the lead the plan was chosen for (``metadata["ripple_lead_rad"]``, else the job's),
+    as the removal simulator finds it."""
+    from ..simulate import simulate_removal
+    from ..trajectory import time_path
+
+    lead = float(toolpath.metadata.get("ripple_lead_rad", settings.lead()))
+    timed = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=lead)
+    removal = simulate_removal(timed, surface, tool, sample_spacing=settings.sample_spacing,
+                               sampling=settings.removal_sampling)
+    return float(removal.metrics["interior_removal_cov"])
+
+
+def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_lead: bool = False):
+    """The raster plan ``toolpath``, or the uniform planner's least-ripple plan of the part when the
+    angular speed limit holds the raster's feed round a ridge and the uniform plan removes more
+    evenly (module notes).
+
+    Parameters
+    ----------
+    toolpath : ToolPath
+        The raster's least-ripple plan (:func:`swath.cli.curved_spacing.curved_spacing_plan`), its
+        direction chosen by the raster.
+    surface : Surface
+    tool : Tool
+    settings : JobSettings
+        The job's (the feed, the limits, the length budget and the lead are read).
+    held : dict
+        :func:`held_share` of the raster's first plan.
+    choose_lead : bool
+        The default job chose the lead: the uniform plan chooses it on the part's curvature too.
+
+    Returns
+    -------
+    ToolPath
+        The plan kept.  With ``held["held_share"]`` at least :data:`HOLD_SHARE`, its ``metadata``
+        holds ``ridge_held_fraction``, ``ridge_held_feed_m_per_s`` and ``ridge_radius_m`` (the
+        raster's figures) and, when the uniform plan was simulated, ``ridge_raster_cov_fraction`` and
+        ``ridge_uniform_cov_fraction`` (the interior CoVs at constant feed); ``ridge_planner =
+        "uniform"`` when the uniform plan is returned.  It is returned when its own passes are held
+        over less than :data:`RELIEF` times the raster's share and remove more evenly at constant feed.
+    """
+    from dataclasses import replace
+
+    from ..errors import InputError, SwathError
+    from ..plan import get_planner
+    from .curved_spacing import curved_spacing_plan
+    from .job import planner_arguments
+
+    if held["held_share"] < HOLD_SHARE:
+        return toolpath
+    figures = {"ridge_held_fraction": held["held_share"], "ridge_held_feed_m_per_s": held["held_feed_m_per_s"],
+               "ridge_radius_m": held["held_radius_m"]}
+    toolpath.metadata.update(figures)
+    log.info("the angular speed limit %.3g rad/s holds the raster's feed at %.1f mm/s over %.1f %% of its contact "
+             "length, where the passes turn round a %.1f mm radius: trying the uniform planner",
+             settings.max_angular, 1e3 * held["held_feed_m_per_s"], 100 * held["held_share"],
+             1e3 * held["held_radius_m"])
+    uniform = replace(settings, planner="uniform")
+    try:
+        planned = curved_spacing_plan(surface, tool, get_planner("uniform"), uniform, planner_arguments(uniform),
+                                      choose_lead=choose_lead)
+    except InputError as exc:           # raster options the uniform planner does not take: the raster stays
+        log.info("the uniform planner cannot take this job (%s): the raster stays", exc)
+        return toolpath
+    except SwathError as exc:           # e.g. no direction the uniform planner can lay
+        log.info("the uniform planner cannot plan the part (%s): the raster stays", exc)
+        return toolpath
+    turned = held_share(planned, settings.feed, settings.max_angular)["held_share"]
+    if not turned < RELIEF * held["held_share"]:
+        log.info("the uniform planner's passes are held over %.1f %% of their contact length: the raster stays",
+                 100 * turned)
+        return toolpath
+    cov_raster = constant_feed_cov(toolpath, surface, tool, settings)
+    cov_uniform = constant_feed_cov(planned, surface, tool, settings)
+    figures.update(ridge_raster_cov_fraction=cov_raster, ridge_uniform_cov_fraction=cov_uniform)
+    toolpath.metadata.update(figures)
+    log.info("interior CoV at constant feed: raster %.3f, uniform %.3f", cov_raster, cov_uniform)
+    if not cov_uniform < cov_raster:
+        return toolpath
+    planned.metadata.update(figures, ridge_planner="uniform")
+    return planned
