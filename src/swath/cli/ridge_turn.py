@@ -18,9 +18,10 @@ So when the even-removal default plans a raster whose direction it chose itself,
 the first plan's passes alone the share of the contact length where the limit holds the feed
 below :data:`HOLD_FRACTION` of it (:func:`held_share`).  From :data:`HOLD_SHARE` up,
 :func:`uniform_if_evener` plans the part with the uniform planner too and keeps the plan that
-removes more evenly at constant feed in the simulation (the blade: 0.549 against the raster's
-0.729; ``example:hub``, whose rim holds the raster's feed at 22 mm/s over 4.8 % of its passes,
-keeps the raster).  The job's simulation then compares the plan kept with the plain plan.
+removes more evenly at constant feed in the simulation (the blade: 0.512 against the raster's
+0.733; ``example:hub``, whose rim holds the raster's feed at 22 mm/s over 4.8 % of its passes,
+keeps the raster: the uniform planner's passes are held over 6.0 %).  The job's simulation then
+compares the plan kept with the plain plan.
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ log = logging.getLogger(__name__)
 #: The feed counts as held where the angular speed limit allows less than this fraction of it.
 HOLD_FRACTION = 0.5
 
-#: The uniform planner plans the part when the raster's feed is held over at least this share of the
-#: contact length (the blade across its nose: 3.9 %; the plate, the panel, ``bezier_dac_cad`` and
-#: crs_part_5: 0 %).
+#: The uniform planner is tried when the raster's feed is held over at least this share of the
+#: contact length (the blade across its nose: 3.9 %; ``example:hub`` 4.8 %; crs_part_5 0.08 %; the
+#: plate, the panel and ``bezier_dac_cad``: 0 %).
 HOLD_SHARE = 0.02
 
 #: The uniform plan replaces the raster only where its own held share is below this fraction of the
