@@ -39,6 +39,7 @@ def test_the_held_share_is_the_arcs_share_of_the_pass_where_the_limit_holds_the_
     assert held["held_share"] == pytest.approx(arc / (arc + flat), rel=0.02)
     assert held["held_feed_m_per_s"] == pytest.approx(1.0 * r, rel=1e-3)
     assert held["held_radius_m"] == pytest.approx(r, rel=1e-3)
+    assert held["tightest_radius_m"] == pytest.approx(r, rel=1e-3)
     # the extra contact time the limit costs, over the time at the feed: (feed / (ω r) - 1) on the arc
     assert held["extra_dwell"] == pytest.approx(arc * (0.05 / r - 1.0) / (arc + flat), rel=0.02)
 
@@ -103,3 +104,21 @@ def test_on_a_small_blade_the_default_plans_with_the_uniform_planner_which_remov
     assert meta["ridge_uniform_cov_fraction"] < meta["ridge_raster_cov_fraction"]
     turned = ridge_turn.held_share(planned, settings.feed, settings.max_angular)["held_share"]
     assert turned < ridge_turn.RELIEF * meta["ridge_held_fraction"]
+
+
+def test_the_note_says_where_the_feed_is_held_which_plan_is_written_and_what_limit_would_free_it():
+    from swath.cli.settings import settings_from_mapping
+    from swath.report.warncodes import code_for
+
+    settings = settings_from_mapping({"part": "example:blade", "out": "unused"})
+    assert ridge_turn.ridge_warnings({}, settings) == []
+    meta = {"ridge_held_fraction": 0.039, "ridge_held_feed_m_per_s": 0.0118, "ridge_radius_m": 0.0118,
+            "ridge_tightest_radius_m": 0.00597,
+            "ridge_raster_cov_fraction": 0.733, "ridge_uniform_cov_fraction": 0.512, "ridge_planner": "uniform"}
+    (text,) = ridge_turn.ridge_warnings(meta, settings)
+    assert "1 rad/s" in text and "12 mm/s over 3.9 %" in text and "12 mm radius" in text
+    assert "0.512 against 0.733" in text and "uniform planner's passes" in text
+    assert "8.4 rad/s" in text                            # 50 mm/s round the tightest 5.97 mm
+    assert code_for(text) == "W-EVEN-RIDGE"
+    del meta["ridge_planner"]
+    assert "so the raster's stay" in ridge_turn.ridge_warnings(meta, settings)[0]

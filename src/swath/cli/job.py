@@ -366,7 +366,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
     from ..trajectory.timing import describe_lead
-    from . import even_default, process_stage, stages
+    from . import even_default, process_stage, ridge_turn, stages
     from .guard import check_budget
 
     if settings.side == "all":
@@ -398,7 +398,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
 
-    searched, target_cov = None, settings.target_cov
+    searched, target_cov, ridge = None, settings.target_cov, []
     settings_target = target_cov or 0.0
     if target_cov is not None:
         from .target_cov import search_target_cov
@@ -417,7 +417,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         toolpath = make_plan(surface, settings, progress=say, tool=tool, part=part_info.get("part"),
                              choose_lead=plain is not None,       # the default job chose the lead: on a curved part, again
                              timings=searched_spacing, ridge=plain is not None)
-        if toolpath.metadata.get("ridge_planner"):   # the raster's feed was held round a ridge (cli/ridge_turn.py)
+        ridge = ridge_turn.ridge_warnings(toolpath.metadata, settings)   # the raster's feed held round a ridge
+        if toolpath.metadata.get("ridge_planner"):
             settings = replace(settings, planner=toolpath.metadata["ridge_planner"])
         if plain is not None:
             even_default.settle_plan_lead(toolpath, surface, tool)    # ... for the spacing the plan has
@@ -522,7 +523,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
                                                        tool))
     if part_info.get("part") is not None:
         extra_metrics.update(_judge_on_part(part_info["part"], trajectory, tool, settings, force, say))
-    warnings: list[str] = []                     # the job's own warnings (the others come from plan_warnings)
+    warnings: list[str] = list(ridge)              # the job's own warnings (the others come from plan_warnings)
     if even is not None:
         warnings += even.pop("warnings", [])
     if searched is not None:

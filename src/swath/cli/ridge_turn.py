@@ -40,6 +40,10 @@ HOLD_FRACTION = 0.5
 #: plate, the panel and ``bezier_dac_cad``: 0 %).
 HOLD_SHARE = 0.02
 
+#: The tightest radius a plan turns round is read where this share of its held length turns tighter
+#: (a mesh's facets make the very tightest turns noisy).
+TIGHT_SHARE = 0.05
+
 #: The uniform plan replaces the raster only where its own held share is below this fraction of the
 #: raster's (the uniform planner chooses its own direction, and may cross the ridge too).
 RELIEF = 0.5
@@ -90,30 +94,38 @@ def held_share(toolpath, feed: float, omega_max: float | None) -> dict:
         ``held_share`` (the share of the contact length where ``omega_max / ρ`` is below
         :data:`HOLD_FRACTION` times ``feed``, ρ the normal's rotation per metre), ``held_feed_m_per_s``
         (the feed the limit allows there, length-weighted median; NaN when nowhere held) and
-        ``held_radius_m`` (``1 / ρ`` there, the same median).
+        ``held_radius_m`` (``1 / ρ`` there, the same median), ``tightest_radius_m`` (``1 / ρ`` where
+        :data:`TIGHT_SHARE` of the held length turns tighter) and ``extra_dwell`` (the contact time
+        the limit adds, over the contact time at ``feed``).
     """
     nan = float("nan")
     if omega_max is None or not omega_max > 0:
-        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan}
+        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan, "tightest_radius_m": nan,
+                "extra_dwell": 0.0}
     rates, lengths = [], []
     for p in toolpath.passes:
         r, s = rotation_per_metre(p.points, p.normals)
         rates.append(r)
         lengths.append(s)
     if not rates:
-        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan}
+        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan, "tightest_radius_m": nan,
+                "extra_dwell": 0.0}
     rate, length = np.concatenate(rates), np.concatenate(lengths)
     total = float(length.sum())
     cap = omega_max / np.maximum(rate, 1e-12)
     held = cap < HOLD_FRACTION * feed
     if not (total > 0 and held.any()):
-        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan}
+        return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan, "tightest_radius_m": nan,
+                "extra_dwell": 0.0}
     order = np.argsort(cap[held])
     w = length[held][order]
     mid = order[min(int(np.searchsorted(np.cumsum(w), 0.5 * w.sum())), len(order) - 1)]
     extra = float(np.sum(length * np.maximum(feed / cap - 1.0, 0.0)) / total)
+    # (``order`` runs from the tightest turn: the radius that a share TIGHT_SHARE of the held length is tighter than)
+    tight = order[min(int(np.searchsorted(np.cumsum(w), TIGHT_SHARE * w.sum())), len(order) - 1)]
     return {"held_share": float(length[held].sum() / total), "held_feed_m_per_s": float(cap[held][mid]),
-            "held_radius_m": float(1.0 / rate[held][mid]), "extra_dwell": extra}
+            "held_radius_m": float(1.0 / rate[held][mid]), "tightest_radius_m": float(1.0 / rate[held][tight]),
+            "extra_dwell": extra}
 
 
 def constant_feed_cov(toolpath, surface, tool, settings) -> float:
@@ -169,7 +181,7 @@ def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_l
     if held["held_share"] < HOLD_SHARE:
         return toolpath
     figures = {"ridge_held_fraction": held["held_share"], "ridge_held_feed_m_per_s": held["held_feed_m_per_s"],
-               "ridge_radius_m": held["held_radius_m"]}
+               "ridge_radius_m": held["held_radius_m"], "ridge_tightest_radius_m": held["tightest_radius_m"]}
     toolpath.metadata.update(figures)
     log.info("the angular speed limit %.3g rad/s holds the raster's feed at %.1f mm/s over %.1f %% of its contact "
              "length, where the passes turn round a %.1f mm radius: trying the uniform planner",
@@ -199,3 +211,30 @@ def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_l
         return toolpath
     planned.metadata.update(figures, ridge_planner="uniform")
     return planned
+
+
+def ridge_warnings(metadata: dict, settings) -> list[str]:
+    """The job's warning (``[W-EVEN-RIDGE]``) when the angular speed limit held the raster's feed
+    round a ridge (``metadata``: a plan's, with :func:`uniform_if_evener`'s figures), else ``[]``:
+    where, how slow, which plan is written, and the angular speed that would let the raster cross
+    the ridge at the full feed."""
+    share = metadata.get("ridge_held_fraction")
+    if share is None:
+        return []
+    radius, held = float(metadata["ridge_radius_m"]), float(metadata["ridge_held_feed_m_per_s"])
+    where = (f"even removal: the angular speed limit {settings.max_angular:g} rad/s holds the raster's feed at "
+             f"{1e3 * held:.0f} mm/s over {100 * share:.1f} % of its contact length, where its passes turn round a "
+             f"{1e3 * radius:.0f} mm radius, and the pad dwells there; ")
+    if metadata.get("ridge_planner") == "uniform":
+        what = (f"the uniform planner's passes, which do not turn round it, are planned instead (interior CoV "
+                f"{metadata['ridge_uniform_cov_fraction']:.3f} against {metadata['ridge_raster_cov_fraction']:.3f} "
+                "at constant feed)")
+    elif "ridge_uniform_cov_fraction" in metadata:
+        what = (f"the uniform planner's passes removed less evenly ({metadata['ridge_uniform_cov_fraction']:.3f} "
+                f"against {metadata['ridge_raster_cov_fraction']:.3f} at constant feed), so the raster's stay")
+    else:
+        what = "the uniform planner's passes turn round it too, so the raster's stay"
+    tightest = float(metadata.get("ridge_tightest_radius_m", radius))
+    advice = (f"; a robot that turns the tool at {settings.feed / tightest:.1f} rad/s there (--max-angular) lets the "
+              "raster cross it at the full feed [W-EVEN-RIDGE]")
+    return [where + what + advice]

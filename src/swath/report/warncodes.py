@@ -175,6 +175,12 @@ CODES: dict[str, WarningCode] = dict([
           "trajectory (re-timed by the robot stage, or run under force control) removes less evenly.",
           "Ask for a somewhat lower CoV so that the search keeps a margin, or relax the joint limits that re-time the "
           "path.", "feed"),
+    entry("W-EVEN-RIDGE", r"even removal: the angular speed limit .* holds the raster's feed",
+          "The default job's raster passes turn round a sharp ridge (a blade's leading edge), where the tool's "
+          "angular speed limit holds the feed far below the job's, and the pad dwells there and removes more. The "
+          "job tried the uniform planner, whose passes run along the ridge, and says which plan it writes.",
+          "Raise `--max-angular` to the figure given if the robot can turn the tool that fast, or accept the "
+          "ridge's band (docs: Sharp ridges).", "feed"),
     entry("W-EVEN-PLAIN-KEPT", r"even removal: the plain plan .* removes more evenly",
           "The default job compared its even-removal plan (least-ripple spacing, lead, optimised feed) with the "
           "plain plan (covering spacing, flat pad, constant feed) in the removal simulation, and the plain one "
