@@ -392,6 +392,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     surface, part_info = load_part_info(settings, progress=say)
     log.info("part %s", surface)
     check_budget(surface, settings)
+    from ..contact.tessellation import warn_if_coarse
+
+    tessellation = warn_if_coarse(surface, tool)      # before planning: facets that kink more than the pad sinks
     if settings.robot and settings.place:
         stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
@@ -559,6 +562,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics["warnings"] = [tagged(w) for w in metrics["warnings"]]        # "... [W-CODE]", docs: Warnings
     for w in metrics["warnings"]:
         log.warning("%s", w)
+    # logged before planning, listed with the job's warnings
+    metrics["warnings"] += [tagged(w) for w in tessellation.warnings(surface.name)]
+    metrics.update(tessellation.metrics())
     record = settings.as_record()
     record.update(motion=tool.motion, spindle_speed_rad_per_s=tool.spindle_speed, orbit_radius_m=tool.orbit_radius,
                   preston_coefficient_per_Pa=tool.preston, wear_rate_per_s=tool.wear_rate)
