@@ -364,7 +364,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
     from ..trajectory.timing import describe_lead
-    from . import even_default, process_stage, stages
+    from . import even_default, even_spacing, process_stage, stages
     from .guard import check_budget
 
     if settings.side == "all":
@@ -420,6 +420,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
                              timings=searched_spacing)
         if plain is not None:
             even_default.settle_plan_lead(toolpath, surface, tool)    # ... for the spacing the plan has
+            toolpath = even_spacing.evener_passes(toolpath, surface, tool, settings, part=part_info.get("part"),
+                                                  progress=say)       # equidistant where the planes spread
         lead = toolpath.metadata.get("ripple_lead_rad")
         if plain is not None and lead is not None and lead != settings.lead():
             settings = replace(settings, lead_angle=lead)
