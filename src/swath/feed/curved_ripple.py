@@ -204,18 +204,20 @@ def pass_curvatures(toolpath, surface) -> tuple[float, float]:
 
 
 def pass_twist(toolpath, surface) -> float:
-    """Representative twist (1/m) of ``toolpath``'s passes on ``surface``: the median over its pass
-    points (weighted by length) of ``|(k2 − k1) cos φ sin φ|``, the off-diagonal term of the
-    surface's second fundamental form in the frame of the travel ``t`` (at ``φ`` from the first
-    principal direction) and the direction across it.
+    """Representative twist (1/m) of ``toolpath``'s passes on ``surface``: the magnitude of the
+    median over its pass points (weighted by length) of ``(k2 − k1) cos φ sin φ``, the off-diagonal
+    term of the surface's second fundamental form in the frame of the travel ``t`` (at ``φ`` from
+    the first principal direction) and the direction across it.
 
     Zero where the passes follow a principal direction.  Passes at 45° across a cylinder-like
     part (``bezier_dac_cad``: k1 = 4.2, k2 = 0.4 1/m) see a twist of 1.9 1/m, and their
     cross-profile is not the one of the quadric without it: the least-ripple spacing of the flat
     pad moves from 48.5 mm to 51.6 mm (no length budget).  The ripple does not depend on the twist's sign (a mirror image
-    across the pass), hence the magnitude."""
+    across the pass), hence the magnitude; where it changes sign over the part (the hub: median
+    −0.5 1/m, median magnitude 2.4 1/m) no one quadric stands for the passes, and the signed median
+    keeps the representative twist small there, as the medians of ``κ_f`` and ``κ_c`` do."""
     k = _pass_normal_curvatures(toolpath, surface)
-    return _weighted_median(np.abs(k[2]), k[3])
+    return abs(_weighted_median(k[2], k[3]))
 
 
 def curved_ripple_choice(toolpath, surface, tool: Tool, *, leads=(0.0,), max_length_ratio: float = 1.5
