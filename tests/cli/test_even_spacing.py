@@ -47,3 +47,12 @@ def test_only_the_raster_at_the_curved_spacing_is_compared():
     _, even = _axial_passes(np.arange(-3, 4) * 0.05 / RHO)
     assert evener_passes(even, even.surface, TOOL, settings=None) is even      # under the ratio: not planned
     assert even.metadata["spacing_spread_ratio"] < SPREAD_RATIO
+
+
+def test_the_leads_simulated_are_the_half_pad_lead_and_the_steeper_ones():
+    from swath.cli.even_spacing import lead_choices
+
+    leads = lead_choices(TOOL)
+    assert leads == sorted(leads) and 0.0 not in leads
+    assert leads[0] == pytest.approx(TOOL.half_pad_lead) and TOOL.half_pad_lead == pytest.approx(math.radians(7.0), abs=0.01)
+    assert leads[1:] == pytest.approx([math.radians(11.0), math.radians(15.0)])

@@ -120,12 +120,43 @@ def evener_passes(toolpath, surface, tool, settings, *, part=None, progress=None
     log.info("raster %.3f, equidistant %.3f interior CoV at constant feed (spacing %.1f mm, lead %.1f deg): %s kept",
              cov_raster, cov_other, spacing * 1e3, math.degrees(lead), "equidistant" if keep else "raster")
     meta.update(figures, equidistant_kept=keep)
-    if not keep:
-        return toolpath
-    # the least-ripple choice is the same; the passes are the equidistant planner's
-    for key in ("ripple_model", "ripple_lead_rad", "ripple_spacing_m", "ripple_length_ratio",
-                "lead_ripple_spacing_m", "lead_ripple_cov"):
-        if key in meta and key not in other.metadata:
-            other.metadata[key] = meta[key]
-    other.metadata.update(figures, equidistant_kept=True)
-    return other
+    kept, removal = (other, other_removal) if keep else (toolpath, raster_removal)
+    if keep:
+        # the least-ripple choice is the same; the passes are the equidistant planner's
+        for key in ("ripple_model", "ripple_lead_rad", "ripple_spacing_m", "ripple_length_ratio",
+                    "lead_ripple_spacing_m", "lead_ripple_cov"):
+            if key in meta and key not in other.metadata:
+                other.metadata[key] = meta[key]
+        other.metadata.update(figures, equidistant_kept=True)
+    _simulated_lead(kept, surface, tool, settings, lead, float(removal.metrics["interior_removal_cov"]), say)
+    return kept
+
+
+def _simulated_lead(toolpath, surface, tool, settings, lead: float, cov: float, say) -> None:
+    """Simulate ``toolpath``'s passes at constant feed at each lead of :func:`lead_choices` besides
+    ``lead`` (rad; its interior CoV ``cov`` known) and set ``metadata["ripple_lead_rad"]`` to the
+    evenest; ``metadata["lead_simulated_interior_removal_cov"]`` holds every lead's figure as
+    ``[lead in degrees, interior CoV]`` pairs."""
+    tried = {round(math.degrees(lead), 1): cov}
+    best = (cov, lead)
+    for other in lead_choices(tool):
+        if abs(other - lead) < 1e-9:
+            continue
+        say(f"simulating the passes at a {math.degrees(other):.1f} deg lead", 0, 1)
+        _, removal = _constant_run(toolpath, surface, tool, replace(settings, lead_angle=other))
+        c = float(removal.metrics["interior_removal_cov"])
+        tried[round(math.degrees(other), 1)] = c
+        if np.isfinite(c) and c < best[0]:
+            best = (c, other)
+    log.info("interior CoV at constant feed by lead (deg): %s; lead %.1f deg kept", tried, math.degrees(best[1]))
+    toolpath.metadata.update(ripple_lead_rad=float(best[1]),
+                             lead_simulated_interior_removal_cov=[[a, c] for a, c in sorted(tried.items())])
+
+
+def lead_choices(tool) -> list[float]:
+    """The leads (rad) :func:`evener_passes` simulates the passes it keeps at: the half-pad lead and
+    :data:`swath.cli.curved_spacing.LEAD_CHOICES_DEG` but the flat pad (a raster that spreads is on
+    a part curved enough for the model to have led it)."""
+    from .curved_spacing import LEAD_CHOICES_DEG
+
+    return sorted({float(tool.half_pad_lead), *(math.radians(a) for a in LEAD_CHOICES_DEG if a > 0)})
