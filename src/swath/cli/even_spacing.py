@@ -12,15 +12,18 @@ chosen for.
 the root mean square of the cross-profile ripple over the plan's local spacings against the ripple
 at its spacing (:func:`spread_ratio`).  From :data:`SPREAD_RATIO` up it plans the equidistant passes
 at the raster's spacing and lead, times and simulates both at constant feed, and keeps the one that
-removes more evenly on the interior.  Measured (default job, ``swath plan PART``):
+removes more evenly on the interior.  The passes kept are then simulated at the other leads of
+:func:`lead_choices` and the evenest lead is kept: the lead was chosen on one representative
+quadric, and a part whose planes spread is one whose curvature changes.  Measured (default job,
+``swath plan PART``, interior CoV at constant feed):
 
 =================  ============  ==============================================================
 part               spread ratio  outcome
 =================  ============  ==============================================================
-crs_part_5         1.24          equidistant kept: interior CoV 0.193 -> 0.150 at 1.51 L*
-bezier_dac_cad     1.15          raster kept: 0.066 against 0.380 at constant feed
+crs_part_5         1.25          equidistant kept (raster 0.193, equidistant 0.150 at 11°), then
+                                 15° (7°: 0.209, 15°: 0.127) at 1.51 L*
+bezier_dac_cad     1.15          raster kept (0.066 against 0.380), flat pad kept
 example:panel      1.00          the raster's planes (not tried)
-example:blade      1.00          the raster's planes (not tried)
 =================  ============  ==============================================================
 """
 
