@@ -144,15 +144,16 @@ def curved_choice(toolpath, surface, tool, leads, budget: float):
     -------
     tuple (float, CurvedSpacing) or None
     """
-    from ..feed.curved_ripple import curved_ripple_spacing, pass_curvatures
+    from ..feed.curved_ripple import curved_ripple_spacing, pass_curvatures, pass_twist
 
     k_feed, k_cross = pass_curvatures(toolpath, surface)
+    k_twist = pass_twist(toolpath, surface)           # passes oblique to the principal directions
     sagitta = 0.5 * tool.pad_radius ** 2 * max(abs(k_feed), abs(k_cross))
     if not sagitta > FLAT_SAGITTA:
         log.info("curvature %.3g, %.3g 1/m: flat over the pad, the plane's spacing stays", k_feed, k_cross)
         return None
-    options = [(curved_ripple_spacing(tool, k_feed, k_cross, lead_angle=a, max_length_ratio=budget), a)
-               for a in leads]
+    options = [(curved_ripple_spacing(tool, k_feed, k_cross, lead_angle=a, max_length_ratio=budget,
+                                      k_twist=k_twist), a) for a in leads]
     choice, lead = min(options, key=lambda o: o[0].robust_cov)
     log.info("curvature %.3g 1/m along, %.3g across the passes: lead %.1f deg, spacing %.1f mm (%.3f of the "
              "%.1f mm swath), cross-profile ripple %.3f (%.3f within 5 %%)", k_feed, k_cross, math.degrees(lead),

@@ -121,18 +121,25 @@ def settle_lead(toolpath, surface, tool, leads) -> tuple[float, dict, dict] | No
         The lead; ``lead_ripple_spacing_m`` (the median local spacing) with ``lead_ripple_cov``
         (the chosen lead's predicted ripple); and every lead's predicted ripple, by lead (rad).
     """
-    from ..feed.curved_ripple import CELLS_PER_RADIUS, lattice_ripple, pass_curvatures, quadric_cross_profile
+    from ..feed.curved_ripple import (
+        CELLS_PER_RADIUS,
+        lattice_ripple,
+        pass_curvatures,
+        pass_twist,
+        quadric_cross_profile,
+    )
 
     spacings = local_spacings(toolpath)
     if len(spacings) == 0:
         return None
     d = np.quantile(spacings, SPACING_QUANTILES)
     k_feed, k_cross = pass_curvatures(toolpath, surface)
+    k_twist = pass_twist(toolpath, surface)
     R = tool.pad_radius
     u = (np.arange(-2 * CELLS_PER_RADIUS, 2 * CELLS_PER_RADIUS) + 0.5) * (R / CELLS_PER_RADIUS)
     scored = []
     for lead in leads:
-        profile = quadric_cross_profile(tool, u, k_feed, k_cross, lead_angle=float(lead))
+        profile = quadric_cross_profile(tool, u, k_feed, k_cross, lead_angle=float(lead), k_twist=k_twist)
         ripple = float(np.sqrt(np.mean([lattice_ripple(u, profile, float(x)) ** 2 for x in d])))
         scored.append((ripple, float(lead)))
         log.info("lead %.1f deg at the plan's spacing %.1f mm (%.1f..%.1f): ripple %.3f", math.degrees(lead),

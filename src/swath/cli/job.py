@@ -366,7 +366,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.compliance import softer_pad_study, worth_a_study
     from ..trajectory import time_path
     from ..trajectory.timing import describe_lead
-    from . import even_default, process_stage, ridge_turn, stages
+    from . import even_default, even_spacing, process_stage, ridge_turn, stages
     from .guard import check_budget
 
     if settings.side == "all":
@@ -394,6 +394,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     surface, part_info = load_part_info(settings, progress=say)
     log.info("part %s", surface)
     check_budget(surface, settings)
+    from ..contact.tessellation import warn_if_coarse
+
+    tessellation = warn_if_coarse(surface, tool)      # before planning: facets that kink more than the pad sinks
     if settings.robot and settings.place:
         stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
@@ -422,6 +425,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
             settings = replace(settings, planner=toolpath.metadata["ridge_planner"])
         if plain is not None:
             even_default.settle_plan_lead(toolpath, surface, tool)    # ... for the spacing the plan has
+            toolpath = even_spacing.evener_passes(toolpath, surface, tool, settings, part=part_info.get("part"),
+                                                  progress=say)       # equidistant where the planes spread
         lead = toolpath.metadata.get("ripple_lead_rad")
         if plain is not None and lead is not None and lead != settings.lead():
             settings = replace(settings, lead_angle=lead)
@@ -564,6 +569,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     metrics["warnings"] = [tagged(w) for w in metrics["warnings"]]        # "... [W-CODE]", docs: Warnings
     for w in metrics["warnings"]:
         log.warning("%s", w)
+    # logged before planning, listed with the job's warnings
+    metrics["warnings"] += [tagged(w) for w in tessellation.warnings(surface.name)]
+    metrics.update(tessellation.metrics())
     record = settings.as_record()
     record.update(motion=tool.motion, spindle_speed_rad_per_s=tool.spindle_speed, orbit_radius_m=tool.orbit_radius,
                   preston_coefficient_per_Pa=tool.preston, wear_rate_per_s=tool.wear_rate)

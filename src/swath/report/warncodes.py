@@ -71,6 +71,13 @@ CODES: dict[str, WarningCode] = dict([
           "Small pieces of the mesh cannot be wound consistently (like a Möbius strip) and were dropped.",
           "Repair the mesh (e.g. MeshLab *Re-orient all faces coherently*) if those pieces are to be finished.",
           "input"),
+    entry("W-MESH-COARSE", r"the mesh's facets kink by",
+          "The mesh is a coarse tessellation for this pad: neighbouring flat facets kink so much that, over the "
+          "pad, they stand off a smooth surface by a fair share of the pad's depression. The contact model "
+          "presses the facets as given, so the pressure collects on their edges and the removal streaks along "
+          "them whatever the passes, spacing or feed.",
+          "Export the CAD finer, with the chord tolerance and angle in the message or less, or give the STEP "
+          "file (`--chordal-tol` sets swath's own tessellation).", "input"),
     entry("W-MESH-PIECES", r"pieces: kept the largest|closed solid facing .* form .* pieces",
           "The mesh has several separate pieces; only the largest is planned.",
           "Pass `--all-pieces` to plan every piece, or split the file.", "input"),

@@ -1,0 +1,165 @@
+"""The default job's least-ripple passes: the raster's planes, or geodesic-parallel passes where their spacing spreads.
+
+A raster cuts the part with parallel planes.  On a part whose slope changes across the passes the
+planes' distance on the surface changes too: on crs_part_5 the passes of the default job lie 46 to
+55 mm apart (10th to 90th percentile of each point's distance to the nearest other pass) for a
+spacing of 50.4 mm, and the 11° lead chosen for that spacing ripples from 4.8 % to 15 % over that
+range on the part's quadric.  The equidistant planner (:func:`swath.plan.equidistant`) keeps every
+pass the same distance along the surface from the next, so the ripple is the one the spacing was
+chosen for.
+
+:func:`evener_passes` estimates on the passes' representative quadric how much the spread costs:
+the root mean square of the cross-profile ripple over the plan's local spacings against the ripple
+at its spacing (:func:`spread_ratio`).  From :data:`SPREAD_RATIO` up it plans the equidistant passes
+at the raster's spacing and lead, times and simulates both at constant feed, and keeps the one that
+removes more evenly on the interior.  The passes kept are then simulated at the other leads of
+:func:`lead_choices` and the evenest lead is kept: the lead was chosen on one representative
+quadric, and a part whose planes spread is one whose curvature changes.  Measured (default job,
+``swath plan PART``, interior CoV at constant feed):
+
+=================  ============  ==============================================================
+part               spread ratio  outcome
+=================  ============  ==============================================================
+crs_part_5         1.25          equidistant kept (raster 0.193, equidistant 0.150 at 11°), then
+                                 15° (7°: 0.209, 15°: 0.127) at 1.51 L*
+bezier_dac_cad     1.15          raster kept (0.066 against 0.380), flat pad kept
+example:panel      1.00          the raster's planes (not tried)
+=================  ============  ==============================================================
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: From this ratio of the ripple over the plan's local spacings to the ripple at its spacing
+#: (:func:`spread_ratio`), the equidistant passes are planned and simulated against the raster's.
+SPREAD_RATIO = 1.1
+
+
+def spread_ratio(toolpath, surface, tool) -> tuple[float, float]:
+    """``(ratio, ripple)``: the root mean square of the cross-profile ripple on ``toolpath``'s
+    representative quadric (with its twist, at its lead ``metadata["ripple_lead_rad"]``) over the
+    quantiles :data:`swath.cli.even_default.SPACING_QUANTILES` of its local spacings, over the
+    ripple at its spacing ``metadata["spacing_m"]``; ``(1, nan)`` without two passes or a spacing."""
+    from ..feed.curved_ripple import (
+        CELLS_PER_RADIUS,
+        lattice_ripple,
+        pass_curvatures,
+        pass_twist,
+        quadric_cross_profile,
+    )
+    from .even_default import SPACING_QUANTILES, local_spacings
+
+    d = toolpath.metadata.get("spacing_m")
+    spacings = local_spacings(toolpath)
+    if not d or len(spacings) == 0:
+        return 1.0, float("nan")
+    k_feed, k_cross = pass_curvatures(toolpath, surface)
+    k_twist = pass_twist(toolpath, surface)
+    R = tool.pad_radius
+    u = (np.arange(-2 * CELLS_PER_RADIUS, 2 * CELLS_PER_RADIUS) + 0.5) * (R / CELLS_PER_RADIUS)
+    lead = float(toolpath.metadata.get("ripple_lead_rad", tool.half_pad_lead))
+    profile = quadric_cross_profile(tool, u, k_feed, k_cross, lead_angle=lead, k_twist=k_twist)
+    at = lattice_ripple(u, profile, float(d))
+    spread = float(np.sqrt(np.mean([lattice_ripple(u, profile, float(x)) ** 2
+                                    for x in np.quantile(spacings, SPACING_QUANTILES)])))
+    return (spread / at if at > 0 else 1.0), at
+
+
+def _constant_run(toolpath, surface, tool, settings):
+    from ..simulate import simulate_removal
+    from ..trajectory import time_path
+
+    trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+    removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
+                               sampling=settings.removal_sampling)
+    return trajectory, removal
+
+
+def evener_passes(toolpath, surface, tool, settings, *, part=None, progress=None):
+    """The default job's raster ``toolpath``, or equidistant passes at its spacing and lead where
+    they remove more evenly (module notes); returns the tool path to go on with.
+
+    Only a raster planned at the least-ripple spacing on the part's curvature
+    (``metadata["ripple_model"] == "curved"``) whose :func:`spread_ratio` is at least
+    :data:`SPREAD_RATIO` is compared.  The figures go into the returned path's ``metadata``:
+    ``spacing_spread_ratio``, and when compared ``raster_interior_removal_cov``,
+    ``equidistant_interior_removal_cov`` (constant feed, the job's lead) and ``equidistant_kept``.
+    """
+    from .job import make_plan
+
+    meta = toolpath.metadata
+    if toolpath.planner != "raster" or meta.get("ripple_model") != "curved":
+        return toolpath
+    ratio, ripple = spread_ratio(toolpath, surface, tool)
+    meta["spacing_spread_ratio"] = float(ratio)
+    if not ratio >= SPREAD_RATIO:
+        return toolpath
+    say = progress or (lambda stage, done, total: None)
+    lead = float(meta.get("ripple_lead_rad", tool.half_pad_lead))
+    spacing = float(meta["spacing_m"])
+    say(f"the raster's passes spread ({ratio:.2f}x the ripple at {spacing * 1e3:.1f} mm): trying equidistant passes", 0, 1)
+    other_settings = replace(settings, planner="equidistant", spacing=spacing, optimise_spacing=None, overlap=None,
+                             lead_angle=lead, planner_options={})
+    try:
+        other = make_plan(surface, other_settings, tool=tool, part=part)
+    except Exception as exc:        # noqa: BLE001 - the raster stays whatever the other planner meets
+        log.info("equidistant passes could not be planned (%s); the raster's stay", exc)
+        return toolpath
+    run_settings = replace(settings, lead_angle=lead)
+    _, raster_removal = _constant_run(toolpath, surface, tool, run_settings)
+    _, other_removal = _constant_run(other, surface, tool, run_settings)
+    cov_raster = float(raster_removal.metrics["interior_removal_cov"])
+    cov_other = float(other_removal.metrics["interior_removal_cov"])
+    figures = {"spacing_spread_ratio": float(ratio), "raster_interior_removal_cov": cov_raster,
+               "equidistant_interior_removal_cov": cov_other}
+    keep = bool(np.isfinite(cov_other) and cov_other < cov_raster)
+    log.info("raster %.3f, equidistant %.3f interior CoV at constant feed (spacing %.1f mm, lead %.1f deg): %s kept",
+             cov_raster, cov_other, spacing * 1e3, math.degrees(lead), "equidistant" if keep else "raster")
+    meta.update(figures, equidistant_kept=keep)
+    kept, removal = (other, other_removal) if keep else (toolpath, raster_removal)
+    if keep:
+        # the least-ripple choice is the same; the passes are the equidistant planner's
+        for key in ("ripple_model", "ripple_lead_rad", "ripple_spacing_m", "ripple_length_ratio",
+                    "lead_ripple_spacing_m", "lead_ripple_cov"):
+            if key in meta and key not in other.metadata:
+                other.metadata[key] = meta[key]
+        other.metadata.update(figures, equidistant_kept=True)
+    _simulated_lead(kept, surface, tool, settings, lead, float(removal.metrics["interior_removal_cov"]), say)
+    return kept
+
+
+def _simulated_lead(toolpath, surface, tool, settings, lead: float, cov: float, say) -> None:
+    """Simulate ``toolpath``'s passes at constant feed at each lead of :func:`lead_choices` besides
+    ``lead`` (rad; its interior CoV ``cov`` known) and set ``metadata["ripple_lead_rad"]`` to the
+    evenest; ``metadata["lead_simulated_interior_removal_cov"]`` holds every lead's figure as
+    ``[lead in degrees, interior CoV]`` pairs."""
+    tried = {round(math.degrees(lead), 1): cov}
+    best = (cov, lead)
+    for other in lead_choices(tool):
+        if abs(other - lead) < 1e-9:
+            continue
+        say(f"simulating the passes at a {math.degrees(other):.1f} deg lead", 0, 1)
+        _, removal = _constant_run(toolpath, surface, tool, replace(settings, lead_angle=other))
+        c = float(removal.metrics["interior_removal_cov"])
+        tried[round(math.degrees(other), 1)] = c
+        if np.isfinite(c) and c < best[0]:
+            best = (c, other)
+    log.info("interior CoV at constant feed by lead (deg): %s; lead %.1f deg kept", tried, math.degrees(best[1]))
+    toolpath.metadata.update(ripple_lead_rad=float(best[1]),
+                             lead_simulated_interior_removal_cov=[[a, c] for a, c in sorted(tried.items())])
+
+
+def lead_choices(tool) -> list[float]:
+    """The leads (rad) :func:`evener_passes` simulates the passes it keeps at: the half-pad lead and
+    :data:`swath.cli.curved_spacing.LEAD_CHOICES_DEG` but the flat pad (a raster that spreads is on
+    a part curved enough for the model to have led it)."""
+    from .curved_spacing import LEAD_CHOICES_DEG
+
+    return sorted({float(tool.half_pad_lead), *(math.radians(a) for a in LEAD_CHOICES_DEG if a > 0)})

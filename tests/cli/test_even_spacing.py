@@ -1,0 +1,58 @@
+"""The default job's raster passes against geodesic-parallel ones where the raster's spacing spreads."""
+
+import math
+
+import numpy as np
+import pytest
+
+from shapes import cylinder_patch
+from swath.cli.even_spacing import SPREAD_RATIO, evener_passes, spread_ratio
+from swath.contact import Tool
+from swath.core import Pass, ToolPath
+
+TOOL = Tool()
+RHO = 0.3
+LEAD = math.radians(11.0)
+
+
+def _axial_passes(angles, *, planner="raster", spacing=0.05, lead=LEAD):
+    """Passes along the axis of a 0.3 m cylinder at the given angles round it (rad)."""
+    cyl = cylinder_patch(RHO, 0.6, 0.4, n_theta=240, n_len=81)
+    y = np.linspace(-0.15, 0.15, 151)
+    passes = [Pass(np.stack([RHO * np.sin(a) + 0 * y, y, RHO * np.cos(a) + 0 * y], axis=1),
+                   np.tile([np.sin(a), 0.0, np.cos(a)], (len(y), 1))) for a in angles]
+    meta = {"spacing_m": spacing, "ripple_lead_rad": lead, "ripple_model": "curved"}
+    return cyl, ToolPath(cyl, tuple(passes), planner=planner, metadata=meta)
+
+
+def test_equal_passes_do_not_spread_and_uneven_ones_do():
+    d = 0.05
+    _, even = _axial_passes(np.arange(-3, 4) * d / RHO, spacing=d)
+    ratio, ripple = spread_ratio(even, even.surface, TOOL)
+    assert ratio == pytest.approx(1.0, abs=0.01)           # chords 0.1 % short of the arcs
+    assert 0 < ripple < 0.2
+    # passes 65 mm apart at one side narrowing to 40 mm at the other
+    steps = np.array([0.0, 0.065, 0.125, 0.18, 0.23, 0.275, 0.315])
+    _, spread = _axial_passes((steps - steps.mean()) / RHO, spacing=d)
+    ratio_spread, ripple_spread = spread_ratio(spread, spread.surface, TOOL)
+    assert ripple_spread == pytest.approx(ripple, rel=1e-9)      # the same quadric and spacing asked
+    assert ratio_spread > SPREAD_RATIO
+
+
+def test_only_the_raster_at_the_curved_spacing_is_compared():
+    steps = np.array([0.0, 0.04, 0.10, 0.14, 0.20, 0.24, 0.30])
+    _, other = _axial_passes((steps - 0.15) / RHO, planner="uniform")
+    assert evener_passes(other, other.surface, TOOL, settings=None) is other
+    assert "spacing_spread_ratio" not in other.metadata
+    _, even = _axial_passes(np.arange(-3, 4) * 0.05 / RHO)
+    assert evener_passes(even, even.surface, TOOL, settings=None) is even      # under the ratio: not planned
+    assert even.metadata["spacing_spread_ratio"] < SPREAD_RATIO
+
+
+def test_the_leads_simulated_are_the_half_pad_lead_and_the_steeper_ones():
+    from swath.cli.even_spacing import lead_choices
+
+    leads = lead_choices(TOOL)
+    assert leads == sorted(leads) and 0.0 not in leads
+    assert leads[0] == pytest.approx(TOOL.half_pad_lead) and TOOL.half_pad_lead == pytest.approx(math.radians(7.0), abs=0.01)
+    assert leads[1:] == pytest.approx([math.radians(11.0), math.radians(15.0)])
