@@ -10,7 +10,8 @@ that process:
 
 * the default job, ``swath plan PART --units U`` (raster planner, nothing else given), runs through
   the CLI's own ``main``; its ``metrics.json`` gives the stage times ``load_s``, ``spacing_s`` (the
-  default job's spacing search: the plans at the spacings tried, the curvature read from them),
+  default job's spacing search: the plans at the spacings tried, the curvature read from them, and where
+  the planes spread the equidistant passes and the leads simulated),
   ``plan_s`` (the plan kept and its order), ``trajectory_s``, ``simulate_s`` (and ``feed_s`` /
   ``pad_study_s`` when the job ran them),
   here read on the process's CPU clock (the job's stage clocks are pointed at ``time.process_time``:
@@ -178,7 +179,7 @@ def markdown(rows: list[dict], uniform: list[dict], info: dict) -> str:
         "`swath plan PART` with nothing else given (raster planner), each part in a fresh process. Stage times "
         "are CPU seconds of the job's own stage clocks (`metrics.json`, the clocks read on the CPU clock); "
         "*spacing* the default job's spacing search (`spacing_s`: the plans at the spacings it tried and the "
-        "curvature read from them), *plan* the plan the job keeps and its order (`plan_s`); *other "
+        "curvature read from them; where the planes spread, the equidistant passes and the leads simulated), *plan* the plan the job keeps and its order (`plan_s`); *other "
         "stages* the softer-pad study and the feed optimisation when the job ran them; *report* the rest of the "
         "job's CPU time (report, pictures, files); *job wall* the job's wall time; *peak* the process's peak "
         "resident memory.",

@@ -424,9 +424,11 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         if toolpath.metadata.get("ridge_planner"):
             settings = replace(settings, planner=toolpath.metadata["ridge_planner"])
         if plain is not None:
+            t1 = time.perf_counter()                                  # part of the even default's search
             even_default.settle_plan_lead(toolpath, surface, tool)    # ... for the spacing the plan has
             toolpath = even_spacing.evener_passes(toolpath, surface, tool, settings, part=part_info.get("part"),
                                                   progress=say)       # equidistant where the planes spread
+            searched_spacing["spacing_s"] = searched_spacing.get("spacing_s", 0.0) + time.perf_counter() - t1
         lead = toolpath.metadata.get("ripple_lead_rad")
         if plain is not None and lead is not None and lead != settings.lead():
             settings = replace(settings, lead_angle=lead)
