@@ -112,8 +112,11 @@ class CoverageCheck:
         """``(radius, least (p,))`` per radius of :func:`pad_neighbours`: the least half chord (m) of
         the pad-scale samples within that radius of each pad-scale sample; made once per check."""
         if self._least is None:
-            self._least = [(radius, np.minimum.reduceat(self.pad_half_chord[indices], indptr[:-1]))
-                           for radius, indptr, indices in self._neighbours()]
+            self._least = []
+            for radius, i, j in self._neighbours():
+                least = self.pad_half_chord.copy()                  # each sample is its own neighbour
+                np.minimum.at(least, i, self.pad_half_chord[j])
+                self._least.append((radius, least))
         return self._least
 
     def _drop(self, grid, top: float, n_pass_points: int, xyz, faces) -> np.ndarray:
@@ -284,25 +287,18 @@ def _coverage_base(surface, pad_tree, step) -> _CoverageBase:
 
 
 def pad_neighbours(tree, radii) -> list[tuple[float, np.ndarray, np.ndarray]]:
-    """For each radius (m), the points of ``tree`` within it of each point (itself included), as
-    ``(radius, indptr (n + 1,), indices)`` (compressed rows, radii increasing).
+    """For each radius (m), the pairs of points of ``tree`` within it of each other, as
+    ``(radius, i (e,), j (e,))`` (radii increasing; both orders and each point with itself).
 
-    The pairs are those of ``tree.query_ball_point(tree.data, radius)`` (the same distance test),
-    found by one ``sparse_distance_matrix`` per radius: its pairs come as arrays, where the ball
-    queries build a Python list per point (5-15x the time on the shared meshes).  Within a row
-    the neighbours are in increasing order.
+    The pairs are those of ``tree.query_ball_point(tree.data, radius)`` (the same distance test:
+    ``j`` is in the ball of ``i``), found by one ``sparse_distance_matrix`` per radius: its pairs
+    come as arrays, where the ball queries build a Python list per point (5-15x the time on the
+    shared meshes).
     """
     out = []
-    n = len(tree.data)
     for radius in sorted(float(r) for r in radii):
         pairs = tree.sparse_distance_matrix(tree, radius, output_type="ndarray")
-        i, j = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
-        missing = np.setdiff1d(np.arange(n), i[i == j])      # each point is its own neighbour
-        if len(missing):
-            i, j = np.concatenate([i, missing]), np.concatenate([j, missing])
-        order = np.lexsort((j, i))
-        indptr = np.concatenate([[0], np.cumsum(np.bincount(i, minlength=n))]).astype(np.int64)
-        out.append((radius, indptr, j[order]))
+        out.append((radius, pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)))
     return out
 
 
