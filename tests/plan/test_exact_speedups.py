@@ -443,3 +443,20 @@ def test_pad_neighbours_are_the_ball_queries(rng):
         expected = {(k, m) for k, ball in enumerate(balls) for m in ball}
         assert len(i) == len(j) == len(expected) == len(set(zip(i.tolist(), j.tolist())))
         assert set(zip(i.tolist(), j.tolist())) == expected
+
+
+def test_a_pass_length_worked_out_once_is_its_polyline_length(rng):
+    """``Pass.length`` is remembered (the candidate directions and the order stage ask for it again
+    and again); it is the polyline's length, for the pass, its reversal and a changed copy."""
+    import math
+
+    from swath.core import Pass
+
+    pts = np.cumsum(rng.normal(size=(50, 3)), axis=0) * 1e-3
+    p = Pass(pts, np.tile([0.0, 0.0, 1.0], (50, 1)))
+    expected = sum(math.dist(a, b) for a, b in zip(pts[:-1], pts[1:]))
+    assert p.length == pytest.approx(expected, rel=1e-12)
+    assert p.length == p.length == float(np.linalg.norm(np.diff(p.points, axis=0), axis=1).sum())
+    assert p.reversed().length == pytest.approx(expected, rel=1e-12)
+    shorter = p.replace(points=pts[:2], normals=p.normals[:2])
+    assert shorter.length == pytest.approx(math.dist(pts[0], pts[1]), rel=1e-12)
