@@ -460,3 +460,14 @@ def test_a_pass_length_worked_out_once_is_its_polyline_length(rng):
     assert p.reversed().length == pytest.approx(expected, rel=1e-12)
     shorter = p.replace(points=pts[:2], normals=p.normals[:2])
     assert shorter.length == pytest.approx(math.dist(pts[0], pts[1]), rel=1e-12)
+
+
+def test_the_surface_edge_lengths_are_those_the_halving_measures(rng):
+    """The coverage check takes the long triangles from ``Surface.edge_lengths``: the same numbers,
+    bit for bit, as the halving's own measure of each corner's edge."""
+    from swath.examples import blade
+
+    for surface in (blade(), doubly_curved_panel(spacing=8e-3)):
+        V, F = surface.vertices, surface.faces
+        d = V[F] - V[F[:, [1, 2, 0]]]
+        np.testing.assert_array_equal(surface.edge_lengths.reshape(-1, 3), ((d * d).sum(axis=2)) ** 0.5)

@@ -279,8 +279,9 @@ class _CoverageBase:
 
 def _coverage_base(surface, pad_tree, step) -> _CoverageBase:
     V, F = surface.vertices, surface.faces
-    d = V[F] - V[F[:, [1, 2, 0]]]
-    long_face = ((((d * d).sum(axis=2)) ** 0.5) > step).any(axis=1)     # as halve_long_edges measures them
+    # the surface's own edge lengths (worked out already), the same numbers as halve_long_edges's
+    # ``((d * d).sum(axis=2)) ** 0.5`` bit for bit: corner k to corner k + 1, squares summed in order
+    long_face = (surface.edge_lengths.reshape(-1, 3) > step).any(axis=1)
     kept = F[~long_face]
     areas = vertex_areas(len(V), kept, face_normals_and_areas(V, kept)[1])
     return _CoverageBase(F[long_face].astype(np.int64), areas, pad_tree.query(V)[1])
