@@ -6,6 +6,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from swath.contact import Tool
+from swath.errors import InputError
 from swath.examples import doubly_curved_panel, flat_plate
 from swath.plan import gaps
 from swath.plan.gaps import CoverageCheck, within_reach
@@ -471,3 +472,46 @@ def test_the_surface_edge_lengths_are_those_the_halving_measures(rng):
         V, F = surface.vertices, surface.faces
         d = V[F] - V[F[:, [1, 2, 0]]]
         np.testing.assert_array_equal(surface.edge_lengths.reshape(-1, 3), ((d * d).sum(axis=2)) ** 0.5)
+
+
+def test_resampling_every_fragment_at_once_gives_the_samples_of_each_alone(rng):
+    """A plan's fragments are resampled in one compiled walk: the points, faces and values of
+    resampling each alone, bit for bit, on the slices of a scan with a hole (planes through
+    vertices too), a closed loop, and polylines with repeated points and shorter than the spacing."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io.mesh import load_mesh
+    from swath.plan.resampling import resample_all
+    from swath.plan.slicing import SlicePolyline, resample, slice_mesh
+
+    name = "noether_wavy_mesh_with_hole.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    V = surface.vertices
+    lines = []
+    for c in ([1.0, 0.0, 0.0], [0.3, 1.0, 0.05]):
+        h = V @ (np.asarray(c) / np.linalg.norm(c))
+        offsets = np.concatenate([np.linspace(h.min(), h.max(), 31)[1:-1], h[::97]])    # through vertices too
+        lines += slice_mesh(V, surface.faces, c, offsets, values=surface.normals)
+    assert len(lines) > 60
+    t = np.linspace(0.0, 2 * np.pi, 33)
+    loop = np.column_stack([0.1 * np.cos(t), 0.07 * np.sin(t), 0.01 * np.sin(3 * t)])
+    loop[-1] = loop[0]                                               # a closed loop
+    lines.append(SlicePolyline(loop, np.arange(32), np.tile([0.0, 0.0, 1.0], (33, 1)), 2, True))
+    pts = np.cumsum(rng.normal(size=(40, 3)), axis=0) * 1e-3
+    pts[7] = pts[6]                                                  # a zero-length segment
+    lines.append(SlicePolyline(pts, np.arange(39), rng.normal(size=(40, 3)), 0, False))
+    lines.append(SlicePolyline(pts[:2] * [1, 1, 1], np.arange(1), rng.normal(size=(2, 3)), 1, False))
+    for spacing in (1e-3, 4e-3, 0.05):
+        got = resample_all(lines, spacing)
+        assert len(got) == len(lines)
+        for pl, g in zip(lines, got):
+            want = resample(pl, spacing)
+            np.testing.assert_array_equal(g.points, want.points)
+            np.testing.assert_array_equal(g.faces, want.faces)
+            np.testing.assert_array_equal(g.values, want.values)
+    bare = [SlicePolyline(pl.points, pl.faces, None, pl.plane, pl.closed) for pl in lines[:20]]
+    for pl, g in zip(bare, resample_all(bare, 2e-3)):
+        np.testing.assert_array_equal(g.points, resample(pl, 2e-3).points)
+        assert g.values is None
+    assert resample_all([], 1e-3) == []
+    with pytest.raises(InputError, match="spacing"):
+        resample_all(lines[:1], 0.0)
