@@ -515,3 +515,22 @@ def test_resampling_every_fragment_at_once_gives_the_samples_of_each_alone(rng):
     assert resample_all([], 1e-3) == []
     with pytest.raises(InputError, match="spacing"):
         resample_all(lines[:1], 0.0)
+
+
+@pytest.mark.parametrize("step", [4e-3, 1.0])
+def test_coverage_base_areas_are_those_of_the_faces_kept(step):
+    """The coverage check's vertex areas of the faces it does not halve come from the surface's own
+    face (or vertex) areas: the numbers of working the kept faces' areas out again, bit for bit,
+    with long faces to halve (4 mm) and without (1 m)."""
+    from swath.plan.gaps import _coverage_base
+    from swath.surface.geometry import face_normals_and_areas, vertex_areas
+
+    surface = doubly_curved_panel(spacing=6e-3)
+    V, F = surface.vertices, surface.faces
+    base = _coverage_base(surface, cKDTree(V[::7]), step)
+    d = V[F] - V[F[:, [1, 2, 0]]]
+    long_face = ((((d * d).sum(axis=2)) ** 0.5) > step).any(axis=1)
+    kept = F[~long_face]
+    np.testing.assert_array_equal(base.areas, vertex_areas(len(V), kept, face_normals_and_areas(V, kept)[1]))
+    np.testing.assert_array_equal(base.split, F[long_face])
+    assert (len(base.split) > 0) == (step < 0.01)

@@ -282,8 +282,12 @@ def _coverage_base(surface, pad_tree, step) -> _CoverageBase:
     # the surface's own edge lengths (worked out already), the same numbers as halve_long_edges's
     # ``((d * d).sum(axis=2)) ** 0.5`` bit for bit: corner k to corner k + 1, squares summed in order
     long_face = (surface.edge_lengths.reshape(-1, 3) > step).any(axis=1)
-    kept = F[~long_face]
-    areas = vertex_areas(len(V), kept, face_normals_and_areas(V, kept)[1])
+    # a face's area is a function of its own corners (face_normals_and_areas works row by row), so
+    # the surface's face areas of the faces kept, and its vertex areas where every face is kept
+    if long_face.any():
+        areas = vertex_areas(len(V), F[~long_face], surface.face_areas[~long_face])
+    else:
+        areas = surface.vertex_areas
     return _CoverageBase(F[long_face].astype(np.int64), areas, pad_tree.query(V)[1])
 
 
