@@ -534,3 +534,39 @@ def test_coverage_base_areas_are_those_of_the_faces_kept(step):
     np.testing.assert_array_equal(base.areas, vertex_areas(len(V), kept, face_normals_and_areas(V, kept)[1]))
     np.testing.assert_array_equal(base.split, F[long_face])
     assert (len(base.split) > 0) == (step < 0.01)
+
+
+def _mesh_edges_by_unique(faces):
+    """The edge table as :func:`swath.surface.topology.mesh_edges` made it with ``np.unique``."""
+    f = np.asarray(faces, np.int64)
+    pairs = np.sort(np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
+    n = np.int64(pairs.max() + 1) if len(pairs) else np.int64(1)
+    keys, inverse = np.unique(pairs[:, 0] * n + pairs[:, 1], return_inverse=True)
+    return np.stack([keys // n, keys % n], axis=1), inverse.reshape(-1, 3)
+
+
+def test_mesh_edges_are_those_of_the_sorted_unique_keys(rng):
+    """The edge table from a counting sort is the one of ``np.unique`` on the edge keys, bit for bit:
+    on a real scan, on random faces with repeated and degenerate triangles, and around a vertex
+    shared by 600 triangles; an empty mesh gives empty tables."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io.mesh import load_mesh
+    from swath.plan.raster import piece_vertices
+    from swath.surface.topology import mesh_edges
+
+    name = "noether_wavy_mesh_with_hole.ply"
+    scan = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    soup = rng.integers(0, 400, size=(3000, 3))
+    soup[:50] = soup[50:100]                                       # repeated triangles
+    soup[100:120, 1] = soup[100:120, 0]                            # degenerate ones
+    fan = np.column_stack([np.zeros(600, np.int64), 1 + np.arange(600), 1 + (np.arange(600) + 1) % 600])
+    for faces in (scan.faces, soup, fan, fan[::-1] + 3):
+        got, want = mesh_edges(faces), _mesh_edges_by_unique(faces)
+        for g, w in zip(got, want):
+            assert g.dtype == w.dtype and g.shape == w.shape
+            np.testing.assert_array_equal(g, w)
+    edges, face_edges = mesh_edges(np.zeros((0, 3), np.int64))
+    assert edges.shape == (0, 2) and face_edges.shape == (0, 3)
+    pieces = scan.face_pieces()
+    for k in range(len(pieces)):
+        np.testing.assert_array_equal(piece_vertices(scan, pieces, k), np.unique(scan.faces[pieces[k]]))

@@ -390,7 +390,13 @@ def piece_edges(surface, pieces, k: int):
 def piece_vertices(surface, pieces, k: int) -> np.ndarray:
     """Sorted indices of the vertices of piece ``k`` of ``surface.face_pieces()`` (``pieces``),
     computed once per surface and shared by the candidate directions."""
-    return surface_memo(surface, ("piece_vertices", len(pieces), k), lambda: np.unique(surface.faces[pieces[k]]))
+    def make():
+        # np.unique(surface.faces[pieces[k]]): the same sorted indices, from a mask of the vertices used
+        used = np.zeros(len(surface.vertices), bool)
+        used[piece_faces(surface, pieces, k)[0].ravel()] = True
+        return np.flatnonzero(used)
+
+    return surface_memo(surface, ("piece_vertices", len(pieces), k), make)
 
 
 def piece_faces(surface, pieces, k: int) -> tuple[np.ndarray, np.ndarray]:
