@@ -47,15 +47,12 @@ def resample_all(polylines: list[SlicePolyline], spacing: float) -> list[Surface
     has_values = with_values == {True}
     values = (np.ascontiguousarray(np.concatenate([np.asarray(pl.values) for pl in polylines]), float)
               if has_values else np.zeros((len(points), 0)))
-    q = values.shape[1]
     # each point's step to the next as np.linalg.norm measures it (the steps across two fragments
     # are never read)
     step = np.zeros(len(points))
     if len(points) > 1:
         step[:-1] = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    n_out = _sample_counts(step, start, float(spacing))
-    out_start = np.concatenate([[0], np.cumsum(n_out)]).astype(np.int64)
-    pts, vals, seg = _resample_kernel(points, values, step, start, out_start, q)
+    pts, vals, seg, out_start = _resample_kernel(points, values, step, start, float(spacing))
     out = []
     for k, pl in enumerate(polylines):
         a, b = out_start[k], out_start[k + 1]
@@ -64,69 +61,62 @@ def resample_all(polylines: list[SlicePolyline], spacing: float) -> list[Surface
 
 
 @jit()
-def _cumulative(step, a, b, cum):  # pragma: no cover - compiled
-    # np.concatenate([[0.0], np.cumsum(seg)]) of the fragment's segments, left to right
-    cum[0] = 0.0
-    if b - a > 1:
-        cum[1] = step[a]
-        for j in range(2, b - a):
-            cum[j] = cum[j - 1] + step[a + j - 1]
-
-
-@jit()
-def _sample_counts(step, start, spacing):  # pragma: no cover - compiled
+def _resample_kernel(points, values, step, start, spacing):  # pragma: no cover - compiled
+    # One loop, written out, compiles in a fraction of the time of several small kernels.
     m = len(start) - 1
-    out = np.empty(m, np.int64)
-    cum = np.empty(max(int(np.max(start[1:] - start[:-1])), 1))
+    longest = 1
     for k in range(m):
-        a, b = start[k], start[k + 1]
-        _cumulative(step, a, b, cum)
-        length = cum[b - a - 1]
-        out[k] = max(int(np.ceil(length / spacing)), 1) + 1
-    return out
-
-
-@jit()
-def _resample_kernel(points, values, step, start, out_start, q):  # pragma: no cover - compiled
-    total = out_start[-1]
-    pts = np.empty((total, 3))
-    vals = np.empty((total, q))
-    seg_of = np.empty(total, np.int64)
-    cum = np.empty(max(int(np.max(start[1:] - start[:-1])), 1))
-    for k in range(len(start) - 1):
-        a, b = start[k], start[k + 1]
-        n_seg = b - a - 1
-        _cumulative(step, a, b, cum)
-        length = cum[n_seg]
-        o = out_start[k]
-        n = out_start[k + 1] - o
-        div = n - 1
-        dstep = length / div
-        j = 0
-        for t in range(n):
-            # np.linspace(0.0, length, n)
-            if dstep == 0.0:
-                s = (t / div) * length + 0.0
-            else:
-                s = t * dstep + 0.0
-            if t == n - 1:
-                s = length
-            # np.searchsorted(cum, s, side="right") - 1, clipped to the segments
-            while j + 1 <= n_seg and cum[j + 1] <= s:
-                j += 1
-            i = min(max(j, 0), n_seg - 1)
-            seg = step[a + i]
-            u = (s - cum[i]) / seg if seg > 0 else 0.0
-            u = min(max(u, 0.0), 1.0)
+        longest = max(longest, start[k + 1] - start[k])
+    cum = np.empty(longest)
+    out_start = np.zeros(m + 1, np.int64)
+    for sweep in range(2):                   # the sample counts, then the samples
+        if sweep == 1:
+            total = out_start[m]
+            pts = np.empty((total, 3))
+            vals = np.empty((total, values.shape[1]))
+            seg_of = np.empty(total, np.int64)
+        for k in range(m):
+            a, b = start[k], start[k + 1]
+            n_seg = b - a - 1
+            # np.concatenate([[0.0], np.cumsum(seg)]): left to right
+            cum[0] = 0.0
+            if n_seg >= 1:
+                cum[1] = step[a]
+            for j in range(2, n_seg + 1):
+                cum[j] = cum[j - 1] + step[a + j - 1]
+            length = cum[n_seg]
+            if sweep == 0:
+                out_start[k + 1] = out_start[k] + max(int(np.ceil(length / spacing)), 1) + 1
+                continue
+            o = out_start[k]
+            n = out_start[k + 1] - o
+            div = n - 1
+            dstep = length / div
+            j = 0
+            for t in range(n):
+                # np.linspace(0.0, length, n)
+                if dstep == 0.0:
+                    s = (t / div) * length + 0.0
+                else:
+                    s = t * dstep + 0.0
+                if t == n - 1:
+                    s = length
+                # np.searchsorted(cum, s, side="right") - 1, clipped to the segments
+                while j + 1 <= n_seg and cum[j + 1] <= s:
+                    j += 1
+                i = min(max(j, 0), n_seg - 1)
+                seg = step[a + i]
+                u = (s - cum[i]) / seg if seg > 0 else 0.0
+                u = min(max(u, 0.0), 1.0)
+                for c in range(3):
+                    pts[o + t, c] = points[a + i, c] + u * (points[a + i + 1, c] - points[a + i, c])
+                for c in range(values.shape[1]):
+                    vals[o + t, c] = values[a + i, c] + u * (values[a + i + 1, c] - values[a + i, c])
+                seg_of[o + t] = i
             for c in range(3):
-                pts[o + t, c] = points[a + i, c] + u * (points[a + i + 1, c] - points[a + i, c])
-            for c in range(q):
-                vals[o + t, c] = values[a + i, c] + u * (values[a + i + 1, c] - values[a + i, c])
-            seg_of[o + t] = i
-        for c in range(3):
-            pts[o, c] = points[a, c]
-            pts[o + n - 1, c] = points[b - 1, c]
-        for c in range(q):
-            vals[o, c] = values[a, c]
-            vals[o + n - 1, c] = values[b - 1, c]
-    return pts, vals, seg_of
+                pts[o, c] = points[a, c]
+                pts[o + n - 1, c] = points[b - 1, c]
+            for c in range(values.shape[1]):
+                vals[o, c] = values[a, c]
+                vals[o + n - 1, c] = values[b - 1, c]
+    return pts, vals, seg_of, out_start

@@ -40,38 +40,55 @@ def mesh_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @jit()
 def _unique_pairs(lo, hi, n):   # pragma: no cover - compiled
-    count = np.zeros(n + 1, np.int64)
-    for i in range(len(lo)):
-        count[lo[i] + 1] += 1
+    m = len(lo)
+    start = np.zeros(n + 1, np.int64)
+    for i in range(m):
+        start[lo[i] + 1] += 1
     for v in range(n):
-        count[v + 1] += count[v]
-    slot = count[:-1].copy()
-    order = np.empty(len(lo), np.int64)
-    for i in range(len(lo)):                 # the corners grouped by lo
+        start[v + 1] += start[v]
+    slot = np.empty(n, np.int64)
+    for v in range(n):
+        slot[v] = start[v]
+    order = np.empty(m, np.int64)
+    for i in range(m):                       # the corners grouped by lo, each group sorted by hi
         order[slot[lo[i]]] = i
         slot[lo[i]] += 1
-    inverse = np.empty(len(lo), np.int64)
-    out_lo = np.empty(len(lo), np.int64)
-    out_hi = np.empty(len(lo), np.int64)
+    for v in range(n):
+        _shell_sort_by(order, start[v], start[v + 1], hi)
+    inverse = np.empty(m, np.int64)
+    edges = np.empty((m, 2), np.int64)
     e = 0
     for v in range(n):
-        a, b = count[v], count[v + 1]
-        if a == b:
-            continue
-        group = order[a:b]
-        group = group[np.argsort(hi[group], kind="mergesort")]
         last = -1
-        for i in group:
+        for r in range(start[v], start[v + 1]):
+            i = order[r]
             if hi[i] != last:
-                out_lo[e] = v
-                out_hi[e] = hi[i]
+                edges[e, 0] = v
+                edges[e, 1] = hi[i]
                 last = hi[i]
                 e += 1
             inverse[i] = e - 1
-    edges = np.empty((e, 2), np.int64)
-    edges[:, 0] = out_lo[:e]
-    edges[:, 1] = out_hi[:e]
-    return edges, inverse
+    return edges[:e].copy(), inverse
+
+
+@jit()
+def _shell_sort_by(items, a, b, key):   # pragma: no cover - compiled
+    # ``items[a:b]`` in place by ``key[items]`` (the order of equal keys does not matter to the
+    # caller); a plain loop compiles in a fraction of the time numba takes for np.argsort
+    n = b - a
+    gap = 1
+    while gap < n // 3:
+        gap = 3 * gap + 1
+    while gap > 0:
+        for i in range(a + gap, b):
+            item = items[i]
+            k = key[item]
+            j = i
+            while j >= a + gap and key[items[j - gap]] > k:
+                items[j] = items[j - gap]
+                j -= gap
+            items[j] = item
+        gap //= 3
 
 
 def edge_face_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
