@@ -71,3 +71,40 @@ def test_routes_same_as_full_search(rng):
         lengths.append(len(expected))
     # direct and lifted routes both occur
     assert min(lengths) == 4 and max(lengths) >= 6
+
+
+def _lift_directions_as_a_list(guard, p, n):
+    """The lift directions as :meth:`AirGuard._lift` listed them before it tried them lazily."""
+    tries = [n]
+    n = n / max(float(np.linalg.norm(n)), 1e-12)
+    away = p - guard.center
+    away = away / max(float(np.linalg.norm(away)), 1e-12)
+    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    phi = np.arange(8) * np.pi / 4
+    fan = [np.cos(t) * n + np.sin(t) * (np.cos(f) * e1 + np.sin(f) * e2)
+           for t in np.radians([30.0, 45.0]) for f in phi]
+    for v in [n + guard.up, guard.up, n + away, away, *fan]:
+        length = float(np.linalg.norm(v))
+        if length > 1e-9 and float(v @ n) / length >= 0.5:
+            tries.append(v / length)
+    return tries
+
+
+def test_lift_directions_are_tried_in_the_order_listed_before(rng):
+    """The lift tries the same directions, bit for bit and in the same order, as the list it built
+    before (now only when the normal as given runs into the part)."""
+    surface = sphere_cap(0.15, 0.7, n=30)
+    guard = AirGuard(surface, 0.01)
+    counts = set()
+    for k in rng.integers(len(surface.vertices), size=40):
+        p, n = surface.vertices[k], surface.normals[k] * rng.uniform(0.5, 2.0)      # a normal not of unit length
+        n = n if rng.random() < 0.8 else -n                                          # some facing the part
+        got = list(guard._lift_directions(p, n, n / np.linalg.norm(n)))
+        expected = _lift_directions_as_a_list(guard, p, n)
+        assert len(got) == len(expected)
+        for u, v in zip(got, expected):
+            np.testing.assert_array_equal(u, v)
+        counts.add(len(got))
+    assert max(counts) > 1                              # tilted directions were listed too

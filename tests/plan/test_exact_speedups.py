@@ -6,6 +6,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from swath.contact import Tool
+from swath.errors import InputError
 from swath.examples import doubly_curved_panel, flat_plate
 from swath.plan import gaps
 from swath.plan.gaps import CoverageCheck, within_reach
@@ -426,3 +427,146 @@ def test_component_labels_are_those_of_the_sparse_graph_search(rng):
         got = component_labels(n, pairs)
         np.testing.assert_array_equal(got, expected)
         assert got.max() + 1 == count
+
+
+def test_pad_neighbours_are_the_ball_queries(rng):
+    """The neighbour pairs of the coverage check's reach bound are those of a ball query per point,
+    at every radius, with points sitting exactly on a radius and repeated points among them."""
+    from swath.plan.gaps import pad_neighbours
+
+    points = rng.random((600, 3)) * [0.3, 0.2, 0.02]
+    points = np.vstack([points, points[:5], [[0.0, 0.0, 0.0], [0.03, 0.04, 0.0]]])   # a 3-4-5 pair at 0.05
+    tree = cKDTree(points)
+    rows = pad_neighbours(tree, [0.05, 0.0125, 0.1, 0.025])
+    assert [r for r, _, _ in rows] == [0.0125, 0.025, 0.05, 0.1]
+    for radius, i, j in rows:
+        balls = tree.query_ball_point(points, radius)
+        expected = {(k, m) for k, ball in enumerate(balls) for m in ball}
+        assert len(i) == len(j) == len(expected) == len(set(zip(i.tolist(), j.tolist())))
+        assert set(zip(i.tolist(), j.tolist())) == expected
+
+
+def test_a_pass_length_worked_out_once_is_its_polyline_length(rng):
+    """``Pass.length`` is remembered (the candidate directions and the order stage ask for it again
+    and again); it is the polyline's length, for the pass, its reversal and a changed copy."""
+    import math
+
+    from swath.core import Pass
+
+    pts = np.cumsum(rng.normal(size=(50, 3)), axis=0) * 1e-3
+    p = Pass(pts, np.tile([0.0, 0.0, 1.0], (50, 1)))
+    expected = sum(math.dist(a, b) for a, b in zip(pts[:-1], pts[1:]))
+    assert p.length == pytest.approx(expected, rel=1e-12)
+    assert p.length == p.length == float(np.linalg.norm(np.diff(p.points, axis=0), axis=1).sum())
+    assert p.reversed().length == pytest.approx(expected, rel=1e-12)
+    shorter = p.replace(points=pts[:2], normals=p.normals[:2])
+    assert shorter.length == pytest.approx(math.dist(pts[0], pts[1]), rel=1e-12)
+
+
+def test_the_surface_edge_lengths_are_those_the_halving_measures(rng):
+    """The coverage check takes the long triangles from ``Surface.edge_lengths``: the same numbers,
+    bit for bit, as the halving's own measure of each corner's edge."""
+    from swath.examples import blade
+
+    for surface in (blade(), doubly_curved_panel(spacing=8e-3)):
+        V, F = surface.vertices, surface.faces
+        d = V[F] - V[F[:, [1, 2, 0]]]
+        np.testing.assert_array_equal(surface.edge_lengths.reshape(-1, 3), ((d * d).sum(axis=2)) ** 0.5)
+
+
+def test_resampling_every_fragment_at_once_gives_the_samples_of_each_alone(rng):
+    """A plan's fragments are resampled in one compiled walk: the points, faces and values of
+    resampling each alone, bit for bit, on the slices of a scan with a hole (planes through
+    vertices too), a closed loop, and polylines with repeated points and shorter than the spacing."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io.mesh import load_mesh
+    from swath.plan.resampling import resample_all
+    from swath.plan.slicing import SlicePolyline, resample, slice_mesh
+
+    name = "noether_wavy_mesh_with_hole.ply"
+    surface = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    V = surface.vertices
+    lines = []
+    for c in ([1.0, 0.0, 0.0], [0.3, 1.0, 0.05]):
+        h = V @ (np.asarray(c) / np.linalg.norm(c))
+        offsets = np.concatenate([np.linspace(h.min(), h.max(), 31)[1:-1], h[::97]])    # through vertices too
+        lines += slice_mesh(V, surface.faces, c, offsets, values=surface.normals)
+    assert len(lines) > 60
+    t = np.linspace(0.0, 2 * np.pi, 33)
+    loop = np.column_stack([0.1 * np.cos(t), 0.07 * np.sin(t), 0.01 * np.sin(3 * t)])
+    loop[-1] = loop[0]                                               # a closed loop
+    lines.append(SlicePolyline(loop, np.arange(32), np.tile([0.0, 0.0, 1.0], (33, 1)), 2, True))
+    pts = np.cumsum(rng.normal(size=(40, 3)), axis=0) * 1e-3
+    pts[7] = pts[6]                                                  # a zero-length segment
+    lines.append(SlicePolyline(pts, np.arange(39), rng.normal(size=(40, 3)), 0, False))
+    lines.append(SlicePolyline(pts[:2] * [1, 1, 1], np.arange(1), rng.normal(size=(2, 3)), 1, False))
+    for spacing in (1e-3, 4e-3, 0.05):
+        got = resample_all(lines, spacing)
+        assert len(got) == len(lines)
+        for pl, g in zip(lines, got):
+            want = resample(pl, spacing)
+            np.testing.assert_array_equal(g.points, want.points)
+            np.testing.assert_array_equal(g.faces, want.faces)
+            np.testing.assert_array_equal(g.values, want.values)
+    bare = [SlicePolyline(pl.points, pl.faces, None, pl.plane, pl.closed) for pl in lines[:20]]
+    for pl, g in zip(bare, resample_all(bare, 2e-3)):
+        np.testing.assert_array_equal(g.points, resample(pl, 2e-3).points)
+        assert g.values is None
+    assert resample_all([], 1e-3) == []
+    with pytest.raises(InputError, match="spacing"):
+        resample_all(lines[:1], 0.0)
+
+
+@pytest.mark.parametrize("step", [4e-3, 1.0])
+def test_coverage_base_areas_are_those_of_the_faces_kept(step):
+    """The coverage check's vertex areas of the faces it does not halve come from the surface's own
+    face (or vertex) areas: the numbers of working the kept faces' areas out again, bit for bit,
+    with long faces to halve (4 mm) and without (1 m)."""
+    from swath.plan.gaps import _coverage_base
+    from swath.surface.geometry import face_normals_and_areas, vertex_areas
+
+    surface = doubly_curved_panel(spacing=6e-3)
+    V, F = surface.vertices, surface.faces
+    base = _coverage_base(surface, cKDTree(V[::7]), step)
+    d = V[F] - V[F[:, [1, 2, 0]]]
+    long_face = ((((d * d).sum(axis=2)) ** 0.5) > step).any(axis=1)
+    kept = F[~long_face]
+    np.testing.assert_array_equal(base.areas, vertex_areas(len(V), kept, face_normals_and_areas(V, kept)[1]))
+    np.testing.assert_array_equal(base.split, F[long_face])
+    assert (len(base.split) > 0) == (step < 0.01)
+
+
+def _mesh_edges_by_unique(faces):
+    """The edge table as :func:`swath.surface.topology.mesh_edges` made it with ``np.unique``."""
+    f = np.asarray(faces, np.int64)
+    pairs = np.sort(np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2), axis=1)
+    n = np.int64(pairs.max() + 1) if len(pairs) else np.int64(1)
+    keys, inverse = np.unique(pairs[:, 0] * n + pairs[:, 1], return_inverse=True)
+    return np.stack([keys // n, keys % n], axis=1), inverse.reshape(-1, 3)
+
+
+def test_mesh_edges_are_those_of_the_sorted_unique_keys(rng):
+    """The edge table from a counting sort is the one of ``np.unique`` on the edge keys, bit for bit:
+    on a real scan, on random faces with repeated and degenerate triangles, and around a vertex
+    shared by 600 triangles; an empty mesh gives empty tables."""
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io.mesh import load_mesh
+    from swath.plan.raster import piece_vertices
+    from swath.surface.topology import mesh_edges
+
+    name = "noether_wavy_mesh_with_hole.ply"
+    scan = load_mesh(shared_mesh(name), units=SHARED_MESH_UNITS[name])
+    soup = rng.integers(0, 400, size=(3000, 3))
+    soup[:50] = soup[50:100]                                       # repeated triangles
+    soup[100:120, 1] = soup[100:120, 0]                            # degenerate ones
+    fan = np.column_stack([np.zeros(600, np.int64), 1 + np.arange(600), 1 + (np.arange(600) + 1) % 600])
+    for faces in (scan.faces, soup, fan, fan[::-1] + 3):
+        got, want = mesh_edges(faces), _mesh_edges_by_unique(faces)
+        for g, w in zip(got, want):
+            assert g.dtype == w.dtype and g.shape == w.shape
+            np.testing.assert_array_equal(g, w)
+    edges, face_edges = mesh_edges(np.zeros((0, 3), np.int64))
+    assert edges.shape == (0, 2) and face_edges.shape == (0, 3)
+    pieces = scan.face_pieces()
+    for k in range(len(pieces)):
+        np.testing.assert_array_equal(piece_vertices(scan, pieces, k), np.unique(scan.faces[pieces[k]]))

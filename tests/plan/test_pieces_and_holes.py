@@ -111,3 +111,26 @@ def test_a_strip_is_run_along_its_length():
     tp = swath.raster(s, TOOL)
     assert len(tp.passes) == 1
     assert abs(tp.metadata["feed_direction"][0]) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_piece_faces_and_owners_are_taken_once_for_every_piece():
+    """The faces, face normals and vertex owners of each piece are gathered once per surface (the
+    candidate directions and the fill passes share them), in one memo entry however many pieces
+    there are, read-only, and equal to gathering them anew."""
+    from swath.contact.widths import _MEMO
+    from swath.plan.raster import piece_faces, piece_of_vertex
+
+    surface = pieces(20, gap=0.02)
+    parts = surface.face_pieces()
+    assert len(parts) == 20
+    for k in range(len(parts)):
+        faces, normals = piece_faces(surface, parts, k)
+        np.testing.assert_array_equal(faces, surface.faces[parts[k]])
+        np.testing.assert_array_equal(normals, surface.face_normals[parts[k]])
+        assert not faces.flags.writeable and not normals.flags.writeable
+        assert piece_faces(surface, parts, k)[0] is faces
+    owner = piece_of_vertex(surface, parts)
+    for k in range(len(parts)):
+        assert (owner[surface.faces[parts[k]]] == k).all()
+    assert not owner.flags.writeable
+    assert sum(key[0] == "piece_faces" for key in _MEMO[surface]) == 1

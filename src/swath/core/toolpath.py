@@ -9,6 +9,7 @@ return new ones (:meth:`ToolPath.replace`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,9 +65,9 @@ class Pass:
         object.__setattr__(self, "level", int(self.level))
         object.__setattr__(self, "region", int(self.region))
 
-    @property
+    @functools.cached_property
     def length(self) -> float:
-        """Polyline length, m."""
+        """Polyline length, m (worked out once: the points are read-only)."""
         return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
 
     def reversed(self) -> Pass:

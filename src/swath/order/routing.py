@@ -134,8 +134,22 @@ class AirGuard:
         sides, within 60° of ``n``, whose lift keeps clear.  None clear: along ``n`` (the route's
         search then says so)."""
         c = self.clearance
-        tries = [n]                                  # as given first: the lift every route had before
+        given = n                                    # as given first: the lift every route had before
         n = n / max(float(np.linalg.norm(n)), 1e-12)
+        for u in self._lift_directions(p, given, n):
+            # its upper quarter keeps clear (lower, a scan's noisy normal tilts the lift toward the
+            # surface near its foot: 10° puts 10 mm along it 9.95 mm high); tilted lifts start
+            # where they are 0.6 of the clearance high on a flat surface
+            s0 = min(max(0.75, 0.6 / max(float(u @ n), 1e-12)), 1.0)
+            if self._clear(np.array([p + s0 * c * u, p + c * u])):
+                return p + c * u
+        return p + c * given
+
+    def _lift_directions(self, p: np.ndarray, given: np.ndarray, n: np.ndarray):
+        """The lift directions :meth:`_lift` tries at ``p``, in order: ``given``, then the tilted ones
+        (see there; ``n`` is ``given`` made unit).  A generator: most lifts keep clear along the
+        normal as given, and the others are worked out only when it does not."""
+        yield given
         away = p - self.center
         away = away / max(float(np.linalg.norm(away)), 1e-12)
         e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -147,15 +161,7 @@ class AirGuard:
         for v in [n + self.up, self.up, n + away, away, *fan]:
             length = float(np.linalg.norm(v))
             if length > 1e-9 and float(v @ n) / length >= 0.5:
-                tries.append(v / length)
-        for u in tries:
-            # its upper quarter keeps clear (lower, a scan's noisy normal tilts the lift toward the
-            # surface near its foot: 10° puts 10 mm along it 9.95 mm high); tilted lifts start
-            # where they are 0.6 of the clearance high on a flat surface
-            s0 = min(max(0.75, 0.6 / max(float(u @ n), 1e-12)), 1.0)
-            if self._clear(np.array([p + s0 * c * u, p + c * u])):
-                return p + c * u
-        return p + c * tries[0]
+                yield v / length
 
     def _route(self, p_end, n_end, p_start, n_start) -> np.ndarray:
         c = self.clearance

@@ -76,23 +76,24 @@ def plane_passes(polylines, feed, face_normals, point_spacing, *, region: int = 
     """Slice fragments as passes, level by level (the fragment's plane or level-set index), each
     running along ``feed`` and, on a level, in order along it; resampled at ``point_spacing`` (m).
     The ``order`` stage sequences them (snake order alternates every other level)."""
-    from .slicing import resample
+    from .resampling import resample_all
 
     by_plane: dict[int, list] = {}
     for pl in polylines:
         by_plane.setdefault(pl.plane, []).append(pl)
-    passes = []
+    ordered = []
     for plane in sorted(by_plane):
         oriented = [_orient(pl, feed) for pl in by_plane[plane]]
         oriented.sort(key=lambda pl: float(pl.points[0] @ feed))
-        for pl in oriented:
-            sm = resample(pl, point_spacing)
-            assert sm.values is not None          # slices carry the vertex normals as values
-            normals = normalize(sm.values)
-            bad = np.linalg.norm(normals, axis=1) < 0.5
-            if bad.any():   # opposite vertex normals across a fold: fall back to the facet normal
-                normals[bad] = face_normals[sm.faces[bad]]
-            passes.append(Pass(sm.points, normals, level=int(plane), region=region))
+        ordered += oriented
+    passes = []
+    for pl, sm in zip(ordered, resample_all(ordered, point_spacing)):    # resample(pl, point_spacing) each
+        assert sm.values is not None          # slices carry the vertex normals as values
+        normals = normalize(sm.values)
+        bad = np.linalg.norm(normals, axis=1) < 0.5
+        if bad.any():   # opposite vertex normals across a fold: fall back to the facet normal
+            normals[bad] = face_normals[sm.faces[bad]]
+        passes.append(Pass(sm.points, normals, level=int(pl.plane), region=region))
     return passes
 
 

@@ -254,7 +254,7 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
     plane_spacing, plane_extent = [], []
     heights = surface.vertices @ cross
     across = swath_widths_across(surface, tool, cross, pieces) if spacing_on == "swath" else None
-    for k, faces in enumerate(pieces):
+    for k in range(len(pieces)):
         offsets, m, steps, extent = piece_offsets(surface, pieces, k, heights, cross, spacing,
                                                   edge_margin=edge_margin or 0.0, spacing_on=spacing_on,
                                                   widths=across)
@@ -262,7 +262,8 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
         plane_extent.append(extent)
         plane_spacing.append(float(np.mean(steps)) if len(steps) else float(spacing))
         n_planes += len(offsets)
-        slices = slice_mesh(surface.vertices, surface.faces[faces], cross, offsets, values=surface.normals,
+        piece_f, piece_n = piece_faces(surface, pieces, k)
+        slices = slice_mesh(surface.vertices, piece_f, cross, offsets, values=surface.normals,
                             edges=piece_edges(surface, pieces, k))
         n_slices += len(slices)
         lengths = np.array([pl.length for pl in slices])
@@ -270,7 +271,7 @@ def _plan_along(surface, tool, feed, cross, *, angle, direction_rule, spacing, p
         dropped += int(short.sum())
         dropped_length += float(lengths[short].sum())
         kept = [pl for pl, sh in zip(slices, short) if not sh]
-        passes += plane_passes(kept, feed, surface.face_normals[faces], point_spacing, region=k)
+        passes += plane_passes(kept, feed, piece_n, point_spacing, region=k)
     if not passes:
         along = float(np.ptp(surface.vertices @ feed))
         raise InfeasibleError(
@@ -389,7 +390,39 @@ def piece_edges(surface, pieces, k: int):
 def piece_vertices(surface, pieces, k: int) -> np.ndarray:
     """Sorted indices of the vertices of piece ``k`` of ``surface.face_pieces()`` (``pieces``),
     computed once per surface and shared by the candidate directions."""
-    return surface_memo(surface, ("piece_vertices", len(pieces), k), lambda: np.unique(surface.faces[pieces[k]]))
+    def make():
+        # np.unique(surface.faces[pieces[k]]): the same sorted indices, from a mask of the vertices used
+        used = np.zeros(len(surface.vertices), bool)
+        used[piece_faces(surface, pieces, k)[0].ravel()] = True
+        return np.flatnonzero(used)
+
+    return surface_memo(surface, ("piece_vertices", len(pieces), k), make)
+
+
+def piece_faces(surface, pieces, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """``surface.faces[pieces[k]]`` ``(f, 3)`` and ``surface.face_normals[pieces[k]]`` ``(f, 3)`` of
+    piece ``k`` of ``surface.face_pieces()`` (``pieces``), taken once per surface (read-only) and
+    shared by the candidate directions and the fill passes (one memo entry for every piece)."""
+    store = surface_memo(surface, ("piece_faces", len(pieces)), dict)
+    if k not in store:
+        faces, normals = surface.faces[pieces[k]], surface.face_normals[pieces[k]]
+        faces.setflags(write=False)
+        normals.setflags(write=False)
+        store[k] = (faces, normals)
+    return store[k]
+
+
+def piece_of_vertex(surface, pieces) -> np.ndarray:
+    """``(n,)`` int: the piece of ``surface.face_pieces()`` (``pieces``) each vertex belongs to (-1:
+    none), computed once per surface (read-only)."""
+    def make():
+        out = np.full(len(surface.vertices), -1)
+        for k in range(len(pieces)):
+            out[piece_faces(surface, pieces, k)[0].ravel()] = k
+        out.setflags(write=False)
+        return out
+
+    return surface_memo(surface, ("piece_of_vertex", len(pieces)), make)
 
 
 def piece_offsets(surface, pieces, k: int, heights: np.ndarray, cross: np.ndarray, spacing: float, *,
@@ -406,18 +439,20 @@ def piece_offsets(surface, pieces, k: int, heights: np.ndarray, cross: np.ndarra
 
     ids = piece_vertices(surface, pieces, k)
     faces = pieces[k]
-    normals = surface.face_normals[faces]
     if spacing_on == "swath" and widths is not None:
+        piece_f, normals = piece_faces(surface, pieces, k)
         mine = widths.piece == k
         piece = heights[ids]
         grid = np.linspace(piece.min(), piece.max(), max(2, int(math.ceil(4 * np.ptp(piece) / spacing)) + 1))
         ratio = (level_widths(widths.heights[mine], widths.widths[mine], widths.areas[mine], grid, 0.5 * spacing)
                  / widths.reference) if mine.any() else np.ones_like(grid)
-        return surface_plane_offsets(heights, surface.faces[faces], surface.face_areas[faces], normals, cross, spacing,
+        return surface_plane_offsets(heights, piece_f, surface.face_areas[faces], normals, cross, spacing,
                                      edge_margin=edge_margin, vertex_ids=ids, relative_width=(grid, ratio))
-    if spacing_on in ("surface", "swath") and np.abs(normals @ cross).max() > 1e-9:
-        return surface_plane_offsets(heights, surface.faces[faces], surface.face_areas[faces], normals, cross, spacing,
-                                     edge_margin=edge_margin, vertex_ids=ids)
+    if spacing_on in ("surface", "swath"):
+        piece_f, normals = piece_faces(surface, pieces, k)
+        if np.abs(normals @ cross).max() > 1e-9:
+            return surface_plane_offsets(heights, piece_f, surface.face_areas[faces], normals, cross, spacing,
+                                         edge_margin=edge_margin, vertex_ids=ids)
     offsets, margin = plane_offsets(heights[ids], spacing, edge_margin=edge_margin)
     return offsets, margin, np.diff(offsets), float(np.ptp(heights[ids]))
 
@@ -475,14 +510,7 @@ def swath_widths_across(surface, tool, cross, pieces) -> SwathWidths:
         raise InfeasibleError("spacing_on='swath': the contact model finds no swath width on this part across "
                               "these passes; use spacing_on='surface'")
 
-    def piece_of_vertex():
-        out = np.full(len(surface.vertices), -1)
-        for k, faces in enumerate(pieces):
-            out[surface.faces[faces].ravel()] = k
-        return out
-
-    owner = surface_memo(surface, ("piece_of_vertex", len(pieces)), piece_of_vertex)
-    piece = owner[surface.kdtree.query(samples.points[ok])[1]]
+    piece = piece_of_vertex(surface, pieces)[surface.kdtree.query(samples.points[ok])[1]]
     w, a = chord[ok], samples.areas[ok]
     k = np.argsort(w)
     cdf = np.cumsum(a[k])
@@ -540,18 +568,16 @@ def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacin
     from .slicing import PlaneSlicer
 
     check = CoverageCheck(surface, tool, feed)
-    piece_of_vertex = np.full(len(surface.vertices), -1)
-    for k, faces in enumerate(pieces):
-        piece_of_vertex[surface.faces[faces].ravel()] = k
+    owner = piece_of_vertex(surface, pieces)
     slicers: dict = {}
 
     def slice_piece(k, offset):
         # slice_passes(surface, pieces[k], cross, offset, feed, point_spacing, edges=...), with the
         # piece's faces, face normals and heights taken once for all its fill passes
         if k not in slicers:
-            slicers[k] = (PlaneSlicer(surface.vertices, surface.faces[pieces[k]], cross, values=surface.normals,
-                                      edges=piece_edges(surface, pieces, k)),
-                          surface.face_normals[pieces[k]])
+            piece_f, piece_n = piece_faces(surface, pieces, k)
+            slicers[k] = (PlaneSlicer(surface.vertices, piece_f, cross, values=surface.normals,
+                                      edges=piece_edges(surface, pieces, k)), piece_n)
         cut, face_normals = slicers[k]
         return [(p.points, p.normals) for p in plane_passes(cut(offset), feed, face_normals, point_spacing)]
 
@@ -563,7 +589,7 @@ def _fill_gaps(surface, tool, passes, pieces, feed, cross, spacing, point_spacin
         new = []
         for idx in patches:
             nearest = surface.kdtree.query(check.points[idx[len(idx) // 2]])[1]
-            k = int(max(piece_of_vertex[nearest], 0))
+            k = int(max(owner[nearest], 0))
 
             def slicer(offset, k=k):
                 return slice_piece(k, offset)

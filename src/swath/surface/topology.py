@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import cells
+from .cells import jit
+
 
 def mesh_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Undirected edges of a triangle mesh.
@@ -20,13 +23,72 @@ def mesh_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     face_edges : (m, 3) int
         Edge id of face edges ``(v0, v1), (v1, v2), (v2, v0)``.
     """
-    f = np.asarray(faces, np.int64)
-    pairs = np.stack([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=1).reshape(-1, 2)
-    pairs = np.sort(pairs, axis=1)
-    n = np.int64(pairs.max() + 1) if len(pairs) else np.int64(1)
-    keys, inverse = np.unique(pairs[:, 0] * n + pairs[:, 1], return_inverse=True)
-    edges = np.stack([keys // n, keys % n], axis=1)
+    f = np.asarray(faces, np.int64).reshape(-1, 3)
+    # corner k to corner k + 1 of each face, smaller index first
+    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    if len(lo) == 0 or not cells.AVAILABLE or lo.min() < 0:
+        n = np.int64(hi.max() + 1) if len(hi) else np.int64(1)
+        keys, inverse = np.unique(lo * n + hi, return_inverse=True)
+        return np.stack([keys // n, keys % n], axis=1), inverse.reshape(-1, 3)
+    # The sorted unique (lo, hi) pairs and each corner's index among them, as np.unique of the keys
+    # lo * n + hi gives them (the same arrays: both are defined by the pairs alone), from a counting
+    # sort on lo and a short sort of each vertex's few neighbours in place of a sort of every key.
+    edges, inverse = _unique_pairs(lo, hi, int(hi.max()) + 1)
     return edges, inverse.reshape(-1, 3)
+
+
+@jit()
+def _unique_pairs(lo, hi, n):   # pragma: no cover - compiled
+    m = len(lo)
+    start = np.zeros(n + 1, np.int64)
+    for i in range(m):
+        start[lo[i] + 1] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    slot = np.empty(n, np.int64)
+    for v in range(n):
+        slot[v] = start[v]
+    order = np.empty(m, np.int64)
+    for i in range(m):                       # the corners grouped by lo, each group sorted by hi
+        order[slot[lo[i]]] = i
+        slot[lo[i]] += 1
+    for v in range(n):
+        _shell_sort_by(order, start[v], start[v + 1], hi)
+    inverse = np.empty(m, np.int64)
+    edges = np.empty((m, 2), np.int64)
+    e = 0
+    for v in range(n):
+        last = -1
+        for r in range(start[v], start[v + 1]):
+            i = order[r]
+            if hi[i] != last:
+                edges[e, 0] = v
+                edges[e, 1] = hi[i]
+                last = hi[i]
+                e += 1
+            inverse[i] = e - 1
+    return edges[:e].copy(), inverse
+
+
+@jit()
+def _shell_sort_by(items, a, b, key):   # pragma: no cover - compiled
+    # ``items[a:b]`` in place by ``key[items]`` (the order of equal keys does not matter to the
+    # caller); a plain loop compiles in a fraction of the time numba takes for np.argsort
+    n = b - a
+    gap = 1
+    while gap < n // 3:
+        gap = 3 * gap + 1
+    while gap > 0:
+        for i in range(a + gap, b):
+            item = items[i]
+            k = key[item]
+            j = i
+            while j >= a + gap and key[items[j - gap]] > k:
+                items[j] = items[j - gap]
+                j -= gap
+            items[j] = item
+        gap //= 3
 
 
 def edge_face_counts(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
