@@ -363,6 +363,42 @@ def plain_run(surface, tool, plain, *, part=None) -> tuple:
     return toolpath, trajectory, removal
 
 
+def plain_beside(surface, tool, plain, *, part=None):
+    """:func:`plain_run` started now in a forked child process planning on one CPU
+    (:class:`swath.core.beside.Beside`), while this process goes on (the job optimises the feed
+    meanwhile, :func:`swath.cli.stages.even_feed_stage`); returns a callable that waits for its
+    ``(toolpath, trajectory, removal)``.  The plan is the one :func:`plain_run` makes here (the
+    uniform planner's plan does not depend on its number of worker processes).  Where no child can
+    be forked the callable plans here.  The planners' models shared on ``surface`` are released in
+    this process once the child has started (it has its own copy of them), else once the callable
+    has planned."""
+    import os
+
+    from ..core.beside import Beside
+
+    beside = Beside(_plain_in_child, os.getpid(), surface, tool, plain, part)
+    if beside.forked:
+        surface.forget()
+
+    def wait() -> tuple:
+        answer = beside.result()
+        surface.forget()                    # (planned here: no plan follows)
+        return answer
+
+    return wait
+
+
+def _plain_in_child(parent_pid: int, surface, tool, plain, part) -> tuple:
+    """:func:`plain_run`, on one CPU when this is a child of ``parent_pid``: the job's process
+    optimises the feed on the other (the uniform planner then lays its candidate directions one
+    after another, in this process, :func:`swath.core.cpus.usable_cpus`)."""
+    import os
+
+    if os.getpid() != parent_pid:
+        os.environ["OMP_NUM_THREADS"] = "1"
+    return plain_run(surface, tool, plain, part=part)
+
+
 def plain_if_evener(run: tuple, removal, even: dict, *, feed_follows: bool = False):
     """``run`` (the plain plan's ``(toolpath, trajectory, removal)``, :func:`plain_run`) when it removes
     more evenly on the interior than the default job's ``removal``, else None.  The figures go into

@@ -58,6 +58,11 @@ class Beside:
             self._process.start()
             child_end.close()
 
+    @property
+    def forked(self) -> bool:
+        """Whether ``fn`` runs in a child process (else :meth:`result` computes it here)."""
+        return self._process is not None or getattr(self, "_forked", False)
+
     def result(self) -> Any:
         """The value of ``fn(*args)`` (computed once: later calls return the same object)."""
         if not hasattr(self, "_answer"):
@@ -68,6 +73,7 @@ class Beside:
         if self._process is None:
             return self._fn(*self._args)
         process, conn, self._process = self._process, self._conn, None
+        self._forked = True
         assert conn is not None
         try:
             kind, value = _received(conn.recv())
