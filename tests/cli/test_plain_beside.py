@@ -45,23 +45,25 @@ def test_the_plain_plan_made_beside_is_the_one_made_here(two_cpus, planner):
     assert there[2].metrics["interior_removal_cov"] == here[2].metrics["interior_removal_cov"]
 
 
-def test_the_child_plans_on_one_cpu_and_leaves_this_process_alone(two_cpus, monkeypatch):
-    """The child sets its own ``OMP_NUM_THREADS`` (so the uniform planner forks no workers of its
-    own there); called here (no child), it changes nothing in this process."""
-    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
-    seen = {}
+def _starts_a_worker(x):
+    import multiprocessing
 
-    def fake_run(surface, tool, plain, *, part=None):
-        seen[os.getpid()] = os.environ.get("OMP_NUM_THREADS")
-        return os.getpid(), os.environ.get("OMP_NUM_THREADS")
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        return os.getpid(), pool.apply(os.getpid) if x else None
 
-    monkeypatch.setattr(even_default, "plain_run", fake_run)
 
-    class Remembers:
-        def forget(self):
-            pass
+def test_a_child_with_workers_may_start_processes_of_its_own(two_cpus):
+    """The plain plan's child may fork the uniform planner's workers (a daemon child may not)."""
+    pid, worker = beside.Beside(_starts_a_worker, 1, workers=True).result()
+    assert pid != os.getpid() and worker not in (None, pid, os.getpid())
+    with pytest.raises(AssertionError, match="daemonic"):
+        beside.Beside(_starts_a_worker, 1).result()
 
-    pid, threads = even_default.plain_beside(Remembers(), None, None)()
-    assert pid != os.getpid() and threads == "1"
-    assert even_default._plain_in_child(os.getpid(), Remembers(), None, None, None) == (os.getpid(), None)
-    assert "OMP_NUM_THREADS" not in os.environ
+
+def test_an_unread_child_with_workers_is_stopped_at_exit(two_cpus):
+    import time
+
+    b = beside.Beside(time.sleep, 30.0, workers=True)
+    assert b.forked and b._process.is_alive()
+    b._stop()                                   # what runs at exit when the result was never asked for
+    assert not b._process.is_alive()

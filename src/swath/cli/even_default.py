@@ -349,7 +349,7 @@ def plain_alternative(settings):
     return resolve(replace(settings, constant_feed=True, optimise_feed=False))
 
 
-def plain_run(surface, tool, plain, *, part=None) -> tuple:
+def plain_run(surface, tool, plain, part=None) -> tuple:
     """The plain plan (``plain``: its settings, :func:`plain_alternative`) planned, timed and
     simulated: ``(toolpath, trajectory, removal)``."""
     from ..simulate import simulate_removal
@@ -364,19 +364,16 @@ def plain_run(surface, tool, plain, *, part=None) -> tuple:
 
 
 def plain_beside(surface, tool, plain, *, part=None):
-    """:func:`plain_run` started now in a forked child process planning on one CPU
-    (:class:`swath.core.beside.Beside`), while this process goes on (the job optimises the feed
-    meanwhile, :func:`swath.cli.stages.even_feed_stage`); returns a callable that waits for its
-    ``(toolpath, trajectory, removal)``.  The plan is the one :func:`plain_run` makes here (the
-    uniform planner's plan does not depend on its number of worker processes).  Where no child can
-    be forked the callable plans here.  The planners' models shared on ``surface`` are released in
-    this process once the child has started (it has its own copy of them), else once the callable
-    has planned."""
-    import os
-
+    """:func:`plain_run` started now in a forked child process (:class:`swath.core.beside.Beside`,
+    with worker processes of its own: the uniform planner's candidate directions), while this
+    process goes on (the job optimises the feed meanwhile, :func:`swath.cli.stages.even_feed_stage`);
+    returns a callable that waits for its ``(toolpath, trajectory, removal)``.  The plan is the one
+    :func:`plain_run` makes here.  Where no child can be forked the callable plans here.  The
+    planners' models shared on ``surface`` are released in this process once the child has started
+    (it has its own copy of them), else once the callable has planned."""
     from ..core.beside import Beside
 
-    beside = Beside(_plain_in_child, os.getpid(), surface, tool, plain, part)
+    beside = Beside(plain_run, surface, tool, plain, part, workers=True)
     if beside.forked:
         surface.forget()
 
@@ -386,17 +383,6 @@ def plain_beside(surface, tool, plain, *, part=None):
         return answer
 
     return wait
-
-
-def _plain_in_child(parent_pid: int, surface, tool, plain, part) -> tuple:
-    """:func:`plain_run`, on one CPU when this is a child of ``parent_pid``: the job's process
-    optimises the feed on the other (the uniform planner then lays its candidate directions one
-    after another, in this process, :func:`swath.core.cpus.usable_cpus`)."""
-    import os
-
-    if os.getpid() != parent_pid:
-        os.environ["OMP_NUM_THREADS"] = "1"
-    return plain_run(surface, tool, plain, part=part)
 
 
 def plain_if_evener(run: tuple, removal, even: dict, *, feed_follows: bool = False):
