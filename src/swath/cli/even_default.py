@@ -356,7 +356,7 @@ def plain_alternative(settings):
     return resolve(replace(settings, constant_feed=True, optimise_feed=False))
 
 
-def plain_run(surface, tool, plain, *, part=None) -> tuple:
+def plain_run(surface, tool, plain, part=None) -> tuple:
     """The plain plan (``plain``: its settings, :func:`plain_alternative`) planned, timed and
     simulated: ``(toolpath, trajectory, removal)``."""
     from ..simulate import simulate_removal
@@ -368,6 +368,28 @@ def plain_run(surface, tool, plain, *, part=None) -> tuple:
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=plain.sample_spacing,
                                sampling=plain.removal_sampling)
     return toolpath, trajectory, removal
+
+
+def plain_beside(surface, tool, plain, *, part=None):
+    """:func:`plain_run` started now in a forked child process (:class:`swath.core.beside.Beside`,
+    with worker processes of its own: the uniform planner's candidate directions), while this
+    process goes on (the job optimises the feed meanwhile, :func:`swath.cli.stages.even_feed_stage`);
+    returns a callable that waits for its ``(toolpath, trajectory, removal)``.  The plan is the one
+    :func:`plain_run` makes here.  Where no child can be forked the callable plans here.  The
+    planners' models shared on ``surface`` are released in this process once the child has started
+    (it has its own copy of them), else once the callable has planned."""
+    from ..core.beside import Beside
+
+    beside = Beside(plain_run, surface, tool, plain, part, workers=True)
+    if beside.forked:
+        surface.forget()
+
+    def wait() -> tuple:
+        answer = beside.result()
+        surface.forget()                    # (planned here: no plan follows)
+        return answer
+
+    return wait
 
 
 def plain_if_evener(run: tuple, removal, even: dict, *, feed_follows: bool = False):

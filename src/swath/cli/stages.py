@@ -325,13 +325,15 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     (a dict, filled in here; None: not the default job).
 
     ``plain`` (a callable returning the plain plan's ``(toolpath, trajectory, removal)``,
-    :func:`~swath.cli.even_default.plain_run`) is run after the constant-feed simulation: when the
-    plain plan already removes more evenly than these passes at constant feed, the feed is not
-    optimised on these passes (``even["plain_plan_kept"]``; measured on the panel, the blade and the
+    :func:`~swath.cli.even_default.plain_run`, or the answer of one planning it beside this process,
+    :func:`~swath.cli.even_default.plain_beside`) is asked for after the feed is optimised: when the
+    plain plan already removes more evenly than these passes at constant feed, the optimised feed
+    is dropped (``even["plain_plan_kept"]``; measured on the panel, the blade and the
     scans, it then never caught up with it): the job optimises the feed on the plain plan's passes
     instead; else it is kept in ``even["_plain"]`` for the
-    job's comparison after the final simulation.  ``constant``: the removal of ``trajectory``,
-    when already simulated.
+    job's comparison after the final simulation.  The outcome is that of asking first; asked
+    last, a plain plan made beside this process is planned while the feed is optimised here.
+    ``constant``: the removal of ``trajectory``, when already simulated.
 
     Returns
     -------
@@ -355,38 +357,57 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
                                     sampling=settings.removal_sampling)
     depth, figures = even_default.choose_target_depth(constant, trajectory.duration, factor, tool.pad_radius)
     even.update(figures)
+    optimised, first = _default_target_feed(toolpath, tool, replace(settings, target_depth=depth), trajectory,
+                                            surface, figures, say)
     if plain is not None:
-        say("planning the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
+        say("the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
         run = plain()
-        if even_default.plain_if_evener(run, constant, even, feed_follows=True) is not None:
-            even["_plain"] = run
-            return settings, trajectory, None, {}
         even["_plain"] = run
-    settings = replace(settings, target_depth=depth)
+        if even_default.plain_if_evener(run, constant, even, feed_follows=True) is not None:
+            return settings, trajectory, None, {}        # the feed optimised on these passes is not used
+    if isinstance(optimised, InfeasibleError):   # the default's own target: the plain plan, said, rather than no plan
+        message = (f"even removal: the feed could not be optimised to the default target {depth * 1e6:.3g} um "
+                   f"({optimised}); the same passes are written at constant feed [W-EVEN-FEED-WORSE]")
+        even.setdefault("warnings", []).append(message)
+        even["constant_feed_kept"] = True
+        return replace(settings, target_depth=depth), trajectory, None, {}
+    even.update(first)
+    even["_constant"] = (trajectory, constant)          # the fallback when the feed does not even the removal
+    return optimised
+
+
+def _default_target_feed(toolpath, tool, settings, trajectory, surface, figures: dict, say):
+    """The feed optimised to the default target ``settings.target_depth`` (m), and once more to a
+    lower target when the cycle time comes out over ``settings.cycle_time_factor`` times the
+    constant feed's ``trajectory`` (:func:`even_feed_stage`).  Returns ``((settings, trajectory,
+    FeedResult, metrics), first)`` (``first``: the first target's figures when a second was
+    needed, else empty), or ``(InfeasibleError, {})`` when the programme has no solution."""
+    from dataclasses import replace
+
+    from ..errors import InfeasibleError
+    from . import even_default
+
+    depth, factor = settings.target_depth, settings.cycle_time_factor
     say(f"optimising the feed to the default target depth {depth * 1e6:.3g} um (cycle time within {factor:g}x "
         "the constant feed's)", 0, 1)
     try:
         timed, result, metrics = feed_stage(toolpath, tool, replace(settings, feed_simulate_check=False), trajectory,
                                             surface, progress=say, rounds=DEFAULT_JOB_FEED_ROUNDS)
-    except InfeasibleError as exc:        # the default's own target: the plain plan, said, rather than no plan
-        message = (f"even removal: the feed could not be optimised to the default target {depth * 1e6:.3g} um ({exc}); "
-                   "the same passes are written at constant feed [W-EVEN-FEED-WORSE]")
-        even.setdefault("warnings", []).append(message)
-        even["constant_feed_kept"] = True
-        return settings, trajectory, None, {}
+    except InfeasibleError as exc:
+        return exc, {}
+    first: dict = {}
     reached = timed.duration / trajectory.duration
     if reached > factor * 1.01:
         lower = even_default.lower_target(depth, figures["constant_feed_interior_removal_mean_m"], factor, reached)
         if 0 < lower < depth:
             log.info("target %.3g um: cycle time %.2fx the constant feed's (over %.2gx); again at %.3g um",
                      depth * 1e6, reached, factor, lower * 1e6)
-            even.update(first_target_depth_m=depth, first_cycle_time_ratio=reached)
+            first = {"first_target_depth_m": depth, "first_cycle_time_ratio": reached}
             settings = replace(settings, target_depth=lower)
             say(f"optimising the feed again to {lower * 1e6:.3g} um (the cycle time was {reached:.2f}x)", 0, 1)
             timed, result, metrics = feed_stage(toolpath, tool, replace(settings, feed_simulate_check=False),
                                                 trajectory, surface, progress=say, rounds=DEFAULT_JOB_FEED_ROUNDS)
-    even["_constant"] = (trajectory, constant)          # the fallback when the feed does not even the removal
-    return settings, timed, result, metrics
+    return (settings, timed, result, metrics), first
 
 
 def efficiency_after_gaps(metrics: dict, n_gaps: int, pad_radius: float) -> dict:

@@ -10,6 +10,7 @@ a memory-backed file (``/dev/shm``) that this process maps instead of reading th
 
 from __future__ import annotations
 
+import atexit
 import logging
 import mmap
 import multiprocessing
@@ -46,17 +47,34 @@ class Beside:
 
     ``fn`` must be deterministic and must not change state this process relies on: the child's
     changes (caches filled, attributes set) stay in the child.
+
+    ``workers=True`` lets the child start worker processes of its own (a multiprocessing child
+    that may not is a daemon); such a child still running when this process exits without having
+    asked for the result is terminated.
     """
 
-    def __init__(self, fn: Callable[..., Any], *args: Any, allowed: bool = True):
+    def __init__(self, fn: Callable[..., Any], *args: Any, allowed: bool = True, workers: bool = False):
         self._fn, self._args = fn, args
         self._process = self._conn = None
         if allowed and usable_cpus() >= 2 and can_fork():
             ctx = multiprocessing.get_context("fork")
             self._conn, child_end = ctx.Pipe(duplex=False)
-            self._process = ctx.Process(target=_serve, args=(fn, args, child_end), daemon=True)
+            self._process = ctx.Process(target=_serve, args=(fn, args, child_end), daemon=not workers)
             self._process.start()
             child_end.close()
+            if workers:
+                atexit.register(self._stop)
+
+    def _stop(self) -> None:
+        """Terminate a child whose result was never asked for (at exit)."""
+        if self._process is not None and self._process.is_alive():
+            self._process.terminate()
+            self._process.join(5.0)
+
+    @property
+    def forked(self) -> bool:
+        """Whether ``fn`` runs in a child process (else :meth:`result` computes it here)."""
+        return self._process is not None or getattr(self, "_forked", False)
 
     def result(self) -> Any:
         """The value of ``fn(*args)`` (computed once: later calls return the same object)."""
@@ -68,6 +86,8 @@ class Beside:
         if self._process is None:
             return self._fn(*self._args)
         process, conn, self._process = self._process, self._conn, None
+        self._forked = True
+        atexit.unregister(self._stop)
         assert conn is not None
         try:
             kind, value = _received(conn.recv())

@@ -1,0 +1,69 @@
+"""The default job's plain plan made in a child process while the job optimises the feed: the same
+plan, trajectory and removal as made here."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from swath.cli import even_default, stages
+from swath.cli.job import load_part_info
+from swath.cli.settings import settings_from_mapping
+from swath.core import beside
+
+
+@pytest.fixture
+def two_cpus(monkeypatch):
+    """Two CPUs, unless ``OMP_NUM_THREADS`` says one (as :func:`swath.core.cpus.usable_cpus` reads it)."""
+    monkeypatch.setattr(beside, "usable_cpus", lambda: 1 if os.environ.get("OMP_NUM_THREADS") == "1" else 2)
+
+
+def _plain_of(planner: str):
+    settings = settings_from_mapping({"part": "example:plate", "out": "unused", "planner": planner,
+                                      "sample_spacing": "6mm", "point_spacing": "4mm"})
+    plain = even_default.plain_alternative(settings)
+    assert plain is not None and plain.constant_feed
+    surface, info = load_part_info(plain)
+    return surface, stages.job_tool(plain), plain, info.get("part")
+
+
+@pytest.mark.parametrize("planner", ["raster", "uniform"])
+def test_the_plain_plan_made_beside_is_the_one_made_here(two_cpus, planner):
+    surface, tool, plain, part = _plain_of(planner)
+    here = even_default.plain_run(surface, tool, plain, part=part)
+    surface.forget()                          # the child builds the planner's models itself
+    wait = even_default.plain_beside(surface, tool, plain, part=part)
+    there = wait()
+    assert len(there[0].passes) == len(here[0].passes) > 0
+    for a, b in zip(there[0].passes, here[0].passes):
+        np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(there[1].position, here[1].position)
+    np.testing.assert_array_equal(there[1].feed, here[1].feed)
+    np.testing.assert_array_equal(there[2].depth, here[2].depth)
+    assert there[2].metrics["interior_removal_cov"] == here[2].metrics["interior_removal_cov"]
+
+
+def _starts_a_worker(x):
+    import multiprocessing
+
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        return os.getpid(), pool.apply(os.getpid) if x else None
+
+
+def test_a_child_with_workers_may_start_processes_of_its_own(two_cpus):
+    """The plain plan's child may fork the uniform planner's workers (a daemon child may not)."""
+    pid, worker = beside.Beside(_starts_a_worker, 1, workers=True).result()
+    assert pid != os.getpid() and worker not in (None, pid, os.getpid())
+    with pytest.raises(AssertionError, match="daemonic"):
+        beside.Beside(_starts_a_worker, 1).result()
+
+
+def test_an_unread_child_with_workers_is_stopped_at_exit(two_cpus):
+    import time
+
+    b = beside.Beside(time.sleep, 30.0, workers=True)
+    assert b.forked and b._process.is_alive()
+    b._stop()                                   # what runs at exit when the result was never asked for
+    assert not b._process.is_alive()
