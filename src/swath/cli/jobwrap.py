@@ -1,6 +1,5 @@
 """Small wrappers the job (:mod:`swath.cli.job`) puts around its stages: a planner timed call by
-call, the planners' shared models released after the last plan, the feed figures drawn beside
-the report put back in their place."""
+call, the feed figures drawn beside the report put back in their place."""
 
 from __future__ import annotations
 
@@ -31,8 +30,3 @@ def in_place(figures: dict, drawn) -> dict:
         out.update(drawn() if name == FEED_PLOTS else {name: path})
     return out
 
-
-def released(surface, result):
-    """``result``, once the planners' models shared on ``surface`` are released (the last plan of the job is made)."""
-    surface.forget()
-    return result
