@@ -118,3 +118,13 @@ def test_big_refuses_an_address_with_no_ray_behind_it(blade, tmp_path):
     assert run.returncode != 0
     assert f"no Ray answered at 127.0.0.1:{port}" in run.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_a_region_file_missing_on_a_worker_names_the_work_dir(tmp_path):
+    from swath.cli.bigpart_work import load_region
+    from swath.errors import InputError
+    from swath.segment.tiles import span_tiles
+
+    tile = span_tiles(np.linspace(0.0, 1.0, 11), 0.1, 1, band=0.05)[0]
+    with pytest.raises(InputError, match="--work-dir a folder every node mounts"):
+        load_region(str(tmp_path / "region0000.npz"), owned_only=False, tile=tile, axis=(1.0, 0.0, 0.0))

@@ -56,6 +56,11 @@ def load_region(path: str, *, owned_only: bool, tile, axis):
     from ..segment.tiles import face_heights, submesh
     from ..surface import Surface
 
+    if not os.path.exists(path):
+        import socket
+
+        raise InputError(f"region file {path} is not on {socket.gethostname()}, where a worker looked for it: on a "
+                         f"cluster of several machines, give --work-dir a folder every node mounts at the same path")
     with np.load(path) as data:
         vertices, faces, name = data["vertices"], data["faces"], str(data["name"])
     if owned_only:
