@@ -154,7 +154,7 @@ def main() -> None:
             tiny = tmp / "tiny.npz"
             save_npz(large_blade(n_faces=6000, length=1.5, root_chord=0.35, max_chord=0.45, tip_chord=0.25,
                                  twist=0.15), tiny)
-            feed = {"optimise_feed": True, "target_depth": 5e-6, "spacing": 0.06}
+            feed: dict = {"optimise_feed": True, "target_depth": 5e-6, "spacing": 0.06}
             fw = run(tiny, tmp / "o", regions=1, workers=1, ray=False, **feed)
             fs = run(tiny, tmp / "o", regions=2, workers=1, ray=False, **feed)
             add(row("1.5 m blade, feed optimised, whole", fw))
@@ -170,7 +170,7 @@ def main() -> None:
                          f"saved in {time.perf_counter() - t0:.1f} s")
             del surface
             digests: set = set()
-            where = {"a local Ray": None}
+            where: dict[str, str | None] = {"a local Ray": None}
             with contextlib.ExitStack() as stack:
                 if args.head:
                     head = stack.enter_context(LocalRayHead(2))
