@@ -103,14 +103,15 @@ def read_npz_mesh(path: str, *, units: str = "m") -> tuple[np.ndarray, np.ndarra
     return vertices * length_unit_factor(units), faces, name
 
 
-def default_spacing(vertices, faces, axis, tool, name: str) -> float:
+def default_spacing(vertices, faces, axis, tool, name: str, heights=None) -> float:
     """The raster rule's spacing (:func:`swath.contact.widths.raster_spacing`) for planes normal to
-    ``axis``, read on a slab of the part about its middle (at most 20 pad radii wide), m."""
+    ``axis``, read on a slab of the part about its middle (at most 20 pad radii wide), m;
+    ``heights`` (m,): the faces' heights along ``axis`` if known (m)."""
     from ..contact.widths import raster_spacing
     from ..segment.tiles import face_heights, submesh
     from ..surface import Surface
 
-    h = face_heights(vertices, faces, axis)
+    h = face_heights(vertices, faces, axis) if heights is None else heights
     mid, half = 0.5 * (h.min() + h.max()), 10 * tool.pad_radius
     v, f = submesh(vertices, faces, np.abs(h - mid) <= half)
     return float(raster_spacing(Surface(v, f, name=f"{name}_middle"), tool, axis).spacing)
@@ -318,11 +319,12 @@ def split_part(settings: JobSettings, regions, where: Path, workers, starting, e
     vertices, faces, name = load_arrays(settings)
     axis, feed_direction = principal_axes(vertices)
     heights_v = vertices @ axis
+    h_faces = face_heights(vertices, faces, axis)
     timings["load_s"] = time.perf_counter() - t0
     spacing = settings.spacing
     if spacing is None:
         t0 = time.perf_counter()
-        spacing = default_spacing(vertices, faces, axis, tool, name)
+        spacing = default_spacing(vertices, faces, axis, tool, name, heights=h_faces)
         timings["spacing_s"] = time.perf_counter() - t0
     n_planes = max(math.ceil(float(np.ptp(heights_v)) / spacing), 1)
     waited = 0.0
@@ -335,7 +337,6 @@ def split_part(settings: JobSettings, regions, where: Path, workers, starting, e
     band = BAND_RADII * tool.pad_radius
     tiles = span_tiles(heights_v, spacing, n_regions, band=band)
     t0 = time.perf_counter()
-    h_faces = face_heights(vertices, faces, axis)
     owned = [int(np.count_nonzero(t.owns(h_faces))) for t in tiles]
     order = work_order(owned)
     axis_l, feed_l = axis.tolist(), feed_direction.tolist()
