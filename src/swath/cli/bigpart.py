@@ -103,14 +103,15 @@ def read_npz_mesh(path: str, *, units: str = "m") -> tuple[np.ndarray, np.ndarra
     return vertices * length_unit_factor(units), faces, name
 
 
-def default_spacing(vertices, faces, axis, tool, name: str) -> float:
+def default_spacing(vertices, faces, axis, tool, name: str, heights=None) -> float:
     """The raster rule's spacing (:func:`swath.contact.widths.raster_spacing`) for planes normal to
-    ``axis``, read on a slab of the part about its middle (at most 20 pad radii wide), m."""
+    ``axis``, read on a slab of the part about its middle (at most 20 pad radii wide), m;
+    ``heights`` (m,): the faces' heights along ``axis`` if known (m)."""
     from ..contact.widths import raster_spacing
     from ..segment.tiles import face_heights, submesh
     from ..surface import Surface
 
-    h = face_heights(vertices, faces, axis)
+    h = face_heights(vertices, faces, axis) if heights is None else heights
     mid, half = 0.5 * (h.min() + h.max()), 10 * tool.pad_radius
     v, f = submesh(vertices, faces, np.abs(h - mid) <= half)
     return float(raster_spacing(Surface(v, f, name=f"{name}_middle"), tool, axis).spacing)
@@ -141,9 +142,11 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     regions : int or "auto"
         Number of span-wise regions (see :func:`region_count`).
     workers : int, optional
-        Region tasks at once.  1 (default): in this process; more, or None (every CPU): on Ray.
+        Region tasks at once.  1 (default): in this process (on the cluster, with ``address``);
+        more, or None (every CPU of this machine, or of the cluster): on Ray.
     address : str, optional
-        A Ray cluster to run on (``ray://host:10001`` or ``auto``); None: a local Ray.
+        A running Ray to run on (``host:port`` of its head, ``ray://host:10001`` or ``auto``);
+        None: a local Ray of the job's own, started and shut down here.
     executor : optional
         An executor (:mod:`swath.cli.bigpart_work`) to run the tasks on instead; closed at the end.
     progress : callable, optional
@@ -172,8 +175,6 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     if workers is not None and workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
     on_ray = use_ray if use_ray is not None else not (workers == 1 and not address)
-    if workers == 1 and address and use_ray is None:
-        raise InputError("--workers 1 runs the regions in this process; drop --address, or ask for more workers")
     region_count(regions, 0, 1, 1)                 # a count that is no count is refused before the part is read
     wall0 = time.perf_counter()
     epoch0 = time.time()
@@ -196,6 +197,8 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
             known = workers or (None if address else os.cpu_count() or 1)     # a cluster's size: once joined
             split = split_part(settings, regions, where, known, starting, executor, say)
             executor, tasks = split["executor"], split["tasks"]
+            if starting is not None and starting.ready_s is not None:
+                split["timings"]["ray_start_s"] = starting.ready_s
         say(f"{len(tasks.tiles)} regions of {split['name']} ({split['n_faces']} faces), {executor.where}", 0, 1)
         tasks.run()
         t0 = time.perf_counter()
@@ -242,6 +245,8 @@ class RayStart:
                 and signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
             signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(signum))
         self._args = (workers, address)
+        self.started_at = time.perf_counter()
+        self.ready_s: float | None = None       # s from the start to Ray up
         self._ready, self._released = threading.Event(), threading.Event()
         self._value: RayExecutor | None = None
         self._error: BaseException | None = None
@@ -258,6 +263,7 @@ class RayStart:
             self._error = exc
         finally:
             notice.setLevel(level)
+            self.ready_s = time.perf_counter() - self.started_at
             self._ready.set()
         self._released.wait()
 
@@ -313,11 +319,12 @@ def split_part(settings: JobSettings, regions, where: Path, workers, starting, e
     vertices, faces, name = load_arrays(settings)
     axis, feed_direction = principal_axes(vertices)
     heights_v = vertices @ axis
+    h_faces = face_heights(vertices, faces, axis)
     timings["load_s"] = time.perf_counter() - t0
     spacing = settings.spacing
     if spacing is None:
         t0 = time.perf_counter()
-        spacing = default_spacing(vertices, faces, axis, tool, name)
+        spacing = default_spacing(vertices, faces, axis, tool, name, heights=h_faces)
         timings["spacing_s"] = time.perf_counter() - t0
     n_planes = max(math.ceil(float(np.ptp(heights_v)) / spacing), 1)
     waited = 0.0
@@ -330,7 +337,6 @@ def split_part(settings: JobSettings, regions, where: Path, workers, starting, e
     band = BAND_RADII * tool.pad_radius
     tiles = span_tiles(heights_v, spacing, n_regions, band=band)
     t0 = time.perf_counter()
-    h_faces = face_heights(vertices, faces, axis)
     owned = [int(np.count_nonzero(t.owns(h_faces))) for t in tiles]
     order = work_order(owned)
     axis_l, feed_l = axis.tolist(), feed_direction.tolist()
@@ -393,6 +399,7 @@ def stitch(settings: JobSettings, split: dict, tasks, trajectories: list, tmp: P
     for r in tasks.info.values():
         per_worker[r["pid"]] = max(per_worker.get(r["pid"], 0), r["peak_rss_bytes"])
         cpu[r["pid"]] = cpu.get(r["pid"], 0.0) + r["cpu_s"]
+    metrics["worker_swath_dirs"] = sorted({r["swath_dir"] for r in tasks.info.values()})
     metrics["worker_peak_rss_bytes"] = sorted(per_worker.values(), reverse=True)
     metrics["max_worker_peak_rss_bytes"] = max(per_worker.values())
     # CPU time of the region tasks: all of it, and the busiest worker's share (their ratio is the
@@ -495,7 +502,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--workers", type=int, default=None,
                         help="regions planned at once; 1 runs them in this process (default: every CPU, on Ray)")
     parser.add_argument("--address", default=None,
-                        help="Ray cluster to run on (ray://host:10001 or auto); default a local Ray")
+                        help="a running Ray to run on (host:port of its head, ray://host:10001 or auto); with "
+                             "--workers N, N regions at a time on it; default a local Ray of the job's own")
     parser.add_argument("--work-dir", default=None,
                         help="folder for the region files the workers read (default: a new folder beside --out, "
                              "removed after); on a cluster, one every worker can read")

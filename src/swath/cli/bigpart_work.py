@@ -28,6 +28,7 @@ import os
 import resource
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -37,6 +38,10 @@ log = logging.getLogger(__name__)
 
 #: The environment variable of Ray's worker niceness (its raylet reads it when it starts).
 WORKER_NICENESS = "RAY_worker_niceness"
+
+#: The folder of the swath package this process imported (a task's info names it: on a cluster,
+#: the workers' copy of the driver's swath).
+SWATH_DIR = str(Path(__file__).resolve().parents[1])
 
 
 def peak_rss_bytes() -> int:
@@ -51,6 +56,11 @@ def load_region(path: str, *, owned_only: bool, tile, axis):
     from ..segment.tiles import face_heights, submesh
     from ..surface import Surface
 
+    if not os.path.exists(path):
+        import socket
+
+        raise InputError(f"region file {path} is not on {socket.gethostname()}, where a worker looked for it: on a "
+                         f"cluster of several machines, give --work-dir a folder every node mounts at the same path")
     with np.load(path) as data:
         vertices, faces, name = data["vertices"], data["faces"], str(data["name"])
     if owned_only:
@@ -75,7 +85,8 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
     info : dict
         ``ends`` (:class:`swath.trajectory.join.Ends` of the trajectory), ``n_passes``, ``n_faces``
         (owned), ``feed_metrics`` (dict), ``plan_s``, ``trajectory_s``, ``feed_s``, ``load_s``,
-        ``cpu_s`` (the task's CPU time, all its threads), ``peak_rss_bytes``, ``pid``, ``started``
+        ``cpu_s`` (the task's CPU time, all its threads), ``peak_rss_bytes``, ``pid``, ``swath_dir``
+        (the folder of the swath the worker imported), ``started``
         and ``ended`` (s since the epoch).
     """
     from ..order import route_links
@@ -122,8 +133,8 @@ def plan_region(path: str, tile, axis, feed_direction, settings, offsets=None) -
                                lead_angle=settings.lead())
         out["feed_s"] = time.perf_counter() - t0
     out.update(ends=Ends.of(trajectory), n_passes=len(toolpath.passes), contact_length_m=toolpath.contact_length,
-               cpu_s=time.process_time() - cpu0, peak_rss_bytes=peak_rss_bytes(), pid=os.getpid(), started=started,
-               ended=time.time())
+               cpu_s=time.process_time() - cpu0, peak_rss_bytes=peak_rss_bytes(), pid=os.getpid(), swath_dir=SWATH_DIR,
+               started=started, ended=time.time())
     return trajectory, out
 
 
@@ -139,7 +150,7 @@ def simulate_region(path: str, tile, axis, settings, *trajectories) -> tuple[Non
         ``points`` (k, 3) float32 and ``depth``, ``area`` (k,) float (m, m²) of the owned samples,
         ``interior`` (k,) bool (more than a pad radius from the part's open boundary: the band
         keeps the region's own cut edges farther than that from every owned sample),
-        ``sample_spacing_m``, ``simulate_s``, ``load_s``, ``cpu_s``, ``peak_rss_bytes``, ``pid``,
+        ``sample_spacing_m``, ``simulate_s``, ``load_s``, ``cpu_s``, ``peak_rss_bytes``, ``pid``, ``swath_dir``,
         ``started``, ``ended``.
     """
     from ..simulate import simulate_removal
@@ -162,13 +173,14 @@ def simulate_region(path: str, tile, axis, settings, *trajectories) -> tuple[Non
             "area": np.asarray(samples.vertex_areas)[owned], "interior": interior[owned],
             "sample_spacing_m": removal.metrics["removal_sample_spacing_m"],
             "simulate_s": time.perf_counter() - t0, "load_s": load_s, "cpu_s": time.process_time() - cpu0,
-            "peak_rss_bytes": peak_rss_bytes(), "pid": os.getpid(), "started": started, "ended": time.time()}
+            "peak_rss_bytes": peak_rss_bytes(), "pid": os.getpid(), "swath_dir": SWATH_DIR, "started": started,
+            "ended": time.time()}
 
 
 def write_rows(trajectory, path: str, shift: float, first_pass: int, names) -> tuple[None, dict]:
     """Write ``trajectory``'s stretch of the joined ``trajectory.csv`` (rows only, see
     :func:`swath.trajectory.join.csv_rows`) to ``path``; returns ``(None, info)`` with ``rows_s``,
-    ``bytes``, ``cpu_s``, ``peak_rss_bytes``, ``pid``, ``started``, ``ended``."""
+    ``bytes``, ``cpu_s``, ``peak_rss_bytes``, ``pid``, ``swath_dir``, ``started``, ``ended``."""
     from ..trajectory.join import csv_rows
 
     cpu0, started = time.process_time(), time.time()
@@ -177,7 +189,20 @@ def write_rows(trajectory, path: str, shift: float, first_pass: int, names) -> t
     with open(path, "w", encoding="utf-8", newline="") as fh:
         fh.write(text)
     return None, {"rows_s": time.perf_counter() - t0, "bytes": len(text), "cpu_s": time.process_time() - cpu0,
-                  "peak_rss_bytes": peak_rss_bytes(), "pid": os.getpid(), "started": started, "ended": time.time()}
+                  "peak_rss_bytes": peak_rss_bytes(), "pid": os.getpid(), "swath_dir": SWATH_DIR, "started": started,
+            "ended": time.time()}
+
+
+def warm_worker() -> int:
+    """Import what the region tasks use (a worker's first task would otherwise); returns the process id."""
+    from ..order import route_links  # noqa: F401
+    from ..plan.sections import section_passes  # noqa: F401
+    from ..simulate import simulate_removal  # noqa: F401
+    from ..trajectory import time_path  # noqa: F401
+    from ..trajectory.join import csv_rows, join_trajectories  # noqa: F401
+    from . import stages  # noqa: F401
+
+    return os.getpid()
 
 
 class InlineExecutor:
@@ -233,7 +258,7 @@ class RayExecutor:
         except ImportError:
             raise InputError("planning a big part on Ray needs Ray (pip install 'swath[batch]'); or run it in this "
                              "process with --workers 1") from None
-        from .batch_ray import _package_dir, start_local_ray
+        from .batch_ray import start_local_ray
 
         self._ray = ray
         self.started = False
@@ -242,7 +267,7 @@ class RayExecutor:
         self._running: dict = {}
         if not ray.is_initialized():
             if address:
-                ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
+                join_cluster(address)
             else:
                 # Ray starts its workers 15 steps nicer than itself by default; here they do all the
                 # work, so they run at this process's priority (on a busy machine a niceness of 15
@@ -257,8 +282,14 @@ class RayExecutor:
                     else:
                         os.environ[WORKER_NICENESS] = before
             self.started = True
-        self.workers = workers or int(ray.cluster_resources().get("CPU", 1))
-        self.where = f"on Ray at {address}" if address else f"on a local Ray with {self.workers} workers"
+        self.workers = workers or max(int(ray.cluster_resources().get("CPU", 1)), 1)
+        self.where = (f"on the Ray at {address}, {self.workers} at a time" if address
+                      else f"on a local Ray with {self.workers} workers")
+        # One warm-up per worker, now: Ray starts a worker when a task comes for it (on a cluster, with
+        # this swath unpacked for it), and the warm-up's imports then happen while this process still
+        # reads and splits the part, instead of in the first region's task.
+        warm = ray.remote(num_cpus=1, max_retries=0)(warm_worker)
+        self._warm = [warm.remote() for _ in range(self.workers)]
 
     @property
     def in_flight(self) -> int:
@@ -292,8 +323,84 @@ class RayExecutor:
             raise exc.as_instanceof_cause() from None
 
     def close(self) -> None:
+        """Drop the results and leave Ray: shut a local Ray of our own down, or disconnect from a cluster."""
         self._results.clear()
         self._running.clear()
+        self._warm.clear()
         if self.started:
+            stop_monitor(self._ray)
             self._ray.shutdown()
             self.started = False
+
+
+def join_cluster(address: str) -> None:
+    """Connect this process to the running Ray at ``address``, this swath shipped to its workers
+    (Ray's ``py_modules``: each worker imports the driver's swath, whatever the cluster has
+    installed); raises :class:`~swath.errors.InputError` naming the fix if it cannot."""
+    import ray
+
+    from .batch_ray import _package_dir
+
+    knock(address)
+    packaging = logging.getLogger("ray._private.runtime_env.packaging")   # "pushing file package ..."
+    level = packaging.level
+    packaging.setLevel(logging.WARNING)
+    try:
+        ray.init(address=address, log_to_driver=False, runtime_env={"py_modules": [_package_dir()]})
+    except ConnectionError as exc:
+        raise InputError(cluster_error(address, exc)) from None
+    finally:
+        packaging.setLevel(level)
+
+
+def knock(address: str, timeout: float = 3.0) -> None:
+    """Refuse a ``host:port`` address nothing listens at, at once (Ray itself tries for 40 s or
+    more before it gives up); other forms (``auto``, ``ray://...``) are left to Ray."""
+    import socket
+
+    host, sep, port = address.rpartition(":")
+    if not sep or "://" in address or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise InputError(cluster_error(address, exc)) from None
+
+
+def cluster_error(address: str, exc: BaseException) -> str:
+    """The message for a Ray at ``address`` that could not be joined (``exc``: Ray's error)."""
+    text, seen = [], set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        text.append(f"{type(e).__name__}: {e}")
+        e = e.__cause__ or e.__context__
+    chain = "\n".join(text)
+    if "AuthToken" in chain or "AuthenticationError" in chain:
+        return (f"the Ray at {address} asks for an authentication token that this process did not send: run with "
+                "RAY_AUTH_MODE=token and the cluster's token in ~/.ray/auth_token, RAY_AUTH_TOKEN_PATH or "
+                "RAY_AUTH_TOKEN (Ray sends its token to an address given explicitly only when told to)")
+    return (f"no Ray answered at {address}: check the address (host:port of the head's GCS, ray://host:10001 for "
+            f"Ray Client, or auto for the Ray started on this machine), or start one with ray start --head "
+            f"({text[-1][:200]})")
+
+
+def stop_monitor(ray) -> None:
+    """Stop the autoscaler monitor of the local Ray this process started, before ``ray.shutdown``.
+
+    ``ray.shutdown`` stops its processes one after the other, the monitor after the GCS; the monitor
+    then spends its whole second of grace trying to tell the stopped GCS that it was stopped, which
+    is most of the shutdown's time (1.4 s, against 0.2 s with the monitor stopped first on 2 cores).
+    Ray keeps its processes in a private table; if that is not there, this does nothing."""
+    try:
+        monitors = list(ray._private.worker._global_node.all_processes.get("monitor", []))
+    except AttributeError:
+        return
+    for info in monitors:
+        process = getattr(info, "process", None)
+        if process is not None and process.poll() is None:
+            process.kill()
+            try:
+                process.wait(timeout=5)
+            except Exception:                         # noqa: BLE001 - ray.shutdown deals with it
+                pass
