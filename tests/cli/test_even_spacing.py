@@ -56,3 +56,13 @@ def test_the_leads_simulated_are_the_half_pad_lead_and_the_steeper_ones():
     assert leads == sorted(leads) and 0.0 not in leads
     assert leads[0] == pytest.approx(TOOL.half_pad_lead) and TOOL.half_pad_lead == pytest.approx(math.radians(7.0), abs=0.01)
     assert leads[1:] == pytest.approx([math.radians(11.0), math.radians(15.0)])
+
+
+def test_other_passes_or_leads_must_cover_as_much_as_the_raster():
+    from swath.cli.even_spacing import covers_as_much
+
+    assert covers_as_much(0.9956, 0.9971)            # crs_part_5's 15° lead: 0.15 point less, above 99 %
+    assert not covers_as_much(0.9919, 0.9994)        # bezier_complex_shape's equidistant passes: 0.75 point less
+    assert not covers_as_much(0.9890, 0.9920)        # below the 99 % warning where the raster was above it
+    assert covers_as_much(0.9650, 0.9640)            # a part the raster covers less: no less than it is fine
+    assert not covers_as_much(0.9630, 0.9640)
