@@ -448,7 +448,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     even: dict | None = {} if settings.optimise_feed and even_default.is_even(settings) else None
     if settings.optimise_feed:
         t0 = time.perf_counter()
-        # the plain plan is made beside the feed programme (in a child process where one can be forked)
+        # the plain plan is made beside the job (in a child process where one can be forked)
         plain_run = None if plain is None or even is None else (
             even_default.plain_beside(surface, tool, plain, part=part_info.get("part")))
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,

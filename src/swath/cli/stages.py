@@ -326,13 +326,13 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
 
     ``plain`` (a callable returning the plain plan's ``(toolpath, trajectory, removal)``,
     :func:`~swath.cli.even_default.plain_run`, or the answer of one planning it beside this process,
-    :func:`~swath.cli.even_default.plain_beside`) is asked for after the feed is optimised: when the
-    plain plan already removes more evenly than these passes at constant feed, the optimised feed
-    is dropped (``even["plain_plan_kept"]``; measured on the panel, the blade and the
-    scans, it then never caught up with it): the job optimises the feed on the plain plan's passes
-    instead; else it is kept in ``even["_plain"]`` for the
-    job's comparison after the final simulation.  The outcome is that of asking first; asked
-    last, a plain plan made beside this process is planned while the feed is optimised here.
+    :func:`~swath.cli.even_default.plain_beside`) is asked for before the feed is optimised: when the
+    plain plan already removes more evenly than these passes at constant feed, these passes are
+    dropped (``even["plain_plan_kept"]``; measured on the panel, the blade and the scans, their
+    optimised feed never caught up with it) and the job optimises the feed on the plain plan's
+    passes instead; else it is kept in ``even["_plain"]`` for the job's comparison after the final
+    simulation.  A plain plan made beside this process is planned while these passes are timed and
+    simulated here.
     ``constant``: the removal of ``trajectory``, when already simulated.
 
     Returns
@@ -357,14 +357,16 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
                                     sampling=settings.removal_sampling)
     depth, figures = even_default.choose_target_depth(constant, trajectory.duration, factor, tool.pad_radius)
     even.update(figures)
-    optimised, first = _default_target_feed(toolpath, tool, replace(settings, target_depth=depth), trajectory,
-                                            surface, figures, say)
     if plain is not None:
+        # asked for before the feed is optimised: where the plain plan wins (four of the seven shared
+        # meshes), optimising these passes' feed first cost 5-40 s for nothing
         say("the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
         run = plain()
         even["_plain"] = run
         if even_default.plain_if_evener(run, constant, even, feed_follows=True) is not None:
-            return settings, trajectory, None, {}        # the feed optimised on these passes is not used
+            return settings, trajectory, None, {}        # the feed is optimised on the plain plan's passes
+    optimised, first = _default_target_feed(toolpath, tool, replace(settings, target_depth=depth), trajectory,
+                                            surface, figures, say)
     if isinstance(optimised, InfeasibleError):   # the default's own target: the plain plan, said, rather than no plan
         message = (f"even removal: the feed could not be optimised to the default target {depth * 1e6:.3g} um "
                    f"({optimised}); the same passes are written at constant feed [W-EVEN-FEED-WORSE]")
