@@ -122,3 +122,24 @@ def test_the_note_says_where_the_feed_is_held_which_plan_is_written_and_what_lim
     assert code_for(text) == "W-EVEN-RIDGE"
     del meta["ridge_planner"]
     assert "so the raster's stay" in ridge_turn.ridge_warnings(meta, settings)[0]
+
+
+def test_only_stretches_that_turn_round_a_ridge_count_not_a_scans_jitter():
+    from swath.cli.ridge_turn import RIDGE_NET_TURN, ridge_runs
+
+    # a pass over a 6 mm half cylinder: its normals turn by pi along one held run
+    phi = np.linspace(0.0, np.pi, 31)
+    nose = np.column_stack([np.cos(phi), np.zeros_like(phi), np.sin(phi)])
+    held = np.ones(30, bool)
+    assert ridge_runs(nose, held).all()
+    # a flat scan whose normals jitter by +-0.1 rad from point to point: held everywhere by the rate,
+    # but the normal never turns more than 0.2 rad from a run's start to its end
+    tilt = 0.1 * (-1.0) ** np.arange(31)
+    jitter = np.column_stack([np.sin(tilt), np.zeros_like(tilt), np.cos(tilt)])
+    assert 0.2 < RIDGE_NET_TURN
+    assert not ridge_runs(jitter, held).any()
+    # two runs on one pass: the ridge's kept, the jitter's dropped, unheld segments stay unheld
+    both = np.vstack([jitter[:10], nose])
+    mask = np.r_[np.ones(9, bool), False, np.ones(30, bool)]
+    kept = ridge_runs(both, mask)
+    assert not kept[:10].any() and kept[10:].all()

@@ -77,6 +77,28 @@ def rotation_per_metre(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndar
     return rate, length
 
 
+#: A held stretch counts as a ridge only where the normal turns at least this much from its start to
+#: its end, rad: a pass crossing the blade's nose turns by about 3 rad there, while on a scan
+#: (bezier_dac_scan) the normals' noise holds the feed over 4.8 % of the raster's length in stretches
+#: that turn back and forth, which no other planner's passes avoid.
+RIDGE_NET_TURN = 1.0
+
+
+def ridge_runs(normals: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """``held`` (a pass's (k - 1,) segments where the limit holds the feed) kept only on the runs of
+    held segments over which the unit ``normals`` ((k, 3)) turn by :data:`RIDGE_NET_TURN` or more
+    from the run's first point to its last."""
+    out = np.asarray(held, bool).copy()
+    if not out.any():
+        return out
+    n = np.asarray(normals, float)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], out.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):      # segments a..b-1: points a..b
+        if np.arccos(np.clip(float(n[a] @ n[b]), -1.0, 1.0)) < RIDGE_NET_TURN:
+            out[a:b] = False
+    return out
+
+
 def held_share(toolpath, feed: float, omega_max: float | None) -> dict:
     """Where the angular speed limit holds the feed of ``toolpath``'s passes.
 
@@ -92,7 +114,8 @@ def held_share(toolpath, feed: float, omega_max: float | None) -> dict:
     -------
     dict
         ``held_share`` (the share of the contact length where ``omega_max / ρ`` is below
-        :data:`HOLD_FRACTION` times ``feed``, ρ the normal's rotation per metre), ``held_feed_m_per_s``
+        :data:`HOLD_FRACTION` times ``feed``, ρ the normal's rotation per metre, on the stretches
+        that turn round a ridge: :func:`ridge_runs`), ``held_feed_m_per_s``
         (the feed the limit allows there, length-weighted median; NaN when nowhere held) and
         ``held_radius_m`` (``1 / ρ`` there, the same median), ``tightest_radius_m`` (``1 / ρ`` where
         :data:`TIGHT_SHARE` of the held length turns tighter) and ``extra_dwell`` (the contact time
@@ -102,18 +125,18 @@ def held_share(toolpath, feed: float, omega_max: float | None) -> dict:
     if omega_max is None or not omega_max > 0:
         return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan, "tightest_radius_m": nan,
                 "extra_dwell": 0.0}
-    rates, lengths = [], []
+    rates, lengths, helds = [], [], []
     for p in toolpath.passes:
         r, s = rotation_per_metre(p.points, p.normals)
         rates.append(r)
         lengths.append(s)
+        helds.append(ridge_runs(p.normals, omega_max / np.maximum(r, 1e-12) < HOLD_FRACTION * feed))
     if not rates:
         return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan, "tightest_radius_m": nan,
                 "extra_dwell": 0.0}
-    rate, length = np.concatenate(rates), np.concatenate(lengths)
+    rate, length, held = np.concatenate(rates), np.concatenate(lengths), np.concatenate(helds)
     total = float(length.sum())
     cap = omega_max / np.maximum(rate, 1e-12)
-    held = cap < HOLD_FRACTION * feed
     if not (total > 0 and held.any()):
         return {"held_share": 0.0, "held_feed_m_per_s": nan, "held_radius_m": nan, "tightest_radius_m": nan,
                 "extra_dwell": 0.0}
