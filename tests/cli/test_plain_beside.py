@@ -67,3 +67,25 @@ def test_an_unread_child_with_workers_is_stopped_at_exit(two_cpus):
     assert b.forked and b._process.is_alive()
     b._stop()                                   # what runs at exit when the result was never asked for
     assert not b._process.is_alive()
+
+
+def test_an_unread_child_is_stopped_even_when_the_parent_handles_sigterm(two_cpus):
+    # the CLI exits cleanly on SIGTERM (swath.cli.main); a child forked from it must still die at once
+    import signal
+    import time
+
+    def clean_exit(signum, frame):
+        time.sleep(30.0)                 # a handler that does not end the process promptly
+        raise SystemExit(signum)
+
+    previous = signal.signal(signal.SIGTERM, clean_exit)
+    try:
+        b = beside.Beside(time.sleep, 30.0, workers=True)
+        assert b.forked and b._process.is_alive()
+        time.sleep(1.0)                  # the child is serving (a SIGTERM before that is met by the kill)
+        started = time.monotonic()
+        b._stop()
+        assert not b._process.is_alive()
+        assert time.monotonic() - started < 4.0       # terminated, not left to the kill after 5 s
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -16,6 +16,7 @@ import mmap
 import multiprocessing
 import os
 import pickle
+import signal
 import sys
 import tempfile
 from collections.abc import Callable
@@ -70,6 +71,9 @@ class Beside:
         if self._process is not None and self._process.is_alive():
             self._process.terminate()
             self._process.join(5.0)
+            if self._process.is_alive():                  # a handler that outlived the reset in _serve
+                self._process.kill()
+                self._process.join(5.0)
 
     @property
     def forked(self) -> bool:
@@ -112,6 +116,9 @@ def _shared_dir() -> str | None:
 
 
 def _serve(fn, args, conn) -> None:     # pragma: no cover - runs in the child
+    # the parent's SIGTERM handler (the CLI's, which exits cleanly) is not the child's: a child
+    # stopped unread must die at once, not hand back an exception through a pipe nobody reads
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     try:
         answer = ("ok", fn(*args))
     except BaseException as exc:  # noqa: BLE001 - handed back to the parent as it is
