@@ -99,21 +99,18 @@ def shared_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     edges : (m, 2) int
         Sorted vertex pairs.
     pair : (m, 2) int
-        The two faces of each edge.
+        The two faces of each edge, the lower index first.
     """
-    f = np.asarray(faces, np.int64)
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    fid = np.tile(np.arange(len(f)), 3)
-    order = np.lexsort((e[:, 1], e[:, 0]))
-    e, fid = e[order], fid[order]
-    same = np.all(e[1:] == e[:-1], axis=1)
-    # an edge of three or more faces (non-manifold) repeats more than twice: keep only the exact pairs
-    run_start = np.concatenate([[True], ~same])
-    run_id = np.cumsum(run_start) - 1
-    run_len = np.bincount(run_id)
-    first = np.flatnonzero(run_start)
-    two = first[run_len == 2]
-    return e[two], np.stack([fid[two], fid[two + 1]], axis=1)
+    from ..surface.topology import mesh_edges
+
+    edges, face_edges = mesh_edges(faces)           # the project's one edge table
+    ids = face_edges.ravel()                         # corner edge k of face i at 3 i + k
+    count = np.bincount(ids, minlength=len(edges))
+    order = np.argsort(ids, kind="stable")           # each edge's faces together, in face order
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    # an edge of three or more faces (non-manifold) is left out: only the exact pairs
+    two = np.flatnonzero(count == 2)
+    return edges[two], np.stack([order[start[two]] // 3, order[start[two] + 1] // 3], axis=1)
 
 
 def facet_kinks(surface, tool: Tool) -> FacetKinks:
