@@ -7,6 +7,7 @@ import pytest
 
 from shapes import cylinder_patch
 from swath.cli.even_spacing import SPREAD_RATIO, evener_passes, spread_ratio
+from swath.cli.jobsettings import JobSettings
 from swath.contact import Tool
 from swath.core import Pass, ToolPath
 
@@ -39,14 +40,28 @@ def test_equal_passes_do_not_spread_and_uneven_ones_do():
     assert ratio_spread > SPREAD_RATIO
 
 
-def test_only_the_raster_at_the_curved_spacing_is_compared():
+def test_only_the_raster_at_the_curved_spacing_is_checked():
     steps = np.array([0.0, 0.04, 0.10, 0.14, 0.20, 0.24, 0.30])
+    _, flat = _axial_passes((steps - 0.15) / RHO)
+    flat.metadata["ripple_model"] = "plane"
+    assert evener_passes(flat, flat.surface, TOOL, settings=None) == (flat, None)
     _, other = _axial_passes((steps - 0.15) / RHO, planner="uniform")
-    assert evener_passes(other, other.surface, TOOL, settings=None) is other
-    assert "spacing_spread_ratio" not in other.metadata
+    assert evener_passes(other, other.surface, TOOL, settings=None) == (other, None)
+    assert "spacing_spread_ratio" not in other.metadata and "spacing_spread_ratio" not in flat.metadata
+
+
+def test_passes_under_the_ratio_stay_and_their_lead_is_the_evenest_simulated():
     _, even = _axial_passes(np.arange(-3, 4) * 0.05 / RHO)
-    assert evener_passes(even, even.surface, TOOL, settings=None) is even      # under the ratio: not planned
-    assert even.metadata["spacing_spread_ratio"] < SPREAD_RATIO
+    settings = JobSettings(part="example:plate", out="unused", sample_spacing=0.006)
+    kept, run = evener_passes(even, even.surface, TOOL, settings)
+    assert kept is even and even.metadata["spacing_spread_ratio"] < SPREAD_RATIO    # not re-planned
+    tried = dict(map(tuple, even.metadata["lead_simulated_interior_removal_cov"]))
+    assert sorted(tried) == [0.0, 7.0, 11.0, 15.0]                 # the flat pad among them here
+    lead = even.metadata["ripple_lead_rad"]
+    assert tried[round(math.degrees(lead), 1)] == min(tried.values())
+    trajectory, removal = run                                      # the kept lead's run, for the job
+    assert removal.metrics["interior_removal_cov"] == pytest.approx(min(tried.values()), rel=1e-12)
+    assert trajectory.duration > 0
 
 
 def test_the_leads_simulated_are_the_half_pad_lead_and_the_steeper_ones():
@@ -54,6 +69,7 @@ def test_the_leads_simulated_are_the_half_pad_lead_and_the_steeper_ones():
 
     leads = lead_choices(TOOL)
     assert leads == sorted(leads) and 0.0 not in leads
+    assert lead_choices(TOOL, flat=True) == [0.0, *leads]
     assert leads[0] == pytest.approx(TOOL.half_pad_lead) and TOOL.half_pad_lead == pytest.approx(math.radians(7.0), abs=0.01)
     assert leads[1:] == pytest.approx([math.radians(11.0), math.radians(15.0)])
 

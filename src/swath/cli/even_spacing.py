@@ -14,7 +14,15 @@ at its spacing (:func:`spread_ratio`).  From :data:`SPREAD_RATIO` up it plans th
 at the raster's spacing and lead, times and simulates both at constant feed, and keeps the one that
 removes more evenly on the interior.  The passes kept are then simulated at the other leads of
 :func:`lead_choices` and the evenest lead is kept: the lead was chosen on one representative
-quadric, and a part whose planes spread is one whose curvature changes.  Measured (default job,
+quadric, and a part whose planes spread is one whose curvature changes.  A raster under the ratio
+keeps its passes, and its lead is checked the same way, the flat pad among the leads: the quadric
+stands for the part only as well as one curvature does, and on a scan not even that
+(snp_part_scan: the quadric ranks the flat pad first, 0.124 against 0.159 at 11°, where the
+passes simulate 0.294 flat, 0.281 at 7° and 0.274 at 11°, which covers 0.5 point less).  The run
+at the lead kept is handed to the job, which would otherwise time and simulate it again.  The
+uniform planner's passes keep the model's lead: on the blade they lie 18 to 66 mm apart, and the
+lead that simulates evenest at constant feed (7°, 0.506 against 0.549 flat) came out less even
+once the feed was optimised along them (0.386 against 0.373).  Measured (default job,
 ``swath plan PART``, interior CoV at constant feed):
 
 =================  ============  ==============================================================
@@ -23,7 +31,10 @@ part               spread ratio  outcome
 crs_part_5         1.25          equidistant kept (raster 0.193, equidistant 0.150 at 11°), then
                                  15° (7°: 0.209, 15°: 0.127) at 1.51 L*
 bezier_dac_cad     1.15          raster kept (0.066 against 0.380), flat pad kept
-example:panel      1.00          the raster's planes (not tried)
+example:panel      1.00          the raster's planes, 11° kept (0.050)
+snp_part_scan      0.88          the raster's planes, 0° -> 7° (0.294 -> 0.281)
+noether_wavy       < 1.1           the raster's planes, 11° -> 7° (interior 0.401 -> 0.380 with the
+                                 optimised feed, coverage 93.5 -> 96.2 %)
 =================  ============  ==============================================================
 """
 
@@ -99,7 +110,12 @@ def _constant_run(toolpath, surface, tool, settings):
 
 def evener_passes(toolpath, surface, tool, settings, *, part=None, progress=None):
     """The default job's raster ``toolpath``, or equidistant passes at its spacing and lead where
-    they remove more evenly (module notes); returns the tool path to go on with.
+    they remove more evenly, at the lead that simulates evenest (module notes).
+
+    Returns ``(toolpath, run)``: the tool path to go on with (its ``metadata["ripple_lead_rad"]``
+    the lead kept) and ``run``, its ``(trajectory, removal)`` timed and simulated at constant feed
+    at that lead (the job's own timing of it, :func:`swath.trajectory.time_path` with the job's
+    constraints and links), or None where that run was not kept.
 
     Only a raster planned at the least-ripple spacing on the part's curvature
     (``metadata["ripple_model"] == "curved"``) whose :func:`spread_ratio` is at least
@@ -112,13 +128,17 @@ def evener_passes(toolpath, surface, tool, settings, *, part=None, progress=None
 
     meta = toolpath.metadata
     if toolpath.planner != "raster" or meta.get("ripple_model") != "curved":
-        return toolpath
+        return toolpath, None
+    say = progress or (lambda stage, done, total: None)
+    lead = float(meta.get("ripple_lead_rad", tool.half_pad_lead))
     ratio, ripple = spread_ratio(toolpath, surface, tool)
     meta["spacing_spread_ratio"] = float(ratio)
     if not ratio >= SPREAD_RATIO:
-        return toolpath
-    say = progress or (lambda stage, done, total: None)
-    lead = float(meta.get("ripple_lead_rad", tool.half_pad_lead))
+        # the passes stay; their lead is checked by simulation all the same (the quadric's choice
+        # is one representative curvature's)
+        trajectory, removal = _constant_run(toolpath, surface, tool, replace(settings, lead_angle=lead))
+        return toolpath, _simulated_lead(toolpath, surface, tool, settings, lead, (trajectory, removal), say,
+                                         flat=True)
     spacing = float(meta["spacing_m"])
     say(f"the raster's passes spread ({ratio:.2f}x the ripple at {spacing * 1e3:.1f} mm): trying equidistant passes", 0, 1)
     other_settings = replace(settings, planner="equidistant", spacing=spacing, optimise_spacing=None, overlap=None,
@@ -150,37 +170,40 @@ def evener_passes(toolpath, surface, tool, settings, *, part=None, progress=None
             if key in meta and key not in other.metadata:
                 other.metadata[key] = meta[key]
         other.metadata.update(figures, equidistant_kept=True)
-    _simulated_lead(kept, surface, tool, settings, lead, float(removal.metrics["interior_removal_cov"]), say,
-                    float(removal.metrics["coverage_fraction"]))
-    return kept
+    run = (None, removal)                    # timed at the job's lead, not the kept one: timed again below
+    return kept, _simulated_lead(kept, surface, tool, settings, lead, run, say, flat=False)
 
 
-def _simulated_lead(toolpath, surface, tool, settings, lead: float, cov: float, say, coverage: float) -> None:
-    """Simulate ``toolpath``'s passes at constant feed at each lead of :func:`lead_choices` besides
-    ``lead`` (rad; its interior CoV ``cov`` and coverage fraction ``coverage`` known) and set
-    ``metadata["ripple_lead_rad"]`` to the evenest of those covering as much (:func:`covers_as_much`);
-    ``metadata["lead_simulated_interior_removal_cov"]`` holds every lead's
-    figure as ``[lead in degrees, interior CoV]`` pairs."""
+def _simulated_lead(toolpath, surface, tool, settings, lead: float, run, say, *, flat: bool):
+    """Simulate ``toolpath``'s passes at constant feed at each lead of :func:`lead_choices` (``flat``:
+    the flat pad among them) besides ``lead`` (rad), whose ``run`` ``(trajectory or None, removal)``
+    is known, and set ``metadata["ripple_lead_rad"]`` to the evenest of those covering as much
+    (:func:`covers_as_much`); ``metadata["lead_simulated_interior_removal_cov"]`` holds every lead's
+    figure as ``[lead in degrees, interior CoV]`` pairs.  Returns the kept lead's ``(trajectory,
+    removal)`` at constant feed, or None when its trajectory was not timed here."""
+    removal = run[1]
+    cov, coverage = float(removal.metrics["interior_removal_cov"]), float(removal.metrics["coverage_fraction"])
     tried = {round(math.degrees(lead), 1): cov}
-    best = (cov, lead)
-    for other in lead_choices(tool):
+    best, kept = (cov, lead), run
+    for other in lead_choices(tool, flat=flat):
         if abs(other - lead) < 1e-9:
             continue
         say(f"simulating the passes at a {math.degrees(other):.1f} deg lead", 0, 1)
-        _, removal = _constant_run(toolpath, surface, tool, replace(settings, lead_angle=other))
+        trajectory, removal = _constant_run(toolpath, surface, tool, replace(settings, lead_angle=other))
         c = float(removal.metrics["interior_removal_cov"])
         tried[round(math.degrees(other), 1)] = c
         if np.isfinite(c) and c < best[0] and covers_as_much(float(removal.metrics["coverage_fraction"]), coverage):
-            best = (c, other)
+            best, kept = (c, other), (trajectory, removal)
     log.info("interior CoV at constant feed by lead (deg): %s; lead %.1f deg kept", tried, math.degrees(best[1]))
     toolpath.metadata.update(ripple_lead_rad=float(best[1]),
                              lead_simulated_interior_removal_cov=[[a, c] for a, c in sorted(tried.items())])
+    return kept if kept[0] is not None else None
 
 
-def lead_choices(tool) -> list[float]:
+def lead_choices(tool, *, flat: bool = False) -> list[float]:
     """The leads (rad) :func:`evener_passes` simulates the passes it keeps at: the half-pad lead and
-    :data:`swath.cli.curved_spacing.LEAD_CHOICES_DEG` but the flat pad (a raster that spreads is on
-    a part curved enough for the model to have led it)."""
+    :data:`swath.cli.curved_spacing.LEAD_CHOICES_DEG`, the flat pad only when ``flat`` (a raster
+    whose planes spread is on a part curved enough for the model to have led it)."""
     from .curved_spacing import LEAD_CHOICES_DEG
 
-    return sorted({float(tool.half_pad_lead), *(math.radians(a) for a in LEAD_CHOICES_DEG if a > 0)})
+    return sorted({float(tool.half_pad_lead), *(math.radians(a) for a in LEAD_CHOICES_DEG if flat or a > 0)})

@@ -402,6 +402,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     timings["load_s"] = time.perf_counter() - t0
 
     searched, target_cov, ridge = None, settings.target_cov, []
+    constant_run = None                   # the passes kept, timed and simulated at constant feed
     settings_target = target_cov or 0.0
     if target_cov is not None:
         from .target_cov import search_target_cov
@@ -426,8 +427,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         if plain is not None:
             t1 = time.perf_counter()                                  # part of the even default's search
             even_default.settle_plan_lead(toolpath, surface, tool)    # ... for the spacing the plan has
-            toolpath = even_spacing.evener_passes(toolpath, surface, tool, settings, part=part_info.get("part"),
-                                                  progress=say)       # equidistant where the planes spread
+            toolpath, constant_run = even_spacing.evener_passes(      # equidistant where the planes spread,
+                toolpath, surface, tool, settings, part=part_info.get("part"), progress=say)  # the lead simulated
             searched_spacing["spacing_s"] = searched_spacing.get("spacing_s", 0.0) + time.perf_counter() - t1
         lead = toolpath.metadata.get("ripple_lead_rad")
         if plain is not None and lead is not None and lead != settings.lead():
@@ -439,7 +440,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
 
         t0 = time.perf_counter()
         say("timing trajectory", 0, 1)
-        trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+        trajectory = constant_run[0] if constant_run is not None else time_path(
+            toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
         timings["trajectory_s"] = time.perf_counter() - t0
         if plain is None or not settings.optimise_feed:
             surface.forget()                # no plan follows: the planners' shared models are released
@@ -451,9 +453,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         # the plain plan is made beside the job (in a child process where one can be forked)
         plain_run = None if plain is None or even is None else (
             even_default.plain_beside(surface, tool, plain, part=part_info.get("part")))
-        settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,
-                                                                          surface, even, progress=say,
-                                                                          plain=plain_run)
+        settings, trajectory, feed, feed_metrics = stages.even_feed_stage(
+            toolpath, tool, settings, trajectory, surface, even, progress=say, plain=plain_run,
+            constant=None if constant_run is None else constant_run[1])
         if even is not None and even.get("plain_plan_kept"):      # the plain plan's passes are written ...
             (toolpath, trajectory, plain_removal), settings = even.pop("_plain"), replace(plain, constant_feed=False)
             # ... with the feed optimised along them: where the curvature changes the contact width along a
