@@ -33,7 +33,7 @@ crs_part_5         1.25          equidistant kept (raster 0.193, equidistant 0.1
 bezier_dac_cad     1.15          raster kept (0.066 against 0.380), flat pad kept
 example:panel      1.00          the raster's planes, 11° kept (0.050)
 snp_part_scan      0.88          the raster's planes, 0° -> 7° (0.294 -> 0.281)
-noether_wavy       < 1.1           the raster's planes, 11° -> 7° (interior 0.401 -> 0.380 with the
+noether_wavy       < 1.1         the raster's planes, 11° -> 7° (interior 0.401 -> 0.380 with the
                                  optimised feed, coverage 93.5 -> 96.2 %)
 =================  ============  ==============================================================
 """
