@@ -56,7 +56,9 @@ def test_on_a_wavy_plate_a_softer_pad_removes_more_evenly_and_the_job_warns():
     metrics = dict(removal.metrics, **study)
     warnings = plan_warnings(surface, tp, traj, metrics, 0.05, TOOL.pad_radius)
     said = [w for w in warnings if "too stiff" in w]
-    assert len(said) == 1 and "--depression 3mm" in said[0] and f"{study['softer_pad_removal_cov']:.2f}" in said[0]
+    assert study["softer_pad_interior_removal_cov"] < 0.8 * removal.metrics["interior_removal_cov"]
+    assert len(said) == 1 and "--depression 3mm" in said[0]
+    assert f"interior removal CoV {study['softer_pad_interior_removal_cov']:.2f}" in said[0]
     # without the study's figures nothing is said
     assert not any("too stiff" in w for w in plan_warnings(surface, tp, traj, dict(removal.metrics), 0.05,
                                                            TOOL.pad_radius))
@@ -76,6 +78,24 @@ def test_worth_a_study_only_above_the_threshold():
     assert not worth_a_study({"removal_cov": 0.1})
     assert not worth_a_study({"removal_cov": float("nan")})
     assert not worth_a_study({})
+    # the interior decides where the job has it: a plate's thin rim is no pad's doing
+    assert not worth_a_study({"removal_cov": 0.225, "interior_removal_cov": 0.052})
+    assert worth_a_study({"removal_cov": 0.36, "interior_removal_cov": 0.28})
+    assert worth_a_study({"removal_cov": 0.3, "interior_removal_cov": float("nan")})
+
+
+def test_the_warning_compares_the_interiors_where_both_are_known():
+    surface = wavy_plate()
+    tp, traj, removal = _job(surface)
+    base = {"pad_depression_m": 1e-3, "softer_pad_depression_m": 3e-3}
+    # the whole part barely gains (the rim), the interior does: warned, with the interior figures
+    m = dict(base, removal_cov=0.36, interior_removal_cov=0.28, softer_pad_removal_cov=0.33,
+             softer_pad_interior_removal_cov=0.12)
+    said = [w for w in plan_warnings(surface, tp, traj, m, 0.05, TOOL.pad_radius) if "too stiff" in w]
+    assert len(said) == 1 and "interior removal CoV 0.28" in said[0] and "interior removal CoV 0.12" in said[0]
+    # the interior does not gain: no warning even though the whole part's figure would have given one
+    m = dict(m, softer_pad_removal_cov=0.2, softer_pad_interior_removal_cov=0.27)
+    assert not any("too stiff" in w for w in plan_warnings(surface, tp, traj, m, 0.05, TOOL.pad_radius))
 
 
 def test_plan_job_records_the_study_and_warns(tmp_path, capsys):

@@ -70,12 +70,16 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
                    "raise the force, plan the passes closer, or run the job more than once")
         out.append(f"the optimised feed removes {_depth(got)} on average, {100 * got / want:.2g} % of the "
                    f"target {_depth(want)}{why}")
-    soft, cov = metrics.get("softer_pad_removal_cov"), metrics.get("removal_cov")
+    # the interiors compared where both are known (the rim every plan leaves thin is no pad's doing)
+    soft, cov, which = metrics.get("softer_pad_interior_removal_cov"), metrics.get("interior_removal_cov"), \
+        "interior removal CoV"
+    if not (soft is not None and cov is not None and np.isfinite(soft) and np.isfinite(cov)):
+        soft, cov, which = metrics.get("softer_pad_removal_cov"), metrics.get("removal_cov"), "removal CoV"
     if soft is not None and cov is not None and np.isfinite(soft) and soft <= WARN_BELOW_SHARE * cov:
         e, e_soft = metrics["pad_depression_m"], metrics["softer_pad_depression_m"]
-        out.append(f"removal CoV {cov:.2f}: the pad ({_depth(e)} compression on flat at the set force) is too stiff "
+        out.append(f"{which} {cov:.2f}: the pad ({_depth(e)} compression on flat at the set force) is too stiff "
                    f"to follow this surface's curvature and waviness; the same programme with a pad compressing "
-                   f"{_depth(e_soft)} would remove with CoV {soft:.2f} (simulated). Use a softer interface pad "
+                   f"{_depth(e_soft)} would remove with {which} {soft:.2f} (simulated). Use a softer interface pad "
                    f"(--depression {1e3 * e_soft:.3g}mm), or, if the waviness is scanner noise, plan on a smooth fit of "
                    "the scan (swath fit)")
     if trajectory is not None and len(trajectory) > 1:
