@@ -61,7 +61,16 @@ def test_passes_under_the_ratio_stay_and_their_lead_is_the_evenest_simulated():
     assert tried[round(math.degrees(lead), 1)] == min(tried.values())
     trajectory, removal = run                                      # the kept lead's run, for the job
     assert removal.metrics["interior_removal_cov"] == pytest.approx(min(tried.values()), rel=1e-12)
-    assert trajectory.duration > 0
+    # ... the job's own timing of the passes at that lead, so the job need not time them again
+    from dataclasses import replace
+
+    from swath.trajectory import time_path
+
+    at_lead = replace(settings, lead_angle=lead)
+    again = time_path(kept, at_lead.constraints(), links=at_lead.links(), lead_angle=at_lead.lead())
+    assert trajectory.duration == pytest.approx(again.duration, rel=1e-12) and len(trajectory) == len(again)
+    np.testing.assert_allclose(trajectory.quaternion, again.quaternion, atol=1e-12)
+    np.testing.assert_allclose(trajectory.t, again.t, atol=1e-9)
 
 
 def test_the_leads_simulated_are_the_half_pad_lead_and_the_steeper_ones():
