@@ -10,8 +10,10 @@ job's own pipeline (:func:`swath.cli.job.make_plan`, :func:`swath.trajectory.tim
   budget of 1.5, 2.0 or 2.5 times the coverage bound L*;
 * the lead angle: 0, auto (half the pad presses, ``Tool.half_pad_lead``), 11° or 15°, or, as the
   default job chooses it, on the part's curvature (:func:`swath.cli.curved_spacing.curved_spacing_plan`
-  with the lead chosen, then :func:`swath.cli.even_default.settle_plan_lead`): on a convex part the
-  raster's own direction at another lead can read other curvatures and lay other passes;
+  with the lead chosen, then :func:`swath.cli.even_default.settle_plan_lead` and
+  :func:`swath.cli.even_spacing.evener_passes`, the equidistant passes where the raster's planes
+  spread and the lead by simulation): on a convex part the raster's own direction at another lead
+  can read other curvatures and lay other passes;
 * the feed: constant (the job's ``--feed``), and when no candidate reaches the target at constant
   feed, the :data:`FEED_CANDIDATES` evenest with the feed optimised as the default job does it
   (:func:`swath.cli.stages.even_feed_stage`: the target depth within the cycle-time factor).
@@ -195,10 +197,13 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
             log.warning("--target-cov: candidate %s cannot be planned on %s (%s); left out [W-TARGET-COV-CANDIDATE]",
                         label, surface.name, exc)
             continue
-        if choose:
+        run = None
+        if choose:                      # as the default job: the lead for the plan's spacing, then by simulation
             from .even_default import settle_plan_lead
+            from .even_spacing import evener_passes
 
             settle_plan_lead(toolpath, surface, tool)
+            toolpath, run = evener_passes(toolpath, surface, tool, cand, part=(plan_options or {}).get("part"))
             lead = toolpath.metadata.get("ripple_lead_rad")
             if lead is not None:
                 cand = replace(cand, lead_angle=float(lead))
@@ -209,6 +214,9 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
             log.info("--target-cov: %s lays the same passes as a candidate before it; skipped", label)
             continue
         seen.add(same)
+        if run is not None:             # timed and simulated at that lead already
+            planned.append(Candidate(cand, label, toolpath, run[0], run[0].duration, removal=run[1]))
+            continue
         trajectory = time_path(toolpath, cand.constraints(), links=cand.links(), lead_angle=cand.lead())
         planned.append(Candidate(cand, label, toolpath, trajectory, trajectory.duration))
     if not planned:
@@ -218,8 +226,8 @@ def search_target_cov(surface, tool, settings, *, candidates=None, progress=None
     tried = []
     for i, cand in enumerate(planned):
         say(f"--target-cov: simulating candidate {i + 1} ({cand.label}, {cand.cycle_time_s:.0f} s)", i, len(planned))
-        removal = simulate_removal(cand.trajectory, surface, tool, sample_spacing=settings.sample_spacing,
-                                   sampling=settings.removal_sampling)
+        removal = cand.removal if cand.removal is not None else simulate_removal(
+            cand.trajectory, surface, tool, sample_spacing=settings.sample_spacing, sampling=settings.removal_sampling)
         m = removal.metrics
         cov = float(m["interior_removal_cov"])
         done = replace(cand, interior_removal_cov=cov, removal=removal,
