@@ -159,14 +159,21 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
 
 
 def evenness_metrics(removal, trajectory, tool) -> dict:
-    """:func:`evenness_split`'s figures for ``metrics.json``, each key prefixed ``evenness_``; an
+    """:func:`evenness_split`'s figures for ``metrics.json``, with the band's causes of
+    :func:`swath.simulate.edge_band.band_causes` (its scalars), each key prefixed ``evenness_``; an
     empty dict when the trajectory has fewer than two passes (no spacing to split by)."""
     from .ripple import pass_period
 
     d = pass_period(trajectory)
     if not (np.isfinite(d) and d > 0):
         return {}
-    return {f"evenness_{k}": v for k, v in evenness_split(removal, trajectory, tool, spacing=d).items()}
+    from .edge_band import band_causes
+
+    out = {f"evenness_{k}": v for k, v in evenness_split(removal, trajectory, tool, spacing=d).items()}
+    causes = band_causes(removal, trajectory, tool, spacing=d)       # the band by cause (scalars only)
+    out.update({f"evenness_{k}": v for k, v in causes.items() if isinstance(v, float) and f"evenness_{k}" not in out
+                and k != "band_spacing_m"})
+    return out
 
 
 def split_line(m: dict) -> str:
