@@ -30,14 +30,18 @@ PARTS = ("example:plate", "example:panel", "example:blade", "bezier_dac_cad.ply"
 GROUPS = ("side", "ends", "oblique")
 
 
+def _finite(x) -> bool:
+    return x is not None and math.isfinite(x)            # metrics.json writes NaN as null
+
+
 def _pc(x) -> str:
-    return f"{100 * x:.0f} %" if x is not None and math.isfinite(x) else "—"
+    return f"{100 * x:.0f} %" if _finite(x) else "—"
 
 
 def _group(m: dict, g: str) -> str:
-    ratio = m.get(f"evenness_band_{g}_mean_over_core_mean_ratio", float("nan"))
+    ratio = m.get(f"evenness_band_{g}_mean_over_core_mean_ratio")
     return (f"{_pc(m.get(f'evenness_band_{g}_area_fraction'))}, {_pc(m.get(f'evenness_band_{g}_variance_fraction'))}, "
-            + (f"{ratio:.3f}" if math.isfinite(ratio) else "—"))
+            + (f"{ratio:.3f}" if _finite(ratio) else "—"))
 
 
 def parts_table(parts, options) -> None:
