@@ -142,3 +142,18 @@ def test_on_a_plane_the_outermost_pass_partly_off_the_edge_over_grinds_the_band(
     else:
         assert c["band_side_own_cov"] < 1.2 * c["core_cov"]
     assert math.isfinite(c["band_excess_variance_fraction"])
+
+
+def test_the_band_line_says_which_way_and_reads_null_figures():
+    assert band_line({"evenness_band_excess_variance_fraction": None}) == ""       # NaN, as metrics.json writes it
+    m = {"evenness_band_excess_variance_fraction": -0.07,
+         "evenness_band_side_area_fraction": 0.40, "evenness_band_side_variance_fraction": 0.37,
+         "evenness_band_side_mean_over_core_mean_ratio": 0.999,
+         "evenness_band_ends_area_fraction": 0.25, "evenness_band_ends_variance_fraction": 0.26,
+         "evenness_band_ends_mean_over_core_mean_ratio": 0.998,
+         "evenness_band_oblique_area_fraction": 0.0, "evenness_band_oblique_variance_fraction": 0.0,
+         "evenness_band_oblique_mean_over_core_mean_ratio": None}
+    line = band_line(m)
+    assert "as evenly as or more evenly than the core (-7 points" in line
+    assert "beside the outermost passes 37 % of the variance on 40 % of the interior (mean 0.999" in line
+    assert "oblique" not in line                                  # an empty group is left out

@@ -212,16 +212,20 @@ def band_causes(removal, trajectory, tool, *, spacing: float | None = None) -> d
 
 def band_line(m: dict) -> str:
     """The CLI's line on what makes the band uneven (``evenness_band_*`` metrics), or ``""``."""
-    excess = m.get("evenness_band_excess_variance_fraction", float("nan"))
+    def value(key: str) -> float:               # None (NaN as metrics.json writes it) reads NaN
+        x = m.get(key)
+        return float("nan") if x is None else float(x)
+
+    excess = value("evenness_band_excess_variance_fraction")
     if not np.isfinite(excess):
         return ""
     parts = []
     for g, name in (("side", "beside the outermost passes"), ("ends", "at the pass ends"), ("oblique", "oblique")):
-        area = m.get(f"evenness_band_{g}_area_fraction", float("nan"))
+        area = value(f"evenness_band_{g}_area_fraction")
         if np.isfinite(area) and area > 0:
-            parts.append(f"{name} {100 * m[f'evenness_band_{g}_variance_fraction']:.0f} % of the variance on "
-                         f"{100 * area:.0f} % of the interior (mean {m[f'evenness_band_{g}_mean_over_core_mean_ratio']:.3f}"
-                         " of the core's)")
+            parts.append(f"{name} {100 * value(f'evenness_band_{g}_variance_fraction'):.0f} % of the variance on "
+                         f"{100 * area:.0f} % of the interior (mean "
+                         f"{value(f'evenness_band_{g}_mean_over_core_mean_ratio'):.3f} of the core's)")
     verdict = "less evenly than" if excess > 0 else "as evenly as or more evenly than"
     return (f"  the band is removed {verdict} the core ({100 * excess:+.0f} points of the variance against a band "
             f"like the core): " + "; ".join(parts))
