@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
+from .evenness import interior_and_core
 
 #: Angle (rad) between the nearest boundary's tangent and the passes below which a band sample is
 #: beside the outermost pass (``side``), and above ``π/2`` less which it is at the passes' ends.
@@ -64,30 +65,6 @@ def _boundary_tangents(part, step: float = 1e-3):
     if not points:
         return np.zeros((0, 3)), np.zeros((0, 3))
     return np.vstack(points), np.vstack(tangents)
-
-
-def _interior_and_core(samples, inner: float, outer: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(samples.farther_from_boundary(inner), samples.farther_from_boundary(outer))`` (bool
-    ``(n,)`` each, ``inner <= outer`` in m) from one nearest-neighbour query: the same boundary
-    points (a :class:`~swath.simulate.samples.RemovalSamples`' part's edges sampled at half its
-    spacing, else the surface's boundary vertices)."""
-    from scipy.spatial import cKDTree
-
-    from ..surface.polyline import densify
-
-    part = getattr(samples, "part", None)
-    surface = samples if part is None else part
-    loops = surface.boundary_loops
-    n = len(samples.vertices)
-    if not loops:
-        return np.ones(n, bool), np.ones(n, bool)
-    if part is None:
-        boundary = surface.vertices[np.unique(np.concatenate(loops))]
-    else:
-        step = 0.5 * samples.spacing
-        boundary = np.vstack([densify(surface.vertices[np.append(lp, lp[0])], step)[0] for lp in loops])
-    dist, _ = cKDTree(boundary).query(samples.vertices, distance_upper_bound=outer)
-    return ~(dist < inner) if inner > 0 else np.ones(n, bool), ~np.isfinite(dist) if outer > 0 else np.ones(n, bool)
 
 
 def _travel_directions(trajectory) -> tuple[np.ndarray, np.ndarray]:
@@ -157,7 +134,7 @@ def band_causes(removal, trajectory, tool, *, spacing: float | None = None) -> d
     R = tool.pad_radius
     z = np.asarray(removal.depth, float)
     a = np.asarray(samples.vertex_areas, float)
-    inner, core = _interior_and_core(samples, R, R + d)
+    inner, core = interior_and_core(samples, R, R + d)
     band = inner & ~core
     total = float(a[inner].sum())
     if not total > 0 or not a[core].sum() > 0:
