@@ -141,6 +141,10 @@ def test_the_default_job_states_figures_the_written_trajectory_confirms(tmp_path
     shares = [m[f"evenness_{k}_variance_fraction"] for k in ("band", "between_passes", "along_passes", "within_cells")]
     assert sum(shares) == pytest.approx(1.0, abs=1e-6) and min(shares) >= 0
     assert f"interior CoV {m['interior_removal_cov']:.3f}: of its variance" in printed
+    # the band by cause: the groups add up to the band's share, and the CLI says how it compares with the core
+    groups = [m[f"evenness_band_{g}_variance_fraction"] for g in ("side", "ends", "oblique")]
+    assert sum(groups) == pytest.approx(m["evenness_band_variance_fraction"], rel=1e-9)
+    assert "the band is removed" in printed and "beside the outermost passes" in printed
     v = tr.feed[tr.contact]
     assert m["feed_used_max_m_per_s"] == pytest.approx(v.max(), rel=1e-3) and v.max() <= 0.05 * 1.001
     assert v.min() <= m["feed_used_p2_m_per_s"] < 0.9 * v.max()           # the feed varies along the passes

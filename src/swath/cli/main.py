@@ -435,6 +435,7 @@ def _register_summary(settings, doc: dict) -> str:
 
 
 def _summary(settings, m: dict) -> str:
+    from ..simulate.edge_band import band_line
     from ..simulate.evenness import split_line
     from .even_default import summary_line
 
@@ -453,7 +454,8 @@ def _summary(settings, m: dict) -> str:
         f"cycle time {m['cycle_time_s']:.1f} s\n"
         f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f}{inside}, "
         f"L* {m['coverage_lower_bound_m']:.3f} m, efficiency {m['efficiency']:.3f}"
-    ) + ("\n" + even if (even := summary_line(m)) else "") + ("\n" + split if (split := split_line(m)) else "")
+    ) + ("\n" + even if (even := summary_line(m)) else "") + ("\n" + split if (split := split_line(m)) else "") + (
+        "\n" + band if (band := band_line(m)) else "")
 
 
 if __name__ == "__main__":

@@ -58,6 +58,30 @@ def _label_samples(points: np.ndarray, normals: np.ndarray, trajectory):
     return labels[nearest], travel[nearest], offset
 
 
+def interior_and_core(samples, inner: float, outer: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(samples.farther_from_boundary(inner), samples.farther_from_boundary(outer))`` (bool
+    ``(n,)`` each, ``inner <= outer`` in m) from one nearest-neighbour query: the same boundary
+    points (a :class:`~swath.simulate.samples.RemovalSamples`' part's edges sampled at half its
+    spacing, else the surface's boundary vertices)."""
+    from scipy.spatial import cKDTree
+
+    from ..surface.polyline import densify
+
+    part = getattr(samples, "part", None)
+    surface = samples if part is None else part
+    loops = surface.boundary_loops
+    n = len(samples.vertices)
+    if not loops:
+        return np.ones(n, bool), np.ones(n, bool)
+    if part is None:
+        boundary = surface.vertices[np.unique(np.concatenate(loops))]
+    else:
+        step = 0.5 * samples.spacing
+        boundary = np.vstack([densify(surface.vertices[np.append(lp, lp[0])], step)[0] for lp in loops])
+    dist, _ = cKDTree(boundary).query(samples.vertices, distance_upper_bound=outer)
+    return ~(dist < inner) if inner > 0 else np.ones(n, bool), ~np.isfinite(dist) if outer > 0 else np.ones(n, bool)
+
+
 def _weighted_var(values: np.ndarray, weights: np.ndarray, mean: float) -> float:
     return float(np.sum(weights * (values - mean) ** 2) / weights.sum())
 
@@ -101,8 +125,8 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
         raise InputError(f"band_width must be a length >= 0 m, got {band_width!r}")
     samples = removal.surface
     depth = np.asarray(removal.depth, float)
-    inner = samples.farther_from_boundary(tool.pad_radius)
-    core = samples.farther_from_boundary(tool.pad_radius + band) & inner
+    inner, core = interior_and_core(samples, tool.pad_radius, tool.pad_radius + band)
+    core &= inner
     idx = np.flatnonzero(inner)
     nan = float("nan")
     keys = ("interior_cov", "band_area_fraction", "band_variance_fraction", "core_cov",
@@ -159,14 +183,21 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
 
 
 def evenness_metrics(removal, trajectory, tool) -> dict:
-    """:func:`evenness_split`'s figures for ``metrics.json``, each key prefixed ``evenness_``; an
+    """:func:`evenness_split`'s figures for ``metrics.json``, with the band's causes of
+    :func:`swath.simulate.edge_band.band_causes` (its scalars), each key prefixed ``evenness_``; an
     empty dict when the trajectory has fewer than two passes (no spacing to split by)."""
     from .ripple import pass_period
 
     d = pass_period(trajectory)
     if not (np.isfinite(d) and d > 0):
         return {}
-    return {f"evenness_{k}": v for k, v in evenness_split(removal, trajectory, tool, spacing=d).items()}
+    from .edge_band import band_causes
+
+    out = {f"evenness_{k}": v for k, v in evenness_split(removal, trajectory, tool, spacing=d).items()}
+    causes = band_causes(removal, trajectory, tool, spacing=d)       # the band by cause (scalars only)
+    out.update({f"evenness_{k}": v for k, v in causes.items() if isinstance(v, float) and f"evenness_{k}" not in out
+                and k != "band_spacing_m"})
+    return out
 
 
 def split_line(m: dict) -> str:
