@@ -130,3 +130,25 @@ def test_target_cov_refuses_settings_it_chooses_itself():
     for key, value, flag in (("spacing", "50mm", "--spacing"), ("optimise_spacing", "ripple", "--optimise-spacing")):
         with pytest.raises(InputError, match=f"drop {flag}"):
             settings_from_mapping({"part": "example:plate", "out": "x", "target_cov": "6%", key: value})
+
+
+def test_the_candidate_with_the_lead_on_the_curvature_goes_through_the_default_jobs_steps():
+    """As the default job: the lead settled for the plan's spacing, then simulated at each lead; the
+    search reuses that simulation instead of running its own."""
+    from dataclasses import replace
+
+    from shapes import cylinder_patch
+
+    surface = cylinder_patch(0.3, 0.6, 0.4, n_theta=120, n_len=61)
+    settings = JobSettings(part="example:plate", out="unused", target_cov=0.9, sample_spacing=6e-3)
+    curved = replace(settings, target_cov=None, optimise_spacing="ripple", length_budget=1.5, lead_angle=None)
+    result = search_target_cov(surface, settings.tool(), settings, candidates=[("on the curvature", curved, True)])
+    chosen = result.chosen
+    meta = chosen.toolpath.metadata
+    assert meta["ripple_model"] == "curved"
+    tried = dict(map(tuple, meta["lead_simulated_interior_removal_cov"]))
+    assert len(tried) >= 3                                           # the leads simulated
+    lead = chosen.settings.lead()
+    assert lead == pytest.approx(meta["ripple_lead_rad"]) and "°)" in chosen.label
+    assert chosen.interior_removal_cov == pytest.approx(tried[round(math.degrees(lead), 1)], rel=1e-12)
+    assert chosen.trajectory.duration == pytest.approx(chosen.cycle_time_s)
