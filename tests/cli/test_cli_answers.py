@@ -254,7 +254,7 @@ def test_the_report_summary_shows_the_headline_and_folds_the_rest():
     metrics = dict(coverage_fraction=0.995, interior_removal_cov=0.134, removal_cov=0.151, cycle_time_s=85.21,
                    contact_length_m=3.341, air_length_m=0.5413, coverage_lower_bound_m=2.944, efficiency=0.8812,
                    n_passes=6, plan_s=27.9, simulate_s=1.6, softer_pad_removal_cov=0.14,
-                   warnings=["a warning"])
+                   ripple_pv_m=1.42e-6, ripple_rms_m=5.3e-7, warnings=["a warning"])
     settings = {"part": "example:plate", "plan": {"candidates": [{"direction_deg": float(d), "cost": 100.0 + d}
                                                                  for d in range(0, 180, 30)]}}
     text = report_html_text(surface=flat_plate(spacing=0.02), metrics=metrics, settings=settings)
@@ -265,9 +265,11 @@ def test_the_report_summary_shows_the_headline_and_folds_the_rest():
     assert "99.5 %" in headline and "13.4 %" in headline and "85.21 s" in headline and "3.341 m" in headline
     assert re.search(r"L / L\*</td><td class='num'><b>1\.135</b>", headline)            # 3.341 / 2.944
     assert re.search(r"warnings</td><td class='num'><b>1</b>", headline)
+    # the mid-spatial ripple across the passes, peak to valley and rms, next to the interior CoV
+    assert re.search(r"ripple across the passes</td><td class='num'><b>1\.42 µm</b> \(rms 530 nm\)", headline)
     # internal timings and the rest are folded, with the settings
     assert "plan_s" not in headline and "plan_s" in folded and "softer_pad_removal_cov" in folded
-    assert folded.startswith("<summary>All metrics (12) and settings</summary>") and "example:plate" in folded
+    assert folded.startswith("<summary>All metrics (14) and settings</summary>") and "example:plate" in folded
     # long values wrap inside their box instead of widening the page
     assert "overflow-wrap:anywhere" in text and "white-space:nowrap}" not in text.replace(
         "table.headline td.num{white-space:nowrap}", "")

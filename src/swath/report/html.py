@@ -332,6 +332,11 @@ def _headline_html(metrics: dict) -> str:
             continue
         rows.append(f"<tr><td>{esc(label)}</td><td class='num'><b>{esc(format_value(key, metrics[key]))}</b></td>"
                     f"<td class='why'>{esc(why)}</td></tr>")
+        if key == "interior_removal_cov" and metrics.get("ripple_pv_m") is not None:
+            pv, rms = (format_value(k, metrics.get(k)) for k in ("ripple_pv_m", "ripple_rms_m"))
+            rows.append(f"<tr><td>ripple across the passes</td><td class='num'><b>{esc(pv)}</b> "
+                        f"(rms {esc(rms)})</td><td class='why'>mid-spatial ripple: the removal's rise and fall "
+                        "from pass to pass, peak to valley (median over lines across the passes)</td></tr>")
         if key == "contact_length_m" and metrics.get("coverage_lower_bound_m"):
             ratio = float(metrics[key]) / float(metrics["coverage_lower_bound_m"])
             rows.append(f"<tr><td>L / L*</td><td class='num'><b>{ratio:.3f}</b></td>"
