@@ -116,8 +116,12 @@ def one(part: str, planner: str) -> dict:
         if k in metrics:
             row[k] = float(metrics[k])
     row["report_s"] = row["job_cpu_s"] - sum(row.get(k, 0.0) for k in STAGES)
-    for k in ("n_passes", "coverage_fraction", "removal_cov", "cycle_time_s"):
+    for k in ("n_passes", "coverage_fraction", "removal_cov", "cycle_time_s", "interior_removal_cov", "length_ratio",
+              "lead_angle_deg", "plain_plan_kept", "constant_feed_kept", "equidistant_kept",
+              "constant_feed_interior_removal_cov", "plain_interior_removal_cov"):
         row[k] = metrics.get(k)
+    row["even_codes"] = sorted({w[w.rindex("[W-") + 1:-1] for w in metrics.get("warnings", [])
+                                if "[W-" in w and w.endswith("]") and ("EVEN" in w or "STIFF" in w or "COARSE" in w)})
     if planner == "raster":
         from swath.cli.job import JobSettings, load_part_info, make_plan
 
@@ -134,6 +138,36 @@ def one(part: str, planner: str) -> dict:
             row["plan_over_slice"] = row["plan_warm_s"] / max(row["slice_s"], 1e-9)
     row["peak_MB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return row
+
+
+def even_table(rows: list[dict]) -> list[str]:
+    """The even-removal figures of the default jobs above: interior CoV (a pad radius in from the
+    edges), against the same passes at constant feed and the plain plan, with what the job kept."""
+    lines = [
+        "",
+        "## Even removal, part by part",
+        "",
+        "The same default jobs (raster): *interior CoV* a pad radius in from the open edges, the figure the "
+        "job optimises; *constant feed* the same passes at constant feed; *plain* the plain plan (covering "
+        "spacing, flat pad, constant feed) the job compares with; *kept* what the job wrote (the plain plan's "
+        "passes, the equidistant passes where the raster's planes spread, the constant feed) and the evenness "
+        "warnings it gave.",
+        "",
+        "| part | interior CoV | constant feed | plain | L / L\\* | coverage | cycle time s | lead deg | kept |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if "failed" in r or r.get("interior_removal_cov") is None:
+            continue
+        kept = [name for key, name in (("plain_plan_kept", "plain plan's passes"), ("equidistant_kept", "equidistant"),
+                                       ("constant_feed_kept", "constant feed")) if r.get(key)]
+        kept += [f"`{c}`" for c in r.get("even_codes", [])]
+        lines.append(
+            f"| {r['part']} | {cell(r['interior_removal_cov'], '.3f')} "
+            f"| {cell(r.get('constant_feed_interior_removal_cov'), '.3f')} | {cell(r.get('plain_interior_removal_cov'), '.3f')} "
+            f"| {cell(r.get('length_ratio'), '.2f')} | {cell(r['coverage_fraction'], '.4f')} "
+            f"| {cell(r['cycle_time_s'], '.1f')} | {cell(r.get('lead_angle_deg'), '.1f')} | {', '.join(kept) or 'optimised feed'} |")
+    return lines
 
 
 def run(part: str, planner: str, timeout: float) -> dict:
@@ -251,6 +285,7 @@ def markdown(rows: list[dict], uniform: list[dict], info: dict) -> str:
                 f"| {u['part']} | {r['process_s']:.1f} | {u['process_s']:.1f} | {u['process_s'] / r['process_s']:.2f} "
                 f"| {r['process_cpu_s']:.1f} | {u['process_cpu_s']:.1f} | {u['process_cpu_s'] / r['process_cpu_s']:.2f} "
                 f"| {u['n_passes']} | {cell(u['removal_cov'], '.3f')} | {u['peak_MB']:.0f} |")
+    lines += even_table(rows)
     lines += [
         "",
         "## Running it",
