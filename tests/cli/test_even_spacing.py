@@ -57,10 +57,15 @@ def test_passes_under_the_ratio_stay_and_their_lead_is_the_evenest_simulated():
     assert kept is even and even.metadata["spacing_spread_ratio"] < SPREAD_RATIO    # not re-planned
     tried = dict(map(tuple, even.metadata["lead_simulated_interior_removal_cov"]))
     assert sorted(tried) == [0.0, 7.0, 11.0, 15.0]                 # the flat pad among them here
+    covered = dict(map(tuple, even.metadata["lead_simulated_coverage_fraction"]))
     lead = even.metadata["ripple_lead_rad"]
-    assert tried[round(math.degrees(lead), 1)] == min(tried.values())
+    # the evenest of the leads that cover as much as the job's 11°
+    from swath.cli.even_spacing import covers_as_much
+
+    eligible = [a for a in tried if covers_as_much(covered[a], covered[11.0])]
+    assert 11.0 in eligible and tried[round(math.degrees(lead), 1)] == min(tried[a] for a in eligible)
     trajectory, removal = run                                      # the kept lead's run, for the job
-    assert removal.metrics["interior_removal_cov"] == pytest.approx(min(tried.values()), rel=1e-12)
+    assert removal.metrics["interior_removal_cov"] == pytest.approx(tried[round(math.degrees(lead), 1)], rel=1e-12)
     # ... the job's own timing of the passes at that lead, so the job need not time them again
     from dataclasses import replace
 

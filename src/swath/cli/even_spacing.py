@@ -178,14 +178,15 @@ def _simulated_lead(toolpath, surface, tool, settings, lead: float, run, say, *,
     """Simulate ``toolpath``'s passes at constant feed at each lead of :func:`lead_choices` (``flat``:
     the flat pad among them) besides ``lead`` (rad), whose ``run`` ``(trajectory or None, removal)``
     is known, and set ``metadata["ripple_lead_rad"]`` to the evenest of those covering as much as
-    ``lead`` does (:func:`covers_as_much`); ``metadata["lead_simulated_interior_removal_cov"]`` holds
-    every lead's figure as ``[lead in degrees, interior CoV]`` pairs.  Returns the kept lead's
+    ``lead`` does (:func:`covers_as_much`); ``metadata["lead_simulated_interior_removal_cov"]`` and
+    ``metadata["lead_simulated_coverage_fraction"]`` hold every lead's figures as ``[lead in degrees,
+    value]`` pairs.  Returns the kept lead's
     ``(trajectory, removal)`` at constant feed, or None when its trajectory was not timed here.
 
-    The coverage is judged against the job's lead, not the best-covering one: a steep lead lifts
-    the front of the pad, and where a pass ends at the part's edge the patch ahead of its end is
-    never touched (a 0.35 m bowl: 98.5 % covered at 11°, 99.3 % at 7°, all of it flat), but the
-    flat pad's 0.41 interior CoV is no trade for 0.065 at 11°.  Running the passes on past the edge
+    The coverage is judged against the job's lead, not the best-covering one: the flat pad may
+    cover a little more where the lead's pad is lifted (a 0.35 m bowl, before the lead was laid flat
+    at pass ends: 98.5 % covered at 11°, all of it flat), but its 0.41 interior CoV is no trade for
+    0.065 at 11°.  Running the passes on past the edge
     until the lifted front reaches it does not help under the contact model: the pad hanging over the
     edge presses its whole force on the rim (10 mm on the bowl: 99.25 % covered, the deepest sample
     42 times the mean, interior 0.102)."""
@@ -202,8 +203,10 @@ def _simulated_lead(toolpath, surface, tool, settings, lead: float, run, say, *,
     log.info("interior CoV at constant feed (coverage) by lead (deg): %s; lead %.1f deg kept",
              {round(math.degrees(a), 1): (round(cov[a], 4), round(covered[a], 4)) for a in sorted(runs)},
              math.degrees(best))
-    toolpath.metadata.update(ripple_lead_rad=float(best), lead_simulated_interior_removal_cov=[
-        [round(math.degrees(a), 1), cov[a]] for a in sorted(runs)])
+    toolpath.metadata.update(
+        ripple_lead_rad=float(best),
+        lead_simulated_interior_removal_cov=[[round(math.degrees(a), 1), cov[a]] for a in sorted(runs)],
+        lead_simulated_coverage_fraction=[[round(math.degrees(a), 1), covered[a]] for a in sorted(runs)])
     kept = runs[best]
     return kept if kept[0] is not None else None
 

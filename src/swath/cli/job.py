@@ -560,8 +560,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
                    orbit_radius_m=tool.orbit_radius if tool.motion == "orbital" else 0.0,
                    pad_depression_on_flat_m=tool.flat_depression)
     # FORMATS.md: a deliberate tilt of the tool is stated in the job's metadata
-    metrics["lead_angle_rad"] = settings.lead()
-    metrics["tool_tilt"] = describe_lead(settings.lead())
+    ramp = float(trajectory.metadata.get("lead_end_ramp_m", 0.0))       # the lead laid flat at each pass end
+    metrics.update(lead_angle_rad=settings.lead(), lead_end_ramp_m=ramp, tool_tilt=describe_lead(settings.lead(), ramp))
     metrics["warnings"] = plan_warnings(surface, toolpath, trajectory, metrics, settings.feed, tool.pad_radius)
     facing = facing_warning(surface, side=settings.side)      # a part planned from underneath
     if facing is not None:

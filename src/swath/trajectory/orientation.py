@@ -59,6 +59,20 @@ def with_lead(frames: np.ndarray, lead: float) -> np.ndarray:
     return frames @ turn
 
 
+def with_lead_ramped(frames: np.ndarray, lead: float, left: np.ndarray, ramp: float) -> np.ndarray:
+    """The tool frames ``(k, 3, 3)`` of a pass turned by ``lead`` (rad) about their own y-axis
+    (:func:`with_lead`), the turn falling linearly to none over the pass's last ``ramp`` metres:
+    ``left`` ``(k,)`` is each frame's arc length (m) to the pass's end.  ``ramp`` 0: the same turn
+    everywhere."""
+    if not ramp > 0:
+        return with_lead(frames, lead)
+    theta = lead * np.clip(np.asarray(left, float) / ramp, 0.0, 1.0)
+    c, s = np.cos(theta), np.sin(theta)
+    turn = np.zeros((len(theta), 3, 3))
+    turn[:, 0, 0], turn[:, 0, 2], turn[:, 1, 1], turn[:, 2, 0], turn[:, 2, 2] = c, s, 1.0, -s, c
+    return frames @ turn
+
+
 def quaternions_from_frames(frames: np.ndarray) -> np.ndarray:
     """Unit quaternions ``(k, 4)``, scalar first, of rotation matrices ``(k, 3, 3)``, with signs
     chosen so consecutive quaternions lie in the same hemisphere (no sign flips in the file)."""
