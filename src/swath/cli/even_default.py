@@ -302,7 +302,11 @@ def summary_line(m: dict) -> str:
             f"  even removal (default): the plain plan's passes remove more evenly here than the least-ripple "
             f"spacing (interior CoV {m['plain_interior_removal_cov']:.3f} against "
             f"{m['even_plan_interior_removal_cov']:.3f} at constant feed); the feed is optimised along them\n")
-    if m.get("constant_feed_kept"):
+    if m.get("feed_optimisation_skipped"):
+        parts = [lead + "  even removal (default; --constant-feed for a plain plan): the constant feed is written, the "
+                 f"feed not optimised: {100 * m['feed_reachable_variance_fraction']:.0f} % of the interior variance "
+                 "lies between and along the passes, where a feed along them reaches, the rest across them"]
+    elif m.get("constant_feed_kept"):
         parts = [lead + "  even removal (default; --constant-feed for a plain plan): the constant feed is written, the "
                  "feed optimised to " + (f"{target * 1e6:.3g} um" if target else "the target map")
                  + " removed less evenly (W-EVEN-FEED-WORSE)"]

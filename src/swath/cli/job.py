@@ -487,9 +487,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     t0 = time.perf_counter()
     wear_and_holds = {"rate_scale": process_stage.removal_rate_scale(trajectory, tool, settings),
                       "holds": None if force is None else force.holds}
-    if searched is not None and trajectory is searched.chosen.trajectory and force is None \
-            and wear_and_holds["rate_scale"] is None:
-        removal = searched.chosen.removal           # the search simulated this very trajectory
+    simulated = (searched.chosen.trajectory, searched.chosen.removal) if searched is not None else \
+        (even or {}).pop("_simulated", (None, None))      # the feed stage kept the constant feed it simulated
+    if trajectory is simulated[0] and force is None and wear_and_holds["rate_scale"] is None:
+        removal = simulated[1]                      # this very trajectory was simulated already
     else:
         removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
                                    sampling=settings.removal_sampling, force=None if force is None else force.force,
