@@ -199,7 +199,7 @@ class _Progress:
             # the same step run again (the spacing search plans at several spacings): its rate from here
             self.stage_t0, self.done0 = now, done
         self.done = done
-        if total > 1 and (now - self.last > 2.0 or done == total):
+        if total > 1 and (done > self.done0 or done == total) and (now - self.last > 2.0 or done == total):
             self.last = now
             left = _time_left(now - self.stage_t0, done - self.done0, total - self.done0)
             print(f"[{now - self.t0:6.1f} s]   {stage}: {100.0 * done / total:5.1f} %{left}", file=sys.stderr,
