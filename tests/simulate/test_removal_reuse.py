@@ -56,3 +56,13 @@ def test_the_interior_mask_is_kept_per_margin_and_read_only():
         assert not kept.flags.writeable
     # a wider margin keeps fewer samples
     assert samples.farther_from_boundary(0.03).sum() < samples.farther_from_boundary(0.0125).sum()
+
+
+def test_the_pass_period_is_measured_once_per_trajectory():
+    from swath.simulate.ripple import _pass_period, pass_period
+
+    _, tr = _cap_and_trajectory()
+    first = pass_period(tr)
+    assert first == pytest.approx(0.03, rel=0.02)            # the passes lie 30 mm apart (in y, on the cap)
+    assert pass_period(tr) == first == _pass_period(tr, 2e-3)
+    assert pass_period(tr, step=4e-3) == _pass_period(tr, 4e-3)
