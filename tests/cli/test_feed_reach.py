@@ -95,3 +95,21 @@ def test_the_printed_line_says_the_feed_was_not_optimised_and_why():
     text = summary_line(m)
     assert "the constant feed is written, the feed not optimised: 11 % of the interior variance" in text
     assert "W-EVEN-FEED-WORSE" not in text and "% of the target" not in text
+
+
+def test_the_feed_stage_skips_the_programme_and_says_so(tmp_path):
+    from swath.cli import even_default, stages
+    from swath.cli.settings import settings_from_mapping
+
+    settings = even_default.resolve(settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"),
+                                                          "sample_spacing": "4mm"}))
+    removal, tr, tool = _run()
+    even: dict = {}
+    out_settings, trajectory, feed, metrics = stages.even_feed_stage(_passes(), tool, settings, tr, PLATE, even,
+                                                                     constant=removal)
+    assert trajectory is tr and feed is None and metrics == {}
+    assert even["feed_optimisation_skipped"] and even["constant_feed_kept"]
+    assert even["_simulated"] == (tr, removal)                       # the job reuses this simulation
+    assert out_settings.target_depth > 0                             # the target the default chose, stated
+    assert len(even["warnings"]) == 1 and even["warnings"][0].endswith("[W-EVEN-FEED-SKIPPED]")
+    assert "2 % of the interior removal variance" in even["warnings"][0]
