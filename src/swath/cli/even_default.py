@@ -377,7 +377,8 @@ def plain_run(surface, tool, plain, part=None) -> tuple:
 def plain_beside(surface, tool, plain, *, part=None):
     """:func:`plain_run` started now in a forked child process (:class:`swath.core.beside.Beside`,
     with worker processes of its own: the uniform planner's candidate directions), while this
-    process goes on (the job simulates its own passes meanwhile, :func:`swath.cli.stages.even_feed_stage`);
+    process goes on (a raster job starts it before its own spacing search, which runs in this
+    process alone; otherwise the job simulates its own passes meanwhile, :func:`swath.cli.stages.even_feed_stage`);
     returns a callable that waits for its ``(toolpath, trajectory, removal)``.  The plan is the one
     :func:`plain_run` makes here.  Where no child can be forked the callable plans here.  The
     planners' models shared on ``surface`` are released in this process once the child has started

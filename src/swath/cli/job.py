@@ -401,6 +401,9 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
 
+    # a raster plans in this process alone (no workers): the plain plan is made beside it from the start
+    early = even_default.plain_beside(surface, tool, plain, part=part_info.get("part")) if plain is not None and \
+        settings.optimise_feed and even_default.is_even(settings) and settings.planner == "raster" else None
     searched, target_cov, ridge = None, settings.target_cov, []
     settings_target = target_cov or 0.0
     if target_cov is not None:
@@ -449,8 +452,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.optimise_feed:
         t0 = time.perf_counter()
         # the plain plan is made beside the job (in a child process where one can be forked)
-        plain_run = None if plain is None or even is None else (
-            even_default.plain_beside(surface, tool, plain, part=part_info.get("part")))
+        plain_run = early or (None if plain is None or even is None else (
+            even_default.plain_beside(surface, tool, plain, part=part_info.get("part"))))
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(toolpath, tool, settings, trajectory,
                                                                           surface, even, progress=say,
                                                                           plain=plain_run)
