@@ -373,7 +373,7 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
         even.setdefault("warnings", []).append(
             f"even removal: the feed is not optimised: {100 * reach['feed_reachable_variance_fraction']:.0f} % of the "
             f"interior removal variance at constant feed (CoV {reach['feed_reach_interior_cov']:.3f}) lies between "
-            f"and along the passes, where a feed along them reaches, under the {100 * FEED_REACH_MIN:.0f} % it needs; "
+            f"and along the passes, where a feed along them reaches, under the {100 * FEED_REACH_MIN:.3g} % it needs; "
             "the rest is the ripple across them, and the constant feed is written [W-EVEN-FEED-SKIPPED]")
         even.update(constant_feed_kept=True, feed_optimisation_skipped=True, _simulated=(trajectory, constant))
         return replace(settings, target_depth=depth), trajectory, None, {}

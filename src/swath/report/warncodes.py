@@ -202,7 +202,7 @@ CODES: dict[str, WarningCode] = dict([
           "Nothing to do for this run; a softer pad (see the softer-pad figure) or a smaller one follows the "
           "curvature better. `--constant-feed` skips the feed optimisation.", "feed"),
     entry("W-EVEN-FEED-SKIPPED", r"even removal: the feed is not optimised",
-          "Under 15 % of the interior removal variance of the passes at constant feed lies between and along the "
+          "Under 11.5 % of the interior removal variance of the passes at constant feed lies between and along the "
           "passes, where a feed along them reaches; the rest is the ripple across them. The default job writes the "
           "constant feed without running the feed programme (it evened nothing on such parts).",
           "Nothing to do for this run; `--target-depth` runs the feed programme all the same. A softer pad or "
