@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from swath.cli import even_default
+from swath.cli.feed_reach import FEED_REACH_MIN
 from swath.cli.main import main
 from swath.cli.settings import settings_from_mapping
 from swath.errors import InputError
@@ -152,6 +153,8 @@ def test_the_default_job_states_figures_the_written_trajectory_confirms(tmp_path
     # the plain plan (0.29), which the job planned and simulated to compare
     assert m["interior_removal_cov"] < 0.8 * m["constant_feed_interior_removal_cov"]
     assert m["interior_removal_cov"] < 0.3 * m["plain_interior_removal_cov"] and "plain_plan_kept" not in m
+    # the feed can reach the variance here (the default plate job: 34 % of it between and along the passes)
+    assert m["feed_reachable_variance_fraction"] > FEED_REACH_MIN and "feed_optimisation_skipped" not in m
     assert m["plain_cycle_time_s"] < m["cycle_time_s"]
 
 
@@ -179,6 +182,7 @@ def test_where_the_plain_plan_wins_its_passes_get_the_optimised_feed(tmp_path, c
     assert m["plain_interior_removal_cov"] < m["even_plan_interior_removal_cov"]
     assert m["constant_feed_interior_removal_cov"] == pytest.approx(m["plain_interior_removal_cov"], rel=1e-9)
     assert m["interior_removal_cov"] < 0.9 * m["plain_interior_removal_cov"]
+    assert m["feed_reachable_variance_fraction"] > FEED_REACH_MIN and "feed_optimisation_skipped" not in m
     assert 1.0 < m["cycle_time_ratio"] <= 1.5 * 1.01
     assert "the feed is optimised along them" in printed
     assert any("[W-EVEN-PLAIN-KEPT]" in w and "feed then optimised" in w for w in m["warnings"])

@@ -89,3 +89,29 @@ def test_an_unread_child_is_stopped_even_when_the_parent_handles_sigterm(two_cpu
         assert time.monotonic() - started < 4.0       # terminated, not left to the kill after 5 s
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def test_a_raster_job_starts_the_plain_plan_before_its_own_plan(two_cpus, tmp_path, monkeypatch):
+    """The raster plans in the job's process alone, so the plain plan's child starts with the job
+    (its spacing search then runs beside it) and is asked for where it was."""
+    from swath.cli import job
+
+    events = []
+    original_beside, original_plan = even_default.plain_beside, job.make_plan
+
+    def beside_spy(*args, **kwargs):
+        events.append("plain started")
+        wait = original_beside(*args, **kwargs)
+        return lambda: (events.append("plain asked for"), wait())[1]
+
+    def plan_spy(*args, **kwargs):
+        events.append("job planned")
+        return original_plan(*args, **kwargs)
+
+    monkeypatch.setattr(even_default, "plain_beside", beside_spy)
+    monkeypatch.setattr(job, "make_plan", plan_spy)
+    settings = settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"), "sample_spacing": "6mm",
+                                      "point_spacing": "4mm"})
+    metrics = job.run_job(settings)
+    assert events == ["plain started", "job planned", "plain asked for"]
+    assert metrics["plain_interior_removal_cov"] > metrics["interior_removal_cov"] > 0

@@ -29,3 +29,19 @@ def test_progress_lines_carry_the_estimate(capsys):
     assert lines[0].endswith("simulating removal")
     assert lines[1].endswith("20.0 %, about 32 s left")           # 8 s for 2 of 10: 8 left at 4 s each
     assert lines[2].endswith("50.0 %, about 16 s left")
+
+
+def test_a_step_run_again_is_estimated_from_its_own_start(capsys):
+    # the spacing search runs the planner's candidate directions once per spacing: the percentages
+    # start again, and the estimate must not read the first round's time as the second's first unit
+    clock = iter([0.0, 0.0, 4.0, 9.0, 9.0, 12.0, 15.0])
+    progress = _Progress(quiet=False, clock=lambda: next(clock))
+    progress("trying pass directions", 0, 10)
+    progress("trying pass directions", 4, 10)          # 4 s
+    progress("trying pass directions", 10, 10)         # 9 s: done
+    progress("trying pass directions", 1, 10)          # a second round starts, 1 of 10 at once
+    progress("trying pass directions", 3, 10)          # 12 s: two more units in 3 s
+    progress("trying pass directions", 5, 10)          # 15 s: four units in 6 s
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[-1].endswith("50.0 %, about 8 s left")          # 5 left at 1.5 s each (not 15 s / 5 * 5 = 15)
+    assert not any("min left" in line for line in lines)

@@ -302,7 +302,11 @@ def summary_line(m: dict) -> str:
             f"  even removal (default): the plain plan's passes remove more evenly here than the least-ripple "
             f"spacing (interior CoV {m['plain_interior_removal_cov']:.3f} against "
             f"{m['even_plan_interior_removal_cov']:.3f} at constant feed); the feed is optimised along them\n")
-    if m.get("constant_feed_kept"):
+    if m.get("feed_optimisation_skipped"):
+        parts = [lead + "  even removal (default; --constant-feed for a plain plan): the constant feed is written, the "
+                 f"feed not optimised: {100 * m['feed_reachable_variance_fraction']:.0f} % of the interior variance "
+                 "lies between and along the passes, where a feed along them reaches, the rest across them"]
+    elif m.get("constant_feed_kept"):
         parts = [lead + "  even removal (default; --constant-feed for a plain plan): the constant feed is written, the "
                  "feed optimised to " + (f"{target * 1e6:.3g} um" if target else "the target map")
                  + " removed less evenly (W-EVEN-FEED-WORSE)"]
@@ -373,7 +377,8 @@ def plain_run(surface, tool, plain, part=None) -> tuple:
 def plain_beside(surface, tool, plain, *, part=None):
     """:func:`plain_run` started now in a forked child process (:class:`swath.core.beside.Beside`,
     with worker processes of its own: the uniform planner's candidate directions), while this
-    process goes on (the job simulates its own passes meanwhile, :func:`swath.cli.stages.even_feed_stage`);
+    process goes on (a raster job starts it before its own spacing search, which runs in this
+    process alone; otherwise the job simulates its own passes meanwhile, :func:`swath.cli.stages.even_feed_stage`);
     returns a callable that waits for its ``(toolpath, trajectory, removal)``.  The plan is the one
     :func:`plain_run` makes here.  Where no child can be forked the callable plans here.  The
     planners' models shared on ``surface`` are released in this process once the child has started

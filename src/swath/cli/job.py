@@ -401,8 +401,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
         stages.robot_fit_check(surface, settings)       # a part too big for the reach is refused before planning
     timings["load_s"] = time.perf_counter() - t0
 
-    searched, target_cov, ridge = None, settings.target_cov, []
-    constant_run = None                   # the passes kept, timed and simulated at constant feed
+    # a raster plans in this process alone (no workers): the plain plan is made beside it from the start
+    early = even_default.plain_beside(surface, tool, plain, part=part_info.get("part")) if plain is not None and \
+        settings.optimise_feed and even_default.is_even(settings) and settings.planner == "raster" else None
+    searched, target_cov, ridge, constant_run = None, settings.target_cov, [], None   # constant_run: the lead check's
     settings_target = target_cov or 0.0
     if target_cov is not None:
         from .target_cov import search_target_cov
@@ -451,8 +453,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     if settings.optimise_feed:
         t0 = time.perf_counter()
         # the plain plan is made beside the job (in a child process where one can be forked)
-        plain_run = None if plain is None or even is None else (
-            even_default.plain_beside(surface, tool, plain, part=part_info.get("part")))
+        plain_run = early or (None if plain is None or even is None else (
+            even_default.plain_beside(surface, tool, plain, part=part_info.get("part"))))
         settings, trajectory, feed, feed_metrics = stages.even_feed_stage(
             toolpath, tool, settings, trajectory, surface, even, progress=say, plain=plain_run,
             constant=None if constant_run is None else constant_run[1])
@@ -489,9 +491,10 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     t0 = time.perf_counter()
     wear_and_holds = {"rate_scale": process_stage.removal_rate_scale(trajectory, tool, settings),
                       "holds": None if force is None else force.holds}
-    if searched is not None and trajectory is searched.chosen.trajectory and force is None \
-            and wear_and_holds["rate_scale"] is None:
-        removal = searched.chosen.removal           # the search simulated this very trajectory
+    simulated = (searched.chosen.trajectory, searched.chosen.removal) if searched is not None else \
+        (even or {}).pop("_simulated", (None, None))      # the feed stage kept the constant feed it simulated
+    if trajectory is simulated[0] and force is None and wear_and_holds["rate_scale"] is None:
+        removal = simulated[1]                      # this very trajectory was simulated already
     else:
         removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
                                    sampling=settings.removal_sampling, force=None if force is None else force.force,

@@ -183,6 +183,7 @@ class _Progress:
         self.t0 = clock()
         self.last = 0.0
         self.stage_t0 = self.t0
+        self.done = self.done0 = 0
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if self.quiet:
@@ -191,10 +192,16 @@ class _Progress:
         if stage != self.stage:
             self.stage = stage
             self.last = self.stage_t0 = now
+            self.done = self.done0 = done
             print(f"[{now - self.t0:6.1f} s] {stage}", file=sys.stderr, flush=True)
-        elif total > 1 and (now - self.last > 2.0 or done == total):
+            return
+        if done < self.done:
+            # the same step run again (the spacing search plans at several spacings): its rate from here
+            self.stage_t0, self.done0 = now, done
+        self.done = done
+        if total > 1 and (done > self.done0 or done == total) and (now - self.last > 2.0 or done == total):
             self.last = now
-            left = _time_left(now - self.stage_t0, done, total)
+            left = _time_left(now - self.stage_t0, done - self.done0, total - self.done0)
             print(f"[{now - self.t0:6.1f} s]   {stage}: {100.0 * done / total:5.1f} %{left}", file=sys.stderr,
                   flush=True)
 

@@ -345,6 +345,7 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     from ..errors import InfeasibleError
     from ..simulate import simulate_removal
     from . import even_default
+    from .feed_reach import FEED_REACH_MIN, feed_cannot_help, feed_reach
 
     say = progress or (lambda stage, done, total: None)
     if even is None or not even_default.wants_target_depth(settings):
@@ -365,6 +366,17 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
         even["_plain"] = run
         if even_default.plain_if_evener(run, constant, even, feed_follows=True) is not None:
             return settings, trajectory, None, {}        # the feed is optimised on the plain plan's passes
+    reach = feed_reach(constant, trajectory, tool)
+    even.update(reach)
+    if feed_cannot_help(reach):
+        # the variance lies across the passes: no feed along them evens it (crs_part_5: 15 s for a worse CoV)
+        even.setdefault("warnings", []).append(
+            f"even removal: the feed is not optimised: {100 * reach['feed_reachable_variance_fraction']:.0f} % of the "
+            f"interior removal variance at constant feed (CoV {reach['feed_reach_interior_cov']:.3f}) lies between "
+            f"and along the passes, where a feed along them reaches, under the {100 * FEED_REACH_MIN:.3g} % it needs; "
+            "the rest is the ripple across them, and the constant feed is written [W-EVEN-FEED-SKIPPED]")
+        even.update(constant_feed_kept=True, feed_optimisation_skipped=True, _simulated=(trajectory, constant))
+        return replace(settings, target_depth=depth), trajectory, None, {}
     optimised, first = _default_target_feed(toolpath, tool, replace(settings, target_depth=depth), trajectory,
                                             surface, figures, say)
     if isinstance(optimised, InfeasibleError):   # the default's own target: the plain plan, said, rather than no plan

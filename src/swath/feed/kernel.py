@@ -6,8 +6,9 @@ speed, every surface sample ``j`` it touches there loses depth at the mean Prest
 
     K[j, i] = mean over poses in the node of  k_p · p_j · v_rel(r_j)          (m/s)
 
-with ``p_j`` from the force-balanced contact patch (:func:`swath.contact.mesh_contact`, the same
-model and the same float32 samples as :func:`swath.simulate.simulate_removal`) and ``v_rel`` the
+with ``p_j`` from the force-balanced contact patch (the compiled contact kernels of
+:mod:`swath.contact.kernels` in float64, as :func:`swath.simulate.simulate_removal` uses them, or
+without numba :func:`swath.contact.mesh_contact` in float32: the same model) and ``v_rel`` the
 abrasive's sliding speed (uniform for an orbital pad, ``ω·r`` for a rotary one).  The removal of a
 plan that spends ``t_i`` seconds in node ``i`` is ``K @ t``.
 
@@ -224,7 +225,8 @@ def kernel_sample_spacing(surface, tool: Tool, *, max_samples: int = MAX_KERNEL_
 
 def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sample_spacing: float | None = None,
                  pose_step: float | None = None, samples=None, trajectory=None, spread: str = "even",
-                 nodes: DwellNodes | None = None, chunk: int = 2000, progress=None) -> RemovalKernel:
+                 nodes: DwellNodes | None = None, chunk: int = 2000, engine: str = "auto",
+                 progress=None) -> RemovalKernel:
     """Build the removal kernel of ``toolpath`` on its surface.
 
     Parameters
@@ -263,6 +265,12 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
         ignored).
     chunk : int
         Poses per vectorised batch (memory about ``chunk ×`` samples under the pad pairs).
+    engine : {"auto", "compiled", "numpy"}
+        The contact model's evaluation: ``"compiled"`` the numba kernels
+        (:func:`swath.contact.kernels.contact_pairs` on one cell grid of the samples, float64),
+        ``"numpy"`` :func:`swath.contact.mesh_contact` (KD-tree pairs, float32, three to ten times
+        slower), ``"auto"`` compiled when numba is installed.  The same pairs; the rates differ by
+        the float32 rounding (about 1e-6 relative).
     progress : callable, optional
         ``progress(done, total)`` after each batch.
 
@@ -270,6 +278,13 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     -------
     RemovalKernel
     """
+    from ..contact import kernels
+
+    if engine not in ("auto", "compiled", "numpy"):
+        raise InputError(f"kernel engine must be 'auto', 'compiled' or 'numpy', got {engine!r}")
+    if engine == "compiled" and not kernels.AVAILABLE:
+        raise InputError("the compiled kernel engine needs numba; install it (pip install numba) or use engine='numpy'")
+    compiled = engine == "compiled" or (engine == "auto" and kernels.AVAILABLE)
     if not toolpath.passes:
         raise InputError("the tool path has no passes; plan passes before building a removal kernel")
     if sample_spacing is not None:
@@ -291,18 +306,26 @@ def build_kernel(toolpath, tool: Tool, *, node_spacing: float | None = None, sam
     step = 0.5 * spacing if pose_step is None else float(pose_step)
     if samples is None:
         samples = toolpath.surface.subdivided(spacing)
-    pts, nrm, area = samples.vertices.astype(np.float32), samples.normals.astype(np.float32), samples.vertex_areas
-    tree = samples.kdtree
+    if compiled:
+        grid = kernels.sample_grid(samples.vertices, samples.normals, samples.vertex_areas,
+                                   cell=kernels.default_cell(tool))
+    else:
+        pts, nrm = samples.vertices.astype(np.float32), samples.normals.astype(np.float32)
+        area, tree = samples.vertex_areas, samples.kdtree
     position, axes, node, weight = _sub_poses(toolpath, nodes, step, trajectory, timed=spread == "timed")
-    S, n = len(pts), len(nodes)
+    S, n = len(samples.vertices), len(nodes)
     blocks = []
     if progress is not None:
         progress(0, len(position))
     for lo in range(0, len(position), chunk):
         hi = min(lo + chunk, len(position))
-        mc = mesh_contact(pts, nrm, area, tree, position[lo:hi], axes[lo:hi], tool)
-        rate = tool.preston * mc.pressure * tool.relative_speed(mc.radius) * weight[lo:hi][mc.pose]
-        blocks.append(sp.csc_matrix((rate, (mc.sample, node[lo:hi][mc.pose])), shape=(S, n)))
+        if compiled:
+            pose, sample, pressure, radius, _ = kernels.contact_pairs(grid, position[lo:hi], axes[lo:hi], tool)
+        else:
+            mc = mesh_contact(pts, nrm, area, tree, position[lo:hi], axes[lo:hi], tool)
+            pose, sample, pressure, radius = mc.pose, mc.sample, mc.pressure, mc.radius
+        rate = tool.preston * pressure * tool.relative_speed(radius) * weight[lo:hi][pose]
+        blocks.append(sp.csc_matrix((rate, (sample, node[lo:hi][pose])), shape=(S, n)))
         if len(blocks) > 8:                                  # keep the pending list short
             blocks = [sum(blocks[1:], blocks[0]).tocsc()]
         if progress is not None:

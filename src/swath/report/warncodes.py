@@ -201,6 +201,12 @@ CODES: dict[str, WarningCode] = dict([
           "programme found no feed for the default target; the constant-feed trajectory is written.",
           "Nothing to do for this run; a softer pad (see the softer-pad figure) or a smaller one follows the "
           "curvature better. `--constant-feed` skips the feed optimisation.", "feed"),
+    entry("W-EVEN-FEED-SKIPPED", r"even removal: the feed is not optimised",
+          "Under 11.5 % of the interior removal variance of the passes at constant feed lies between and along the "
+          "passes, where a feed along them reaches; the rest is the ripple across them. The default job writes the "
+          "constant feed without running the feed programme (it evened nothing on such parts).",
+          "Nothing to do for this run; `--target-depth` runs the feed programme all the same. A softer pad or "
+          "a closer spacing lowers the ripple across the passes.", "feed"),
     entry("W-TARGET-COV-CANDIDATE", r"--target-cov: candidate .* cannot be planned",
           "One of the candidate plans --target-cov tries could not be planned on this part (for instance no "
           "direction lets the uniform planner lay passes at that overlap); the search goes on without it.",

@@ -247,6 +247,18 @@ def simulate_removal(trajectory, surface, tool: Tool, *, sample_spacing: float |
 def _lattice_samples(surface, spacing: float):
     """(RemovalSamples, spacing used, m): the lattice of :func:`removal_samples` at ``spacing``,
     widened until it has at most :data:`MAX_REMOVAL_SAMPLES` samples (counted before any is made)."""
+    memo = getattr(surface, "memo", None)
+    if memo is not None:
+        # kept with the part through the job (its KD-tree and interior masks with them): a default
+        # job simulates the same part at the same spacing five to ten times (crs_part_5: seven,
+        # 0.3 s each to sample, index and mask)
+        return memo(("removal lattice samples", float(spacing)), lambda: _make_lattice_samples(surface, spacing),
+                    lasting=True)
+    return _make_lattice_samples(surface, spacing)
+
+
+def _make_lattice_samples(surface, spacing: float):
+    """:func:`_lattice_samples` without the keeping."""
     cols = lattice_columns(surface, spacing)
     while (count := lattice_count(cols)) > MAX_REMOVAL_SAMPLES:
         wider = spacing * 1.02 * float(np.sqrt(count / MAX_REMOVAL_SAMPLES))
@@ -555,7 +567,10 @@ def plan_metrics(trajectory, surface, tool: Tool, removal: RemovalMap) -> dict:
     # with the shortest that could have covered what it covered, so it cannot pass 1 by leaving
     # area untouched.
     pad = pad_scale_samples(surface, tool)
-    density = lower_bound_density(pad, tool)
+    memo = getattr(surface, "memo", None)
+    # the same for every simulation of the part with this pad (0.27 s each on crs_part_5)
+    density = (lower_bound_density(pad, tool) if memo is None else
+               memo(("lower bound density", tool), lambda: lower_bound_density(pad, tool), lasting=True))
     L_star = float(density.sum())
     touched = d[removal.surface.kdtree.query(pad.points)[1]] > 0 if len(d) else np.zeros(len(density), bool)
     L_star_touched = float(density[touched].sum())

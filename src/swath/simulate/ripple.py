@@ -24,6 +24,8 @@ these are the peak-to-valley and standard deviation over one period of the summe
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 #: Points read along each line across the passes (one period).
@@ -35,10 +37,27 @@ LINE_RADIUS = 1.0
 MAX_LINES = 1500
 
 
+#: :func:`pass_period` of the trajectories measured while they live, by step (the job's metrics,
+#: its evenness split and the feed stage's judgement each ask for it: 0.25 s each on crs_part_5).
+_PERIODS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def pass_period(trajectory, *, step: float = 2e-3) -> float:
     """The spacing (m) between neighbouring passes: the median over in-contact TCP positions
     (thinned to about one per ``step`` m along each pass) of the distance to the nearest in-contact
-    position of another pass; NaN with fewer than two passes."""
+    position of another pass; NaN with fewer than two passes.  Computed once per trajectory (an
+    immutable record) and step."""
+    try:
+        kept = _PERIODS.setdefault(trajectory, {})
+    except TypeError:                        # not weakly referable: measured each time
+        return _pass_period(trajectory, step)
+    if float(step) not in kept:
+        kept[float(step)] = _pass_period(trajectory, step)
+    return kept[float(step)]
+
+
+def _pass_period(trajectory, step: float) -> float:
+    """:func:`pass_period` without the keeping."""
     from scipy.spatial import cKDTree
 
     live = trajectory.contact & (trajectory.pass_index >= 0)

@@ -231,8 +231,13 @@ class RemovalSamples:
 
     def farther_from_boundary(self, margin: float) -> np.ndarray:
         """(n,) bool: samples farther than ``margin`` (m) from the part's open boundary, its edges
-        sampled at half the spacing (:func:`swath.surface.surface.farther_from_boundary`)."""
-        return farther_from_boundary(self.vertices, self.part, margin, step=0.5 * self.spacing)
+        sampled at half the spacing (:func:`swath.surface.surface.farther_from_boundary`); computed
+        once per margin (read-only: the metrics, the evenness split and the feed stage ask again)."""
+        masks = self.__dict__.setdefault("_farther", {})
+        key = float(margin)
+        if key not in masks:
+            masks[key] = _ro(farther_from_boundary(self.vertices, self.part, key, step=0.5 * self.spacing))
+        return masks[key]
 
     @property
     def principal_axes(self):

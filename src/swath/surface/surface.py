@@ -85,13 +85,17 @@ class Surface:
                 value = _ro(value)          # as the property itself returns it
             self.__dict__.setdefault(name, value)
 
-    def memo(self, key, build):
+    def memo(self, key, build, *, lasting: bool = False):
         """``build()`` for this surface, computed once per ``key`` (hashable) and kept with the
         surface: a model that several calls on the same part share (the uniform planner's working
         mesh and distance solver), instead of each building it again.  Kept for the surface's
         lifetime, never pickled (a copy sent to another process builds its own), and released
-        by :meth:`forget`.  ``build`` must depend only on this surface and what ``key`` names."""
-        memos = self.__dict__.setdefault("_memos", {})
+        by :meth:`forget`.  ``build`` must depend only on this surface and what ``key`` names.
+
+        ``lasting``: kept through :meth:`forget` too (which releases the planners' large models):
+        the small derived data every later stage reads again, such as the removal simulation's
+        samples (:func:`swath.simulate.removal.simulate_removal` runs five to ten times a job)."""
+        memos = self.__dict__.setdefault("_lasting" if lasting else "_memos", {})
         if key not in memos:
             memos[key] = build()
         return memos[key]
@@ -108,6 +112,7 @@ class Surface:
         state = dict(self.__dict__)
         state.pop("_closest_point_tree", None)
         state.pop("_memos", None)
+        state.pop("_lasting", None)
         return state
 
     def __repr__(self) -> str:
