@@ -143,3 +143,30 @@ def test_directions_of_different_lengths_keep_the_least_ripple_re_plan(monkeypat
     curved_spacing.curved_spacing_plan(part, TOOL, straight, settings, {})
     assert straight.overlaps[:2] == [kept.overlaps[0], widened]
     assert len(straight.overlaps) == len(kept.overlaps) - 1
+
+
+def test_the_shift_of_a_re_plans_passes():
+    # 12 generations, overlap 0.30 -> 0.31 with a 70 mm swath: the last pass moves 12 * 0.01 * 70 mm
+    assert curved_spacing.replan_shift({"n_generations": 12}, 0.30, 0.31, 0.07) == pytest.approx(8.4e-3, rel=1e-9)
+    pieces = {"pieces": [{"n_generations": 3}, {"n_generations": 20}], "n_generations": 3}
+    assert curved_spacing.replan_shift(pieces, 0.31, 0.30, 0.07) == pytest.approx(14e-3, rel=1e-9)
+
+
+def test_a_re_plan_moving_the_passes_within_an_edge_keeps_the_first_plan(monkeypatch):
+    """The bowl's least-ripple overlap at the default budget moves the first plan's passes by many
+    working-mesh edges: it is planned (above).  Were that shift allowed, the first plan would be
+    kept, with its own overlap recorded."""
+    part = bowl(size=0.3, radius=0.35, n=41)
+    settings = _settings(1.5)
+    probe = ripple_overlap(TOOL, lead_angle=settings.lead(), max_length_ratio=1.5)
+    first = get_planner("uniform")(part, TOOL, overlap=probe)
+    _, choice = curved_choice(first, part, TOOL, [settings.lead()], 1.5)
+    edges = curved_spacing.replan_shift(first.metadata, probe, choice.overlap, choice.width) / \
+        first.metadata["work_spacing_m"]
+    assert edges > 5 * curved_spacing.KEEP_WITHIN_EDGES
+    monkeypatch.setattr(curved_spacing, "KEEP_WITHIN_EDGES", edges * 1.01)
+    planner = _Counting()
+    tp = curved_spacing.curved_spacing_plan(part, TOOL, planner, settings, {})
+    assert planner.overlaps == [probe]
+    assert tp.metadata["ripple_overlap_fraction"] == probe and tp.metadata["ripple_model"] == "curved"
+    assert tp.contact_length == pytest.approx(first.contact_length, rel=1e-12)
