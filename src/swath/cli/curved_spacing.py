@@ -253,6 +253,34 @@ def curved_choice(toolpath, surface, tool, leads, budget: float):
     return lead, choice
 
 
+def uniform_replan_value(toolpath, probed: float, choice, bound: float, budget: float) -> float:
+    """The overlap the uniform planner's re-plan is made at, after its first plan ``toolpath`` at
+    overlap ``probed`` and the least-ripple ``choice`` (a :class:`swath.feed.curved_ripple.CurvedSpacing`):
+    the budget's overlap at once where the first plan predicts the chosen one over ``budget`` and its
+    directions agree in length (:func:`uniform_replan_overlap`, :data:`DIRECTION_LENGTH_SPREAD`),
+    else the chosen one; ``probed`` itself (no re-plan) where that would move the first plan's
+    passes by less than :data:`KEEP_WITHIN_EDGES` working-mesh edges (:func:`replan_shift`).
+    ``bound``: the coverage bound, m."""
+    first = toolpath.contact_length / bound if bound > 0 else float("nan")
+    value, predicted = uniform_replan_overlap(first, probed, choice.overlap, budget)
+    spread = direction_length_spread(toolpath.metadata)
+    if value != choice.overlap and not spread <= DIRECTION_LENGTH_SPREAD:
+        log.info("ripple overlap %.3f predicted at %.2f L*, over the %.2f budget, but the first plan's directions "
+                 "spread %.0f %% in length: planned as chosen", choice.overlap, predicted, budget, 100 * spread)
+        value = choice.overlap
+    if value != choice.overlap:
+        log.info("ripple overlap %.3f predicted at %.2f L* (the first plan's %.2f L* at overlap %.3f), over the "
+                 "%.2f budget: re-planned at once at overlap %.3f", choice.overlap, predicted, first, probed,
+                 budget, value)
+    shift = replan_shift(toolpath.metadata, probed, value, choice.width)
+    edge = float(toolpath.metadata.get("work_spacing_m", 0.0))
+    if value != probed and shift <= KEEP_WITHIN_EDGES * edge:
+        log.info("ripple overlap %.3f would move the first plan's passes (overlap %.3f) by %.1f mm, within the "
+                 "%.1f mm working-mesh edge: they are kept", value, probed, 1e3 * shift, 1e3 * edge)
+        value = probed
+    return value
+
+
 def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False,
                         ridge: bool = False):
     """The job's passes at the least-ripple spacing on the part's curvature, within
@@ -329,23 +357,7 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         model = "curved"
         lead, choice = chosen
         if uniform:
-            first, probed = (toolpath.contact_length / bound if bound > 0 else float("nan")), value
-            value, predicted = uniform_replan_overlap(first, probed, choice.overlap, budget)
-            spread = direction_length_spread(toolpath.metadata)
-            if value != choice.overlap and not spread <= DIRECTION_LENGTH_SPREAD:
-                log.info("ripple overlap %.3f predicted at %.2f L*, over the %.2f budget, but the first plan's directions "
-                         "spread %.0f %% in length: planned as chosen", choice.overlap, predicted, budget, 100 * spread)
-                value = choice.overlap
-            if value != choice.overlap:
-                log.info("ripple overlap %.3f predicted at %.2f L* (the first plan's %.2f L* at overlap %.3f), over the "
-                         "%.2f budget: re-planned at once at overlap %.3f", choice.overlap, predicted, first, probed,
-                         budget, value)
-            shift = replan_shift(toolpath.metadata, probed, value, choice.width)
-            edge = float(toolpath.metadata.get("work_spacing_m", 0.0))
-            if value != probed and shift <= KEEP_WITHIN_EDGES * edge:
-                log.info("ripple overlap %.3f would move the first plan's passes (overlap %.3f) by %.1f mm, within the "
-                         "%.1f mm working-mesh edge: they are kept", value, probed, 1e3 * shift, 1e3 * edge)
-                value = probed
+            probed, value = value, uniform_replan_value(toolpath, value, choice, bound, budget)
         else:
             value = choice.spacing
         if not (uniform and value == probed):        # the uniform planner at the same overlap: the same plan
