@@ -98,11 +98,11 @@ DIRECTION_LENGTH_SPREAD = 0.05
 #: The uniform planner's first plan is kept, not made again, when the re-plan's passes would lie
 #: within this many working-mesh edges of its passes (:func:`replan_shift`): a shift the working
 #: mesh on which the passes are laid hardly resolves.  On snp_part_scan the re-plan at overlap
-#: 0.302 after the first plan's 0.301 shifts its 11th generation by 1.0 mm, under the 3.2 mm edge:
-#: the first plan is kept (interior CoV 0.281, cycle time 136.3 s, against 0.294 and 138.2 s
+#: 0.302 after the first plan's 0.301 shifts its last (11th) generation by 0.5 mm, under the 3.2 mm
+#: edge: the first plan is kept (interior CoV 0.281, cycle time 136.3 s, against 0.294 and 138.2 s
 #: re-planned).  crs_part_5's least-ripple overlap 0.289 after 0.301 shifts its 48th generation by
-#: 44 mm, the blade's 0.322 by 20 mm: both are planned (crs_part_5 kept at 0.301 turned from 30 to
-#: 0 degrees, and its interior CoV went 0.211 -> 0.287).
+#: about 45 mm, the blade's 0.322 its 13th by about 20 mm: both are planned (crs_part_5 kept at
+#: 0.301 chose 0 instead of 30 degrees, and its interior CoV went 0.211 -> 0.287).
 KEEP_WITHIN_EDGES = 1.0
 
 
