@@ -24,7 +24,17 @@ part's coverage bound (:func:`swath.contact.coverage_lower_bound`, the figure ``
 states) exceeds the budget (by more than :data:`BUDGET_TOLERANCE`), the spacing widens and the
 part is planned again: the uniform planner's by that excess, the raster's to the least spacing
 with as few planes as that excess asks (:func:`fewest_planes_spacing`), the one nearest the
-least-ripple spacing.  The raster measures a spacing it is given on the surface across the passes
+least-ripple spacing.  A re-plan that would ask for the very spacing or overlap just planned (the
+uniform planner's overlap held at none, or the least-ripple overlap equal to the first plan's) is
+not made: it would lay the same passes.  Nor is the uniform planner's re-plan at a least-ripple
+overlap that would move the first plan's passes by less than a working-mesh edge
+(:data:`KEEP_WITHIN_EDGES`): the first plan is kept.
+
+The uniform planner's re-plan at the least-ripple overlap goes straight to the overlap the budget
+would widen it to when the first plan's contact length already says it will be over
+(:func:`uniform_replan_overlap`) and its candidate directions came to about the same length
+(:data:`DIRECTION_LENGTH_SPREAD`): that saves one whole plan, six candidate directions laid out
+and ranked.  The raster measures a spacing it is given on the surface across the passes
 (``spacing_on = "surface"``, :mod:`swath.plan.surface_planes`), as the ripple model means it; where
 the swath narrows over a good share of the part (:func:`narrow_share`, :data:`NARROW_SHARE`) the
 re-plans keep the ripple model's ratio of spacing to width at every step instead
@@ -74,6 +84,88 @@ BUDGET_ROUNDS = 2
 #: The spacing widens by the excess over the budget times this (a little more: the plan's
 #: length does not fall quite in proportion, pass ends and fill passes staying).
 BUDGET_MARGIN = 1.02
+
+
+#: The uniform re-plan goes straight to the budget's overlap only when the first plan's candidate
+#: directions (those covering enough to be chosen) came to contact lengths within this fraction of
+#: each other (:func:`direction_length_spread`): the re-plan chooses its direction afresh, and the
+#: prediction holds only if the length does not hinge on which one wins.  snp_part_scan's six lie
+#: within 3.2 %, crs_part_5's within 4.8 %; the blade's spread 23 % (6.36 m at 120 degrees, 7.81 m
+#: at 0 degrees), and there the re-plan sent straight to overlap 0.267 (1.59 L* predicted) turned to
+#: 30 degrees at 1.72 L*; after two budget rounds the interior CoV was 0.542 against 0.373.
+DIRECTION_LENGTH_SPREAD = 0.05
+
+#: The uniform planner's first plan is kept, not made again, when the re-plan's passes would lie
+#: within this many working-mesh edges of its passes (:func:`replan_shift`): a shift the working
+#: mesh on which the passes are laid hardly resolves.  On snp_part_scan the re-plan at overlap
+#: 0.302 after the first plan's 0.301 shifts its last (11th) generation by 0.5 mm, under the 3.2 mm
+#: edge: the first plan is kept (interior CoV 0.281, cycle time 136.3 s, against 0.294 and 138.2 s
+#: re-planned).  crs_part_5's least-ripple overlap 0.289 after 0.301 shifts its 48th generation by
+#: about 45 mm, the blade's 0.322 its 13th by about 20 mm: both are planned (crs_part_5 kept at
+#: 0.301 chose 0 instead of 30 degrees, and its interior CoV went 0.211 -> 0.287).
+KEEP_WITHIN_EDGES = 1.0
+
+
+def replan_shift(metadata: dict, probed: float, wanted: float, width: float) -> float:
+    """How far (m) the passes of a uniform re-plan at overlap ``wanted`` would move from those of
+    the first plan at ``probed`` (its ``metadata``) by its last generation: each generation steps
+    ``(1 - overlap)`` swath widths ``width`` (m) from the one before, so the last of ``n``
+    generations moves ``n |wanted - probed| width`` (the largest ``n`` over a multi-piece part's
+    pieces)."""
+    generations = max(int(m.get("n_generations", 0)) for m in metadata.get("pieces") or [metadata])
+    return generations * abs(wanted - probed) * width
+
+
+def direction_length_spread(metadata: dict) -> float:
+    """How far apart the contact lengths of a uniform plan's candidate directions lie: the longest
+    over the shortest, less 1, among those whose predicted coverage would let them be chosen
+    (:func:`swath.plan.uniform.coverage_floor`), the largest over the pieces of a multi-piece part.
+    0 for a plan with one direction (given, not chosen)."""
+    from ..plan.uniform import coverage_floor
+
+    spread = 0.0
+    for meta in metadata.get("pieces") or [metadata]:
+        rows = meta.get("candidates") or []
+        if not rows:
+            continue
+        floor = coverage_floor(max(r["predicted_coverage_fraction"] for r in rows))
+        lengths = [r["length_m"] for r in rows if r["predicted_coverage_fraction"] >= floor]
+        spread = max(spread, max(lengths) / min(lengths) - 1.0)
+    return spread
+
+
+def uniform_replan_overlap(ratio: float, probed: float, wanted: float, budget: float) -> tuple[float, float]:
+    """The overlap (fraction) the uniform planner's re-plan at the least-ripple overlap ``wanted``
+    is made at, and the contact length over the coverage bound it is predicted to have.
+
+    The first plan, at overlap ``probed``, came to ``ratio`` times the coverage bound.  Its passes
+    lie ``(1 - overlap)`` local widths apart, so the contact length at ``wanted`` is predicted as
+    ``ratio (1 - probed) / (1 - wanted)``.  When that exceeds the budget by more than
+    :data:`BUDGET_TOLERANCE`, the re-plan is made at once at the overlap a budget round would widen
+    to from that length, ``1 - (1 - wanted) (predicted / budget) BUDGET_MARGIN`` (never below
+    none), instead of planning ``wanted`` only to find it too long.  Otherwise ``wanted``.  The
+    budget rounds still check the plan made.  (On snp_part_scan the first plan's 4.54 m at
+    overlap 0.301 predicted 4.76 m at 0.333, where the plan came to 4.80 m.)
+
+    Parameters
+    ----------
+    ratio : float
+        The first plan's contact length over the coverage bound (NaN: no prediction).
+    probed, wanted : float
+        The first plan's overlap and the least-ripple overlap, fractions in [0, 1).
+    budget : float
+        The length budget, times the coverage bound.
+
+    Returns
+    -------
+    overlap : float
+    predicted : float
+        The predicted length ratio at ``wanted``.
+    """
+    predicted = ratio * (1.0 - probed) / (1.0 - wanted)
+    if not predicted > budget * (1.0 + BUDGET_TOLERANCE):
+        return wanted, predicted
+    return max(1.0 - (1.0 - wanted) * predicted / budget * BUDGET_MARGIN, 0.0), predicted
 
 
 def fewest_planes_spacing(spacing: float, widened: float, extents) -> float:
@@ -161,6 +253,34 @@ def curved_choice(toolpath, surface, tool, leads, budget: float):
     return lead, choice
 
 
+def uniform_replan_value(toolpath, probed: float, choice, bound: float, budget: float) -> float:
+    """The overlap the uniform planner's re-plan is made at, after its first plan ``toolpath`` at
+    overlap ``probed`` and the least-ripple ``choice`` (a :class:`swath.feed.curved_ripple.CurvedSpacing`):
+    the budget's overlap at once where the first plan predicts the chosen one over ``budget`` and its
+    directions agree in length (:func:`uniform_replan_overlap`, :data:`DIRECTION_LENGTH_SPREAD`),
+    else the chosen one; ``probed`` itself (no re-plan) where that would move the first plan's
+    passes by less than :data:`KEEP_WITHIN_EDGES` working-mesh edges (:func:`replan_shift`).
+    ``bound``: the coverage bound, m."""
+    first = toolpath.contact_length / bound if bound > 0 else float("nan")
+    value, predicted = uniform_replan_overlap(first, probed, choice.overlap, budget)
+    spread = direction_length_spread(toolpath.metadata)
+    if value != choice.overlap and not spread <= DIRECTION_LENGTH_SPREAD:
+        log.info("ripple overlap %.3f predicted at %.2f L*, over the %.2f budget, but the first plan's directions "
+                 "spread %.0f %% in length: planned as chosen", choice.overlap, predicted, budget, 100 * spread)
+        value = choice.overlap
+    if value != choice.overlap:
+        log.info("ripple overlap %.3f predicted at %.2f L* (the first plan's %.2f L* at overlap %.3f), over the "
+                 "%.2f budget: re-planned at once at overlap %.3f", choice.overlap, predicted, first, probed,
+                 budget, value)
+    shift = replan_shift(toolpath.metadata, probed, value, choice.width)
+    edge = float(toolpath.metadata.get("work_spacing_m", 0.0))
+    if value != probed and shift <= KEEP_WITHIN_EDGES * edge:
+        log.info("ripple overlap %.3f would move the first plan's passes (overlap %.3f) by %.1f mm, within the "
+                 "%.1f mm working-mesh edge: they are kept", value, probed, 1e3 * shift, 1e3 * edge)
+        value = probed
+    return value
+
+
 def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False,
                         ridge: bool = False):
     """The job's passes at the least-ripple spacing on the part's curvature, within
@@ -232,20 +352,28 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
     model = "plane"
     leads = [lead] + ([math.radians(a) for a in LEAD_CHOICES_DEG if math.radians(a) != lead] if choose_lead else [])
     chosen = curved_choice(toolpath, surface, tool, leads, budget)
+    bound = coverage_lower_bound(surface, tool)
     if chosen is not None:
         model = "curved"
         lead, choice = chosen
-        value = choice.overlap if uniform else choice.spacing
-        toolpath = plan(value)
-    bound = coverage_lower_bound(surface, tool)
+        if uniform:
+            probed, value = value, uniform_replan_value(toolpath, value, choice, bound, budget)
+        else:
+            value = choice.spacing
+        if not (uniform and value == probed):        # the uniform planner at the same overlap: the same plan
+            toolpath = plan(value)
     ratio = toolpath.contact_length / bound if bound > 0 else float("nan")
     for _ in range(BUDGET_ROUNDS):
         if not ratio > budget * (1.0 + BUDGET_TOLERANCE):
             break
         widen = ratio / budget * BUDGET_MARGIN
-        log.info("ripple spacing: %.2f L* over the %.2f budget, %.1f %% wider", ratio, budget, 100 * (widen - 1))
-        value = (max(1.0 - (1.0 - value) * widen, 0.0) if uniform else   # the overlap no lower than none
+        wider = (max(1.0 - (1.0 - value) * widen, 0.0) if uniform else   # the overlap no lower than none
                  fewest_planes_spacing(value, value * widen, toolpath.metadata.get("plane_extent_m")))
+        if wider == value:
+            log.info("ripple spacing: %.2f L* over the %.2f budget, and it cannot widen further", ratio, budget)
+            break                                  # the same value plans the same passes
+        log.info("ripple spacing: %.2f L* over the %.2f budget, %.1f %% wider", ratio, budget, 100 * (widen - 1))
+        value = wider
         toolpath = plan(value)
         ratio = toolpath.contact_length / bound
     meta = {"ripple_model": model, "ripple_lead_rad": float(lead), "ripple_length_ratio": float(ratio),
