@@ -343,8 +343,9 @@ def keep_evener(trajectory, removal, feed, even: dict):
     even["constant_feed_kept"] = True
     message = (
         f"even removal: the optimised feed removes less evenly (interior CoV {optimised:.3f}) than the same passes at "
-        f"constant feed ({plain:.3f}) in the simulation, so the constant-feed trajectory is written: the part's "
-        "curvature, not the feed, bounds the evenness here (see the softer-pad figure) [W-EVEN-FEED-WORSE]")
+        f"constant feed ({plain:.3f}) in the simulation, so the constant-feed trajectory is written: what varies "
+        "across the passes (the part's curvature or waviness), not the feed along them, bounds the evenness here "
+        "(metrics.json's softer_pad_interior_removal_cov says what a softer pad would give) [W-EVEN-FEED-WORSE]")
     even.setdefault("warnings", []).append(message)
     return constant_trajectory, constant_removal, None
 

@@ -199,7 +199,7 @@ CODES: dict[str, WarningCode] = dict([
           "The default job optimised the feed, but the simulation finds the same passes at constant feed remove "
           "more evenly on the interior (the part's curvature, not the feed, sets the evenness), or the feed "
           "programme found no feed for the default target; the constant-feed trajectory is written.",
-          "Nothing to do for this run; a softer pad (see the softer-pad figure) or a smaller one follows the "
+          "Nothing to do for this run; a softer pad (`softer_pad_interior_removal_cov`, `W-PAD-TOO-STIFF`) or a smaller one follows the "
           "curvature better. `--constant-feed` skips the feed optimisation.", "feed"),
     entry("W-EVEN-FEED-SKIPPED", r"even removal: the feed is not optimised",
           "Under 11.5 % of the interior removal variance of the passes at constant feed lies between and along the "
