@@ -147,7 +147,7 @@ def even_table(rows: list[dict]) -> list[str]:
         "",
         "## Even removal, part by part",
         "",
-        "The same default jobs (raster): *interior CoV* a pad radius in from the open edges, the figure the "
+        "The same default jobs (raster, or the uniform planner where `W-EVEN-RIDGE` says so): *interior CoV* a pad radius in from the open edges, the figure the "
         "job optimises; *constant feed* the same passes at constant feed; *plain* the plain plan (covering "
         "spacing, flat pad, constant feed) the job compares with; *kept* what the job wrote (the plain plan's "
         "passes, the equidistant passes where the raster's planes spread, the constant feed) and the evenness "
@@ -161,12 +161,14 @@ def even_table(rows: list[dict]) -> list[str]:
             continue
         kept = [name for key, name in (("plain_plan_kept", "plain plan's passes"), ("equidistant_kept", "equidistant"),
                                        ("constant_feed_kept", "constant feed")) if r.get(key)]
+        if not r.get("constant_feed_kept"):
+            kept.append("optimised feed")
         kept += [f"`{c}`" for c in r.get("even_codes", [])]
         lines.append(
             f"| {r['part']} | {cell(r['interior_removal_cov'], '.3f')} "
             f"| {cell(r.get('constant_feed_interior_removal_cov'), '.3f')} | {cell(r.get('plain_interior_removal_cov'), '.3f')} "
             f"| {cell(r.get('length_ratio'), '.2f')} | {cell(r['coverage_fraction'], '.4f')} "
-            f"| {cell(r['cycle_time_s'], '.1f')} | {cell(r.get('lead_angle_deg'), '.1f')} | {', '.join(kept) or 'optimised feed'} |")
+            f"| {cell(r['cycle_time_s'], '.1f')} | {cell(r.get('lead_angle_deg'), '.1f')} | {', '.join(kept)} |")
     return lines
 
 

@@ -125,6 +125,11 @@ def test_the_default_job_in_a_bowl_states_what_the_simulation_confirms_and_beats
     assert removal.metrics["interior_removal_cov"] == pytest.approx(m["interior_removal_cov"], abs=0.005)
     assert m["contact_length_m"] / m["coverage_lower_bound_m"] <= 1.5 * 1.02
     assert m["lead_angle_deg"] == pytest.approx(11.0)       # the quadric's choice among 0, 7.0, 11 and 15°
+    # the raster's planes do not spread in a bowl: the passes stay, their lead checked by simulation
+    assert m["spacing_spread_ratio"] < 1.1 and "equidistant_kept" not in m
+    # the led pad is laid flat at each pass end: the patch ahead of the ends is touched too
+    assert m["coverage_fraction"] > 0.999 and m["lead_end_ramp_m"] == pytest.approx(
+        math.radians(11.0) * 0.05 / 0.95, rel=1e-6)
     # the plane's rule, as the default job had it: the spacing of a plane, the budget unchecked
     monkeypatch.setattr(curved_spacing, "FLAT_SAGITTA", math.inf)
     monkeypatch.setattr(curved_spacing, "BUDGET_ROUNDS", 0)

@@ -58,6 +58,10 @@ SPREAD_RATIO = 1.1
 #: crs_part_5: 0.150 -> 0.127 at 15°, 99.71 -> 99.56 %).
 COVERAGE_SLACK = 0.005
 
+#: The figures of :func:`evener_passes` a job's ``metrics.json`` carries (``equidistant_kept`` as 1 or 0).
+FIGURES = ("spacing_spread_ratio", "raster_interior_removal_cov", "equidistant_interior_removal_cov",
+           "equidistant_kept")
+
 #: The coverage fraction below which the job warns (``W-COVERAGE-LOW``).
 COVERAGE_FLOOR = 0.99
 
