@@ -61,8 +61,8 @@ def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, fa
     -------
     dict or None
         ``pad_depression_m``, ``softer_pad_depression_m`` (m), ``softer_pad_removal_cov``,
-        ``softer_pad_interior_removal_cov`` and ``softer_pad_removal_mean_m`` (m), the job's metric names; ``None`` when the pad
-        cannot be made softer within the cap.
+        ``softer_pad_interior_removal_cov`` and ``softer_pad_removal_mean_m`` (m), the job's metric
+        names; ``None`` when the pad cannot be made softer within the cap.
     """
     e = tool.flat_depression
     e_soft = min(factor * e, MAX_DEPRESSION_SHARE * tool.pad_radius)
@@ -78,15 +78,14 @@ def softer_pad_study(trajectory, surface, tool: Tool, removal: RemovalMap, *, fa
             "softer_pad_removal_mean_m": float(other.metrics["removal_mean_m"])}
 
 
-def judged_cov(metrics: dict, prefix: str = "") -> float | None:
-    """The removal CoV the study judges by: the interior one (``{prefix}interior_removal_cov``, a
-    pad radius in from the open edges) where the job has it, else the whole part's
-    (``{prefix}removal_cov``).  The whole part's counts the rim every plan leaves thin, which no
-    pad changes: on snp_part_scan 0.36 whole and 0.28 interior, where a pad three times as soft
-    gives 0.12 interior but not 0.8 of the whole figure."""
-    cov = metrics.get(f"{prefix}interior_removal_cov")
+def judged_cov(metrics: dict) -> float | None:
+    """The removal CoV the study judges a job by: the interior one (``interior_removal_cov``, a pad
+    radius in from the open edges) where the job has it, else the whole part's (``removal_cov``).
+    The whole part's counts the rim every plan leaves thin, which no pad changes: on snp_part_scan
+    0.36 whole and 0.28 interior, where a pad three times as soft gives 0.14 interior."""
+    cov = metrics.get("interior_removal_cov")
     if cov is None or not math.isfinite(cov):
-        cov = metrics.get(f"{prefix}removal_cov")
+        cov = metrics.get("removal_cov")
     return None if cov is None or not math.isfinite(cov) else float(cov)
 
 
