@@ -18,7 +18,7 @@ quadric, and a part whose planes spread is one whose curvature changes.  A raste
 keeps its passes, and its lead is checked the same way, the flat pad among the leads: the quadric
 stands for the part only as well as one curvature does, and on a scan not even that
 (snp_part_scan: the quadric ranks the flat pad first, 0.124 against 0.159 at 11°, where the
-passes simulate 0.294 flat, 0.281 at 7° and 0.274 at 11°, which covers 0.5 point less).  The run
+passes simulate 0.294 flat, 0.281 at 7° and 0.274 at 11°).  The run
 at the lead kept is handed to the job, which would otherwise time and simulate it again.  The
 uniform planner's passes keep the model's lead: on the blade they lie 18 to 66 mm apart, and the
 lead that simulates evenest at constant feed (7°, 0.506 against 0.549 flat) came out less even
@@ -32,9 +32,9 @@ crs_part_5         1.25          equidistant kept (raster 0.193, equidistant 0.1
                                  15° (7°: 0.209, 15°: 0.127) at 1.51 L*
 bezier_dac_cad     1.15          raster kept (0.066 against 0.380), flat pad kept
 example:panel      1.00          the raster's planes, 11° kept (0.050)
-snp_part_scan      0.88          the raster's planes, 0° -> 7° (0.294 -> 0.281)
+snp_part_scan      0.88          the raster's planes, 0° -> 11° (0.294 -> 0.274)
 noether_wavy       < 1.1         the raster's planes, 11° -> 7° (interior 0.401 -> 0.380 with the
-                                 optimised feed, coverage 93.5 -> 96.2 %)
+                                 optimised feed)
 =================  ============  ==============================================================
 """
 
@@ -184,16 +184,13 @@ def _simulated_lead(toolpath, surface, tool, settings, lead: float, run, say, *,
     is known, and set ``metadata["ripple_lead_rad"]`` to the evenest of those covering as much as
     ``lead`` does (:func:`covers_as_much`); ``metadata["lead_simulated_interior_removal_cov"]`` and
     ``metadata["lead_simulated_coverage_fraction"]`` hold every lead's figures as ``[lead in degrees,
-    value]`` pairs.  Returns the kept lead's
-    ``(trajectory, removal)`` at constant feed, or None when its trajectory was not timed here.
+    value]`` pairs.  Returns the kept lead's ``(trajectory, removal)`` at constant feed, or None
+    when its trajectory was not timed here.
 
     The coverage is judged against the job's lead, not the best-covering one: the flat pad may
     cover a little more where the lead's pad is lifted (a 0.35 m bowl, before the lead was laid flat
     at pass ends: 98.5 % covered at 11°, all of it flat), but its 0.41 interior CoV is no trade for
-    0.065 at 11°.  Running the passes on past the edge
-    until the lifted front reaches it does not help under the contact model: the pad hanging over the
-    edge presses its whole force on the rim (10 mm on the bowl: 99.25 % covered, the deepest sample
-    42 times the mean, interior 0.102)."""
+    0.065 at 11°.  (The pad is now laid flat at pass ends instead: :func:`swath.trajectory.time_path`.)"""
     runs = {float(lead): run}
     for other in lead_choices(tool, flat=flat):
         if abs(other - lead) < 1e-9:
