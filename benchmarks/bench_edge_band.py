@@ -67,9 +67,8 @@ def parts_table(parts, options) -> None:
 def plane_table(lead_deg: float | None, spacing_over_r: float) -> None:
     import numpy as np
 
+    from shapes import plate_with_straight_passes  # tests/ is on the path through common
     from swath.cli.job import JobSettings
-    from swath.core import Pass, ToolPath
-    from swath.examples.parts import flat_plate
     from swath.simulate import simulate_removal
     from swath.simulate.edge_band import band_causes
     from swath.trajectory import time_path
@@ -84,17 +83,8 @@ def plane_table(lead_deg: float | None, spacing_over_r: float) -> None:
     print("|---|---|---|---|---|")
     for frac in np.arange(0.0, 0.5001, 0.1):
         m = frac * d
-        width, length = 2 * m + 5 * d, 0.3
-        surface = flat_plate(size_x=length, size_y=width, spacing=5e-3)
-        lo = surface.bounds[0]
-        xs = lo[0] + np.arange(0.0, length + 1e-9, 1e-3)
-        passes = []
-        for k in range(6):
-            x = xs if k % 2 == 0 else xs[::-1]
-            pts = np.column_stack([x, np.full_like(x, lo[1] + m + k * d), np.full_like(x, lo[2])])
-            passes.append(Pass(pts, np.tile([0.0, 0.0, 1.0], (len(x), 1)), level=k))
-        trajectory = time_path(ToolPath(surface, passes, "raster", {}), settings.constraints(),
-                               links=settings.links(), lead_angle=lead)
+        surface, toolpath = plate_with_straight_passes(d, m)
+        trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=lead)
         removal = simulate_removal(trajectory, surface, tool, sample_spacing=4e-3)
         c = band_causes(removal, trajectory, tool, spacing=d)
         print(f"| {m * 1e3:.1f} mm ({frac:.1f} d) | {c['band_side_mean_over_core_mean_ratio']:.3f} | "

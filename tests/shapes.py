@@ -93,3 +93,23 @@ def two_radius_part(step: float = 1.5e-3, length: float = 0.24) -> tuple[Surface
     v = np.stack([np.repeat(x, len(ys)), np.tile(ys, len(x)), np.repeat(z, len(ys))], 1)
     arc = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(z)))])
     return Surface(v, grid_faces(len(x), len(ys))), x, arc
+
+
+def plate_with_straight_passes(spacing: float, margin: float, *, n_passes: int = 6, length: float = 0.3):
+    """A flat plate and ``n_passes`` straight passes along x across it, ``spacing`` (m) apart, the
+    outermost ``margin`` (m) in from either side, run back and forth with points 1 mm apart:
+    ``(Surface, ToolPath)``.  The plate is ``length`` long and ``2 margin + (n_passes − 1) spacing``
+    wide, meshed every 5 mm."""
+    from swath.core import Pass, ToolPath
+    from swath.examples.parts import flat_plate
+
+    width = 2 * margin + (n_passes - 1) * spacing
+    surface = flat_plate(size_x=length, size_y=width, spacing=5e-3)
+    lo = surface.bounds[0]
+    xs = lo[0] + np.arange(0.0, length + 1e-9, 1e-3)
+    passes = []
+    for k in range(n_passes):
+        x = xs if k % 2 == 0 else xs[::-1]
+        pts = np.column_stack([x, np.full_like(x, lo[1] + margin + k * spacing), np.full_like(x, lo[2])])
+        passes.append(Pass(pts, np.tile([0.0, 0.0, 1.0], (len(x), 1)), level=k))
+    return surface, ToolPath(surface, passes, "raster", {})

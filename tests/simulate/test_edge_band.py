@@ -5,10 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from shapes import plate_with_straight_passes
 from swath.cli.job import JobSettings, make_plan
-from swath.core import Pass, ToolPath
 from swath.examples import example_part
-from swath.examples.parts import flat_plate
 from swath.simulate import simulate_removal
 from swath.simulate.edge_band import GROUPS, band_causes, band_line
 from swath.simulate.evenness import evenness_metrics, evenness_split
@@ -111,18 +110,8 @@ def _plane_band(margin_over_spacing: float) -> dict:
     settings = JobSettings(part="example:plate", out="unused")
     tool = settings.tool()
     d = 1.4 * tool.pad_radius
-    m = margin_over_spacing * d
-    width, length = 2 * m + 5 * d, 0.3
-    surface = flat_plate(size_x=length, size_y=width, spacing=5e-3)
-    lo = surface.bounds[0]
-    xs = lo[0] + np.arange(0.0, length + 1e-9, 1e-3)
-    passes = []
-    for k in range(6):
-        x = xs if k % 2 == 0 else xs[::-1]
-        pts = np.column_stack([x, np.full_like(x, lo[1] + m + k * d), np.full_like(x, lo[2])])
-        passes.append(Pass(pts, np.tile([0.0, 0.0, 1.0], (len(x), 1)), level=k))
-    trajectory = time_path(ToolPath(surface, passes, "raster", {}), settings.constraints(), links=settings.links(),
-                           lead_angle=tool.half_pad_lead)
+    surface, toolpath = plate_with_straight_passes(d, margin_over_spacing * d)
+    trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=tool.half_pad_lead)
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=4e-3)
     return band_causes(removal, trajectory, tool, spacing=d)
 
