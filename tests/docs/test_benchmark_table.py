@@ -43,6 +43,14 @@ def test_budget_verdict_takes_the_slicing_ratio_only_over_10k_faces():
     assert "swath 9.9" in text and "2 CPUs" in text and "load average 0.50" in text
 
 
+def test_the_jobs_plan_stage_is_judged_against_the_slicing_of_its_own_planes():
+    rows = [_row("job_fast", 20_000, 0.9, 0.1, plan_s=0.3, slice_job_s=0.05, job_over_slice=6.0),   # 6x; warm 9x
+            _row("job_slow", 20_000, 0.5, 0.1, plan_s=0.4, slice_job_s=0.05, job_over_slice=8.0)]   # 8x; warm 5x
+    text = run_all.markdown(rows, [], INFO)
+    assert _plan_row(text, "job_fast") == "| job_fast | 20000 | 0.300 | 0.0500 | 6.0 | 0.90 | 0.1000 | 9 | yes / no |  |"
+    assert _plan_row(text, "job_slow").endswith("| 8.0 | 0.50 | 0.1000 | 5 | no / yes |  |")
+
+
 def test_plan_hash_tells_plans_apart():
     import numpy as np
 
@@ -74,5 +82,5 @@ def test_the_spacing_search_has_its_own_column_and_counts_in_the_job_cpu():
     text = run_all.markdown(rows, [], INFO)
     line = next(ln for ln in text.split("## Raster plan stage")[0].splitlines() if ln.startswith("| curved |"))
     assert "| 0.10 | 2.25 | 0.75 | 0.50 | 0.50 |" in line          # load, spacing, plan, trajectory, simulate
-    assert _plan_row(text, "curved").startswith("| curved | 20000 | 0.75 | 0.50 |")
+    assert _plan_row(text, "curved").startswith("| curved | 20000 | 0.750 |  |  | 0.50 |")
     assert "spacing_s" in run_all.STAGES
