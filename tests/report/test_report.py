@@ -304,6 +304,25 @@ def test_write_report_outputs_offline_html(tmp_path, job):
     assert len(text.encode()) < 8e6
 
 
+def test_figures_drawn_beside_are_the_figures_drawn_here_in_their_order(tmp_path, job, monkeypatch):
+    import swath.core.beside
+
+    surface, toolpath, traj, removal, metrics, settings = job
+    (tmp_path / "beside").mkdir()
+    beside = write_report(tmp_path / "beside", surface=surface, toolpath=toolpath, trajectory=traj,
+                          removal=removal, metrics=metrics, settings=settings)
+    monkeypatch.setattr(swath.core.beside, "can_fork", lambda: False)       # every figure drawn in this process
+    (tmp_path / "here").mkdir()
+    here = write_report(tmp_path / "here", surface=surface, toolpath=toolpath, trajectory=traj, removal=removal,
+                        metrics=metrics, settings=settings)
+    assert list(beside) == list(here) == ["metrics", "removal_map", "feed_contact", "depth_histogram", "html"]
+    for name in ("removal_map", "feed_contact", "depth_histogram"):
+        assert beside[name].read_bytes() == here[name].read_bytes()
+    embedded = [re.findall(r"<img alt='([^']+)' src='data:image/png;base64,", p.read_text(encoding="utf-8"))
+                for p in (beside["html"], here["html"])]
+    assert embedded[0] == embedded[1] and len(embedded[0]) == 3
+
+
 def test_figure_3d_content(job):
     surface, toolpath, traj, removal, *_ = job
     fig = figure_3d(surface, toolpath=toolpath, trajectory=traj, removal=removal)

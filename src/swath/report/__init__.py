@@ -11,10 +11,11 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from ..core.beside import Beside
 from ..errors import InputError
 from .html import write_report_html
 from .metrics import format_value, key_unit, to_jsonable, write_metrics_json
-from .plots import write_plots
+from .plots import PNG_NAMES, write_plots
 from .warnings import plan_warnings
 
 log = logging.getLogger(__name__)
@@ -66,10 +67,28 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
         metrics = dict(removal.metrics) if removal is not None else {}
     settings = dict(settings or {})
     paths = {"metrics": write_metrics_json(out_dir / "metrics.json", metrics, settings)}
-    pngs = write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal)
-    pngs.update((extra_figures() if callable(extra_figures) else extra_figures) or {})
-    paths.update(pngs)
-    paths["html"] = write_report_html(out_dir / "report.html", surface=surface, toolpath=toolpath,
-                                      trajectory=trajectory, removal=removal, metrics=metrics,
-                                      settings=settings, title=title, images=pngs, scene_traces=scene_traces)
-    return paths
+    # The removal map and histogram are drawn by a forked child while this process draws the feed
+    # figure and the 3D view (the same files; drawn here where no child can be forked).
+    drawn = Beside(_draw, out_dir, toolpath, trajectory, removal, BESIDE_PLOTS)
+    here = write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal,
+                       names=[n for n in PNG_NAMES if n not in BESIDE_PLOTS])
+    pngs: dict[str, Path] = {}
+
+    def images() -> dict[str, Path]:
+        both = {**drawn.result(), **here}
+        pngs.update((n, both[n]) for n in PNG_NAMES if n in both)          # in the figures' own order
+        pngs.update((extra_figures() if callable(extra_figures) else extra_figures) or {})
+        return pngs
+
+    html = write_report_html(out_dir / "report.html", surface=surface, toolpath=toolpath, trajectory=trajectory,
+                             removal=removal, metrics=metrics, settings=settings, title=title, images=images,
+                             scene_traces=scene_traces)
+    return {**paths, **pngs, "html": html}
+
+
+#: The standard figures drawn beside the rest of the report (the slowest two of three).
+BESIDE_PLOTS = ("removal_map", "depth_histogram")
+
+
+def _draw(out_dir, toolpath, trajectory, removal, names) -> dict[str, Path]:
+    return write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal, names=names)

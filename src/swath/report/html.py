@@ -430,6 +430,8 @@ def report_html_text(*, surface, toolpath=None, trajectory=None, removal=None, m
                            config=dict(displaylogo=False, responsive=True,
                                        toImageButtonOptions=dict(filename=f"{name}_removal_3d", scale=2)))
 
+    if callable(images):
+        images = images()                   # figures drawn elsewhere while the 3D view was made
     if images is None:
         images = {}
         if removal is not None:
@@ -505,9 +507,10 @@ def write_report_html(path, *, surface, toolpath=None, trajectory=None, removal=
         Job settings with units in their key names (``pad_radius_m``, ``force_n``).
     title : str, optional
         Page title; default ``"swath report — <part name>"``.
-    images : dict of str -> (Path or bytes), optional
+    images : dict of str -> (Path or bytes), or a callable returning one, optional
         PNG figures to embed by name (as :func:`plots.write_plots` returns them); rendered here
-        when not given.
+        when not given.  A callable is called once the 3D view is made (the figures may be drawn
+        elsewhere meanwhile).
     max_faces : int
         Faces shown at most in the 3D mesh (default 60,000).
     max_line_points : int

@@ -427,7 +427,8 @@ def save_png(fig, path, *, dpi: int = 110) -> Path:
     return path
 
 
-def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: int = 110) -> dict[str, Path]:
+def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: int = 110,
+                names=None) -> dict[str, Path]:
     """Write the PNG figures whose inputs are given into ``out_dir``.
 
     Parameters
@@ -442,6 +443,8 @@ def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: i
         Needed for ``removal_map.png`` and ``depth_histogram.png``.
     dpi : int
         Resolution, dots per inch.
+    names : collection of str, optional
+        Draw only these figures (keys of :data:`PNG_NAMES`); default all whose inputs are given.
 
     Returns
     -------
@@ -457,7 +460,7 @@ def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: i
         figs["feed_contact"] = lambda: feed_contact_figure(trajectory)
     written = {}
     for name in PNG_NAMES:
-        if name in figs:
+        if name in figs and (names is None or name in names):
             written[name] = save_png(figs[name](), out_dir / PNG_NAMES[name], dpi=dpi)
             log.debug("wrote %s", written[name])
     return written
