@@ -94,20 +94,27 @@ def test_incremental_coverage_equals_testing_all_passes():
                                   _uncovered(CoverageCheck(surface, TOOL, feed), passes[3:]))
 
 
-def test_coverage_check_sets_aside_only_what_is_surely_covered():
-    """Setting triangles aside before halving them leaves the uncovered samples, their areas and the
-    gap share of testing every sample of the whole halved surface, on a part with long triangles."""
+@pytest.mark.parametrize("edge", [0.05, 0.012])
+def test_coverage_check_sets_aside_only_what_is_surely_covered(edge, monkeypatch):
+    """Setting triangles aside before halving them (whole blocks of them first, then one by one)
+    leaves the uncovered samples, their areas and the gap share of testing every sample of the
+    whole halved surface, on parts with long triangles (one per block) and shorter ones (many)."""
     from swath.plan.gaps import CHORD_TOLERANCE, within_reach
     from swath.surface import Surface
     from swath.surface.geometry import face_normals_and_areas, vertex_areas
     from swath.surface.subdivide import halve_long_edges
 
-    coarse = doubly_curved_panel(spacing=0.05)                      # edges ~50 mm: halved to R/8 in rounds
+    coarse = doubly_curved_panel(spacing=edge)                      # edges over R/8: halved in rounds
     surface = Surface(coarse.vertices, coarse.faces)
     tp = raster(surface, TOOL, spacing=0.09, direction=0.0, fill_gaps=False)
     passes = list(tp.passes)
     check = CoverageCheck(surface, TOOL, np.asarray(tp.metadata["feed_direction"]))
+    blocks = []
+    sure_blocks = CoverageCheck._sure_blocks
+    monkeypatch.setattr(CoverageCheck, "_sure_blocks", lambda *a: blocks.append(sure_blocks(*a)) or blocks[-1])
     covered = check.covered(passes)
+    if edge < 0.02:                                                 # many triangles a block: some blocks set aside
+        assert 0.2 < blocks[0].mean() < 1.0
     assert check._known.any() and covered[check._known].all()      # corners of triangles set aside
     # every sample of the whole halved surface, tested one by one
     V, F = halve_long_edges(surface.vertices, surface.faces, TOOL.pad_radius / 8)

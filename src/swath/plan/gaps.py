@@ -136,6 +136,20 @@ class CoverageCheck:
         out[some[sure]] = grid.within(centre[some[sure]], room[sure])
         return out
 
+    def _sure_blocks(self, base, grid, top: float, n_pass_points: int) -> np.ndarray:
+        """(k,) bool over ``base.split``: the triangles of the blocks surely within reach of a pass
+        point of ``grid``, as :meth:`_drop` tests a triangle (a block's ball holds its triangles'
+        balls, and the least reach over it is at most theirs).  Set aside, they leave the
+        uncovered samples as they were: every point of theirs would have been found covered."""
+        rho, centre = base.block_rho, base.block_centre
+        sure_block = np.zeros(len(rho), bool)
+        some = np.flatnonzero(rho + SURE_MARGIN < top)
+        if len(some) and n_pass_points:
+            room = self._least_reach(centre[some], rho[some]) - rho[some] - SURE_MARGIN
+            sure = room > 0
+            sure_block[some[sure]] = grid.within(centre[some[sure]], room[sure])
+        return sure_block[base.block_of]
+
     def _sample(self, pass_points: np.ndarray) -> None:
         """Halve the surface to the step where a sample may be out of reach of ``pass_points``."""
         top = float(self.pad_half_chord.max()) * (1.0 + CHORD_TOLERANCE)      # no sample reaches more
@@ -148,7 +162,12 @@ class CoverageCheck:
                             lambda: _coverage_base(self.surface, self._pad_tree, self.step))
         n0 = len(self.surface.vertices)
         if len(base.split):
-            v, f, gone = halve_long_edges_except(self.surface.vertices, base.split, self.step, drop)
+            # whole blocks of triangles first (a few hundred tests instead of one per triangle),
+            # then the triangles of the blocks left, round by round
+            block = self._sure_blocks(base, grid, top, len(pass_points))
+            v, f, gone = halve_long_edges_except(self.surface.vertices, base.split[~block], self.step, drop)
+            if block.any():
+                gone = np.vstack([base.split[block], gone])
         else:
             v, f, gone = self.surface.vertices, base.split, base.split
         # the areas of the triangles never split, then the others', summed one by one in the
@@ -275,6 +294,10 @@ class _CoverageBase:
     split: np.ndarray
     areas: np.ndarray
     nearest: np.ndarray
+    #: block of each triangle of ``split`` (k,), and each block's ball: centre (b, 3), radius (b,), m
+    block_of: np.ndarray
+    block_centre: np.ndarray
+    block_rho: np.ndarray
 
 
 def _coverage_base(surface, pad_tree, step) -> _CoverageBase:
@@ -288,7 +311,33 @@ def _coverage_base(surface, pad_tree, step) -> _CoverageBase:
         areas = vertex_areas(len(V), F[~long_face], surface.face_areas[~long_face])
     else:
         areas = surface.vertex_areas
-    return _CoverageBase(F[long_face].astype(np.int64), areas, pad_tree.query(V)[1])
+    split = F[long_face].astype(np.int64)
+    return _CoverageBase(split, areas, pad_tree.query(V)[1], *_blocks(V[split], BLOCK_STEPS * step))
+
+
+#: Edge of the cells (in sample steps) whose triangles :meth:`CoverageCheck._sure_blocks` tests together.
+BLOCK_STEPS = 2.0
+
+
+def _blocks(corners: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The triangles ``corners`` (k, 3, 3) (m) grouped by the cube of edge ``cell`` (m) their centroid
+    falls in: each triangle's block (k,), each block's centre (the middle of its corners' bounding
+    box) (b, 3) and the radius of the ball round it that holds them (b,), m."""
+    if len(corners) == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0)
+    centroid = corners.mean(axis=1)
+    key = np.floor((centroid - centroid.min(axis=0)) / cell).astype(np.int64)
+    dims = key.max(axis=0) + 1
+    _, block_of = np.unique((key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2], return_inverse=True)
+    block_of = block_of.ravel()
+    n = int(block_of.max()) + 1
+    lo, hi = np.full((n, 3), np.inf), np.full((n, 3), -np.inf)
+    np.minimum.at(lo, block_of, corners.min(axis=1))
+    np.maximum.at(hi, block_of, corners.max(axis=1))
+    centre = 0.5 * (lo + hi)
+    rho = np.zeros(n)
+    np.maximum.at(rho, block_of, np.linalg.norm(corners - centre[block_of][:, None, :], axis=2).max(axis=1))
+    return block_of, centre, rho * (1.0 + 1e-9)
 
 
 def pad_neighbours(tree, radii) -> list[tuple[float, np.ndarray, np.ndarray]]:
