@@ -41,6 +41,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
     covered = np.zeros(len(W.vertices), bool)
     current = _seed_curves(ctx, seed, cross, step)
     reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
+    stop = ctx.band_stop(reach)   # the distances a generation reads lie within this of its sources
     if isinstance(seed, str) and seed == "middle":
         first = (_finished(ctx, current, step, min_pass_length)
                  or _finished(ctx, current, step, min_pass_length, cut=False))
@@ -54,11 +55,12 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         sources = np.vstack(current)
 
     for _ in range(max_passes):
-        # Distance from what is covered so far (or from the seed before the first pass).
+        # Distance from what is covered so far (or from the seed before the first pass), out to
+        # the stop distance only (inf beyond it).
         src = ctx.nearest_vertices(sources) if sources is not None else ctx.frontier(covered)
         if len(src) == 0:
             break
-        d = ctx.distance(src)
+        d = ctx.distance(src, stop)
         if sources is None:
             d[covered] = 0.0
         left = (d > 0) & ~covered
@@ -66,11 +68,17 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
             break
         band = np.flatnonzero((d <= 2.5 * R) & left)
         w_here = _band_widths(ctx, d, band, reach)
-        g = d - reach * w_here
+        # beyond the stop distance g > 0 (no face the level cuts has a corner there)
+        g = np.where(np.isfinite(d), d - reach * w_here, stop)
         pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
         if not pieces:
             # The far boundary is nearer than a full step: pull the last pass in so its ribbon
-            # reaches the boundary.
+            # reaches the boundary.  This reads the largest distance left, so any vertex the band
+            # left without one (none where no level was found, on a connected mesh) gets it.
+            if not np.isfinite(d[left]).all():
+                d = ctx.distance(src)
+                if sources is None:
+                    d[covered] = 0.0
             w_here = _band_widths(ctx, d, band, reach, everywhere=True)
             d_far = float(np.max(d[left]))
             w_left = float(np.median(w_here[left]))
