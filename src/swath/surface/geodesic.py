@@ -1,5 +1,6 @@
 """Geodesic machinery shared by the planners: conforming refinement, point location, per-face
-gradients and geodesic distance fields (potpourri3d's fast marching or heat method)."""
+gradients and geodesic distance fields (potpourri3d's fast marching or heat method, and the
+compiled narrow-band fast marching :class:`BandDistance` that stops at a given distance)."""
 
 from __future__ import annotations
 
@@ -282,9 +283,12 @@ class BandDistance:
     each non-accepted corner of a face round the accepted vertex takes the smaller of the edge
     update (``d_u + |e|``) and, where the face's third corner is accepted too, the triangle update
     (the plane front through both accepted corners, kept only where it arrives from inside the
-    face's angle at the corner and is not below either accepted value).  The march stops at the
-    first vertex beyond ``stop``, so it visits the band ``d <= stop`` and its one-ring only: its cost
-    grows with the band, not with the mesh.
+    face's angle at the corner).  The triangle update is taken even where it falls below the
+    value of an accepted corner (through an obtuse angle): refusing it there, as a strictly causal
+    march does, leaves the edge update, which on the long thin triangles of a halved CAD mesh
+    overestimates by up to twice as much.  The march stops at the first vertex beyond ``stop``, so it
+    visits the band ``d <= stop`` and its one-ring only: its cost grows with the band, not with the
+    mesh.
 
     Set up once per mesh (the vertex-to-face table); every call is independent.
 
@@ -299,9 +303,10 @@ class BandDistance:
     -----
     The distance is exact where it is planar across each face (from a straight source on a flat
     mesh it is exact to rounding); near a point source and round curved sources the plane-front
-    update makes a first-order error, and where a face's angle at the updated corner is obtuse and
-    the front arrives through it, the edge update overestimates (bounded by the edge length).  The
-    tests bound the error against analytic geodesics in units of the mesh's edge length.
+    update makes a first-order error.  Measured against analytic geodesics, in units of the
+    median edge ``h`` (``tests/surface/test_band_distance.py``): a point on an irregular (Delaunay)
+    plane, at most 0.73 h (mean 0.46 h); a point on a sphere, 1.35 h (0.45 h); a point on a
+    cylinder, 1.01 h (0.36 h); a curve of vertices, 0.48 h (0.16 h).
     """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
