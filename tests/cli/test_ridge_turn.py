@@ -80,7 +80,7 @@ def test_the_blades_raster_is_held_round_its_nose_and_the_plates_is_not():
 
 
 @pytest.mark.slow
-def test_on_a_small_blade_the_default_plans_with_the_uniform_planner_which_removes_more_evenly(monkeypatch):
+def test_on_a_small_blade_the_default_plans_with_the_uniform_planner_which_removes_more_evenly():
     from swath.cli import even_default
     from swath.cli.curved_spacing import curved_spacing_plan
     from swath.cli.job import planner_arguments
@@ -88,14 +88,7 @@ def test_on_a_small_blade_the_default_plans_with_the_uniform_planner_which_remov
     from swath.cli.stages import job_tool
     from swath.examples.parts import blade
     from swath.plan import get_planner
-    from swath.plan.uniform import uniform
 
-    # The uniform plans of this small blade (2.4 mm nose, 3 mm working edges) fall out differently
-    # with distances a fraction of a millimetre apart: with the heat method's the uniform plan
-    # qualifies (below); with the narrow-band distance its passes are held over 3.5 % of their
-    # length (more than half the raster's 6.0 %), with exact geodesics (tvb-gdist) it removes less
-    # evenly (interior CoV 1.35 against 1.10), and the raster stays. The rule is tested here.
-    monkeypatch.setitem(uniform.__kwdefaults__, "distance_method", "heat")
     settings = even_default.resolve(settings_from_mapping({"part": "example:blade", "out": "unused"}))
     tool = job_tool(settings)
     surface = blade(chord=0.15, span=0.2, max_spacing=8e-3)

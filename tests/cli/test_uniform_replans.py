@@ -128,10 +128,6 @@ def test_directions_of_different_lengths_keep_the_least_ripple_re_plan(monkeypat
     overlap, one plan fewer."""
     part = bowl(size=0.3, radius=0.35, n=41)
     settings = _settings(1.3)
-    # the directions' lengths spread with the heat method's distances only: with the narrow-band
-    # distance the square bowl's directions lay the same passes by symmetry (lengths 0.03 % apart)
-    from swath.plan.uniform import uniform
-    monkeypatch.setitem(uniform.__kwdefaults__, "distance_method", "heat")
     kept = _Counting()
     curved_spacing.curved_spacing_plan(part, TOOL, kept, settings, {})
     first = get_planner("uniform")(part, TOOL, overlap=kept.overlaps[0])

@@ -60,7 +60,7 @@ def test_another_turn_limit_reads_the_same_mesh_with_its_own_limit(builds):
     b = uniform_model.shared_context(part, tool, None, max_turn_curvature=10.0, beside=False)
     assert len(builds) == 1
     assert (a.max_turn_curvature, b.max_turn_curvature) == (40.0, 10.0)
-    assert b.work is a.work and b.band is a.band and b.widths is a.widths
+    assert b.work is a.work and b.solver is a.solver and b.widths is a.widths
     # the plan with a lower feed (a looser turn limit) is the one a fresh part gives
     _same(uniform(part, tool, direction=0.0, feed=0.02, workers=1),
           uniform(_panel(), tool, direction=0.0, feed=0.02, workers=1))

@@ -44,7 +44,7 @@ from ..core.cpus import usable_cpus
 from ..errors import InfeasibleError, InputError
 from .common import feed_and_cross
 from .uniform_layout import _layout, _seed_curves, _toolpath
-from .uniform_model import DISTANCE_METHODS, _Context, load_touch_kernel, shared_context
+from .uniform_model import DEFAULT_DISTANCE_METHOD, DISTANCE_METHODS, _Context, load_touch_kernel, shared_context
 
 log = logging.getLogger("swath.plan")
 
@@ -64,7 +64,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
             feed: float = 0.05, max_angular: float = 1.0, cost=None,
             work_spacing: float | None = None, progress=None, workers: int | None = None,
-            distance_method: str = "band") -> ToolPath:
+            distance_method: str | None = None) -> ToolPath:
     """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
 
     Parameters
@@ -115,10 +115,10 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         spawned worker builds its own.  Each ranks its candidates with ``cost``, which must then pickle (a
         module-level function or a record with ``__call__``; otherwise the candidates are planned
         here, one after another).  The plan is the same whatever the number of workers.
-    distance_method : {"band", "heat"}
+    distance_method : {"band", "heat"}, optional
         The distance solver of each generation (:data:`swath.plan.uniform_model.DISTANCE_METHODS`):
-        the narrow-band fast marching (default), or potpourri3d's heat method on the whole working
-        mesh (slower; kept to compare with).
+        the narrow-band fast marching, or potpourri3d's heat method on the whole working mesh
+        (default :data:`swath.plan.uniform_model.DEFAULT_DISTANCE_METHOD`).
 
     Returns
     -------
@@ -149,6 +149,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         raise InputError(f"feed and max_angular must be positive (m/s, rad/s), got {feed!r}, {max_angular!r}")
     if workers is not None and not (isinstance(workers, int) and workers >= 1):
         raise InputError(f"workers must be a whole number >= 1 (1 = no worker processes), got {workers!r}")
+    distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
     if distance_method not in DISTANCE_METHODS:
         raise InputError(f"distance_method must be one of {', '.join(DISTANCE_METHODS)}, got {distance_method!r}")
     context_args = (surface, tool, work_spacing, max_angular / (SHARP_TURN_SPEED_FRACTION * feed), distance_method)

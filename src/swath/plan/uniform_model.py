@@ -28,9 +28,15 @@ log = logging.getLogger(__name__)
 MAX_WORK_VERTICES = 350_000
 
 #: Distance solvers of :meth:`_Context.distance`: ``"band"`` the narrow-band fast marching
-#: (:class:`swath.surface.geodesic.BandDistance`, the default), ``"heat"`` potpourri3d's heat method
-#: on the whole working mesh (kept to compare with; its factorisation is built on first use).
+#: (:class:`swath.surface.geodesic.BandDistance`), ``"heat"`` potpourri3d's heat method on the whole
+#: working mesh (its factorisation built with the working mesh).
 DISTANCE_METHODS = ("band", "heat")
+
+#: The method the uniform planner uses when none is given.  The band solve is 10-100x faster per
+#: generation, but the plans it lays differ from the heat method's, and on the demo, crs_part_5 and
+#: the panel the default job's interior CoV came out worse (docs/guide/narrow-band-distance.md):
+#: the heat method stays the default until that is resolved.
+DEFAULT_DISTANCE_METHOD = "heat"
 
 
 def load_touch_kernel(tool) -> None:
@@ -110,14 +116,15 @@ class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
     def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf, *, beside: bool = True,
-                 while_building: Callable[[], object] | None = None, distance_method: str = "band"):
+                 while_building: Callable[[], object] | None = None, distance_method: str | None = None):
         """``beside``: build the working mesh's smooth normals and the width model in a forked child
         process while the distance solver is built here (:class:`swath.core.beside.Beside`; the same
         arrays either way), where forking is possible and two CPUs are free.  ``while_building()``,
         if given, runs here after the distance solver is built and before the child's answer is
         read: work that needs none of the context (imports, loading compiled kernels) fills the
         time this process would otherwise wait for the child.  ``distance_method``: one of
-        :data:`DISTANCE_METHODS`."""
+        :data:`DISTANCE_METHODS` (default :data:`DEFAULT_DISTANCE_METHOD`)."""
+        distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
         if distance_method not in DISTANCE_METHODS:
             raise InputError(f"distance_method must be one of {', '.join(DISTANCE_METHODS)}, got {distance_method!r}")
         t0 = time.perf_counter()
@@ -267,7 +274,8 @@ class _Context:
 
 
 def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = math.inf, beside: bool = True,
-                   while_building: Callable[[], object] | None = None, distance_method: str = "band") -> _Context:
+                   while_building: Callable[[], object] | None = None,
+                   distance_method: str | None = None) -> _Context:
     """The :class:`_Context` of ``surface`` for ``tool`` and ``work_spacing``, built once and kept
     on the surface (:meth:`swath.surface.Surface.memo`): the default job plans the same part
     several times (the curvature probe, the re-plan at the chosen spacing and lead, the
@@ -279,6 +287,7 @@ def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = m
     after it is built.  ``beside``, ``while_building`` and ``distance_method`` as for
     :class:`_Context` (the first two used only when it is built).  ``surface.forget("uniform
     model")`` releases it."""
+    distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
     key = ("uniform model", tool, None if work_spacing is None else float(work_spacing), distance_method)
     built: list = []
 
