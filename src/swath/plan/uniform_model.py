@@ -246,7 +246,8 @@ class _Context:
         self.widths.across(first, np.asarray(self.widths.curvature.d1[:1], float))
         self.gradient_directions(np.zeros(len(self.work.vertices)), first)
         self.frontier(np.zeros(len(self.work.vertices), bool))
-        self.band(first, stop=0.0)
+        if self.distance_method == "band":
+            self.band(first, stop=0.0)
 
     def touched(self, pts: np.ndarray) -> np.ndarray:
         """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``,
