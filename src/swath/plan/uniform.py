@@ -44,7 +44,7 @@ from ..core.cpus import usable_cpus
 from ..errors import InfeasibleError, InputError
 from .common import feed_and_cross
 from .uniform_layout import _layout, _seed_curves, _toolpath
-from .uniform_model import _Context, load_touch_kernel, shared_context
+from .uniform_model import DEFAULT_DISTANCE_METHOD, DISTANCE_METHODS, _Context, load_touch_kernel, shared_context
 
 log = logging.getLogger("swath.plan")
 
@@ -63,7 +63,8 @@ AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="boundary",
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
             feed: float = 0.05, max_angular: float = 1.0, cost=None,
-            work_spacing: float | None = None, progress=None, workers: int | None = None) -> ToolPath:
+            work_spacing: float | None = None, progress=None, workers: int | None = None,
+            distance_method: str | None = None) -> ToolPath:
     """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
 
     Parameters
@@ -114,6 +115,10 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         spawned worker builds its own.  Each ranks its candidates with ``cost``, which must then pickle (a
         module-level function or a record with ``__call__``; otherwise the candidates are planned
         here, one after another).  The plan is the same whatever the number of workers.
+    distance_method : {"band", "heat"}, optional
+        The distance solver of each generation (:data:`swath.plan.uniform_model.DISTANCE_METHODS`):
+        the narrow-band fast marching, or potpourri3d's heat method on the whole working mesh
+        (default :data:`swath.plan.uniform_model.DEFAULT_DISTANCE_METHOD`).
 
     Returns
     -------
@@ -131,7 +136,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         # Each piece is covered on its own: a distance field from one piece's seed never reaches another.
         options = dict(overlap=overlap, direction=direction, seed=seed, point_spacing=point_spacing,
                        min_pass_length=min_pass_length, max_passes=max_passes, feed=feed, max_angular=max_angular,
-                       cost=cost, work_spacing=work_spacing, progress=progress, workers=workers)
+                       cost=cost, work_spacing=work_spacing, progress=progress, workers=workers,
+                       distance_method=distance_method)
         return _per_piece(surface, tool, pieces, options)
     if not (isinstance(overlap, (int, float)) and 0.0 <= overlap < 0.9):
         raise InputError(f"overlap must be a fraction in [0, 0.9), e.g. 0.1 for 10 %, got {overlap!r}")
@@ -143,7 +149,10 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         raise InputError(f"feed and max_angular must be positive (m/s, rad/s), got {feed!r}, {max_angular!r}")
     if workers is not None and not (isinstance(workers, int) and workers >= 1):
         raise InputError(f"workers must be a whole number >= 1 (1 = no worker processes), got {workers!r}")
-    context_args = (surface, tool, work_spacing, max_angular / (SHARP_TURN_SPEED_FRACTION * feed))
+    distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
+    if distance_method not in DISTANCE_METHODS:
+        raise InputError(f"distance_method must be one of {', '.join(DISTANCE_METHODS)}, got {distance_method!r}")
+    context_args = (surface, tool, work_spacing, max_angular / (SHARP_TURN_SPEED_FRACTION * feed), distance_method)
 
     if direction is None or (isinstance(direction, str) and direction == "auto"):
         # The working mesh is built here only when the candidates are planned here.  While its
@@ -151,7 +160,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         # the cost's imports), which forked workers then inherit.
         cost = cost or length_cost
         return _auto(functools.cache(lambda: shared_context(*context_args[:3], max_turn_curvature=context_args[3],
-                                                            beside=workers != 1,
+                                                            beside=workers != 1, distance_method=distance_method,
                                                             while_building=functools.partial(_prepare_candidates,
                                                                                              tool, cost))),
                      overlap=overlap, seed=seed, point_spacing=point_spacing,
@@ -159,7 +168,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
                      cost=cost, progress=progress, workers=workers, context_args=context_args)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
-    ctx = shared_context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1)
+    ctx = shared_context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1,
+                         distance_method=distance_method)
     if isinstance(direction, (int, float)) and math.isfinite(direction):
         return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
@@ -505,8 +515,9 @@ def _worker_init(context_args) -> None:
         pass
     if context_args is None:        # forked: the working mesh came with the process
         return
-    surface, tool, work_spacing, max_turn_curvature = context_args
-    _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature, beside=False)
+    surface, tool, work_spacing, max_turn_curvature, distance_method = context_args
+    _WORKER_CONTEXT = _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature, beside=False,
+                               distance_method=distance_method)
 
 
 def _worker_layout(angle: float, options: dict) -> dict | str:

@@ -41,6 +41,7 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
     covered = np.zeros(len(W.vertices), bool)
     current = _seed_curves(ctx, seed, cross, step)
     reach = 0.5 - overlap     # pass centre this many local widths beyond the covered edge
+    stop = ctx.band_stop(reach)   # the distances a generation reads lie within this of its sources
     if isinstance(seed, str) and seed == "middle":
         first = (_finished(ctx, current, step, min_pass_length)
                  or _finished(ctx, current, step, min_pass_length, cut=False))
@@ -54,11 +55,12 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
         sources = np.vstack(current)
 
     for _ in range(max_passes):
-        # Distance from what is covered so far (or from the seed before the first pass).
+        # Distance from what is covered so far (or from the seed before the first pass), out to
+        # the stop distance only (inf beyond it).
         src = ctx.nearest_vertices(sources) if sources is not None else ctx.frontier(covered)
         if len(src) == 0:
             break
-        d = ctx.distance(src)
+        d = ctx.distance(src, stop)
         if sources is None:
             d[covered] = 0.0
         left = (d > 0) & ~covered
@@ -66,27 +68,32 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
             break
         band = np.flatnonzero((d <= 2.5 * R) & left)
         w_here = _band_widths(ctx, d, band, reach)
-        g = d - reach * w_here
+        # beyond the stop distance g > 0 (no face the level cuts has a corner there)
+        g = np.where(np.isfinite(d), d - reach * w_here, stop)
         pieces = level_sets(W.vertices, W.faces, g, [0.0], edges=ctx.edges)
-        if not pieces:
+        new, gained = _kept_pieces(ctx, pieces, step, min_pass_length, covered, len(generations))
+        if not pieces or (ctx.distance_method == "band" and not (gained & ~covered).any()):
             # The far boundary is nearer than a full step: pull the last pass in so its ribbon
-            # reaches the boundary.
+            # reaches the boundary.  With the band distance this is done too where the level set
+            # left only pieces too short to keep along that boundary (the square bowl's far edge:
+            # 6 % of it left bare otherwise); the heat method's plans are kept as they were.  This
+            # reads the largest distance left, so any vertex the band left without one gets it.
+            if not np.isfinite(d[left]).all():
+                d = ctx.distance(src)
+                if sources is None:
+                    d[covered] = 0.0
             w_here = _band_widths(ctx, d, band, reach, everywhere=True)
-            d_far = float(np.max(d[left]))
+            reached = np.isfinite(d)
+            if not (left & reached).any():                  # pragma: no cover - a connected mesh
+                stalled = True
+                break
+            d_far = float(np.max(d[left & reached]))
             w_left = float(np.median(w_here[left]))
             level = max(d_far - reach * w_left, 0.5 * d_far)
-            pieces = level_sets(W.vertices, W.faces, d - level, [0.0], edges=ctx.edges)
-        new = _finished(ctx, pieces, step, min_pass_length)
-        gained = _touched_by(ctx, new)
-        if not (gained & ~covered).any():
-            # Cutting at sharp turns left nothing that reaches new area (a short seed stretch gives a
-            # first level set curled round it; a pocket's level set is a small loop): a pass that
-            # makes the tool slow down beats none.
-            whole = _finished(ctx, pieces, step, min_pass_length, cut=False)
-            gained_whole = _touched_by(ctx, whole)
-            log.debug("uniform generation %d: cut pieces gain nothing; whole pieces gain %.4f m2",
-                      len(generations), _area(W, gained_whole & ~covered))
-            new, gained = whole, gained_whole
+            far = level_sets(W.vertices, W.faces, np.where(reached, d - level, d_far), [0.0], edges=ctx.edges)
+            if far or not pieces:
+                pieces = far
+                new, gained = _kept_pieces(ctx, pieces, step, min_pass_length, covered, len(generations))
         log.debug("uniform generation %d: %d level-set pieces, %d kept, uncovered %.4f m2", len(generations),
                   len(pieces), len(new), _area(W, left))
         if not (gained & ~covered).any():
@@ -122,6 +129,24 @@ def _layout(ctx: _Context, angle, *, overlap, seed, min_pass_length, max_passes)
                 overlap=float(overlap), seed=seed if isinstance(seed, str) else "polyline",
                 min_pass_length=float(min_pass_length), work_spacing=ctx.work_spacing,
                 seconds=time.perf_counter() - t0)
+
+
+def _kept_pieces(ctx: _Context, pieces, step, min_pass_length, covered, generation):
+    """The passes ``[(k, 3), ...]`` a generation keeps of its level-set ``pieces`` and the working
+    vertices ``(n,)`` bool they touch: the pieces cut at sharp turns, or, where that leaves nothing
+    that reaches new area, the whole pieces."""
+    new = _finished(ctx, pieces, step, min_pass_length)
+    gained = _touched_by(ctx, new)
+    if not (gained & ~covered).any():
+        # Cutting at sharp turns left nothing that reaches new area (a short seed stretch gives a
+        # first level set curled round it; a pocket's level set is a small loop): a pass that
+        # makes the tool slow down beats none.
+        whole = _finished(ctx, pieces, step, min_pass_length, cut=False)
+        gained_whole = _touched_by(ctx, whole)
+        log.debug("uniform generation %d: cut pieces gain nothing; whole pieces gain %.4f m2",
+                  generation, _area(ctx.work, gained_whole & ~covered))
+        new, gained = whole, gained_whole
+    return new, gained
 
 
 def _band_widths(ctx: _Context, d: np.ndarray, band: np.ndarray, reach: float, *,

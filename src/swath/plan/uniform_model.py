@@ -1,8 +1,9 @@
-"""The uniform planner's working mesh: the subdivided surface with its heat-method distance solver, gradient operator, contact-model width model and pad-touch test, shared by all candidate directions."""
+"""The uniform planner's working mesh: the subdivided surface with its narrow-band distance solver, gradient operator, contact-model width model and pad-touch test, shared by all candidate directions."""
 
 from __future__ import annotations
 
 import copy
+import functools
 import logging
 import math
 import time
@@ -13,9 +14,10 @@ import numpy as np
 from ..contact.kernels import default_cell, sample_grid, touched_samples
 from ..contact.widths import unique_patches, widths_across
 from ..core.beside import Beside
+from ..errors import InputError
 from ..surface.cells import jit
 from ..surface.curvature import PrincipalCurvature
-from ..surface.geodesic import FaceGradient
+from ..surface.geodesic import BandDistance, FaceGradient
 from ..surface.geometry import normalize
 from ..surface.topology import mesh_edges
 
@@ -24,6 +26,17 @@ log = logging.getLogger(__name__)
 
 #: About this many working-mesh vertices at most (the default working edge is coarsened to stay near it).
 MAX_WORK_VERTICES = 350_000
+
+#: Distance solvers of :meth:`_Context.distance`: ``"band"`` the narrow-band fast marching
+#: (:class:`swath.surface.geodesic.BandDistance`), ``"heat"`` potpourri3d's heat method on the whole
+#: working mesh (its factorisation built with the working mesh).
+DISTANCE_METHODS = ("band", "heat")
+
+#: The method the uniform planner uses when none is given.  The band solve is 10-100x faster per
+#: generation, but the plans it lays differ from the heat method's, and on the demo, crs_part_5 and
+#: the panel the default job's interior CoV came out worse (docs/guide/narrow-band-distance.md):
+#: the heat method stays the default until that is resolved.
+DEFAULT_DISTANCE_METHOD = "heat"
 
 
 def load_touch_kernel(tool) -> None:
@@ -103,15 +116,17 @@ class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
     def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf, *, beside: bool = True,
-                 while_building: Callable[[], object] | None = None):
+                 while_building: Callable[[], object] | None = None, distance_method: str | None = None):
         """``beside``: build the working mesh's smooth normals and the width model in a forked child
         process while the distance solver is built here (:class:`swath.core.beside.Beside`; the same
         arrays either way), where forking is possible and two CPUs are free.  ``while_building()``,
         if given, runs here after the distance solver is built and before the child's answer is
         read: work that needs none of the context (imports, loading compiled kernels) fills the
-        time this process would otherwise wait for the child."""
-        import potpourri3d as pp3d
-
+        time this process would otherwise wait for the child.  ``distance_method``: one of
+        :data:`DISTANCE_METHODS` (default :data:`DEFAULT_DISTANCE_METHOD`)."""
+        distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
+        if distance_method not in DISTANCE_METHODS:
+            raise InputError(f"distance_method must be one of {', '.join(DISTANCE_METHODS)}, got {distance_method!r}")
         t0 = time.perf_counter()
         R = tool.pad_radius
         given = work_spacing is not None
@@ -132,13 +147,16 @@ class _Context:
             self.work = self.work.sub_surface(np.arange(len(self.work.faces)))
         self.work_spacing = float(work_spacing)
         W = self.work
-        # The two slow halves of the set-up need nothing from each other: the distance solver's
-        # factorisation (C++, holding the GIL) is built here while a forked child builds the
-        # part's normals and curvature, the working mesh's normals and boundary loops, the width
-        # model, the edges and the gradient operator (numpy); this process adopts them, so later
-        # stages find them computed.
+        # The two halves of the set-up need nothing from each other: the distance solver (with the
+        # heat method its factorisation, C++ holding the GIL) is built here while a forked child
+        # builds the part's normals and curvature, the working mesh's normals and boundary loops,
+        # the width model, the edges and the gradient operator (numpy); this process adopts them,
+        # so later stages find them computed.
         beside_work = Beside(_beside_solver, surface, W, tool, allowed=beside)
-        self.solver = pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
+        self.distance_method = distance_method
+        self.band = BandDistance(W.vertices, W.faces)
+        if distance_method == "heat":
+            _ = self.solver
         if while_building is not None:
             while_building()
         built = beside_work.result()
@@ -147,6 +165,9 @@ class _Context:
         self.widths = built["widths"]
         self.edges = built["edges"]
         self.gradient = built["gradient"]                     # direction of the distance field
+        # the longest working edge, m: a face's corners lie within it of each other in distance
+        self.max_edge = float(np.linalg.norm(W.vertices[self.edges[0][:, 0]] - W.vertices[self.edges[0][:, 1]],
+                                             axis=1).max()) if len(self.edges[0]) else 0.0
         self.tree = W.kdtree
         # Pad queries on a cell grid of the working vertices, built once (compiled contact model,
         # float64), relative to the part's centre.
@@ -155,15 +176,37 @@ class _Context:
         log.info("uniform: working mesh %d vertices (edges <= %.1f mm), set up in %.2f s", len(W.vertices),
                  1e3 * self.work_spacing, time.perf_counter() - t0)
 
-    def distance(self, sources: np.ndarray) -> np.ndarray:
-        """Geodesic distance (m) from the vertex set ``sources`` to every working vertex.
+    @functools.cached_property
+    def solver(self):
+        """potpourri3d's heat-method solver on the working mesh (``distance_method="heat"`` only)."""
+        import potpourri3d as pp3d
 
-        The heat method recovers distance up to a constant; it is fixed so the sources sit at 0
-        (their median), and the field is clipped at 0.
+        W = self.work
+        return pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
+
+    def distance(self, sources: np.ndarray, stop: float = math.inf) -> np.ndarray:
+        """Geodesic distance ``(n,)`` (m) from the vertex set ``sources`` ``(s,)`` to the working vertices.
+
+        With the band method (the default) only vertices within ``stop`` (m) of the sources get a
+        distance, the others ``inf``, and the solve costs in proportion to that band.  The heat
+        method solves on the whole mesh whatever ``stop``; it recovers distance up to a constant,
+        fixed so the sources sit at 0 (their median), and the field is clipped at 0.
         """
         src = np.unique(sources)
+        if self.distance_method == "band":
+            return self.band(src, stop=stop)
         d = np.asarray(self.solver.compute_distance_multisource(src.tolist()), float)
         return np.maximum(d - np.median(d[src]), 0.0)
+
+    def band_stop(self, reach: float) -> float:
+        """The stop distance (m) a generation of passes laid ``reach`` local widths beyond the
+        covered edge needs: the band ``d <= 2.5 R`` where the widths are read, and the level
+        ``d = reach * w`` the pass is cut at (``w`` at most the widest swath, or ``2R`` off the
+        band), plus two of the longest working edges so that every face the level cuts, and
+        every face round a band vertex, has all its corners' distances."""
+        R = self.tool.pad_radius
+        widest = max(2.0 * R, float(np.nanmax(self.widths.max_width)) if len(self.widths.max_width) else 0.0)
+        return max(2.5 * R, reach * widest) + 2.0 * self.max_edge
 
     def frontier(self, covered: np.ndarray) -> np.ndarray:
         """Covered vertices with an uncovered neighbour: the edge of the covered region."""
@@ -190,7 +233,7 @@ class _Context:
 
     def warm(self) -> None:
         """Load the compiled kernels every candidate direction calls (pad touch test, widths across a
-        direction, vertex gradient directions) now, from numba's cache, with the argument types the
+        direction, vertex gradient directions, the band distance) now, from numba's cache, with the argument types the
         planner passes them, and build the part's closest-point tree.  Worker processes forked
         afterwards inherit them, instead of each loading and building them again on its first
         candidate (about 0.06 s of CPU per worker for each).  No state of the context changes
@@ -203,6 +246,8 @@ class _Context:
         self.widths.across(first, np.asarray(self.widths.curvature.d1[:1], float))
         self.gradient_directions(np.zeros(len(self.work.vertices)), first)
         self.frontier(np.zeros(len(self.work.vertices), bool))
+        if self.distance_method == "band":
+            self.band(first, stop=0.0)
 
     def touched(self, pts: np.ndarray) -> np.ndarray:
         """(n,) bool: working vertices the pressed pad touches along the pass ``pts`` ``(k, 3)``,
@@ -230,7 +275,8 @@ class _Context:
 
 
 def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = math.inf, beside: bool = True,
-                   while_building: Callable[[], object] | None = None) -> _Context:
+                   while_building: Callable[[], object] | None = None,
+                   distance_method: str | None = None) -> _Context:
     """The :class:`_Context` of ``surface`` for ``tool`` and ``work_spacing``, built once and kept
     on the surface (:meth:`swath.surface.Surface.memo`): the default job plans the same part
     several times (the curvature probe, the re-plan at the chosen spacing and lead, the
@@ -239,15 +285,17 @@ def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = m
     changes between them (the overlap, the seed, the candidate direction).  A call with another
     ``max_turn_curvature`` (the feed or angular limit) gets a shallow copy with it set.  The
     plans are the same as with a context built for each call: nothing in the context changes
-    after it is built.  ``beside`` and ``while_building`` as for :class:`_Context` (used only
-    when it is built).  ``surface.forget("uniform model")`` releases it."""
-    key = ("uniform model", tool, None if work_spacing is None else float(work_spacing))
+    after it is built.  ``beside``, ``while_building`` and ``distance_method`` as for
+    :class:`_Context` (the first two used only when it is built).  ``surface.forget("uniform
+    model")`` releases it."""
+    distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
+    key = ("uniform model", tool, None if work_spacing is None else float(work_spacing), distance_method)
     built: list = []
 
     def build():
         built.append(True)
         return _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature, beside=beside,
-                        while_building=while_building)
+                        while_building=while_building, distance_method=distance_method)
 
     ctx = surface.memo(key, build)
     if not built:

@@ -1,14 +1,17 @@
 """Geodesic machinery shared by the planners: conforming refinement, point location, per-face
-gradients and geodesic distance fields (potpourri3d's fast marching or heat method)."""
+gradients and geodesic distance fields (potpourri3d's fast marching or heat method, and the
+compiled narrow-band fast marching :class:`BandDistance` that stops at a given distance)."""
 
 from __future__ import annotations
 
 import functools
+import heapq
 import logging
 
 import numpy as np
 
 from ..errors import InputError
+from .cells import jit
 from .geometry import normalize
 from .topology import mesh_edges
 
@@ -270,3 +273,143 @@ def distance_field(vertices: np.ndarray, faces: np.ndarray, *, source_vertices, 
     return d, "heat"
 
 
+
+
+class BandDistance:
+    """Geodesic distance from a vertex set on a triangle mesh, only out to a stop distance.
+
+    A first-order fast marching (Kimmel & Sethian's triangle update on the piecewise-flat
+    surface) in one compiled loop: vertices are accepted in order of distance from the sources,
+    each non-accepted corner of a face round the accepted vertex takes the smaller of the edge
+    update (``d_u + |e|``) and, where the face's third corner is accepted too, the triangle update
+    (the plane front through both accepted corners, kept only where it arrives from inside the
+    face's angle at the corner).  The triangle update is taken even where it falls below the
+    value of an accepted corner (through an obtuse angle): refusing it there, as a strictly causal
+    march does, leaves the edge update, which on the long thin triangles of a halved CAD mesh
+    overestimates by up to twice as much.  The march stops at the first vertex beyond ``stop``, so it
+    visits the band ``d <= stop`` and its one-ring only: its cost grows with the band, not with the
+    mesh.
+
+    Set up once per mesh (the vertex-to-face table); every call is independent.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Vertices, m.
+    faces : (m, 3) int
+        Triangles.
+
+    Notes
+    -----
+    The distance is exact where it is planar across each face (from a straight source on a flat
+    mesh it is exact to rounding); near a point source and round curved sources the plane-front
+    update makes a first-order error.  Measured against analytic geodesics, in units of the
+    median edge ``h`` (``tests/surface/test_band_distance.py``): a point on an irregular (Delaunay)
+    plane, at most 0.73 h (mean 0.46 h); a point on a sphere, 1.35 h (0.45 h); a point on a
+    cylinder, 1.01 h (0.36 h); a curve of vertices, 0.48 h (0.16 h).
+    """
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        self.vertices = np.ascontiguousarray(vertices, float)
+        self.faces = np.ascontiguousarray(faces, np.int64)
+        n = len(self.vertices)
+        corner = self.faces.ravel()
+        order = np.argsort(corner, kind="stable")
+        self.vertex_faces = np.ascontiguousarray(order // 3, np.int64)       # faces round each vertex
+        self.start = np.concatenate([[0], np.cumsum(np.bincount(corner, minlength=n))]).astype(np.int64)
+
+    def __call__(self, sources, source_distances=None, stop: float = np.inf) -> np.ndarray:
+        """Distance ``(n,)`` (m) from ``sources`` ``(s,)`` (vertex indices; initial distances
+        ``source_distances`` ``(s,)`` m, default 0) to every vertex within ``stop`` (m) of them;
+        ``inf`` beyond it (and on pieces of the mesh no source reaches)."""
+        sv = np.ascontiguousarray(np.asarray(sources, np.int64).ravel())
+        sd = np.zeros(len(sv)) if source_distances is None else np.asarray(source_distances, float).ravel()
+        if len(sv) == 0 or len(sd) != len(sv) or not np.isfinite(sd).all():
+            raise InputError(f"a distance field needs sources with one finite distance each, got {len(sv)} "
+                             f"and {len(sd)}")
+        if sv.min() < 0 or sv.max() >= len(self.vertices):
+            raise InputError(f"source vertices must lie in 0..{len(self.vertices) - 1}")
+        stop = float(stop)
+        if not stop >= 0:
+            raise InputError(f"the stop distance must be >= 0 m (or inf), got {stop!r}")
+        d = np.full(len(self.vertices), np.inf)
+        _march(self.vertices, self.faces, self.start, self.vertex_faces, sv, np.ascontiguousarray(sd), stop, d)
+        return d
+
+
+def band_distance(vertices: np.ndarray, faces: np.ndarray, sources, source_distances=None,
+                  stop: float = np.inf) -> np.ndarray:
+    """:class:`BandDistance` set up and called once: the distance ``(n,)`` (m) from ``sources``
+    ``(s,)`` out to ``stop`` (m), ``inf`` beyond."""
+    return BandDistance(vertices, faces)(sources, source_distances, stop)
+
+
+@jit()
+def _triangle_update(V, c, a, b, da, db):   # pragma: no cover - compiled
+    """The distance at corner ``c`` of the plane front through corners ``a`` and ``b`` at ``da`` and
+    ``db`` (m), ``inf`` where that front does not reach ``c`` from inside the face's angle at ``c``."""
+    e1x, e1y, e1z = V[a, 0] - V[c, 0], V[a, 1] - V[c, 1], V[a, 2] - V[c, 2]
+    e2x, e2y, e2z = V[b, 0] - V[c, 0], V[b, 1] - V[c, 1], V[b, 2] - V[c, 2]
+    q11 = e1x * e1x + e1y * e1y + e1z * e1z
+    q22 = e2x * e2x + e2y * e2y + e2z * e2z
+    q12 = e1x * e2x + e1y * e2y + e1z * e2z
+    det = q11 * q22 - q12 * q12
+    if det <= 1e-12 * q11 * q22:
+        return np.inf
+    # relative to da: the front at a is 0, at b is u (|u| <= |ab| for a front to exist)
+    u = db - da
+    # t solves |grad|^2 = 1 with grad = E Q^-1 (r - t), r = (0, u): A t^2 - 2 B t + C = 0 (scaled by det)
+    A = q22 - 2.0 * q12 + q11
+    B = -q12 * u + q11 * u
+    C = q11 * u * u - det
+    disc = B * B - A * C
+    if disc < 0.0 or A <= 0.0:
+        return np.inf
+    t = (B + np.sqrt(disc)) / A
+    # the back-characteristic from c must point into the face: Q^-1 (r - t) <= 0 componentwise
+    r1, r2 = -t, u - t
+    if q22 * r1 - q12 * r2 > 0.0 or q11 * r2 - q12 * r1 > 0.0:
+        return np.inf
+    return da + t
+
+
+@jit()
+def _march(V, F, start, vertex_faces, sources, source_d, stop, d):   # pragma: no cover - compiled
+    """Fast marching from ``sources`` into ``d`` (``inf`` on entry), stopped past ``stop``."""
+    n = len(d)
+    state = np.zeros(n, np.int8)            # 0 far, 1 trial, 2 accepted
+    heap = [(source_d[0], sources[0])]
+    for i in range(len(sources)):
+        s = sources[i]
+        if source_d[i] < d[s]:
+            d[s] = source_d[i]
+            heapq.heappush(heap, (source_d[i], s))
+    while len(heap) > 0:
+        du, u = heapq.heappop(heap)
+        if state[u] == 2 or du > d[u]:
+            continue
+        if du > stop:
+            break
+        state[u] = 2
+        for k in range(start[u], start[u + 1]):
+            f = vertex_faces[k]
+            if F[f, 0] == F[f, 1] or F[f, 1] == F[f, 2] or F[f, 0] == F[f, 2]:
+                continue                                          # a face with a repeated corner
+            for j in range(3):
+                c = F[f, j]
+                if state[c] == 2:
+                    continue
+                o = F[f, 0] + F[f, 1] + F[f, 2] - u - c           # the face's third corner
+                ex, ey, ez = V[c, 0] - V[u, 0], V[c, 1] - V[u, 1], V[c, 2] - V[u, 2]
+                cand = du + np.sqrt(ex * ex + ey * ey + ez * ez)
+                if state[o] == 2:
+                    t = _triangle_update(V, c, u, o, du, d[o])
+                    if t < cand:
+                        cand = t
+                if cand < d[c]:
+                    d[c] = cand
+                    state[c] = 1
+                    heapq.heappush(heap, (cand, c))
+    for v in range(n):
+        if state[v] != 2:
+            d[v] = np.inf
