@@ -1,4 +1,4 @@
-"""The uniform planner's working mesh: the subdivided surface with its narrow-band distance solver, gradient operator, contact-model width model and pad-touch test, shared by all candidate directions."""
+"""The uniform planner's working mesh: the subdivided surface with its distance solver (heat method, or a narrow-band fast marching), gradient operator, contact-model width model and pad-touch test, shared by all candidate directions."""
 
 from __future__ import annotations
 
@@ -154,9 +154,7 @@ class _Context:
         # so later stages find them computed.
         beside_work = Beside(_beside_solver, surface, W, tool, allowed=beside)
         self.distance_method = distance_method
-        self.band = BandDistance(W.vertices, W.faces)
-        if distance_method == "heat":
-            _ = self.solver
+        _ = self.solver if distance_method == "heat" else self.band
         if while_building is not None:
             while_building()
         built = beside_work.result()
@@ -177,6 +175,11 @@ class _Context:
                  1e3 * self.work_spacing, time.perf_counter() - t0)
 
     @functools.cached_property
+    def band(self) -> BandDistance:
+        """The narrow-band fast marching on the working mesh (``distance_method="band"`` only)."""
+        return BandDistance(self.work.vertices, self.work.faces)
+
+    @functools.cached_property
     def solver(self):
         """potpourri3d's heat-method solver on the working mesh (``distance_method="heat"`` only)."""
         import potpourri3d as pp3d
@@ -187,9 +190,9 @@ class _Context:
     def distance(self, sources: np.ndarray, stop: float = math.inf) -> np.ndarray:
         """Geodesic distance ``(n,)`` (m) from the vertex set ``sources`` ``(s,)`` to the working vertices.
 
-        With the band method (the default) only vertices within ``stop`` (m) of the sources get a
-        distance, the others ``inf``, and the solve costs in proportion to that band.  The heat
-        method solves on the whole mesh whatever ``stop``; it recovers distance up to a constant,
+        With the band method only vertices within ``stop`` (m) of the sources get a distance, the
+        others ``inf``, and the solve costs in proportion to that band.  The heat method (the
+        default, :data:`DEFAULT_DISTANCE_METHOD`) solves on the whole mesh whatever ``stop``; it recovers distance up to a constant,
         fixed so the sources sit at 0 (their median), and the field is clipped at 0.
         """
         src = np.unique(sources)
