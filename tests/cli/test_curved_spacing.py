@@ -208,3 +208,19 @@ def test_the_least_ripple_planes_follow_the_swath_where_it_narrows():
     hub_share = curved_spacing.narrow_share(hub, TOOL, hub_plan.metadata["cross_direction"],
                                             hub_plan.metadata["ripple_spacing_m"])
     assert 0 < hub_share < curved_spacing.NARROW_SHARE and hub_plan.metadata["spacing_on"] == "surface"
+
+
+def test_the_search_progress_rises_through_its_plans_as_one_step():
+    from swath.cli.curved_spacing import PLAN_UNITS, search_progress
+
+    heard = []
+    for plan in (1, 2, 3):
+        told = search_progress(lambda *a: heard.append(a), plan, 4)
+        for done in (0, 6, 13):
+            told("planning (uniform): trying pass directions", done, 13)
+    stages = {h[0] for h in heard}
+    assert stages == {"planning (uniform): trying pass directions (at most 4 plans)"}   # one step for the search
+    assert {h[2] for h in heard} == {4 * PLAN_UNITS}
+    done = [h[1] for h in heard]
+    assert done == sorted(done) and done[0] == 0 and done[-1] == 3 * PLAN_UNITS       # three plans of four made
+    assert done[1] == int(6 / 13 * PLAN_UNITS)

@@ -281,6 +281,25 @@ def uniform_replan_value(toolpath, probed: float, choice, bound: float, budget: 
     return value
 
 
+#: Progress units of one plan in :func:`search_progress`.
+PLAN_UNITS = 1000
+
+
+def search_progress(progress, plan: int, most: int):
+    """The uniform planner's ``progress(stage, done, total)`` for its ``plan``-th plan (from 1) of a
+    search that makes at most ``most``: one step counted over all of them (``total`` the plans'
+    units, ``done`` the plans made and this one's share), so that the job's progress lines go on
+    rising through the search and, past a few seconds, estimate its time left as if every plan
+    were made (fewer may be)."""
+    label = f" (at most {most} plans)"
+
+    def told(stage: str, done: int, total: int) -> None:
+        share = done / total if total > 0 else 0.0
+        progress(stage + label, int((plan - 1 + share) * PLAN_UNITS), most * PLAN_UNITS)
+
+    return told
+
+
 def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False,
                         ridge: bool = False):
     """The job's passes at the least-ripple spacing on the part's curvature, within
@@ -323,9 +342,15 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
     value = (ripple_overlap(tool, lead_angle=lead, max_length_ratio=budget) if uniform
              else ripple_spacing(tool, lead_angle=lead, max_length_ratio=budget)[0])
 
+    most = 2 + BUDGET_ROUNDS                  # the first plan, the re-plan, the budget's re-plans
+    plans_made = [0]
+
     def plan(value: float):
+        plans_made[0] += 1
         if uniform:
-            return planner(surface, tool, **{**arguments, "overlap": value})
+            told = arguments.get("progress")
+            numbered = {} if told is None else {"progress": search_progress(told, plans_made[0], most)}
+            return planner(surface, tool, **{**arguments, "overlap": value, **numbered})
         # swath's spacing, not the user's: fill passes still close what it leaves (raster's default);
         # the planes follow the local swath width unless the job says where to measure the spacing
         return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": value})
