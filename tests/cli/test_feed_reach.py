@@ -113,3 +113,37 @@ def test_the_feed_stage_skips_the_programme_and_says_so(tmp_path):
     assert out_settings.target_depth > 0                             # the target the default chose, stated
     assert len(even["warnings"]) == 1 and even["warnings"][0].endswith("[W-EVEN-FEED-SKIPPED]")
     assert "2 % of the interior removal variance" in even["warnings"][0]
+
+
+@pytest.mark.parametrize("plain_cov", [0.01, 0.9])                  # the plain plan removes more / less evenly
+def test_a_plain_plan_not_ready_yet_is_judged_after_the_feed_with_the_same_outcome(tmp_path, plain_cov):
+    from types import SimpleNamespace
+
+    from swath.cli import even_default, stages
+    from swath.cli.settings import settings_from_mapping
+
+    settings = even_default.resolve(settings_from_mapping({"part": "example:plate", "out": str(tmp_path / "o"),
+                                                          "sample_spacing": "4mm"}))
+    removal, tr, tool = _run()
+    run = (None, SimpleNamespace(duration=99.0), SimpleNamespace(metrics={"interior_removal_cov": plain_cov}))
+    outcomes = []
+    for ready in (True, False):
+        asked = []
+
+        def plain():
+            asked.append(True)
+            return run
+
+        plain.ready = lambda: ready
+        even: dict = {}
+        out = stages.even_feed_stage(_passes(), tool, settings, tr, PLATE, even, constant=removal, plain=plain)
+        assert asked == [True]
+        outcomes.append((out[0], out[1] is tr, out[2], out[3], even))
+    assert outcomes[0] == outcomes[1]
+    even = outcomes[0][-1]
+    assert even["_plain"] is run and even["plain_interior_removal_cov"] == plain_cov
+    if plain_cov < 0.5:                                              # kept: the feed is chosen on its passes
+        assert even["plain_plan_kept"] and "feed_optimisation_skipped" not in even
+        assert [w[-19:] for w in even["warnings"]] == ["[W-EVEN-PLAIN-KEPT]"]
+    else:
+        assert "plain_plan_kept" not in even and even["feed_optimisation_skipped"]

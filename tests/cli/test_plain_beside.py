@@ -115,3 +115,13 @@ def test_a_raster_job_starts_the_plain_plan_before_its_own_plan(two_cpus, tmp_pa
     metrics = job.run_job(settings)
     assert events == ["plain started", "job planned", "plain asked for"]
     assert metrics["plain_interior_removal_cov"] > metrics["interior_removal_cov"] > 0
+
+
+def test_a_child_is_ready_once_it_has_answered(two_cpus):
+    import time
+
+    b = beside.Beside(time.sleep, 0.5)
+    assert b.forked and not b.ready()
+    time.sleep(2.0)
+    assert b.ready() and b.result() is None and b.ready()
+    assert beside.Beside(time.sleep, 0.0, allowed=False).ready()   # nothing forked: computed when asked

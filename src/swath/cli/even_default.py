@@ -395,6 +395,7 @@ def plain_beside(surface, tool, plain, *, part=None):
         surface.forget()                    # (planned here: no plan follows)
         return answer
 
+    wait.ready = beside.ready               # type: ignore[attr-defined]
     return wait
 
 

@@ -326,7 +326,8 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
 
     ``plain`` (a callable returning the plain plan's ``(toolpath, trajectory, removal)``,
     :func:`~swath.cli.even_default.plain_run`, or the answer of one planning it beside this process,
-    :func:`~swath.cli.even_default.plain_beside`) is asked for before the feed is optimised: when the
+    :func:`~swath.cli.even_default.plain_beside`) is asked for before the feed is optimised (one
+    still being made beside, once the feed is chosen, with the same outcome): when the
     plain plan already removes more evenly than these passes at constant feed, these passes are
     dropped (``even["plain_plan_kept"]``; measured on the panel, the blade and the scans, their
     optimised feed never caught up with it) and the job optimises the feed on the plain plan's
@@ -340,12 +341,9 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     tuple
         ``(settings with the target depth, trajectory, FeedResult, metrics)``.
     """
-    from dataclasses import replace
 
-    from ..errors import InfeasibleError
     from ..simulate import simulate_removal
     from . import even_default
-    from .feed_reach import FEED_REACH_MIN, feed_cannot_help, feed_reach
 
     say = progress or (lambda stage, done, total: None)
     if even is None or not even_default.wants_target_depth(settings):
@@ -358,14 +356,50 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
                                     sampling=settings.removal_sampling)
     depth, figures = even_default.choose_target_depth(constant, trajectory.duration, factor, tool.pad_radius)
     even.update(figures)
-    if plain is not None:
+    if plain is not None and getattr(plain, "ready", lambda: True)():
         # asked for before the feed is optimised: where the plain plan wins (four of the seven shared
         # meshes), optimising these passes' feed first cost 5-40 s for nothing
-        say("the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
-        run = plain()
-        even["_plain"] = run
-        if even_default.plain_if_evener(run, constant, even, feed_follows=True) is not None:
+        if _plain_wins(plain, constant, even, say):
             return settings, trajectory, None, {}        # the feed is optimised on the plain plan's passes
+        plain = None
+    # A plain plan still being made beside (the uniform planner's: started after the job's plan) is
+    # asked for once this feed is chosen, so the two run at once; where it wins, the same answer as
+    # asking first (the feed chosen here is dropped, and so are the figures of choosing it).
+    before = {k: list(v) if isinstance(v, list) else v for k, v in even.items()}
+    chosen = _feed_for_even(toolpath, tool, settings, trajectory, surface, even, constant, depth, figures, say)
+    if plain is not None and _plain_wins(plain, constant, even, say, undo=before):
+        return settings, trajectory, None, {}
+    return chosen
+
+
+def _plain_wins(plain, constant, even: dict, say, undo: dict | None = None) -> bool:
+    """Ask ``plain`` for the plain plan's run and judge it against the passes' ``constant`` removal
+    (:func:`swath.cli.even_default.plain_if_evener`, the figures into ``even``, the run kept in
+    ``even["_plain"]``); True where it removes more evenly.  ``undo``: where it wins, ``even`` is
+    first set back to these entries (what it held before the feed was chosen)."""
+    from . import even_default
+
+    say("the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
+    run = plain()
+    wins = even_default.plain_if_evener(run, constant, {}, feed_follows=True) is not None   # the verdict alone
+    if wins and undo is not None:
+        even.clear()
+        even.update(undo)
+    even["_plain"] = run
+    even_default.plain_if_evener(run, constant, even, feed_follows=True)
+    return wins
+
+
+def _feed_for_even(toolpath, tool, settings, trajectory, surface, even: dict, constant, depth: float, figures: dict,
+                   say):
+    """The default job's feed for ``toolpath`` to the target ``depth`` (m) (:func:`even_feed_stage`,
+    after the plain plan's comparison): skipped where it cannot help, the constant feed where the
+    programme has no solution."""
+    from dataclasses import replace
+
+    from ..errors import InfeasibleError
+    from .feed_reach import FEED_REACH_MIN, feed_cannot_help, feed_reach
+
     reach = feed_reach(constant, trajectory, tool)
     even.update(reach)
     if feed_cannot_help(reach):

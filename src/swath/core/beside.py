@@ -80,6 +80,14 @@ class Beside:
         """Whether ``fn`` runs in a child process (else :meth:`result` computes it here)."""
         return self._process is not None or getattr(self, "_forked", False)
 
+    def ready(self) -> bool:
+        """Whether :meth:`result` would answer without waiting for the child (it has answered or
+        ended; True where nothing was forked, :meth:`result` then computing it here)."""
+        if hasattr(self, "_answer") or self._process is None:
+            return True
+        assert self._conn is not None
+        return bool(self._conn.poll())
+
     def result(self) -> Any:
         """The value of ``fn(*args)`` (computed once: later calls return the same object)."""
         if not hasattr(self, "_answer"):
