@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 
 import numpy as np
 import pytest
@@ -153,6 +154,37 @@ def test_two_ray_workers_give_the_in_process_result(small_blade, tmp_path):
     assert on_ray["interior_removal_cov"] == pytest.approx(inline["interior_removal_cov"], rel=1e-9)
     assert on_ray["n_passes"] == inline["n_passes"]
     assert len(on_ray["worker_peak_rss_bytes"]) >= 1 and 0 < on_ray["max_worker_peak_rss_bytes"] < 8 * 2**30
+
+
+@pytest.mark.slow
+def test_a_local_ray_of_the_job_starts_without_the_dashboard_and_monitors():
+    """The local Ray ``swath big`` starts runs its tasks with none of the dashboard's API server, the
+    autoscaler monitor and the log monitor, and Ray's node starts them again afterwards."""
+    ray = pytest.importorskip("ray")
+    from ray._private.node import Node
+
+    from swath.cli.bigpart_work import RAY_EXTRAS, RayExecutor, peak_rss_bytes
+
+    if ray.is_initialized():
+        pytest.skip("a Ray is already running in this process")
+    before = {name: Node.__dict__[name] for name in RAY_EXTRAS}
+    executor = RayExecutor(1)
+    try:
+        kinds = set(ray._private.worker._global_node.all_processes)
+        assert not kinds & {"dashboard", "monitor", "log_monitor"}
+        assert {"gcs_server", "raylet"} <= kinds
+
+        def task(n):                                   # a local function: Ray ships it by value
+            return n * 2, {"pid": os.getpid(), "rss": peak_rss_bytes()}
+
+        executor.submit(("plan", 0), task, (3,))
+        key, info = executor.next_done()
+        assert key == ("plan", 0) and info["pid"] != os.getpid() and info["rss"] > 0
+        assert executor.result(("plan", 0)) == 6
+    finally:
+        executor.close()
+    assert not ray.is_initialized()
+    assert {name: Node.__dict__[name] for name in RAY_EXTRAS} == before
 
 
 def test_big_prints_its_help(capsys):
