@@ -167,6 +167,7 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         ``area``, ``interior``) and ``trajectory`` (the stitched Trajectory).
     """
     from ..io.atomic import atomic_directory, check_output_dir
+    from ..trajectory.join import join_trajectories
     from .bigpart_schedule import idle_figures
 
     say = progress or (lambda stage, done, total: None)
@@ -200,13 +201,21 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
             if starting is not None and starting.ready_s is not None:
                 split["timings"]["ray_start_s"] = starting.ready_s
         say(f"{len(tasks.tiles)} regions of {split['name']} ({split['n_faces']} faces), {executor.where}", 0, 1)
-        tasks.run()
-        t0 = time.perf_counter()
-        trajectories = [executor.result(("plan", k)) for k in range(len(tasks.tiles))]
-        split["timings"]["results_s"] = time.perf_counter() - t0
+        joined: dict = {}
+
+        def join_plans():                  # while the last regions are simulated
+            t0 = time.perf_counter()
+            trajectories = [executor.result(("plan", k)) for k in range(len(tasks.tiles))]
+            split["timings"]["results_s"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            joined["trajectory"] = join_trajectories(trajectories, link_speed=settings.links().speed)
+            split["timings"]["join_s"] = time.perf_counter() - t0
+        tasks.run(when_planned=join_plans)
+        if "trajectory" not in joined:     # the last task to finish was a plan
+            join_plans()
         executor_workers, executor_where = executor.workers, executor.where
         with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
-            metrics = stitch(settings, split, tasks, trajectories, tmp, epoch0=epoch0)
+            metrics = stitch(settings, split, tasks, joined["trajectory"], tmp, epoch0=epoch0)
             metrics.update(workers=int(executor_workers), where=executor_where)
             metrics.update(idle_figures(metrics["tasks"], int(executor_workers)))
             finish(settings, metrics, tmp, wall_s=time.perf_counter() - wall0, driver_cpu_s=time.process_time() - cpu0)
@@ -378,15 +387,14 @@ def split_part(settings: JobSettings, regions, where: Path, workers, starting, e
             "axis": axis_l, "feed": feed_l, "band": band, "pad_radius": tool.pad_radius, "timings": timings}
 
 
-def stitch(settings: JobSettings, split: dict, tasks, trajectories: list, tmp: Path, *, epoch0: float) -> dict:
+def stitch(settings: JobSettings, split: dict, tasks, trajectory, tmp: Path, *, epoch0: float) -> dict:
     """The stitched job's metrics; writes ``trajectory.csv`` (the rows tasks' files after one header,
-    or, if a region has an extra column the ones before it lacked, from the joined trajectory),
-    ``regions.csv`` and ``tasks.csv`` to ``tmp``."""
-    from ..trajectory.join import csv_header, join_trajectories
+    or, if a region has an extra column the ones before it lacked, from ``trajectory``, the regions'
+    trajectories joined), ``regions.csv`` and ``tasks.csv`` to ``tmp``."""
+    from ..trajectory.join import csv_header
 
     t0 = time.perf_counter()
     planned, simulated = tasks.results("plan"), tasks.results("simulate")
-    trajectory = join_trajectories(trajectories, link_speed=settings.links().speed)
     metrics = stitched_metrics(simulated, split["pad_radius"])
     metrics.update(cycle_time_s=trajectory.duration, contact_length_m=trajectory.contact_length,
                    air_length_m=trajectory.air_length, n_passes=int(sum(r["n_passes"] for r in planned)),
