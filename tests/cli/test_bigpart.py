@@ -208,6 +208,15 @@ def test_submesh_keeps_the_faces_and_only_their_vertices_in_order():
     used = np.unique(faces[keep])
     np.testing.assert_array_equal(v, vertices[used])              # the used vertices, in their old order
     np.testing.assert_array_equal(v[f], vertices[faces[keep]])    # the same triangles
+    # faces that use a window of the vertices (a region of a mesh laid out along the part)
+    window = (faces.min(axis=1) >= 120) & (faces.max(axis=1) < 170) & keep
+    v, f = submesh(vertices, faces, window)
+    used = np.unique(faces[window])
+    assert used.min() >= 120 and len(used) > 3
+    np.testing.assert_array_equal(v, vertices[used])
+    np.testing.assert_array_equal(v[f], vertices[faces[window]])
+    v, f = submesh(vertices, faces, np.zeros(500, bool))            # nothing kept
+    assert v.shape == (0, 3) and f.shape == (0, 3)
 
 
 def test_trajectory_csv_from_the_regions_rows_is_the_joined_trajectory(small_blade, tmp_path):
