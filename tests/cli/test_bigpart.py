@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import time
 
 import numpy as np
 import pytest
@@ -147,10 +148,12 @@ def test_cli_big_in_process(small_blade, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_two_ray_workers_give_the_in_process_result(small_blade, tmp_path):
-    pytest.importorskip("ray")
+    ray = pytest.importorskip("ray")
     inline = run_big_part(_settings(small_blade[1], tmp_path / "a"), regions=2, workers=1)
     on_ray = run_big_part(_settings(small_blade[1], tmp_path / "b"), regions=2, workers=2)
     assert on_ray["where"] == "on a local Ray with 2 workers"
+    assert not ray.is_initialized()                  # shut down beside the stitching, and waited for
+    assert on_ray["stitched"][0]["depth"].sum() > 0   # the removal that came back is readable after it
     assert on_ray["interior_removal_cov"] == pytest.approx(inline["interior_removal_cov"], rel=1e-9)
     assert on_ray["n_passes"] == inline["n_passes"]
     assert len(on_ray["worker_peak_rss_bytes"]) >= 1 and 0 < on_ray["max_worker_peak_rss_bytes"] < 8 * 2**30
@@ -185,6 +188,33 @@ def test_a_local_ray_of_the_job_starts_without_the_dashboard_and_monitors():
         executor.close()
     assert not ray.is_initialized()
     assert {name: Node.__dict__[name] for name in RAY_EXTRAS} == before
+
+
+def test_close_aside_waits_for_the_close_and_raises_its_error_once():
+    from swath.cli.bigpart_work import CloseAside
+
+    class Slow:
+        closed = False
+
+        def close(self):
+            time.sleep(0.2)
+            self.closed = True
+
+    class Failing:
+        def close(self):
+            raise RuntimeError("no shutdown")
+
+    slow = Slow()
+    closing = CloseAside(slow)
+    assert not slow.closed                           # closing in its own thread
+    closing.wait()
+    assert slow.closed
+    closing = CloseAside(Failing())
+    closing.wait(raise_error=False)                  # a job's own error goes first: the close's is dropped
+    closing = CloseAside(Failing())
+    with pytest.raises(RuntimeError, match="no shutdown"):
+        closing.wait()
+    closing.wait()                                   # raised once
 
 
 def test_big_prints_its_help(capsys):

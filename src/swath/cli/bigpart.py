@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .bigpart_work import RayExecutor
+from .bigpart_work import CloseAside, RayExecutor
 from .settings import JobSettings
 
 log = logging.getLogger(__name__)
@@ -182,6 +182,7 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     cpu0 = time.process_time()
     folder = None
     starting = None
+    closing = None
     try:
         if executor is None and on_ray:
             starting = RayStart(workers, address)
@@ -214,13 +215,17 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         if "trajectory" not in joined:     # the last task to finish was a plan
             join_plans()
         executor_workers, executor_where = executor.workers, executor.where
+        closing, executor = CloseAside(executor), None     # Ray shuts down while the job is stitched and written
         with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
             metrics = stitch(settings, split, tasks, joined["trajectory"], tmp, epoch0=epoch0)
             metrics.update(workers=int(executor_workers), where=executor_where)
             metrics.update(idle_figures(metrics["tasks"], int(executor_workers)))
             finish(settings, metrics, tmp, wall_s=time.perf_counter() - wall0, driver_cpu_s=time.process_time() - cpu0)
+        closing.wait()
     finally:
-        if starting is not None and executor is None:
+        if closing is not None:
+            closing.wait(raise_error=False)          # the job's own error, if any, is the one raised
+        elif starting is not None and executor is None:
             try:
                 executor = starting.result()         # a Ray that started after the job failed is shut down too
             except Exception:                        # noqa: BLE001 - the job's own error is the one raised
