@@ -468,22 +468,24 @@ def stitched_metrics(simulated: list, pad_radius: float) -> dict:
     depth = np.concatenate([r["depth"] for r in simulated])
     area = np.concatenate([r["area"] for r in simulated])
     interior = np.concatenate([r["interior"] for r in simulated])
-    touched = depth > 0
     total = float(area.sum())
 
     def cov(mask):
-        if not mask.any() or not (area[mask].sum() > 0):
-            return float("nan"), float("nan")
-        mean = float(np.average(depth[mask], weights=area[mask]))
-        std = float(np.sqrt(np.average((depth[mask] - mean) ** 2, weights=area[mask])))
-        return mean, (std / mean if mean > 0 else float("nan"))
+        """(mean, CoV, area) of the samples where ``mask``: each masked copy made once."""
+        d, w = depth[mask], area[mask]
+        a = float(w.sum())
+        if not len(d) or not a > 0:
+            return float("nan"), float("nan"), a
+        mean = float(np.average(d, weights=w))
+        std = float(np.sqrt(np.average((d - mean) ** 2, weights=w)))
+        return mean, (std / mean if mean > 0 else float("nan")), a
 
-    mean, removal_cov = cov(touched)
-    _, interior_cov = cov(interior)
-    return {"surface_area_m2": total, "covered_area_m2": float(area[touched].sum()),
-            "coverage_fraction": float(area[touched].sum()) / total if total > 0 else 0.0,
+    mean, removal_cov, covered = cov(depth > 0)
+    _, interior_cov, interior_area = cov(interior)
+    return {"surface_area_m2": total, "covered_area_m2": covered,
+            "coverage_fraction": covered / total if total > 0 else 0.0,
             "removal_mean_m": mean, "removal_cov": removal_cov, "interior_removal_cov": interior_cov,
-            "interior_area_m2": float(area[interior].sum()), "removal_max_m": float(depth.max()),
+            "interior_area_m2": interior_area, "removal_max_m": float(depth.max()),
             "n_removal_samples": int(len(depth)), "pad_radius_m": float(pad_radius)}
 
 
