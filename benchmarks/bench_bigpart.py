@@ -86,8 +86,10 @@ def big_notes(label: str, runs: dict) -> list[str]:
         notes.append(f"big part, {label}, {w} worker(s): Ray up {m.get('ray_start_s', float('nan')):.1f} s into the "
                      f"call; beside it, load {m['load_s']:.1f} s, spacing {m.get('spacing_s', 0.0):.1f} s, split "
                      f"{m['split_s']:.1f} s, then waiting for Ray {m['ray_wait_s']:.1f} s; first task started "
-                     f"{first:.1f} s into the call; after the last task ({last:.1f} s): results {m['results_s']:.2f} s, "
-                     f"stitch {m['stitch_s']:.2f} s, write {m['write_s']:.2f} s, Ray's shutdown or disconnect "
+                     f"{first:.1f} s into the call; the plans fetched ({m['results_s']:.2f} s) and joined "
+                     f"({m.get('join_s', 0.0):.2f} s) while the last regions were simulated; after the last task "
+                     f"({last:.1f} s): stitch {m['stitch_s']:.2f} s, write {m['write_s']:.2f} s, Ray's shutdown or "
+                     f"disconnect "
                      f"{m['call_s'] - m['wall_s']:.2f} s; driver CPU {m['driver_cpu_s']:.1f} s, region tasks CPU "
                      f"{m['regions_cpu_s']:.1f} s (busiest worker {m['busiest_worker_cpu_s']:.1f} s)")
     one, two = runs[1], runs[2]

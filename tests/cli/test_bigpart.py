@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import time
 
 import numpy as np
 import pytest
@@ -146,13 +148,73 @@ def test_cli_big_in_process(small_blade, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_two_ray_workers_give_the_in_process_result(small_blade, tmp_path):
-    pytest.importorskip("ray")
+    ray = pytest.importorskip("ray")
     inline = run_big_part(_settings(small_blade[1], tmp_path / "a"), regions=2, workers=1)
     on_ray = run_big_part(_settings(small_blade[1], tmp_path / "b"), regions=2, workers=2)
     assert on_ray["where"] == "on a local Ray with 2 workers"
+    assert not ray.is_initialized()                  # shut down beside the stitching, and waited for
+    assert on_ray["stitched"][0]["depth"].sum() > 0   # the removal that came back is readable after it
     assert on_ray["interior_removal_cov"] == pytest.approx(inline["interior_removal_cov"], rel=1e-9)
     assert on_ray["n_passes"] == inline["n_passes"]
     assert len(on_ray["worker_peak_rss_bytes"]) >= 1 and 0 < on_ray["max_worker_peak_rss_bytes"] < 8 * 2**30
+
+
+@pytest.mark.slow
+def test_a_local_ray_of_the_job_starts_without_the_dashboard_and_monitors():
+    """The local Ray ``swath big`` starts runs its tasks with none of the dashboard's API server, the
+    autoscaler monitor and the log monitor, and Ray's node starts them again afterwards."""
+    ray = pytest.importorskip("ray")
+    from ray._private.node import Node
+
+    from swath.cli.bigpart_work import RAY_EXTRAS, RayExecutor, peak_rss_bytes
+
+    if ray.is_initialized():
+        pytest.skip("a Ray is already running in this process")
+    before = {name: Node.__dict__[name] for name in RAY_EXTRAS}
+    executor = RayExecutor(1)
+    try:
+        kinds = set(ray._private.worker._global_node.all_processes)
+        assert not kinds & {"dashboard", "monitor", "log_monitor"}
+        assert {"gcs_server", "raylet"} <= kinds
+
+        def task(n):                                   # a local function: Ray ships it by value
+            return n * 2, {"pid": os.getpid(), "rss": peak_rss_bytes()}
+
+        executor.submit(("plan", 0), task, (3,))
+        key, info = executor.next_done()
+        assert key == ("plan", 0) and info["pid"] != os.getpid() and info["rss"] > 0
+        assert executor.result(("plan", 0)) == 6
+    finally:
+        executor.close()
+    assert not ray.is_initialized()
+    assert {name: Node.__dict__[name] for name in RAY_EXTRAS} == before
+
+
+def test_close_aside_waits_for_the_close_and_raises_its_error_once():
+    from swath.cli.bigpart_work import CloseAside
+
+    class Slow:
+        closed = False
+
+        def close(self):
+            time.sleep(0.2)
+            self.closed = True
+
+    class Failing:
+        def close(self):
+            raise RuntimeError("no shutdown")
+
+    slow = Slow()
+    closing = CloseAside(slow)
+    assert not slow.closed                           # closing in its own thread
+    closing.wait()
+    assert slow.closed
+    closing = CloseAside(Failing())
+    closing.wait(raise_error=False)                  # a job's own error goes first: the close's is dropped
+    closing = CloseAside(Failing())
+    with pytest.raises(RuntimeError, match="no shutdown"):
+        closing.wait()
+    closing.wait()                                   # raised once
 
 
 def test_big_prints_its_help(capsys):
@@ -176,6 +238,15 @@ def test_submesh_keeps_the_faces_and_only_their_vertices_in_order():
     used = np.unique(faces[keep])
     np.testing.assert_array_equal(v, vertices[used])              # the used vertices, in their old order
     np.testing.assert_array_equal(v[f], vertices[faces[keep]])    # the same triangles
+    # faces that use a window of the vertices (a region of a mesh laid out along the part)
+    window = (faces.min(axis=1) >= 120) & (faces.max(axis=1) < 170) & keep
+    v, f = submesh(vertices, faces, window)
+    used = np.unique(faces[window])
+    assert used.min() >= 120 and len(used) > 3
+    np.testing.assert_array_equal(v, vertices[used])
+    np.testing.assert_array_equal(v[f], vertices[faces[window]])
+    v, f = submesh(vertices, faces, np.zeros(500, bool))            # nothing kept
+    assert v.shape == (0, 3) and f.shape == (0, 3)
 
 
 def test_trajectory_csv_from_the_regions_rows_is_the_joined_trajectory(small_blade, tmp_path):

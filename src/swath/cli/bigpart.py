@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .bigpart_work import RayExecutor
+from .bigpart_work import CloseAside, RayExecutor
 from .settings import JobSettings
 
 log = logging.getLogger(__name__)
@@ -167,6 +167,7 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
         ``area``, ``interior``) and ``trajectory`` (the stitched Trajectory).
     """
     from ..io.atomic import atomic_directory, check_output_dir
+    from ..trajectory.join import join_trajectories
     from .bigpart_schedule import idle_figures
 
     say = progress or (lambda stage, done, total: None)
@@ -181,6 +182,7 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
     cpu0 = time.process_time()
     folder = None
     starting = None
+    closing = None
     try:
         if executor is None and on_ray:
             starting = RayStart(workers, address)
@@ -200,18 +202,30 @@ def run_big_part(settings: JobSettings, *, regions="auto", workers: int | None =
             if starting is not None and starting.ready_s is not None:
                 split["timings"]["ray_start_s"] = starting.ready_s
         say(f"{len(tasks.tiles)} regions of {split['name']} ({split['n_faces']} faces), {executor.where}", 0, 1)
-        tasks.run()
-        t0 = time.perf_counter()
-        trajectories = [executor.result(("plan", k)) for k in range(len(tasks.tiles))]
-        split["timings"]["results_s"] = time.perf_counter() - t0
+        joined: dict = {}
+
+        def join_plans():                  # while the last regions are simulated
+            t0 = time.perf_counter()
+            trajectories = [executor.result(("plan", k)) for k in range(len(tasks.tiles))]
+            split["timings"]["results_s"] = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            joined["trajectory"] = join_trajectories(trajectories, link_speed=settings.links().speed)
+            split["timings"]["join_s"] = time.perf_counter() - t0
+        tasks.run(when_planned=join_plans)
+        if "trajectory" not in joined:     # the last task to finish was a plan
+            join_plans()
         executor_workers, executor_where = executor.workers, executor.where
+        closing, executor = CloseAside(executor), None     # Ray shuts down while the job is stitched and written
         with atomic_directory(settings.out, overwrite=settings.overwrite) as tmp:
-            metrics = stitch(settings, split, tasks, trajectories, tmp, epoch0=epoch0)
+            metrics = stitch(settings, split, tasks, joined["trajectory"], tmp, epoch0=epoch0)
             metrics.update(workers=int(executor_workers), where=executor_where)
             metrics.update(idle_figures(metrics["tasks"], int(executor_workers)))
             finish(settings, metrics, tmp, wall_s=time.perf_counter() - wall0, driver_cpu_s=time.process_time() - cpu0)
+        closing.wait()
     finally:
-        if starting is not None and executor is None:
+        if closing is not None:
+            closing.wait(raise_error=False)          # the job's own error, if any, is the one raised
+        elif starting is not None and executor is None:
             try:
                 executor = starting.result()         # a Ray that started after the job failed is shut down too
             except Exception:                        # noqa: BLE001 - the job's own error is the one raised
@@ -378,15 +392,14 @@ def split_part(settings: JobSettings, regions, where: Path, workers, starting, e
             "axis": axis_l, "feed": feed_l, "band": band, "pad_radius": tool.pad_radius, "timings": timings}
 
 
-def stitch(settings: JobSettings, split: dict, tasks, trajectories: list, tmp: Path, *, epoch0: float) -> dict:
+def stitch(settings: JobSettings, split: dict, tasks, trajectory, tmp: Path, *, epoch0: float) -> dict:
     """The stitched job's metrics; writes ``trajectory.csv`` (the rows tasks' files after one header,
-    or, if a region has an extra column the ones before it lacked, from the joined trajectory),
-    ``regions.csv`` and ``tasks.csv`` to ``tmp``."""
-    from ..trajectory.join import csv_header, join_trajectories
+    or, if a region has an extra column the ones before it lacked, from ``trajectory``, the regions'
+    trajectories joined), ``regions.csv`` and ``tasks.csv`` to ``tmp``."""
+    from ..trajectory.join import csv_header
 
     t0 = time.perf_counter()
     planned, simulated = tasks.results("plan"), tasks.results("simulate")
-    trajectory = join_trajectories(trajectories, link_speed=settings.links().speed)
     metrics = stitched_metrics(simulated, split["pad_radius"])
     metrics.update(cycle_time_s=trajectory.duration, contact_length_m=trajectory.contact_length,
                    air_length_m=trajectory.air_length, n_passes=int(sum(r["n_passes"] for r in planned)),
@@ -455,22 +468,24 @@ def stitched_metrics(simulated: list, pad_radius: float) -> dict:
     depth = np.concatenate([r["depth"] for r in simulated])
     area = np.concatenate([r["area"] for r in simulated])
     interior = np.concatenate([r["interior"] for r in simulated])
-    touched = depth > 0
     total = float(area.sum())
 
     def cov(mask):
-        if not mask.any() or not (area[mask].sum() > 0):
-            return float("nan"), float("nan")
-        mean = float(np.average(depth[mask], weights=area[mask]))
-        std = float(np.sqrt(np.average((depth[mask] - mean) ** 2, weights=area[mask])))
-        return mean, (std / mean if mean > 0 else float("nan"))
+        """(mean, CoV, area) of the samples where ``mask``: each masked copy made once."""
+        d, w = depth[mask], area[mask]
+        a = float(w.sum())
+        if not len(d) or not a > 0:
+            return float("nan"), float("nan"), a
+        mean = float(np.average(d, weights=w))
+        std = float(np.sqrt(np.average((d - mean) ** 2, weights=w)))
+        return mean, (std / mean if mean > 0 else float("nan")), a
 
-    mean, removal_cov = cov(touched)
-    _, interior_cov = cov(interior)
-    return {"surface_area_m2": total, "covered_area_m2": float(area[touched].sum()),
-            "coverage_fraction": float(area[touched].sum()) / total if total > 0 else 0.0,
+    mean, removal_cov, covered = cov(depth > 0)
+    _, interior_cov, interior_area = cov(interior)
+    return {"surface_area_m2": total, "covered_area_m2": covered,
+            "coverage_fraction": covered / total if total > 0 else 0.0,
             "removal_mean_m": mean, "removal_cov": removal_cov, "interior_removal_cov": interior_cov,
-            "interior_area_m2": float(area[interior].sum()), "removal_max_m": float(depth.max()),
+            "interior_area_m2": interior_area, "removal_max_m": float(depth.max()),
             "n_removal_samples": int(len(depth)), "pad_radius_m": float(pad_radius)}
 
 

@@ -132,9 +132,13 @@ class RegionTasks:
     def finished(self) -> bool:
         return len(self.info) == self.total
 
-    def run(self) -> None:
-        """Start and wait for tasks until every one has finished (every region's file is written)."""
+    def run(self, *, when_planned=None) -> None:
+        """Start and wait for tasks until every one has finished (every region's file is written);
+        ``when_planned()`` (optional) is called once every region's plan has finished, after the
+        tasks that could start then have started: the simulations still running, this process can
+        use the plans meanwhile."""
         self.fill()
+        planned = when_planned is None
         while not self.finished:
             if not self.executor.in_flight:
                 raise RuntimeError("region tasks left that can never start")   # pragma: no cover - a bug
@@ -142,6 +146,9 @@ class RegionTasks:
             self.info[key] = info
             self.say("planning and simulating regions", len(self.info), self.total)
             self.fill()
+            if not planned and self._planned(range(len(self.tiles))):
+                planned = True
+                when_planned()
 
     def results(self, kind: str) -> list[dict]:
         """The infos of every region's ``kind`` task, in span order."""

@@ -115,7 +115,13 @@ def submesh(vertices: np.ndarray, faces: np.ndarray, keep: np.ndarray) -> tuple[
     """``(vertices (n', 3), faces (m', 3))`` of the faces where ``keep`` (m,) bool is set, with only
     the vertices they use, renumbered in their old order."""
     kept = faces[keep]
-    used = np.zeros(len(vertices), bool)           # marks and a running count: no sort of m' * 3 indices
-    used[kept.ravel()] = True
+    if not len(kept):
+        return np.asarray(vertices)[:0], np.zeros(kept.shape, np.intp)
+    # marks and a running count over the span of indices the kept faces use (a region of a mesh
+    # laid out along the part uses a small window of its vertices): no sort of m' * 3 indices
+    first, last = int(kept.min()), int(kept.max())
+    local = kept - first
+    used = np.zeros(last - first + 1, bool)
+    used[local.ravel()] = True
     new_index = np.cumsum(used) - 1
-    return np.asarray(vertices)[used], new_index[kept]
+    return np.asarray(vertices)[first:last + 1][used], new_index[local]
