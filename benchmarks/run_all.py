@@ -246,7 +246,8 @@ def markdown(rows: list[dict], uniform: list[dict], info: dict) -> str:
         "*spacing* the default job's spacing search (`spacing_s`: the plans at the spacings it tried and the "
         "curvature read from them; where the planes spread, the equidistant passes and the leads simulated), *plan* the plan the job keeps and its order (`plan_s`); *other "
         "stages* the softer-pad study and the feed optimisation when the job ran them; *report* the rest of the "
-        "job's CPU time (report, pictures, files); *job wall* the job's wall time; *peak* the process's peak "
+        "job's CPU time (report, pictures, files; this process's: the figures and plans made by forked children "
+        "beside it are not in it); *job wall* the job's wall time; *peak* the process's peak "
         "resident memory.",
         "",
         "| part | faces | passes | coverage | removal CoV | cycle time s | load | spacing | plan | trajectory "
