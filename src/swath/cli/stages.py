@@ -341,7 +341,6 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     tuple
         ``(settings with the target depth, trajectory, FeedResult, metrics)``.
     """
-
     from ..simulate import simulate_removal
     from . import even_default
 
