@@ -218,9 +218,10 @@ def test_the_search_progress_rises_through_its_plans_as_one_step():
         told = search_progress(lambda *a: heard.append(a), plan, 4)
         for done in (0, 6, 13):
             told("planning (uniform): trying pass directions", done, 13)
-    stages = {h[0] for h in heard}
-    assert stages == {"planning (uniform): trying pass directions (at most 4 plans)"}   # one step for the search
-    assert {h[2] for h in heard} == {4 * PLAN_UNITS}
-    done = [h[1] for h in heard]
-    assert done == sorted(done) and done[0] == 0 and done[-1] == 3 * PLAN_UNITS       # three plans of four made
-    assert done[1] == int(6 / 13 * PLAN_UNITS)
+    assert heard[0] == ("planning (uniform): trying pass directions (setting up)", 0, 1)    # the working mesh
+    rest = heard[1:]
+    assert {h[0] for h in rest} == {"planning (uniform): trying pass directions (at most 4 plans)"}  # one step
+    assert {h[2] for h in rest} == {4 * PLAN_UNITS}
+    done = [h[1] for h in rest]
+    assert done == sorted(done) and done[-1] == 3 * PLAN_UNITS       # three plans of four made
+    assert done[0] == int(6 / 13 * PLAN_UNITS) and done[2] == PLAN_UNITS

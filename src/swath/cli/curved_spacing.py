@@ -290,11 +290,16 @@ def search_progress(progress, plan: int, most: int):
     search that makes at most ``most``: one step counted over all of them (``total`` the plans'
     units, ``done`` the plans made and this one's share), so that the job's progress lines go on
     rising through the search and, past a few seconds, estimate its time left as if every plan
-    were made (fewer may be)."""
+    were made (fewer may be).  Until the first plan has its first unit done it is a step of its
+    own ("setting up"): the working mesh is built then, once for all the plans, and its time is
+    no measure of the rate of the rest (on crs_part_5 20 s, before a unit of about 1 s)."""
     label = f" (at most {most} plans)"
 
     def told(stage: str, done: int, total: int) -> None:
         share = done / total if total > 0 else 0.0
+        if plan == 1 and done == 0:
+            progress(stage + " (setting up)", 0, 1)
+            return
         progress(stage + label, int((plan - 1 + share) * PLAN_UNITS), most * PLAN_UNITS)
 
     return told
