@@ -113,3 +113,16 @@ def plate_with_straight_passes(spacing: float, margin: float, *, n_passes: int =
         pts = np.column_stack([x, np.full_like(x, lo[1] + margin + k * spacing), np.full_like(x, lo[2])])
         passes.append(Pass(pts, np.tile([0.0, 0.0, 1.0], (len(x), 1)), level=k))
     return surface, ToolPath(surface, passes, "raster", {})
+
+
+def timed_plate_raster(spacing: float):
+    """The built-in plate's raster at ``spacing`` (m), passes along x, timed as a job times it:
+    ``(Surface, Tool, Trajectory)``."""
+    from swath.cli.job import JobSettings, make_plan
+    from swath.examples import example_part
+    from swath.trajectory import time_path
+
+    settings = JobSettings(part="example:plate", out="unused", spacing=spacing)
+    surface = example_part("plate")
+    trajectory = time_path(make_plan(surface, settings), settings.constraints(), links=settings.links())
+    return surface, settings.tool(), trajectory

@@ -5,9 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from shapes import plate_with_straight_passes
-from swath.cli.job import JobSettings, make_plan
-from swath.examples import example_part
+from shapes import plate_with_straight_passes, timed_plate_raster
+from swath.cli.job import JobSettings
 from swath.simulate import simulate_removal
 from swath.simulate.edge_band import GROUPS, band_causes, band_line
 from swath.simulate.evenness import evenness_metrics, evenness_split
@@ -20,10 +19,7 @@ SPACING = 0.05
 @pytest.fixture(scope="module")
 def plate():
     """The plate's raster (passes along x, 50 mm apart) and samples every 4 mm."""
-    settings = JobSettings(part="example:plate", out="unused", spacing=SPACING)
-    surface, tool = example_part("plate"), settings.tool()
-    toolpath = make_plan(surface, settings)
-    trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
+    surface, tool, trajectory = timed_plate_raster(SPACING)
     return tool, trajectory, surface.subdivided(4e-3), surface
 
 

@@ -3,21 +3,16 @@
 import numpy as np
 import pytest
 
-from swath.cli.job import JobSettings, make_plan
-from swath.examples import example_part
+from shapes import timed_plate_raster
 from swath.simulate.evenness import evenness_split
 from swath.simulate.removal import RemovalMap
-from swath.trajectory import time_path
 
 SPACING = 0.05
 
 
 @pytest.fixture(scope="module")
 def plate():
-    settings = JobSettings(part="example:plate", out="unused", spacing=SPACING)
-    surface, tool = example_part("plate"), settings.tool()
-    toolpath = make_plan(surface, settings)
-    trajectory = time_path(toolpath, settings.constraints(), links=settings.links())
+    surface, tool, trajectory = timed_plate_raster(SPACING)
     samples = surface.subdivided(2e-3)
     # the passes' own frame: along (travel) and across, from the first pass
     live = np.flatnonzero(trajectory.contact & (trajectory.pass_index == 0))
