@@ -45,3 +45,24 @@ def test_a_step_run_again_is_estimated_from_its_own_start(capsys):
     lines = capsys.readouterr().err.splitlines()
     assert lines[-1].endswith("50.0 %, about 8 s left")          # 5 left at 1.5 s each (not 15 s / 5 * 5 = 15)
     assert not any("min left" in line for line in lines)
+
+
+def test_a_highs_solve_line_gives_the_time_of_the_solve_before_it():
+    from swath.cli.stages import SOLVE_ESTIMATE_AFTER_S, FeedProgress
+
+    lines = []
+    clock = iter([0.0, 2.0, 6.0, 6.5, 9.0, 9.2, 9.4])
+    report = FeedProgress(lambda stage, done, total: lines.append(stage), clock=lambda: next(clock))
+    report("kernel", 10, 10)          # 0 s
+    report("solve", 0, 0)             # 2 s: the first solve, nothing to go by
+    report("solve", 1, 0)             # 6 s: the first took 4 s
+    report("simulate", 0, 7)          # 6.5 s: the second took 0.5 s (a cap-row round)
+    report("solve", 2, 0)             # 9 s: a re-solve after the simulated check
+    report("solve", 3, 0)             # 9.2 s: the third took 0.2 s
+    report("trim", 0, 8)
+    assert lines[1] == "optimising the feed: dwell programme, HiGHS solve 1"
+    assert lines[2] == "optimising the feed: dwell programme, HiGHS solve 2, about 4 s as solve 1"
+    assert 0.5 < SOLVE_ESTIMATE_AFTER_S                # a half-second solve is no guide: no figure
+    assert lines[4] == "optimising the feed: dwell programme, HiGHS solve 3"
+    assert lines[5] == "optimising the feed: dwell programme, HiGHS solve 4"
+    assert lines[6] == "optimising the feed: speeding up where the simulation is over, round 1"

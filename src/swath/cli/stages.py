@@ -268,6 +268,49 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_le
 DEFAULT_JOB_FEED_ROUNDS: dict = {"simulate_rounds": 0, "trim_rounds": 0}
 
 
+#: A HiGHS solve line gives the time the solve before it took once that was at least this long (s).
+SOLVE_ESTIMATE_AFTER_S = 1.0
+
+
+class FeedProgress:
+    """The job's progress lines for :func:`swath.feed.optimise_feed`'s ``progress(stage, done, total)``.
+
+    The kernel's batches are a step with percentages.  The HiGHS solves, the simulated checks and
+    the trim rounds are a line each: how many of them a programme needs is not known in advance
+    (the cap rows and the simulation decide), so no percentage of the whole is given.  A solve's
+    line instead gives the time the solve before it took (the same programme with a few more cap
+    rows, so about as long): "HiGHS solve 3, about 4 s as solve 2".  A solve ends at the next
+    line of any kind.  ``say`` is the job's ``progress``; ``clock`` returns seconds."""
+
+    def __init__(self, say, *, clock=None):
+        import time
+
+        self.say = say
+        self.clock = clock or time.perf_counter
+        self.solve_started: float | None = None
+        self.last_solve: tuple[int, float] | None = None       # (number, duration s) of the latest solve
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        now = self.clock()
+        if self.solve_started is not None:
+            self.last_solve = (self.last_solve[0] + 1 if self.last_solve else 1, now - self.solve_started)
+            self.solve_started = None
+        if stage == "kernel":
+            self.say("optimising the feed: removal kernel", done, total)
+        elif stage == "solve":
+            self.solve_started = now
+            line = f"optimising the feed: dwell programme, HiGHS solve {done + 1}"
+            if self.last_solve is not None and self.last_solve[1] >= SOLVE_ESTIMATE_AFTER_S:
+                line += f", about {self.last_solve[1]:.0f} s as solve {self.last_solve[0]}"
+            self.say(line, 0, 1)
+        elif stage == "simulate":
+            self.say(f"optimising the feed: simulated check {done + 1}", 0, 1)
+        elif stage == "trim":
+            self.say(f"optimising the feed: speeding up where the simulation is over, round {done + 1}", 0, 1)
+        else:
+            self.say(f"optimising the feed: {stage}", done, total)
+
+
 def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None, rounds: dict | None = None):
     """Optimise the feed along the passes to the job's target depth (Wang §2) and re-time the
     path with it; returns the new trajectory, the :class:`FeedResult` and its metrics.
@@ -289,20 +332,7 @@ def feed_stage(toolpath, tool, settings, trajectory, surface=None, progress=None
         def simulate(timed):
             return simulate_removal(timed, surface, tool, sample_spacing=settings.sample_spacing,
                                     sampling=settings.removal_sampling)
-    say = progress or (lambda stage, done, total: None)
-
-    def report(stage, done, total):
-        if stage == "kernel":
-            say("optimising the feed: removal kernel", done, total)
-        elif stage == "solve":
-            say(f"optimising the feed: dwell programme, HiGHS solve {done + 1}", 0, 1)
-        elif stage == "simulate":
-            say(f"optimising the feed: simulated check {done + 1}", 0, 1)
-        elif stage == "trim":
-            say(f"optimising the feed: speeding up where the simulation is over, round {done + 1}", 0, 1)
-        else:
-            say(f"optimising the feed: {stage}", done, total)
-
+    report = FeedProgress(progress or (lambda stage, done, total: None))
     result = optimise_feed(toolpath, tool, constraints, target=target, tolerance=tolerance, trajectory=trajectory,
                            simulate=simulate, progress=report, lead_angle=settings.lead(),
                            target_floor=settings.target_floor, **(rounds or {}))
