@@ -15,7 +15,10 @@ flatter than :data:`FLAT_SAGITTA` over the pad the plane's spacing stays.
 
 The re-plans keep the first plan's raster direction (when the job left it free): the curvature was
 read along those passes, and a raster choosing its direction afresh at the new spacing may turn
-across the part's strongest curvature, which the spacing was not chosen for.
+across the part's strongest curvature, which the spacing was not chosen for.  In the default job
+the uniform planner's re-plans keep a direction too: the evenest at constant feed among the first
+plan's candidates (:mod:`swath.cli.uniform_direction`); a re-plan is then one layout, not one
+per direction.
 
 Either way the contact length is then held within the budget: the plane's ``L* = A / 2R`` and the
 quadric's ``w_max / d`` are local estimates, the fill passes and the pass ends add length, and the
@@ -33,8 +36,8 @@ overlap that would move the first plan's passes by less than a working-mesh edge
 The uniform planner's re-plan at the least-ripple overlap goes straight to the overlap the budget
 would widen it to when the first plan's contact length already says it will be over
 (:func:`uniform_replan_overlap`) and its candidate directions came to about the same length
-(:data:`DIRECTION_LENGTH_SPREAD`): that saves one whole plan, six candidate directions laid out
-and ranked.  The raster measures a spacing it is given on the surface across the passes
+(:data:`DIRECTION_LENGTH_SPREAD`), or the re-plan keeps the first plan's direction: that saves
+one whole plan.  The raster measures a spacing it is given on the surface across the passes
 (``spacing_on = "surface"``, :mod:`swath.plan.surface_planes`), as the ripple model means it; where
 the swath narrows over a good share of the part (:func:`narrow_share`, :data:`NARROW_SHARE`) the
 re-plans keep the ripple model's ratio of spacing to width at every step instead
@@ -379,6 +382,19 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         # raster may turn to where the spacing was not chosen for: the panel's passes turned across its
         # 0.35 m radius, interior CoV 0.238 at 1.37 L* against 0.050 along it at 1.51 L*)
         arguments = {**arguments, "direction": float(toolpath.metadata["angle_rad"])}
+    carried: dict = {}
+    if uniform and choose_lead and arguments.get("direction") is None:
+        # the default job: the direction of the most even removal, kept by the re-plans
+        from .uniform_direction import CARRIED, evenest_direction
+
+        def at_direction(angle: float):
+            return planner(surface, tool, **{**arguments, "overlap": value, "direction": angle})
+
+        toolpath, angle = evenest_direction(toolpath, at_direction, surface, tool, settings,
+                                            progress=arguments.get("progress"))
+        if angle is not None:
+            arguments = {**arguments, "direction": angle}
+            carried = {k: toolpath.metadata[k] for k in CARRIED}
     model = "plane"
     leads = [lead] + ([math.radians(a) for a in LEAD_CHOICES_DEG if math.radians(a) != lead] if choose_lead else [])
     chosen = curved_choice(toolpath, surface, tool, leads, budget)
@@ -407,7 +423,7 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         toolpath = plan(value)
         ratio = toolpath.contact_length / bound
     meta = {"ripple_model": model, "ripple_lead_rad": float(lead), "ripple_length_ratio": float(ratio),
-            ("ripple_overlap_fraction" if uniform else "ripple_spacing_m"): float(value)}
+            ("ripple_overlap_fraction" if uniform else "ripple_spacing_m"): float(value), **carried}
     toolpath.metadata.update(meta)
     if held is not None:
         from .ridge_turn import uniform_if_evener

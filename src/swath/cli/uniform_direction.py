@@ -1,0 +1,128 @@
+"""The even-removal job's uniform pass direction: chosen by the removal it simulates, then kept.
+
+The uniform planner ranks its candidate directions by predicted cycle time (:func:`swath.plan.uniform.uniform`),
+and on a curved part those cycle times lie within a few per cent of each other while the evenness
+does not.  On the blade (``example:blade``, the default job with the direction given) the interior
+removal CoV is 0.358 at 0°, 0.360 at 30°, 0.514 at 60°, 0.558 at 90° and 0.551 at 120° and 150°
+(0.548 to 0.677 at constant feed), with cycle times of 200 to 271 s.  At 0° the passes run along
+the span, beside the 6.35 mm nose; from 60° on they wrap round it, and the swath narrows from
+about 74 mm to 17 mm along each pass there.  Which of the near-tied directions
+the cycle time picked decided the result: a 0.07 mm change of the distance field turned the
+demo's plan from 0° (0.373) to 90° (0.551).
+
+So the default job (which chooses the spacing and the lead itself) reads its first uniform plan's
+candidates, plans each direction whose cycle time is within :data:`COST_SHARE` of the best at the
+same overlap, simulates each at constant feed and keeps the direction of the least interior
+removal CoV (within :data:`COV_TIE` of it, the shortest cycle time).  The re-plans then keep that
+direction, as the raster's re-plans keep theirs: the lead and spacing are chosen on the curvature
+read along these passes, and each re-plan is one layout instead of one per direction.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+from ..core.beside import Beside
+
+log = logging.getLogger(__name__)
+
+#: Candidate directions whose predicted cycle time is within this fraction of the best are planned
+#: and simulated.  The blade's four ranked directions lay within 3 % (its evenest 2.9 % over the
+#: best); snp_part_scan's next-best lay 6.7 % over and were no evener (interior CoV 0.269 and 0.271
+#: against 0.262), so comparing them only cost the job 2 s.
+COST_SHARE = 0.05
+
+#: Interior removal CoVs within this of the least count as equal: the shortest cycle time wins.
+COV_TIE = 0.005
+
+
+#: The plan's ``direction_rule`` where this module chose the direction.
+DIRECTION_RULE = (f"auto: the least interior removal CoV at constant feed among the directions within "
+                  f"{100 * COST_SHARE:.0f} % of the shortest predicted cycle time")
+
+#: The plan metadata this module sets, carried to the re-plans' plan.
+CARRIED = ("direction_rule", "direction_evenness", "direction_candidates")
+
+
+def contenders(metadata: dict) -> list[tuple[float, float]]:
+    """``(angle rad, cost)`` of the candidate directions of a uniform plan's ``metadata`` that are
+    worth simulating: ranked (cost not None) and within :data:`COST_SHARE` of the least cost,
+    cheapest first.  Empty for a plan of one given direction or of several pieces."""
+    if metadata.get("pieces"):
+        return []
+    rows = [r for r in metadata.get("candidates") or [] if r.get("cost") is not None]
+    if not rows:
+        return []
+    best = min(r["cost"] for r in rows)
+    kept = sorted((r for r in rows if r["cost"] <= best * (1.0 + COST_SHARE)), key=lambda r: r["cost"])
+    return [(math.radians(r["direction_deg"]), float(r["cost"])) for r in kept]
+
+
+def constant_feed_cov(toolpath, surface, tool, settings) -> tuple[float, float]:
+    """``toolpath`` timed at the job's constant feed and simulated: ``(interior removal CoV, cycle time s)``."""
+    from ..simulate import simulate_removal
+    from ..trajectory import time_path
+
+    trajectory = time_path(toolpath, settings.constraints(), links=settings.links(), lead_angle=settings.lead())
+    removal = simulate_removal(trajectory, surface, tool, sample_spacing=settings.sample_spacing,
+                               sampling=settings.removal_sampling)
+    return float(removal.metrics["interior_removal_cov"]), float(trajectory.duration)
+
+
+def evenest_direction(first, plan, surface, tool, settings, *, progress=None):
+    """The plan among ``first`` (a uniform plan with automatic direction) and ``plan(angle)`` (the
+    same overlap at a given direction, rad) of each other contender (:func:`contenders`) whose
+    constant-feed removal is the most even (module notes); ``(toolpath, angle)``, with the angle
+    None where ``first`` has no candidates to compare (then ``first`` is returned).  The chosen
+    plan's ``metadata`` gains ``direction_evenness``: per direction its interior CoV and cycle
+    time at constant feed, and the first plan's ``candidates``.  ``progress(stage, done, total)``
+    hears of each direction compared."""
+    rows = contenders(first.metadata)
+    if len(rows) < 2:
+        return first, None
+    chosen = float(first.metadata["direction_rad"])
+    rows = [(angle, cost, math.isclose(angle, chosen, abs_tol=1e-9)) for angle, cost in rows]
+    # half the directions are planned and simulated in a forked child meanwhile (the plans are the
+    # same there; each answer's surface is this process's again)
+    beside = Beside(_compared, rows[1::2], first, plan, surface, tool, settings, None, True)
+    tried = _compared(rows[0::2], first, plan, surface, tool, settings, progress, False, total=len(rows))
+    tried += [dict(t, toolpath=first if t["toolpath"] is None else replace(t["toolpath"], surface=surface))
+              for t in beside.result()]
+    least = min(t["interior_removal_cov"] for t in tried)
+    best = min((t for t in tried if t["interior_removal_cov"] <= least + COV_TIE), key=lambda t: t["cycle_time_s"])
+    toolpath = best["toolpath"]
+    table = [{k: v for k, v in t.items() if k != "toolpath"} for t in tried]
+    # (not as "candidates": the re-plans keep this direction, so the other directions' lengths no
+    # longer bear on how far a re-plan's length can be predicted, swath.cli.curved_spacing)
+    toolpath.metadata.update(direction_evenness=table, direction_candidates=first.metadata.get("candidates"),
+                             direction_rule=DIRECTION_RULE)
+    by_cost = next(t for t in tried if t["toolpath"] is first)
+    if best is by_cost:
+        log.info("uniform direction: %.0f deg, ranked first by cycle time and the evenest at constant feed (interior "
+                 "CoV %.3f); the re-plans keep it", best["direction_deg"], best["interior_removal_cov"])
+    else:
+        log.info("uniform direction: %.0f deg, the evenest at constant feed (interior CoV %.3f against %.3f at the "
+                 "%.0f deg the planner ranked first by cycle time); the re-plans keep it", best["direction_deg"],
+                 best["interior_removal_cov"], by_cost["interior_removal_cov"], by_cost["direction_deg"])
+    return toolpath, math.radians(best["direction_deg"])
+
+
+def _compared(rows, first, plan, surface, tool, settings, progress, in_child: bool, *, total: int = 0) -> list[dict]:
+    """Each ``(angle, cost, is_first)`` of ``rows`` planned (``first`` itself where ``is_first``) and
+    simulated at constant feed: a row of ``direction_evenness`` with its ``toolpath``; for a forked
+    child (``in_child``) the toolpath without its surface, or None for ``first``."""
+    tried = []
+    for k, (angle, cost, is_first) in enumerate(rows):
+        if progress is not None:
+            progress(f"planning (uniform): comparing {total} directions by their removal", k, len(rows))
+        toolpath = first if is_first else plan(angle)
+        cov, cycle = constant_feed_cov(toolpath, surface, tool, settings)
+        log.info("uniform direction %.0f deg: interior removal CoV %.3f at constant feed, cycle time %.1f s",
+                 math.degrees(angle), cov, cycle)
+        if in_child:
+            toolpath = None if is_first else replace(toolpath, surface=None)
+        tried.append(dict(direction_deg=math.degrees(angle), interior_removal_cov=cov, cycle_time_s=cycle,
+                          predicted_cycle_time_s=cost, toolpath=toolpath))
+    return tried
