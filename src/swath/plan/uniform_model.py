@@ -17,7 +17,7 @@ from ..core.beside import Beside
 from ..errors import InputError
 from ..surface.cells import jit
 from ..surface.curvature import PrincipalCurvature
-from ..surface.geodesic import BandDistance, FaceGradient
+from ..surface.geodesic import BandDistance, FaceGradient, heat_solver
 from ..surface.geometry import normalize
 from ..surface.topology import mesh_edges
 
@@ -182,10 +182,7 @@ class _Context:
     @functools.cached_property
     def solver(self):
         """potpourri3d's heat-method solver on the working mesh (``distance_method="heat"`` only)."""
-        import potpourri3d as pp3d
-
-        W = self.work
-        return pp3d.MeshHeatMethodDistanceSolver(np.asarray(W.vertices), np.asarray(W.faces, np.int64))
+        return heat_solver(self.work.vertices, self.work.faces)
 
     def distance(self, sources: np.ndarray, stop: float = math.inf) -> np.ndarray:
         """Geodesic distance ``(n,)`` (m) from the vertex set ``sources`` ``(s,)`` to the working vertices.

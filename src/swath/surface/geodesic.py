@@ -273,6 +273,62 @@ def distance_field(vertices: np.ndarray, faces: np.ndarray, *, source_vertices, 
     return d, "heat"
 
 
+#: Smallest corner angle (degrees) of a mesh :func:`heat_solver` solves on without the robust
+#: intrinsic triangulation.
+PLAIN_LAPLACIAN_MIN_ANGLE_DEG = 1.0
+
+
+#: How far below zero (dimensionless) an interior edge's cotangent weight may fall and still count
+#: as Delaunay in :func:`is_delaunay`.
+DELAUNAY_TOLERANCE = 1e-6
+
+
+def is_delaunay(vertices: np.ndarray, faces: np.ndarray, *, min_angle_deg: float = PLAIN_LAPLACIAN_MIN_ANGLE_DEG
+                ) -> bool:
+    """Whether a triangle mesh is already Delaunay, with no sliver.
+
+    Every interior edge's two opposite corners sum to at most 180 degrees (its cotangent weight is
+    not negative), and no corner is smaller than ``min_angle_deg``.  An intrinsic Delaunay
+    triangulation of such a mesh flips no edge (boundary edges never flip), so it has the same
+    cotangent Laplacian.  ``vertices`` ``(n, 3)`` m, ``faces`` ``(m, 3)`` int."""
+    V = np.asarray(vertices, float)
+    F = np.asarray(faces, np.int64)
+    if len(F) == 0:
+        return False
+    P = V[F] - V.mean(axis=0)
+    cot = np.empty(F.shape)
+    for k in range(3):                    # corner k, opposite the edge (k+1, k+2)
+        a, b = P[:, (k + 1) % 3] - P[:, k], P[:, (k + 2) % 3] - P[:, k]
+        cross = np.linalg.norm(np.cross(a, b), axis=1)
+        if not (cross > 0).all():
+            return False                  # a degenerate face
+        cot[:, k] = np.einsum("ij,ij->i", a, b) / cross
+    if np.degrees(np.arctan(1.0 / np.abs(cot).max())) < min_angle_deg:
+        return False
+    edges = np.sort(np.stack([F[:, [1, 2]], F[:, [2, 0]], F[:, [0, 1]]], axis=1).reshape(-1, 2), axis=1)
+    _, edge_of = np.unique(edges[:, 0] * len(V) + edges[:, 1], return_inverse=True)
+    interior = np.bincount(edge_of) == 2
+    # a grid's diagonals sum to exactly zero: the tolerance keeps rounding (a part far from the
+    # origin) from deciding, as its 1e-6 overshoot of 180 degrees changes no distance
+    return bool((np.bincount(edge_of, weights=cot.reshape(-1))[interior] >= -DELAUNAY_TOLERANCE).all())
+
+
+def heat_solver(vertices: np.ndarray, faces: np.ndarray):
+    """potpourri3d's heat-method distance solver, with the robust intrinsic triangulation only
+    where the mesh needs it (:func:`is_delaunay`).
+
+    The robust solver flips the mesh to an intrinsic Delaunay triangulation of a doubled
+    ("tufted") cover before it factors the Laplacian.  On a mesh that is Delaunay already no edge
+    flips, but its set-up and every solve cost more: on the blade's 89k-vertex working mesh
+    0.95 s and 42 ms a solve, against 0.70 s and 28 ms, for distances that agree to 0.07 mm on
+    average.  Elsewhere the robust solver stays: on bezier_dac_cad's working mesh (CAD slivers)
+    the plain Laplacian's distances were twice as far from the exact geodesics, up to 18 mm."""
+    import potpourri3d as pp3d
+
+    V = np.asarray(vertices, float)
+    V = np.ascontiguousarray(V - V.mean(axis=0))      # distances do not move with the part; rounding does
+    F = np.ascontiguousarray(faces, np.int64)
+    return pp3d.MeshHeatMethodDistanceSolver(V, F, 1.0, not is_delaunay(V, F))
 
 
 class BandDistance:
