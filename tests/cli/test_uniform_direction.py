@@ -34,17 +34,10 @@ def test_the_evenest_direction_wins_and_near_ties_go_to_the_shorter_cycle(monkey
     monkeypatch.setattr(ud, "constant_feed_cov",
                         lambda tp, surface, tool, settings: covs[round(math.degrees(tp.metadata["direction_rad"]))])
     first = _plan(60, candidates=_rows(199.9, 199.6, 194.2, 194.6))
-    planned = []
-
-    def plan(angle):
-        planned.append(round(math.degrees(angle)))
-        return _plan(math.degrees(angle))
-
-    toolpath, angle = ud.evenest_direction(first, plan, None, None, None)
-    assert round(math.degrees(angle)) == 0 and toolpath.metadata["direction_rad"] == pytest.approx(0.0)
-    # this process plans every other direction, cheapest first (a forked child the rest, where one
-    # can be forked), and never the first plan's own direction again
-    assert planned[0] == 30 and 60 not in planned
+    # the first plan's candidates as it laid them (uniform's candidate_paths), its own direction too
+    paths = {math.radians(d): _plan(d) for d in (0, 30, 60, 90)}
+    toolpath, angle = ud.evenest_direction(first, paths, None, None, None)
+    assert round(math.degrees(angle)) == 0 and toolpath is paths[0.0]
     table = {round(r["direction_deg"]): r["interior_removal_cov"] for r in toolpath.metadata["direction_evenness"]}
     assert table == {d: c for d, (c, _) in covs.items()}
     assert toolpath.metadata["direction_rule"] == ud.DIRECTION_RULE
@@ -53,4 +46,7 @@ def test_the_evenest_direction_wins_and_near_ties_go_to_the_shorter_cycle(monkey
 
 def test_one_contender_is_no_choice():
     first = _plan(60, candidates=_rows(300.0, 300.0, 194.2))
-    assert ud.evenest_direction(first, None, None, None, None) == (first, None)
+    assert ud.evenest_direction(first, {}, None, None, None) == (first, None)
+    # a contender whose passes the first plan did not hand over is not compared
+    first = _plan(60, candidates=_rows(199.9, 199.6, 194.2))
+    assert ud.evenest_direction(first, {}, None, None, None) == (first, None)

@@ -160,3 +160,17 @@ def test_a_direction_that_covers_too_little_is_not_ranked_and_the_plan_is_unchan
     # ranked here one after another: the thin direction's cost is never computed
     uniform(surface, Tool(), work_spacing=Tool().pad_radius / 5, cost=counted)
     assert ranked and all(not math.isclose(a, math.radians(60)) for a in ranked)
+
+
+def test_the_candidate_paths_are_the_plans_their_directions_give():
+    surface, tool, paths = blade(), Tool(), {}
+    chosen = U.uniform(surface, tool, overlap=0.3, candidate_paths=paths)
+    ranked = [c for c in chosen.metadata["candidates"] if c["cost"] is not None]
+    assert sorted(round(np.degrees(a)) for a in paths) == sorted(round(c["direction_deg"]) for c in ranked)
+    assert len(paths) >= 2
+    for angle in sorted(paths)[:2]:
+        alone = U.uniform(surface, tool, overlap=0.3, direction=angle)     # the working mesh is reused
+        assert len(alone.passes) == len(paths[angle].passes)
+        for p, q in zip(alone.passes, paths[angle].passes):
+            np.testing.assert_array_equal(p.points, q.points)
+        assert paths[angle].metadata["direction_rad"] == pytest.approx(angle)

@@ -353,17 +353,20 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
     most = 2 + BUDGET_ROUNDS                  # the first plan, the re-plan, the budget's re-plans
     plans_made = [0]
 
-    def plan(value: float):
+    def plan(value: float, **extra):
         plans_made[0] += 1
         if uniform:
             told = arguments.get("progress")
             numbered = {} if told is None else {"progress": search_progress(told, plans_made[0], most)}
-            return planner(surface, tool, **{**arguments, "overlap": value, **numbered})
+            return planner(surface, tool, **{**arguments, "overlap": value, **numbered, **extra})
         # swath's spacing, not the user's: fill passes still close what it leaves (raster's default);
         # the planes follow the local swath width unless the job says where to measure the spacing
         return planner(surface, tool, **{"fill_gaps": True, **arguments, "spacing": value})
 
-    toolpath = plan(value)
+    # the default job compares the uniform plan's candidate directions by their removal
+    compare = uniform and choose_lead and arguments.get("direction") is None
+    candidate_paths: dict = {}
+    toolpath = plan(value, **({"candidate_paths": candidate_paths} if compare else {}))
     held = None
     if ridge and not uniform and arguments.get("direction") is None and arguments.get("cross_direction") is None:
         from .ridge_turn import held_share
@@ -383,14 +386,11 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         # 0.35 m radius, interior CoV 0.238 at 1.37 L* against 0.050 along it at 1.51 L*)
         arguments = {**arguments, "direction": float(toolpath.metadata["angle_rad"])}
     carried: dict = {}
-    if uniform and choose_lead and arguments.get("direction") is None:
-        # the default job: the direction of the most even removal, kept by the re-plans
+    if compare:
+        # the direction of the most even removal, kept by the re-plans
         from .uniform_direction import CARRIED, evenest_direction
 
-        def at_direction(angle: float):
-            return planner(surface, tool, **{**arguments, "overlap": value, "direction": angle})
-
-        toolpath, angle = evenest_direction(toolpath, at_direction, surface, tool, settings,
+        toolpath, angle = evenest_direction(toolpath, candidate_paths, surface, tool, settings,
                                             progress=arguments.get("progress"))
         if angle is not None:
             arguments = {**arguments, "direction": angle}

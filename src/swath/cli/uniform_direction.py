@@ -11,9 +11,10 @@ the cycle time picked decided the result: a 0.07 mm change of the distance field
 demo's plan from 0° (0.373) to 90° (0.551).
 
 So the default job (which chooses the spacing and the lead itself) reads its first uniform plan's
-candidates, plans each direction whose cycle time is within :data:`COST_SHARE` of the best at the
-same overlap, simulates each at constant feed and keeps the direction of the least interior
-removal CoV (within :data:`COV_TIE` of it, the shortest cycle time).  The re-plans then keep that
+candidates, takes each direction whose cycle time is within :data:`COST_SHARE` of the best (its
+passes as the first plan laid them, ``candidate_paths`` of :func:`swath.plan.uniform.uniform`),
+simulates each at constant feed and keeps the direction of the least interior removal CoV
+(within :data:`COV_TIE` of it, the shortest cycle time).  The re-plans then keep that
 direction, as the raster's re-plans keep theirs: the lead and spacing are chosen on the curvature
 read along these passes, and each re-plan is one layout instead of one per direction.
 """
@@ -22,7 +23,6 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import replace
 
 from ..core.beside import Beside
 
@@ -71,25 +71,43 @@ def constant_feed_cov(toolpath, surface, tool, settings) -> tuple[float, float]:
     return float(removal.metrics["interior_removal_cov"]), float(trajectory.duration)
 
 
-def evenest_direction(first, plan, surface, tool, settings, *, progress=None):
-    """The plan among ``first`` (a uniform plan with automatic direction) and ``plan(angle)`` (the
-    same overlap at a given direction, rad) of each other contender (:func:`contenders`) whose
-    constant-feed removal is the most even (module notes); ``(toolpath, angle)``, with the angle
-    None where ``first`` has no candidates to compare (then ``first`` is returned).  The chosen
-    plan's ``metadata`` gains ``direction_evenness``: per direction its interior CoV and cycle
-    time at constant feed, and the first plan's ``candidates``.  ``progress(stage, done, total)``
-    hears of each direction compared."""
-    rows = contenders(first.metadata)
+def evenest_direction(first, paths: dict, surface, tool, settings, *, progress=None):
+    """The plan among ``first`` (a uniform plan with automatic direction) and the other contenders
+    (:func:`contenders`; ``paths``: ``{direction rad: ToolPath}``, the first plan's
+    ``candidate_paths``) whose constant-feed removal is the most even (module notes);
+    ``(toolpath, angle)``, with the angle None where there is nothing to compare (then ``first``
+    is returned).  The chosen plan's ``metadata`` gains ``direction_rule``, ``direction_evenness``
+    (per direction its interior CoV and cycle time at constant feed) and ``direction_candidates``
+    (the first plan's ``candidates``).  ``progress(stage, done, total)`` hears of each direction
+    compared."""
+    chosen = float(first.metadata["direction_rad"])
+    rows = [(angle, cost) for angle, cost in contenders(first.metadata)
+            if math.isclose(angle, chosen, abs_tol=1e-9) or angle in paths]
     if len(rows) < 2:
         return first, None
-    chosen = float(first.metadata["direction_rad"])
-    rows = [(angle, cost, math.isclose(angle, chosen, abs_tol=1e-9)) for angle, cost in rows]
-    # half the directions are planned and simulated in a forked child meanwhile (the plans are the
-    # same there; each answer's surface is this process's again)
-    beside = Beside(_compared, rows[1::2], first, plan, surface, tool, settings, None, True)
-    tried = _compared(rows[0::2], first, plan, surface, tool, settings, progress, False, total=len(rows))
-    tried += [dict(t, toolpath=first if t["toolpath"] is None else replace(t["toolpath"], surface=surface))
-              for t in beside.result()]
+    plans = [first if math.isclose(angle, chosen, abs_tol=1e-9) else paths[angle] for angle, _ in rows]
+
+    def simulated(indices) -> list[tuple[float, float]]:
+        return [constant_feed_cov(plans[i], surface, tool, settings) for i in indices]
+
+    # The first simulation here loads the timing and the simulator (about a second, once per
+    # job); then a forked child simulates every other one of the rest meanwhile.
+    say = progress or (lambda stage, done, total: None)
+    stage = f"planning (uniform): comparing {len(rows)} directions by their removal"
+    say(stage, 0, len(rows))
+    figures = dict(zip([0], simulated([0])))
+    beside = Beside(simulated, range(1, len(rows), 2))
+    for i in range(2, len(rows), 2):
+        say(stage, i, len(rows))
+        figures[i] = simulated([i])[0]
+    figures.update(zip(range(1, len(rows), 2), beside.result()))
+    tried = []
+    for i, (angle, cost) in enumerate(rows):
+        cov, cycle = figures[i]
+        log.info("uniform direction %.0f deg: interior removal CoV %.3f at constant feed, cycle time %.1f s",
+                 math.degrees(angle), cov, cycle)
+        tried.append(dict(direction_deg=math.degrees(angle), interior_removal_cov=cov, cycle_time_s=cycle,
+                          predicted_cycle_time_s=cost, toolpath=plans[i]))
     least = min(t["interior_removal_cov"] for t in tried)
     best = min((t for t in tried if t["interior_removal_cov"] <= least + COV_TIE), key=lambda t: t["cycle_time_s"])
     toolpath = best["toolpath"]
@@ -98,31 +116,12 @@ def evenest_direction(first, plan, surface, tool, settings, *, progress=None):
     # longer bear on how far a re-plan's length can be predicted, swath.cli.curved_spacing)
     toolpath.metadata.update(direction_evenness=table, direction_candidates=first.metadata.get("candidates"),
                              direction_rule=DIRECTION_RULE)
-    by_cost = next(t for t in tried if t["toolpath"] is first)
+    by_cost = tried[0]                                # contenders come cheapest first: the planner's choice
     if best is by_cost:
-        log.info("uniform direction: %.0f deg, ranked first by cycle time and the evenest at constant feed (interior "
-                 "CoV %.3f); the re-plans keep it", best["direction_deg"], best["interior_removal_cov"])
+        log.info("uniform direction: %.0f deg, ranked first by cycle time and the evenest at constant feed "
+                 "(interior CoV %.3f); the re-plans keep it", best["direction_deg"], best["interior_removal_cov"])
     else:
         log.info("uniform direction: %.0f deg, the evenest at constant feed (interior CoV %.3f against %.3f at the "
                  "%.0f deg the planner ranked first by cycle time); the re-plans keep it", best["direction_deg"],
                  best["interior_removal_cov"], by_cost["interior_removal_cov"], by_cost["direction_deg"])
     return toolpath, math.radians(best["direction_deg"])
-
-
-def _compared(rows, first, plan, surface, tool, settings, progress, in_child: bool, *, total: int = 0) -> list[dict]:
-    """Each ``(angle, cost, is_first)`` of ``rows`` planned (``first`` itself where ``is_first``) and
-    simulated at constant feed: a row of ``direction_evenness`` with its ``toolpath``; for a forked
-    child (``in_child``) the toolpath without its surface, or None for ``first``."""
-    tried = []
-    for k, (angle, cost, is_first) in enumerate(rows):
-        if progress is not None:
-            progress(f"planning (uniform): comparing {total} directions by their removal", k, len(rows))
-        toolpath = first if is_first else plan(angle)
-        cov, cycle = constant_feed_cov(toolpath, surface, tool, settings)
-        log.info("uniform direction %.0f deg: interior removal CoV %.3f at constant feed, cycle time %.1f s",
-                 math.degrees(angle), cov, cycle)
-        if in_child:
-            toolpath = None if is_first else replace(toolpath, surface=None)
-        tried.append(dict(direction_deg=math.degrees(angle), interior_removal_cov=cov, cycle_time_s=cycle,
-                          predicted_cycle_time_s=cost, toolpath=toolpath))
-    return tried

@@ -64,7 +64,7 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
             feed: float = 0.05, max_angular: float = 1.0, cost=None,
             work_spacing: float | None = None, progress=None, workers: int | None = None,
-            distance_method: str | None = None) -> ToolPath:
+            distance_method: str | None = None, candidate_paths: dict | None = None) -> ToolPath:
     """Cover a surface with passes laid along each other's ribbon boundaries (uniform coverage).
 
     Parameters
@@ -119,6 +119,10 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         The distance solver of each generation (:data:`swath.plan.uniform_model.DISTANCE_METHODS`):
         the narrow-band fast marching, or potpourri3d's heat method on the whole working mesh
         (default :data:`swath.plan.uniform_model.DEFAULT_DISTANCE_METHOD`).
+    candidate_paths : dict, optional
+        With automatic direction on a part of one piece: filled with ``{direction rad: ToolPath}``
+        of every ranked candidate, resampled at ``point_spacing`` (the passes ``uniform`` lays with
+        that ``direction`` given), so a caller comparing the candidates need not plan them again.
 
     Returns
     -------
@@ -165,7 +169,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
                                                                                              tool, cost))),
                      overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
-                     cost=cost, progress=progress, workers=workers, context_args=context_args)
+                     cost=cost, progress=progress, workers=workers, context_args=context_args,
+                     candidate_paths=candidate_paths)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
     ctx = shared_context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1,
@@ -208,7 +213,7 @@ length_cost.passes_only = True  # type: ignore[attr-defined]
 
 
 def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_passes, cost, progress=None, workers=None,
-          context_args=None):
+          context_args=None, candidate_paths=None):
     say = progress or (lambda stage, done, total: None)
     # Candidates are ranked at a 2 mm point spacing; the winner's passes (whose layout does not
     # depend on the point spacing) are then resampled at the one asked for.
@@ -272,6 +277,9 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
                   for a, L, c, cv in results]
     rule = (f"auto: lowest {what} among the directions whose predicted coverage is at least "
             f"{100 * floor:.1f} %")
+    if candidate_paths is not None:
+        candidate_paths.update({a: _toolpath(context_args[0], layouts[a], point_spacing=point_spacing, rule="given angle")
+                                for a, _, c, _ in results if c is not None})
     return _toolpath(context_args[0], layouts[best[0]], point_spacing=point_spacing, rule=rule,
                      extra_meta={"candidates": candidates})
 
