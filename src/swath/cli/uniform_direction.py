@@ -28,15 +28,14 @@ from ..core.beside import Beside
 
 log = logging.getLogger(__name__)
 
-#: Candidate directions whose predicted cycle time is within this fraction of the best are planned
-#: and simulated.  The blade's four ranked directions lay within 3 % (its evenest 2.9 % over the
-#: best); snp_part_scan's next-best lay 6.7 % over and were no evener (interior CoV 0.269 and 0.271
-#: against 0.262), so comparing them only cost the job 2 s.
+#: Candidate directions whose predicted cycle time is within this fraction of the best are
+#: simulated.  The blade's four ranked directions lay within 3 % (its evenest 2.9 % over the best);
+#: snp_part_scan's next-best lay 6.7 % and 7.0 % over and removed no more evenly (interior CoV 0.269
+#: and 0.271 at constant feed against 0.262).
 COST_SHARE = 0.05
 
 #: Interior removal CoVs within this of the least count as equal: the shortest cycle time wins.
 COV_TIE = 0.005
-
 
 #: The plan's ``direction_rule`` where this module chose the direction.
 DIRECTION_RULE = (f"auto: the least interior removal CoV at constant feed among the directions within "
