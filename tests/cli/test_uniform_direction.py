@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from swath.cli import uniform_direction as ud
-from swath.core import ToolPath
+from swath.core import Pass, ToolPath
 
 
-def _plan(deg: float, **meta) -> ToolPath:
-    return ToolPath(None, (), "uniform", dict(direction_rad=math.radians(deg), **meta))
+def _plan(deg: float, passes_of: float | None = None, **meta) -> ToolPath:
+    """A plan with one straight pass at ``passes_of`` degrees (default ``deg``): plans of equal
+    ``passes_of`` have the same passes."""
+    a = math.radians(deg if passes_of is None else passes_of)
+    points = np.outer(np.linspace(0.0, 0.1, 5), [math.cos(a), math.sin(a), 0.0])
+    normals = np.tile([0.0, 0.0, 1.0], (5, 1))
+    return ToolPath(None, (Pass(points, normals),), "uniform", dict(direction_rad=math.radians(deg), **meta))
 
 
 def _rows(*costs):
@@ -42,6 +48,28 @@ def test_the_evenest_direction_wins_and_near_ties_go_to_the_shorter_cycle(monkey
     assert table == {d: c for d, (c, _) in covs.items()}
     assert toolpath.metadata["direction_rule"] == ud.DIRECTION_RULE
     assert len(toolpath.metadata["direction_candidates"]) == 4
+
+
+def test_the_planners_choice_stands_when_it_is_the_evenest(monkeypatch):
+    # crs_part_5's pattern: the cheapest is also the evenest; 120 and 150 degrees share their passes
+    covs = {0: (0.194, 1464.6), 30: (0.224, 1542.8), 120: (0.231, 1473.8)}
+    simulated = []
+
+    def cov(tp, surface, tool, settings):
+        deg = round(math.degrees(tp.metadata["direction_rad"]))
+        simulated.append(deg)
+        return covs[deg]
+
+    monkeypatch.setattr(ud, "constant_feed_cov", cov)
+    rows = _rows(1342.0, 1402.0) + [dict(direction_deg=d, length_m=1.0, cost=1409.0, predicted_coverage_fraction=1.0)
+                                    for d in (120.0, 150.0)]
+    first = _plan(0, candidates=rows)
+    paths = {math.radians(30): _plan(30), math.radians(120): _plan(120), math.radians(150): _plan(150, passes_of=120)}
+    assert ud.evenest_direction(first, paths, None, None, None) == (first, None)
+    assert "direction_evenness" not in first.metadata and simulated[0] == 0
+    # 150 degrees lays 120's passes: one simulation stands for both
+    assert ud._passes_key(paths[math.radians(150)]) == ud._passes_key(paths[math.radians(120)])
+    assert ud._passes_key(paths[math.radians(30)]) != ud._passes_key(paths[math.radians(120)])
 
 
 def test_one_contender_is_no_choice():

@@ -11,18 +11,27 @@ the cycle time picked decided the result: a 0.07 mm change of the distance field
 demo's plan from 0° (0.373) to 90° (0.551).
 
 So the default job (which chooses the spacing and the lead itself) reads its first uniform plan's
-candidates, takes each direction whose cycle time is within :data:`COST_SHARE` of the best (its
-passes as the first plan laid them, ``candidate_paths`` of :func:`swath.plan.uniform.uniform`),
-simulates each at constant feed and keeps the direction of the least interior removal CoV
-(within :data:`COV_TIE` of it, the shortest cycle time).  The re-plans then keep that
-direction, as the raster's re-plans keep theirs: the lead and spacing are chosen on the curvature
-read along these passes, and each re-plan is one layout instead of one per direction.
+candidates, every one that covers enough ranked in full, takes each direction whose cycle time is
+within :data:`COST_SHARE` of the best (its passes as the first plan laid them, ``candidate_paths``
+of :func:`swath.plan.uniform.uniform`) and simulates each at constant feed.  Where the planner's
+own choice is within :data:`COV_TIE` of the least interior removal CoV, it stands and nothing
+changes.  Otherwise the evenest direction (within :data:`COV_TIE`, the shortest cycle time) is
+taken, and the re-plans keep it, as the raster's re-plans keep theirs: the lead and spacing are
+chosen on the curvature read along these passes, and each re-plan is one layout instead of one
+per direction.
+
+A direction is not held where the cycle time already chose it: on crs_part_5, 0° was both the
+cheapest and the evenest at the first plan's overlap (interior CoV 0.194 at constant feed), but
+held through the re-plan at the least-ripple overlap its plan stopped early and removed at 0.710,
+where the re-plan choosing afresh turns to 30° and 0.210.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+
+import numpy as np
 
 from ..core.beside import Beside
 
@@ -86,28 +95,39 @@ def evenest_direction(first, paths: dict, surface, tool, settings, *, progress=N
         return first, None
     plans = [first if math.isclose(angle, chosen, abs_tol=1e-9) else paths[angle] for angle, _ in rows]
 
+    # directions that share a seed lay the same passes (120 and 150 degrees on the blade): simulated once
+    same = {}
+    first_of = [same.setdefault(_passes_key(tp), i) for i, tp in enumerate(plans)]
+    unique = sorted(set(first_of))
+
     def simulated(indices) -> list[tuple[float, float]]:
         return [constant_feed_cov(plans[i], surface, tool, settings) for i in indices]
 
     # The first simulation here loads the timing and the simulator (about a second, once per
     # job); then a forked child simulates every other one of the rest meanwhile.
     say = progress or (lambda stage, done, total: None)
-    stage = f"planning (uniform): comparing {len(rows)} directions by their removal"
-    say(stage, 0, len(rows))
-    figures = dict(zip([0], simulated([0])))
-    beside = Beside(simulated, range(1, len(rows), 2))
-    for i in range(2, len(rows), 2):
-        say(stage, i, len(rows))
-        figures[i] = simulated([i])[0]
-    figures.update(zip(range(1, len(rows), 2), beside.result()))
+    stage = f"planning (uniform): comparing {len(unique)} directions by their removal"
+    say(stage, 0, len(unique))
+    figures = dict(zip(unique[:1], simulated(unique[:1])))
+    beside = Beside(simulated, unique[1::2])
+    for k in range(2, len(unique), 2):
+        say(stage, k, len(unique))
+        figures[unique[k]] = simulated([unique[k]])[0]
+    figures.update(zip(unique[1::2], beside.result()))
     tried = []
     for i, (angle, cost) in enumerate(rows):
-        cov, cycle = figures[i]
+        cov, cycle = figures[first_of[i]]
         log.info("uniform direction %.0f deg: interior removal CoV %.3f at constant feed, cycle time %.1f s",
                  math.degrees(angle), cov, cycle)
         tried.append(dict(direction_deg=math.degrees(angle), interior_removal_cov=cov, cycle_time_s=cycle,
                           predicted_cycle_time_s=cost, toolpath=plans[i]))
     least = min(t["interior_removal_cov"] for t in tried)
+    by_cost = tried[0]                                # contenders come cheapest first: the planner's choice
+    if by_cost["interior_removal_cov"] <= least + COV_TIE:
+        # nothing to overrule: the re-plans choose their direction as they did before
+        log.info("uniform direction: %.0f deg, ranked first by cycle time, is also the evenest at constant feed "
+                 "(interior CoV %.3f)", by_cost["direction_deg"], by_cost["interior_removal_cov"])
+        return first, None
     best = min((t for t in tried if t["interior_removal_cov"] <= least + COV_TIE), key=lambda t: t["cycle_time_s"])
     toolpath = best["toolpath"]
     table = [{k: v for k, v in t.items() if k != "toolpath"} for t in tried]
@@ -115,12 +135,17 @@ def evenest_direction(first, paths: dict, surface, tool, settings, *, progress=N
     # longer bear on how far a re-plan's length can be predicted, swath.cli.curved_spacing)
     toolpath.metadata.update(direction_evenness=table, direction_candidates=first.metadata.get("candidates"),
                              direction_rule=DIRECTION_RULE)
-    by_cost = tried[0]                                # contenders come cheapest first: the planner's choice
-    if best is by_cost:
-        log.info("uniform direction: %.0f deg, ranked first by cycle time and the evenest at constant feed "
-                 "(interior CoV %.3f); the re-plans keep it", best["direction_deg"], best["interior_removal_cov"])
-    else:
-        log.info("uniform direction: %.0f deg, the evenest at constant feed (interior CoV %.3f against %.3f at the "
-                 "%.0f deg the planner ranked first by cycle time); the re-plans keep it", best["direction_deg"],
-                 best["interior_removal_cov"], by_cost["interior_removal_cov"], by_cost["direction_deg"])
+    log.info("uniform direction: %.0f deg, the evenest at constant feed (interior CoV %.3f against %.3f at the "
+             "%.0f deg the planner ranked first by cycle time); the re-plans keep it", best["direction_deg"],
+             best["interior_removal_cov"], by_cost["interior_removal_cov"], by_cost["direction_deg"])
     return toolpath, math.radians(best["direction_deg"])
+
+
+def _passes_key(toolpath) -> tuple:
+    """A key equal for tool paths whose passes are equal point for point."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for p in toolpath.passes:
+        digest.update(np.ascontiguousarray(p.points, float).tobytes())
+    return len(toolpath.passes), digest.hexdigest()

@@ -29,6 +29,7 @@ the shortest predicted cycle time (see ``direction``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 import math
@@ -123,6 +124,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         With automatic direction on a part of one piece: filled with ``{direction rad: ToolPath}``
         of every ranked candidate, resampled at ``point_spacing`` (the passes ``uniform`` lays with
         that ``direction`` given), so a caller comparing the candidates need not plan them again.
+        Every candidate that covers enough is then ranked in full (:class:`FullCost`), so which
+        are ranked does not depend on the order the workers finish in.
 
     Returns
     -------
@@ -163,6 +166,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         # child process finishes, this one loads what every candidate needs (the pad-touch kernel,
         # the cost's imports), which forked workers then inherit.
         cost = cost or length_cost
+        if candidate_paths is not None:
+            cost = FullCost(cost)
         return _auto(functools.cache(lambda: shared_context(*context_args[:3], max_turn_curvature=context_args[3],
                                                             beside=workers != 1, distance_method=distance_method,
                                                             while_building=functools.partial(_prepare_candidates,
@@ -205,6 +210,26 @@ def length_cost(toolpath) -> tuple[float, str]:
         else:
             end = last
     return float(total), "contact + straight air length (m)"
+
+
+@dataclasses.dataclass(frozen=True)
+class FullCost:
+    """``cost`` without its early stop (``bounded``): every candidate is ranked in full.  Its
+    ``passes_only`` and ``prepare`` are those of ``cost``."""
+
+    cost: object
+
+    def __call__(self, toolpath):
+        return self.cost(toolpath)
+
+    @property
+    def passes_only(self) -> bool:
+        return bool(getattr(self.cost, "passes_only", False))
+
+    def prepare(self) -> None:
+        prepare = getattr(self.cost, "prepare", None)
+        if callable(prepare):
+            prepare()
 
 
 #: :func:`length_cost` reads the passes only (not the tool path's metadata): candidates with the
