@@ -78,3 +78,11 @@ def test_one_contender_is_no_choice():
     # a contender whose passes the first plan did not hand over is not compared
     first = _plan(60, candidates=_rows(199.9, 199.6, 194.2))
     assert ud.evenest_direction(first, {}, None, None, None) == (first, None)
+
+
+def test_straight_links_lift_cross_and_land():
+    a, b = _plan(0), _plan(90)
+    tp = ToolPath(None, a.passes + b.passes, "uniform", {})
+    (link,) = ud.straight_links(tp, 0.02)
+    np.testing.assert_allclose(link.waypoints, [a.passes[0].points[-1], a.passes[0].points[-1] + [0, 0, 0.02],
+                                                b.passes[0].points[0] + [0, 0, 0.02], b.passes[0].points[0]])
