@@ -20,7 +20,7 @@ def _grid(n: int, size: float = 1.0):
     return np.stack([x.ravel(), y.ravel(), np.zeros(n * n)], 1), grid_faces(n, n)
 
 
-def test_a_right_triangle_grid_is_delaunay_and_a_random_square_split_is_not():
+def test_a_right_triangle_grid_is_delaunay_and_one_flipped_edge_is_not():
     V, F = _grid(11)
     assert is_delaunay(V, F)                  # the diagonals' opposite right angles sum to 180 degrees
     from scipy.spatial import Delaunay
@@ -50,9 +50,9 @@ def test_a_sliver_is_not_solved_plainly():
 
 @pytest.mark.parametrize("delaunay", [True, False])
 def test_the_distances_are_geodesic_either_way(delaunay):
-    # a flat grid (Delaunay: plain Laplacian) and a sphere cap triangulated from a grid with its
-    # diagonals flipped where they are not Delaunay (robust): distance from one vertex against the
-    # exact plane distance / great-circle distance
+    # a flat grid (Delaunay: the plain Laplacian) and a sphere cap whose grid triangulation is not
+    # Delaunay (the robust solver): distance from one vertex against the exact plane distance /
+    # great-circle distance
     if delaunay:
         V, F = _grid(61, 0.3)
         src = int(np.argmin(np.linalg.norm(V - [0.15, 0.15, 0.0], axis=1)))
@@ -63,6 +63,7 @@ def test_the_distances_are_geodesic_either_way(delaunay):
         src = int(np.argmax(V[:, 2]))
         cosang = np.clip(V @ V[src] / (np.linalg.norm(V, axis=1) * np.linalg.norm(V[src])), -1, 1)
         exact = 0.2 * np.arccos(cosang)
+    assert is_delaunay(V, F) == delaunay               # the case runs the solver it is named for
     d = np.asarray(heat_solver(V, F).compute_distance(src))
     far = exact > 0.02
     assert np.median(np.abs(d[far] - exact[far]) / exact[far]) < 0.02
