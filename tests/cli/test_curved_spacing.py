@@ -210,18 +210,16 @@ def test_the_least_ripple_planes_follow_the_swath_where_it_narrows():
     assert 0 < hub_share < curved_spacing.NARROW_SHARE and hub_plan.metadata["spacing_on"] == "surface"
 
 
-def test_the_search_progress_rises_through_its_plans_as_one_step():
-    from swath.cli.curved_spacing import PLAN_UNITS, search_progress
+def test_each_plan_of_the_search_is_a_step_of_its_own_numbered():
+    from swath.cli.curved_spacing import search_progress
+    from swath.plan.uniform import SETUP_STAGE, TRYING_STAGE
 
     heard = []
     for plan in (1, 2, 3):
         told = search_progress(lambda *a: heard.append(a), plan, 4)
+        told(SETUP_STAGE, 0, 1)
         for done in (0, 6, 13):
-            told("planning (uniform): trying pass directions", done, 13)
-    assert heard[0] == ("planning (uniform): trying pass directions (setting up)", 0, 1)    # the working mesh
-    rest = heard[1:]
-    assert {h[0] for h in rest} == {"planning (uniform): trying pass directions (at most 4 plans)"}  # one step
-    assert {h[2] for h in rest} == {4 * PLAN_UNITS}
-    done = [h[1] for h in rest]
-    assert done == sorted(done) and done[-1] == 3 * PLAN_UNITS       # three plans of four made
-    assert done[0] == int(6 / 13 * PLAN_UNITS) and done[2] == PLAN_UNITS
+            told(TRYING_STAGE, done, 13)
+    assert heard[0] == (SETUP_STAGE, 0, 1)              # the working mesh: built once, by the first plan
+    stage = TRYING_STAGE + " (plan {}, at most 4)"
+    assert heard[1:] == [(stage.format(p), done, 13) for p in (1, 2, 3) for done in (0, 6, 13)]

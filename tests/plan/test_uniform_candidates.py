@@ -103,14 +103,48 @@ def test_the_pool_queues_every_layout_before_any_ranking_and_gives_the_serial_ro
     monkeypatch.setattr(U, "_WORKER_CONTEXT", blade_context)
     _InlinePool.submitted = []
     groups = [[ANGLES[0]], [ANGLES[4], ANGLES[5]], [ANGLES[2]]]
-    pooled = U._run_pool(None, None, groups, OPTIONS, U.length_cost, 2, lambda *a: None)
+    heard: list = []
+    pooled = U._run_pool(None, None, groups, OPTIONS, U.length_cost, 2, lambda *a: heard.append(a[1:]),
+                         clock=lambda: 0.0)
     # the short ranking tasks go last, where they fill the gaps the long layouts leave
     assert _InlinePool.submitted == ["_worker_layout"] * 3 + ["_worker_group_rows"] * 3
+    # a layout counts LAYOUT_STEPS steps (120 and 150 degrees share one), a ranking one per direction
+    steps = U.LAYOUT_STEPS
+    total = 3 * steps + 4 + 1
+    done = [h[0] for h in heard]
+    assert {h[1] for h in heard} == {total} and done == sorted(done)
+    assert done[2] == 3 * steps and done[-1] == 3 * steps + 4          # the layouts, then the rankings
     serial = [U._candidate_group(blade_context, g, OPTIONS, U.length_cost) for g in groups]
     assert [len(r) for r in pooled] == [1, 2, 1]
     for rows_p, rows_s in zip(pooled, serial):
         for p, q in zip(rows_p, rows_s):
             assert p[:4] == q[:4] and p[4]["angle"] == q[4]["angle"]
+
+
+def test_the_layouts_still_running_count_by_their_time_against_those_back():
+    now = [0.0]
+    steps = U._PoolProgress(4, 2, clock=lambda: now[0])     # layouts 0 and 1 start at 0 s, 2 and 3 wait
+    n = U.LAYOUT_STEPS
+    now[0] = 10.0
+    # layout 0 back after 10 s, layout 2 starts: layout 1 has run as long, so counts 0.9 of its steps
+    assert steps.back(layout=0) == int(n + 0.9 * n)
+    now[0] = 11.0
+    assert steps.back(layout=1) == int(2 * n + n / 10.5)    # layout 3 starts; 2 has run 1 s of the mean 10.5
+    now[0] = 20.0
+    assert steps.back(layout=2) == int(3 * n + n * 9.0 / (31.0 / 3))   # 3 has run 9 s of the mean 10.3
+    now[0] = 21.0
+    assert steps.back(layout=3) == 4 * n
+    assert steps.back(ranked=2) == 4 * n + 2
+    # never fewer than said: five layouts on three workers, where a slow one raises the mean time
+    now[0] = 0.0
+    slow = U._PoolProgress(5, 3, clock=lambda: now[0])
+    told = []
+    for at, layout in ((5.0, 1), (105.0, 2), (205.0, 0), (205.1, 3)):
+        now[0] = at
+        told.append(slow.back(layout=layout))
+    assert told[:3] == [25, 34, 43]          # 43: 3 layouts back, layout 3 at 0.9, layout 4 100 s of the mean 105
+    # layout 3 back: 4 layouts and layout 4 at 100.1 s of the mean 128.8 make 42.99 steps, under the 43 said
+    assert told[3] == 43
 
 
 def test_the_coverage_floor_is_within_0_2_percent_of_the_best_and_at_most_99_5_percent():

@@ -284,26 +284,23 @@ def uniform_replan_value(toolpath, probed: float, choice, bound: float, budget: 
     return value
 
 
-#: Progress units of one plan in :func:`search_progress`.
-PLAN_UNITS = 1000
-
-
 def search_progress(progress, plan: int, most: int):
     """The uniform planner's ``progress(stage, done, total)`` for its ``plan``-th plan (from 1) of a
-    search that makes at most ``most``: one step counted over all of them (``total`` the plans'
-    units, ``done`` the plans made and this one's share), so that the job's progress lines go on
-    rising through the search and, past a few seconds, estimate its time left as if every plan
-    were made (fewer may be).  Until the first plan has its first unit done it is a step of its
-    own ("setting up"): the working mesh is built then, once for all the plans, and its time is
-    no measure of the rate of the rest (on crs_part_5 20 s, before a unit of about 1 s)."""
-    label = f" (at most {most} plans)"
+    search that makes at most ``most``: each plan a step of its own, numbered (``"(plan 2, at most
+    4)"``), whose percentage and time left are this plan's.  How many plans follow is not known
+    while one is made (the re-plan at the least-ripple overlap and the length budget's re-plans
+    depend on it), and counted as if all were made, crs_part_5's re-plan said "about 7 min left"
+    12 s before it ended.  The working mesh's set-up (:data:`swath.plan.uniform.SETUP_STAGE`) is
+    said once, by the first plan: the others reuse it."""
+    from ..plan.uniform import SETUP_STAGE
+
+    label = f" (plan {plan}, at most {most})"
 
     def told(stage: str, done: int, total: int) -> None:
-        share = done / total if total > 0 else 0.0
-        if plan == 1 and done == 0:
-            progress(stage + " (setting up)", 0, 1)
-            return
-        progress(stage + label, int((plan - 1 + share) * PLAN_UNITS), most * PLAN_UNITS)
+        if stage != SETUP_STAGE:
+            progress(stage + label, done, total)
+        elif plan == 1:
+            progress(stage, done, total)
 
     return told
 

@@ -35,6 +35,7 @@ import logging
 import math
 import multiprocessing
 import pickle
+import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 
 import numpy as np
@@ -59,6 +60,18 @@ SHARP_TURN_SPEED_FRACTION = 0.5
 
 #: Candidate seed directions (rad from the first principal axis) for ``direction="auto"``.
 AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
+
+#: The progress stages of ``direction="auto"``: the working mesh built (where the candidates are
+#: planned in this process or in forked workers; spawned workers build their own), then the
+#: candidate directions laid and ranked.
+SETUP_STAGE = "planning (uniform): setting up the working mesh"
+TRYING_STAGE = "planning (uniform): trying pass directions"
+
+#: Progress steps a layout counts for (directions with the same seed share one), against one for
+#: each direction's ranking: the layout (the heat-method generations) is most of the work.  On crs_part_5 a layout
+#: took about 9.5 s and a ranking 0.5-1 s: counted as one step each, the rankings' steps all came
+#: in the plan's last 2-3 s and the time left measured before them was several times too long.
+LAYOUT_STEPS = 9
 
 
 def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="boundary",
@@ -250,13 +263,15 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         log.info("uniform: the cost function does not pickle, so the candidate directions are planned here, one "
                  "after another (give a module-level function or a record with __call__)")
         n_workers = 1
-    # progress: two steps per direction (its layout, then its ranking) and one for the winner
-    say("planning (uniform): trying pass directions", 0, 2 * len(angles) + 1)
+    say(SETUP_STAGE, 0, 1)
     in_workers = n_workers > 1 and context_args is not None
     if in_workers and not can_fork():
         groups = [[a] for a in angles]      # the working mesh is built in each spawned worker, not here
     else:
         groups = _same_seed_groups(make_context(), angles, seed)
+    # progress: LAYOUT_STEPS for each layout, one for each direction's ranking and one for the winner
+    steps = LAYOUT_STEPS * len(groups) + len(angles) + 1
+    say(TRYING_STAGE, 0, steps)
     if in_workers:
         rows_of = _candidates_in_workers(context_args, groups, options, cost, min(n_workers, len(groups)), say,
                                          make_context=make_context)
@@ -272,8 +287,8 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
                 rows = _candidate_group(make_context(), group, options, cost, top, _ranked_so_far(rows_of))
                 rows_of.append(rows)
                 top = max([top] + [r[3] for r in rows if not isinstance(r, str)])
-                done += 2 * len(group)
-                say("planning (uniform): trying pass directions", done, 2 * len(angles) + 1)
+                done += LAYOUT_STEPS + len(group)
+                say(TRYING_STAGE, done, steps)
     row_at = {a: row for group, rows in zip(groups, rows_of) for a, row in zip(group, rows)}
     rows = [row_at[a] for a in angles]
     results, layouts, what = [], {}, ""
@@ -491,7 +506,45 @@ def _warm_before_fork(ctx: _Context, cost) -> None:
     _prepare_candidates(ctx.tool, cost)
 
 
-def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -> list:
+class _PoolProgress:
+    """The steps of :func:`_run_pool` done: :data:`LAYOUT_STEPS` per layout back, one per
+    direction ranked, and the layouts still running counted by how long they have run against the
+    mean time of those back (at most 0.9 of theirs).  Layouts take about the same
+    time, and with two workers they come back in pairs: counted only once back, the first of a
+    pair halved the rate the time left is read from (crs_part_5's re-plan: "about 52 s left" 10 s
+    before it ended).
+
+    ``layouts``: how many layout tasks were submitted (numbered in that order).  The first
+    ``n_workers`` start at once and each later one as a task comes back (:func:`_run_pool` queues a
+    ranking only when no layout waits).  ``clock()``: seconds."""
+
+    def __init__(self, layouts: int, n_workers: int, clock=time.perf_counter):
+        self.layouts, self.clock = layouts, clock
+        now = clock()
+        self.started = {i: now for i in range(min(n_workers, layouts))}   # layouts running: start times
+        self.queued = len(self.started)                     # the next layout to start
+        self.took: list[float] = []                         # the layouts back: their times, s
+        self.done = self.told = 0
+
+    def back(self, layout: int | None = None, ranked: int = 0) -> int:
+        """A task came back (``layout``: its index, else a ranking of ``ranked`` directions): the
+        next queued layout starts now.  Returns the steps done, never fewer than said before."""
+        now = self.clock()
+        if layout is not None:
+            self.took.append(now - self.started.pop(layout))
+            self.done += LAYOUT_STEPS
+        self.done += ranked
+        if self.queued < self.layouts:
+            self.started[self.queued] = now
+            self.queued += 1
+        typical = sum(self.took) / len(self.took) if self.took else 0.0
+        running = sum(LAYOUT_STEPS * min(0.9, (now - t) / typical) for t in self.started.values()) \
+            if typical > 0 else 0.0
+        self.told = max(self.told, int(self.done + running))
+        return self.told
+
+
+def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say, clock=time.perf_counter) -> list:
     """The rows of every group, planned in ``n_workers`` processes as two kinds of task: each
     group's layout (the heat-method generations, most of the work), then its ranking (resampling
     and the cost: ordering and timing the passes).  Every layout is queued first; a ranking is
@@ -500,13 +553,15 @@ def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -
     longest layout (candidates' times are not known in advance).  By then most layouts are
     back, and one that covers less than they allow (:func:`_worth_ranking`) is only resampled,
     not ranked.  The same functions as :func:`_candidate_group`, so the same plan.  Progress
-    counts a step per direction as its layout comes back and another as its ranking does
-    (``2 * directions + 1`` in all, the last for the winner)."""
-    done, total, top = 0, sum(len(g) for g in groups), -math.inf
+    counts :data:`LAYOUT_STEPS` steps as a layout comes back and one per direction as a ranking
+    does (``LAYOUT_STEPS * groups + directions + 1`` in all, the last for the winner), the layouts
+    still running by their time so far (:class:`_PoolProgress`; ``clock()``: seconds)."""
+    total, top = sum(len(g) for g in groups), -math.inf
     rows_of: list = [None] * len(groups)
     with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp_context, initializer=_worker_init,
                              initargs=(context_args,)) as pool:
         layout_of = {pool.submit(_worker_layout, g[0], options): i for i, g in enumerate(groups)}
+        steps = _PoolProgress(len(groups), n_workers, clock)
         rows_task: dict = {}
         pending: set[Future] = set(layout_of)
         held: list = []                           # (group index, layout) waiting for a free worker
@@ -523,11 +578,11 @@ def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say) -
                     i, layout = layout_of[f], f.result()
                     top = max(top, _coverage_of(layout))
                     held.append((i, layout))
-                    done += len(groups[i])
+                    done = steps.back(layout=i)
                 else:
                     rows_of[rows_task[f]] = f.result()
-                    done += len(groups[rows_task[f]])
-                say("planning (uniform): trying pass directions", done, 2 * total + 1)
+                    done = steps.back(ranked=len(groups[rows_task[f]]))
+                say(TRYING_STAGE, done, LAYOUT_STEPS * len(groups) + total + 1)
     return rows_of
 
 
