@@ -196,6 +196,32 @@ def test_cluster_decimate_keeps_linear_fields_and_budget():
     assert (normals > 0).all()                                       # winding kept
 
 
+def test_cluster_decimate_carries_several_fields_on_the_same_cells():
+    plate = flat_plate(spacing=0.004)
+    one = plate.vertices[:, 0]
+    two = np.sin(40.0 * plate.vertices[:, 1])
+    v, f, both = cluster_decimate(plate.vertices, plate.faces, np.stack([one, two], 1), plate.vertex_areas,
+                                  max_faces=2000)
+    for k, field in enumerate((one, two)):
+        v1, f1, val = cluster_decimate(plate.vertices, plate.faces, field, plate.vertex_areas, max_faces=2000)
+        np.testing.assert_array_equal(v1, v)
+        np.testing.assert_array_equal(f1, f)
+        np.testing.assert_array_equal(val, both[:, k])
+
+
+@pytest.mark.parametrize("scale", [1, 2 ** 59])        # the codes, and the rows themselves past int64
+def test_row_codes_label_rows_as_unique_rows_does(scale):
+    from swath.report.plots import _row_codes
+
+    rows = np.random.default_rng(3).integers(0, 6, (500, 3))
+    rows[:, 0] *= scale
+    codes = _row_codes(rows)
+    assert (codes.dtype.names is None) == (scale == 1)
+    for a, b in zip(np.unique(rows, axis=0, return_inverse=True, return_index=True)[1:],
+                    np.unique(codes, return_inverse=True, return_index=True)[1:]):
+        np.testing.assert_array_equal(a.ravel(), b.ravel())
+
+
 def test_display_mesh_maps_depth_onto_the_part(job):
     part = flat_plate(spacing=0.01)                                  # 2,400 faces
     fine = part.subdivided(0.004)

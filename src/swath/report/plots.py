@@ -92,8 +92,8 @@ def cluster_decimate(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
         Mesh vertices, m.
     faces : (m, 3) int
         Triangles.
-    values : (n,) float
-        A per-vertex quantity to carry over (e.g. removal depth, m).
+    values : (n,) or (n, k) float
+        A per-vertex quantity, or ``k`` of them, to carry over (e.g. removal depth, m).
     weights : (n,) float
         Vertex weights for the averages (e.g. vertex areas, m²); all positive.
     max_faces : int
@@ -103,7 +103,7 @@ def cluster_decimate(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
     -------
     vertices : (n', 3) float
     faces : (m', 3) int
-    values : (n',) float
+    values : (n',) or (n', k) float
     """
     vertices = np.asarray(vertices, float)
     faces = np.asarray(faces)
@@ -118,11 +118,11 @@ def cluster_decimate(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
     cell = np.sqrt(2.0 * area / max_faces)         # a grid of this pitch holds ~max_faces triangles
     for _ in range(40):
         key = np.floor((vertices - lo) / cell).astype(np.int64)
-        _, label = np.unique(key, axis=0, return_inverse=True)
+        _, label = np.unique(_row_codes(key), return_inverse=True)
         label = label.ravel()
         f = label[faces]
         f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
-        first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)[1]
+        first = np.unique(_row_codes(np.sort(f, axis=1)), return_index=True)[1]
         f = f[np.sort(first)]                     # unique triangles, original winding and order
         if len(f) <= max_faces:
             break
@@ -130,11 +130,26 @@ def cluster_decimate(vertices: np.ndarray, faces: np.ndarray, values: np.ndarray
     k = label.max() + 1
     wsum = np.bincount(label, weights=w, minlength=k)
     v_new = np.stack([np.bincount(label, weights=w * vertices[:, i], minlength=k) for i in range(3)], 1) / wsum[:, None]
-    val_new = np.bincount(label, weights=w * np.asarray(values, float), minlength=k) / wsum
+    values = np.asarray(values, float)
+    columns = values.reshape(len(values), -1)
+    val_new = np.stack([np.bincount(label, weights=w * c, minlength=k) for c in columns.T], 1) / wsum[:, None]
+    val_new = val_new.reshape((k,) + values.shape[1:])
     used = np.zeros(k, bool)
     used[f.ravel()] = True
     remap = np.cumsum(used) - 1
     return v_new[used], remap[f], val_new[used]
+
+
+def _row_codes(rows: np.ndarray):
+    """One integer per row of the non-negative ``(n, 3)`` int array ``rows``, ordered as the rows
+    are lexicographically, so that ``np.unique`` of the codes labels the rows as ``np.unique(rows,
+    axis=0)`` would, ten times faster (it sorts integers, not rows); the rows themselves where
+    the codes would overflow int64."""
+    span = rows.max(axis=0) + 1 if len(rows) else np.ones(3, np.int64)
+    if float(span[0]) * float(span[1]) * float(span[2]) >= 2.0 ** 62:
+        fields = np.dtype([("a", rows.dtype), ("b", rows.dtype), ("c", rows.dtype)])   # compared field by field
+        return np.ascontiguousarray(rows).view(fields).ravel()
+    return (rows[:, 0] * span[1] + rows[:, 1]) * span[2] + rows[:, 2]
 
 
 #: Faces of a part display mesh per ``area / edge²`` (longest-edge bisection of a regular mesh gives
