@@ -68,9 +68,10 @@ SETUP_STAGE = "planning (uniform): setting up the working mesh"
 TRYING_STAGE = "planning (uniform): trying pass directions"
 
 #: Progress steps a layout counts for (directions with the same seed share one), against one for
-#: each direction's ranking: the layout (the heat-method generations) is most of the work.  On crs_part_5 a layout
-#: took about 9.5 s and a ranking 0.5-1 s: counted as one step each, the rankings' steps all came
-#: in the plan's last 2-3 s and the time left measured before them was several times too long.
+#: each direction's ranking: the layout (the heat-method generations) is most of the work.  On
+#: crs_part_5 a layout took about 9.5 s and a ranking 0.5-1 s: counted as one step each, the
+#: rankings' steps all came in the plan's last 2-3 s and the time left measured before them was
+#: several times too long.
 LAYOUT_STEPS = 9
 
 
@@ -509,10 +510,10 @@ def _warm_before_fork(ctx: _Context, cost) -> None:
 class _PoolProgress:
     """The steps of :func:`_run_pool` done: :data:`LAYOUT_STEPS` per layout back, one per
     direction ranked, and the layouts still running counted by how long they have run against the
-    mean time of those back (at most 0.9 of theirs).  Layouts take about the same
-    time, and with two workers they come back in pairs: counted only once back, the first of a
-    pair halved the rate the time left is read from (crs_part_5's re-plan: "about 52 s left" 10 s
-    before it ended).
+    mean time of those back (at most 0.9 of theirs).  Layouts take about the same time, and with
+    two workers they come back in pairs: counted only once back, the first of a pair halved the
+    rate the time left is read from (crs_part_5's re-plan said "about 52 s left" 11 s before it
+    ended).
 
     ``layouts``: how many layout tasks were submitted (numbered in that order).  The first
     ``n_workers`` start at once and each later one as a task comes back (:func:`_run_pool` queues a
