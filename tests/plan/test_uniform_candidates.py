@@ -145,6 +145,28 @@ def test_the_layouts_still_running_count_by_their_time_against_those_back():
     assert told[:3] == [25, 34, 43]          # 43: 3 layouts back, layout 3 at 0.9, layout 4 100 s of the mean 105
     # layout 3 back: 4 layouts and layout 4 at 100.1 s of the mean 128.8 make 42.99 steps, under the 43 said
     assert told[3] == 43
+    # a layout back before the task whose worker it took (both in one batch): counted, its time unknown
+    now[0] = 0.0
+    batch = U._PoolProgress(3, 1, clock=lambda: now[0])
+    now[0] = 5.0
+    assert batch.back(layout=1) == n and batch.took == [] and sorted(batch.started) == [0, 2]   # 1 not queued again
+    assert batch.back(layout=0) == 2 * n and batch.took == [5.0]
+
+
+def test_the_set_up_says_its_vertices_and_about_how_long_it_takes():
+    import re
+
+    from swath.examples import flat_plate
+    from swath.plan import uniform_model as M
+
+    heard: list = []
+    ctx = M._Context(flat_plate(spacing=0.01), Tool(), None, progress=lambda *a: heard.append(a))
+    n = len(ctx.work.vertices)
+    assert heard == [(f"{M.SETUP_STAGE} ({n:,} vertices, about {M.setup_estimate_s(n):.0f} s)", 0, 1)]
+    assert re.fullmatch(r".* \([0-9,]+ vertices, about [0-9]+ s\)", heard[0][0])
+    # the reference: 5.7 s at crs_part_5's 308,365 vertices, 1.2 s at snp_part_scan's 75,668
+    assert M.setup_estimate_s(308_365) == pytest.approx(5.7)
+    assert M.setup_estimate_s(75_668) == pytest.approx(1.22, abs=0.01)
 
 
 def test_the_coverage_floor_is_within_0_2_percent_of_the_best_and_at_most_99_5_percent():

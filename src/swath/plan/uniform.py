@@ -61,10 +61,8 @@ SHARP_TURN_SPEED_FRACTION = 0.5
 #: Candidate seed directions (rad from the first principal axis) for ``direction="auto"``.
 AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 
-#: The progress stages of ``direction="auto"``: the working mesh built (where the candidates are
-#: planned in this process or in forked workers; spawned workers build their own), then the
-#: candidate directions laid and ranked.
-SETUP_STAGE = "planning (uniform): setting up the working mesh"
+#: The progress stage of ``direction="auto"``'s candidate directions laid and ranked (after the
+#: working mesh's set-up, :data:`swath.plan.uniform_model.SETUP_STAGE`, where it is built here).
 TRYING_STAGE = "planning (uniform): trying pass directions"
 
 #: Progress steps a layout counts for (directions with the same seed share one), against one for
@@ -185,7 +183,8 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
         return _auto(functools.cache(lambda: shared_context(*context_args[:3], max_turn_curvature=context_args[3],
                                                             beside=workers != 1, distance_method=distance_method,
                                                             while_building=functools.partial(_prepare_candidates,
-                                                                                             tool, cost))),
+                                                                                             tool, cost),
+                                                            progress=progress)),
                      overlap=overlap, seed=seed, point_spacing=point_spacing,
                      min_pass_length=min_pass_length, max_passes=max_passes,
                      cost=cost, progress=progress, workers=workers, context_args=context_args,
@@ -264,7 +263,6 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         log.info("uniform: the cost function does not pickle, so the candidate directions are planned here, one "
                  "after another (give a module-level function or a record with __call__)")
         n_workers = 1
-    say(SETUP_STAGE, 0, 1)
     in_workers = n_workers > 1 and context_args is not None
     if in_workers and not can_fork():
         groups = [[a] for a in angles]      # the working mesh is built in each spawned worker, not here
@@ -525,6 +523,7 @@ class _PoolProgress:
         self.started = {i: now for i in range(min(n_workers, layouts))}   # layouts running: start times
         self.queued = len(self.started)                     # the next layout to start
         self.took: list[float] = []                         # the layouts back: their times, s
+        self.early: set[int] = set()                        # layouts back before they were seen to start
         self.done = self.told = 0
 
     def back(self, layout: int | None = None, ranked: int = 0) -> int:
@@ -532,9 +531,14 @@ class _PoolProgress:
         next queued layout starts now.  Returns the steps done, never fewer than said before."""
         now = self.clock()
         if layout is not None:
-            self.took.append(now - self.started.pop(layout))
+            if layout in self.started:
+                self.took.append(now - self.started.pop(layout))
+            else:           # back in the same batch as the task whose worker it took: its time is unknown
+                self.early.add(layout)
             self.done += LAYOUT_STEPS
         self.done += ranked
+        while self.queued in self.early:
+            self.queued += 1
         if self.queued < self.layouts:
             self.started[self.queued] = now
             self.queued += 1
@@ -574,7 +578,8 @@ def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say, c
                 rows_task[task] = i
                 pending.add(task)
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for f in finished:
+            # several back at once: layouts first, each kind in the order submitted
+            for f in sorted(finished, key=lambda f: (0, layout_of[f]) if f in layout_of else (1, rows_task[f])):
                 if f in layout_of:
                     i, layout = layout_of[f], f.result()
                     top = max(top, _coverage_of(layout))

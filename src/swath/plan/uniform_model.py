@@ -27,6 +27,23 @@ log = logging.getLogger(__name__)
 #: About this many working-mesh vertices at most (the default working edge is coarsened to stay near it).
 MAX_WORK_VERTICES = 350_000
 
+#: The progress stage of a working mesh's set-up (:class:`_Context`), said with its vertex count and
+#: an estimate of its time (:func:`setup_estimate_s`).
+SETUP_STAGE = "planning (uniform): setting up the working mesh"
+
+#: The set-up's time once the working mesh is made (its solver and, beside it, its width model), on
+#: the 2-core reference machine, for the progress line's estimate only: 5.7 s for crs_part_5's
+#: 308,365 vertices, growing as the vertex count to the power 1.1 (snp_part_scan's 75,668
+#: vertices: 1.2 s predicted, 1.15 s measured; the blade's 89,383, whose Delaunay mesh needs no
+#: intrinsic triangulation: 1.5 s predicted, 1.07 s measured).
+SETUP_REFERENCE_S, SETUP_REFERENCE_VERTICES, SETUP_EXPONENT = 5.7, 308_365, 1.1
+
+
+def setup_estimate_s(n_vertices: int) -> float:
+    """About how long (s) a working mesh of ``n_vertices`` takes to set up once made (:data:`SETUP_REFERENCE_S`)."""
+    return SETUP_REFERENCE_S * (max(int(n_vertices), 0) / SETUP_REFERENCE_VERTICES) ** SETUP_EXPONENT
+
+
 #: Distance solvers of :meth:`_Context.distance`: ``"band"`` the narrow-band fast marching
 #: (:class:`swath.surface.geodesic.BandDistance`), ``"heat"`` potpourri3d's heat method on the whole
 #: working mesh (its factorisation built with the working mesh).
@@ -116,14 +133,17 @@ class _Context:
     """The working mesh, its distance solver and width model, shared by all candidate directions."""
 
     def __init__(self, surface, tool, work_spacing, max_turn_curvature=math.inf, *, beside: bool = True,
-                 while_building: Callable[[], object] | None = None, distance_method: str | None = None):
+                 while_building: Callable[[], object] | None = None, distance_method: str | None = None,
+                 progress=None):
         """``beside``: build the working mesh's smooth normals and the width model in a forked child
         process while the distance solver is built here (:class:`swath.core.beside.Beside`; the same
         arrays either way), where forking is possible and two CPUs are free.  ``while_building()``,
         if given, runs here after the distance solver is built and before the child's answer is
         read: work that needs none of the context (imports, loading compiled kernels) fills the
         time this process would otherwise wait for the child.  ``distance_method``: one of
-        :data:`DISTANCE_METHODS` (default :data:`DEFAULT_DISTANCE_METHOD`)."""
+        :data:`DISTANCE_METHODS` (default :data:`DEFAULT_DISTANCE_METHOD`).  ``progress(stage, done,
+        total)``, if given, hears :data:`SETUP_STAGE` with the working mesh's vertex count and an
+        estimate of the set-up's time once the mesh is made, before its solver is built."""
         distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
         if distance_method not in DISTANCE_METHODS:
             raise InputError(f"distance_method must be one of {', '.join(DISTANCE_METHODS)}, got {distance_method!r}")
@@ -147,6 +167,9 @@ class _Context:
             self.work = self.work.sub_surface(np.arange(len(self.work.faces)))
         self.work_spacing = float(work_spacing)
         W = self.work
+        if progress is not None:
+            progress(f"{SETUP_STAGE} ({len(W.vertices):,} vertices, about {setup_estimate_s(len(W.vertices)):.0f} s)",
+                     0, 1)
         # The two halves of the set-up need nothing from each other: the distance solver (with the
         # heat method its factorisation, C++ holding the GIL) is built here while a forked child
         # builds the part's normals and curvature, the working mesh's normals and boundary loops,
@@ -276,7 +299,7 @@ class _Context:
 
 def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = math.inf, beside: bool = True,
                    while_building: Callable[[], object] | None = None,
-                   distance_method: str | None = None) -> _Context:
+                   distance_method: str | None = None, progress=None) -> _Context:
     """The :class:`_Context` of ``surface`` for ``tool`` and ``work_spacing``, built once and kept
     on the surface (:meth:`swath.surface.Surface.memo`): the default job plans the same part
     several times (the curvature probe, the re-plan at the chosen spacing and lead, the
@@ -285,8 +308,8 @@ def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = m
     changes between them (the overlap, the seed, the candidate direction).  A call with another
     ``max_turn_curvature`` (the feed or angular limit) gets a shallow copy with it set.  The
     plans are the same as with a context built for each call: nothing in the context changes
-    after it is built.  ``beside``, ``while_building`` and ``distance_method`` as for
-    :class:`_Context` (the first two used only when it is built).  ``surface.forget("uniform
+    after it is built.  ``beside``, ``while_building``, ``distance_method`` and ``progress`` as for
+    :class:`_Context` (all but ``distance_method`` used only when it is built).  ``surface.forget("uniform
     model")`` releases it."""
     distance_method = DEFAULT_DISTANCE_METHOD if distance_method is None else distance_method
     key = ("uniform model", tool, None if work_spacing is None else float(work_spacing), distance_method)
@@ -295,7 +318,7 @@ def shared_context(surface, tool, work_spacing, *, max_turn_curvature: float = m
     def build():
         built.append(True)
         return _Context(surface, tool, work_spacing, max_turn_curvature=max_turn_curvature, beside=beside,
-                        while_building=while_building, distance_method=distance_method)
+                        while_building=while_building, distance_method=distance_method, progress=progress)
 
     ctx = surface.memo(key, build)
     if not built:
