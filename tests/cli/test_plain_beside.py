@@ -36,6 +36,8 @@ def test_the_plain_plan_made_beside_is_the_one_made_here(two_cpus, planner):
     surface.forget()                          # the child builds the planner's models itself
     wait = even_default.plain_beside(surface, tool, plain, part=part)
     there = wait()
+    if wait.share is not None:              # forked: the uniform planner's directions say how far it is
+        assert wait.share() == (even_default.PLAN_SHARE if planner == "uniform" else 0.0)
     assert len(there[0].passes) == len(here[0].passes) > 0
     for a, b in zip(there[0].passes, here[0].passes):
         np.testing.assert_array_equal(a.points, b.points)
@@ -125,3 +127,23 @@ def test_a_child_is_ready_once_it_has_answered(two_cpus):
     time.sleep(2.0)
     assert b.ready() and b.result() is None and b.ready()
     assert beside.Beside(time.sleep, 0.0, allowed=False).ready()   # nothing forked: computed when asked
+
+
+def test_a_job_waiting_for_the_plain_plan_says_how_far_it_is(monkeypatch):
+    from types import SimpleNamespace
+
+    monkeypatch.setattr(stages, "PLAIN_POLL_S", 0.0)
+    shares, readiness = iter([0.2, 0.5, 0.9]), iter([False, False, True])
+
+    def plain():
+        return None, SimpleNamespace(duration=10.0), SimpleNamespace(metrics={"interior_removal_cov": 0.5})
+
+    plain.share = lambda: next(shares)
+    plain.ready = lambda: next(readiness)
+    heard: list = []
+    even: dict = {}
+    wins = stages._plain_wins(plain, SimpleNamespace(metrics={"interior_removal_cov": 0.3}), even,
+                              lambda *a: heard.append(a))
+    stage = "the plain plan (covering spacing, flat pad, constant feed) to compare"
+    assert heard == [(stage, 200, 1000), (stage, 500, 1000), (stage, 900, 1000)]
+    assert not wins and even["plain_interior_removal_cov"] == 0.5

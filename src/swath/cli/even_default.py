@@ -361,14 +361,15 @@ def plain_alternative(settings):
     return resolve(replace(settings, constant_feed=True, optimise_feed=False))
 
 
-def plain_run(surface, tool, plain, part=None) -> tuple:
+def plain_run(surface, tool, plain, part=None, progress=None) -> tuple:
     """The plain plan (``plain``: its settings, :func:`plain_alternative`) planned, timed and
-    simulated: ``(toolpath, trajectory, removal)``."""
+    simulated: ``(toolpath, trajectory, removal)``.  ``progress(stage, done, total)`` hears the
+    planner's steps."""
     from ..simulate import simulate_removal
     from ..trajectory import time_path
     from .job import make_plan
 
-    toolpath = make_plan(surface, plain, tool=tool, part=part)
+    toolpath = make_plan(surface, plain, tool=tool, part=part, progress=progress)
     trajectory = time_path(toolpath, plain.constraints(), links=plain.links(), lead_angle=plain.lead())
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=plain.sample_spacing,
                                sampling=plain.removal_sampling)
@@ -383,10 +384,24 @@ def plain_beside(surface, tool, plain, *, part=None):
     returns a callable that waits for its ``(toolpath, trajectory, removal)``.  The plan is the one
     :func:`plain_run` makes here.  Where no child can be forked the callable plans here.  The
     planners' models shared on ``surface`` are released in this process once the child has started
-    (it has its own copy of them), else once the callable has planned."""
-    from ..core.beside import Beside
+    (it has its own copy of them), else once the callable has planned.
 
-    beside = Beside(plain_run, surface, tool, plain, part, workers=True)
+    The callable's ``share()`` says how much of the plan the child has made (0 to 1, read from a
+    value the child writes as the uniform planner's candidate directions come back, so that a job
+    waiting for it can say so, :func:`swath.cli.stages.even_feed_stage`; ``None`` where no child
+    was forked)."""
+    import multiprocessing
+
+    from ..core.beside import Beside, can_fork
+    from ..plan.uniform import TRYING_STAGE
+
+    done = multiprocessing.get_context("fork").Value("d", 0.0, lock=False) if can_fork() else None
+
+    def told(stage: str, steps: int, total: int) -> None:       # in the child
+        if done is not None and total > 0 and stage.startswith(TRYING_STAGE):
+            done.value = PLAN_SHARE * steps / total
+
+    beside = Beside(plain_run, surface, tool, plain, part, told, workers=True)
     if beside.forked:
         surface.forget()
 
@@ -396,7 +411,13 @@ def plain_beside(surface, tool, plain, *, part=None):
         return answer
 
     wait.ready = beside.ready               # type: ignore[attr-defined]
+    wait.share = (lambda: done.value) if beside.forked and done is not None else None  # type: ignore[attr-defined]
     return wait
+
+
+#: The share of the plain plan's time its candidate directions take (the rest: timing and
+#: simulating the plan, about 2 s of crs_part_5's 30 s), for :func:`plain_beside`'s ``share()``.
+PLAN_SHARE = 0.9
 
 
 def plain_if_evener(run: tuple, removal, even: dict, *, feed_follows: bool = False):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 
 import numpy as np
 
@@ -401,14 +402,25 @@ def even_feed_stage(toolpath, tool, settings, trajectory, surface, even: dict | 
     return chosen
 
 
+#: Progress steps of the plain plan a job waits for, and how often (s) it reads how far it is.
+PLAIN_STEPS, PLAIN_POLL_S = 1000, 0.25
+
+
 def _plain_wins(plain, constant, even: dict, say, undo: dict | None = None) -> bool:
     """Ask ``plain`` for the plain plan's run and judge it against the passes' ``constant`` removal
     (:func:`swath.cli.even_default.plain_if_evener`, the figures into ``even``, the run kept in
     ``even["_plain"]``); True where it removes more evenly.  ``undo``: where it wins, ``even`` is
-    first set back to these entries (what it held before the feed was chosen)."""
+    first set back to these entries (what it held before the feed was chosen).  While a plain plan
+    made beside is not ready, ``say`` hears how much of it is made (its ``share()``) every
+    :data:`PLAIN_POLL_S`: on crs_part_5 with the uniform planner the job waits about 6 s for it."""
     from . import even_default
 
-    say("the plain plan (covering spacing, flat pad, constant feed) to compare", 0, 1)
+    stage = "the plain plan (covering spacing, flat pad, constant feed) to compare"
+    share = getattr(plain, "share", None)       # made beside: how much of it is made (0 to 1)
+    say(stage, 0 if share is None else int(PLAIN_STEPS * share()), 1 if share is None else PLAIN_STEPS)
+    while share is not None and not plain.ready():
+        time.sleep(PLAIN_POLL_S)
+        say(stage, int(PLAIN_STEPS * share()), PLAIN_STEPS)
     run = plain()
     wins = even_default.plain_if_evener(run, constant, {}, feed_follows=True) is not None   # the verdict alone
     if wins and undo is not None:

@@ -319,8 +319,10 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
     if candidate_paths is not None:
         candidate_paths.update({a: _toolpath(context_args[0], layouts[a], point_spacing=point_spacing, rule="given angle")
                                 for a, _, c, _ in results if c is not None})
-    return _toolpath(context_args[0], layouts[best[0]], point_spacing=point_spacing, rule=rule,
-                     extra_meta={"candidates": candidates})
+    chosen = _toolpath(context_args[0], layouts[best[0]], point_spacing=point_spacing, rule=rule,
+                       extra_meta={"candidates": candidates})
+    say(TRYING_STAGE, steps, steps)                 # the winner's passes resampled: the last step
+    return chosen
 
 
 def coverage_floor(top: float) -> float:
