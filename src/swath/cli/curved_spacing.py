@@ -289,9 +289,9 @@ def search_progress(progress, plan: int, most: int):
     search that makes at most ``most``: each plan a step of its own, numbered (``"(plan 2, at most
     4)"``), whose percentage and time left are this plan's.  How many plans follow is not known
     while one is made (the re-plan at the least-ripple overlap and the length budget's re-plans
-    depend on it), and counted as if all were made, crs_part_5's re-plan said "about 7 min left"
-    12 s before it ended.  The working mesh's set-up (:data:`swath.plan.uniform_model.SETUP_STAGE`, with
-    its vertex count and time) is said as it comes, by the first plan: the others reuse the mesh."""
+    depend on it); counted as if all four were made, crs_part_5's re-plan said "about 7 min left"
+    12 s before it ended.  The working mesh's set-up (:data:`swath.plan.uniform_model.SETUP_STAGE`,
+    with its vertex count and time) is said as it comes, by the first plan: the others reuse it."""
     from ..plan.uniform_model import SETUP_STAGE
 
     label = f" (plan {plan}, at most {most})"

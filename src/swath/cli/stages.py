@@ -412,7 +412,7 @@ def _plain_wins(plain, constant, even: dict, say, undo: dict | None = None) -> b
     ``even["_plain"]``); True where it removes more evenly.  ``undo``: where it wins, ``even`` is
     first set back to these entries (what it held before the feed was chosen).  While a plain plan
     made beside is not ready, ``say`` hears how much of it is made (its ``share()``) every
-    :data:`PLAIN_POLL_S`: on crs_part_5 with the uniform planner the job waits about 6 s for it."""
+    :data:`PLAIN_POLL_S`: on crs_part_5 with the uniform planner the job waits 6-8 s for it."""
     from . import even_default
 
     stage = "the plain plan (covering spacing, flat pad, constant feed) to compare"
