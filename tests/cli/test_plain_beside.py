@@ -12,6 +12,7 @@ from swath.cli import even_default, stages
 from swath.cli.job import load_part_info
 from swath.cli.settings import settings_from_mapping
 from swath.core import beside
+from swath.plan.uniform import TRYING_STAGE
 
 
 @pytest.fixture
@@ -32,12 +33,17 @@ def _plain_of(planner: str):
 @pytest.mark.parametrize("planner", ["raster", "uniform"])
 def test_the_plain_plan_made_beside_is_the_one_made_here(two_cpus, planner):
     surface, tool, plain, part = _plain_of(planner)
-    here = even_default.plain_run(surface, tool, plain, part=part)
+    heard: list = []
+    here = even_default.plain_run(surface, tool, plain, part=part, progress=lambda *a: heard.append(a))
+    # the stages the child's share is read from: the uniform planner's directions, then the simulation
+    trying = [h for h in heard if h[0].startswith(TRYING_STAGE)]
+    assert (trying[-1][1] == trying[-1][2] > 0) if planner == "uniform" else not trying
+    assert heard[-1][0] == even_default.PLAIN_SIMULATING and heard[-1][1] == heard[-1][2] > 0
     surface.forget()                          # the child builds the planner's models itself
     wait = even_default.plain_beside(surface, tool, plain, part=part)
     there = wait()
-    if wait.share is not None:              # forked: the uniform planner's directions say how far it is
-        assert wait.share() == (even_default.PLAN_SHARE if planner == "uniform" else 0.0)
+    if wait.share is not None:              # forked: the planner's directions and the simulation say how far it is
+        assert wait.share() == 1.0
     assert len(there[0].passes) == len(here[0].passes) > 0
     for a, b in zip(there[0].passes, here[0].passes):
         np.testing.assert_array_equal(a.points, b.points)

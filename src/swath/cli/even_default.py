@@ -364,7 +364,7 @@ def plain_alternative(settings):
 def plain_run(surface, tool, plain, part=None, progress=None) -> tuple:
     """The plain plan (``plain``: its settings, :func:`plain_alternative`) planned, timed and
     simulated: ``(toolpath, trajectory, removal)``.  ``progress(stage, done, total)`` hears the
-    planner's steps."""
+    planner's steps, then the simulation's (:data:`PLAIN_SIMULATING`)."""
     from ..simulate import simulate_removal
     from ..trajectory import time_path
     from .job import make_plan
@@ -372,8 +372,13 @@ def plain_run(surface, tool, plain, part=None, progress=None) -> tuple:
     toolpath = make_plan(surface, plain, tool=tool, part=part, progress=progress)
     trajectory = time_path(toolpath, plain.constraints(), links=plain.links(), lead_angle=plain.lead())
     removal = simulate_removal(trajectory, surface, tool, sample_spacing=plain.sample_spacing,
-                               sampling=plain.removal_sampling)
+                               sampling=plain.removal_sampling,
+                               progress=None if progress is None else lambda d, n: progress(PLAIN_SIMULATING, d, n))
     return toolpath, trajectory, removal
+
+
+#: The progress stage of the plain plan's simulation (:func:`plain_run`).
+PLAIN_SIMULATING = "simulating the plain plan"
 
 
 def plain_beside(surface, tool, plain, *, part=None):
@@ -400,6 +405,8 @@ def plain_beside(surface, tool, plain, *, part=None):
     def told(stage: str, steps: int, total: int) -> None:       # in the child
         if done is not None and total > 0 and stage.startswith(TRYING_STAGE):
             done.value = PLAN_SHARE * steps / total
+        elif done is not None and total > 0 and stage == PLAIN_SIMULATING:
+            done.value = PLAN_SHARE + (1.0 - PLAN_SHARE) * steps / total
 
     beside = Beside(plain_run, surface, tool, plain, part, told, workers=True)
     if beside.forked:
@@ -416,7 +423,8 @@ def plain_beside(surface, tool, plain, *, part=None):
 
 
 #: The share of the plain plan's time its candidate directions take (the rest: timing and
-#: simulating the plan, about 2 s of crs_part_5's 30 s), for :func:`plain_beside`'s ``share()``.
+#: simulating the plan, about 2 s of crs_part_5's 30 s, the simulation counted), for
+#: :func:`plain_beside`'s ``share()``.
 PLAN_SHARE = 0.9
 
 
