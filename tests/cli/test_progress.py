@@ -11,6 +11,7 @@ def test_time_left_extrapolates_the_rate_so_far():
     # a quarter done in 10 s: three quarters left at that rate is 30 s
     assert _time_left(10.0, 25, 100) == ", about 30 s left"
     assert _time_left(60.0, 1, 4) == ", about 3 min left"
+    assert _time_left(20.0, 99, 100) == ", under a second left"        # 0.2 s: not "about 0 s"
 
 
 @pytest.mark.parametrize("elapsed, done, total", [(ESTIMATE_AFTER_S - 0.1, 10, 100), (20.0, 0, 100),

@@ -169,6 +169,8 @@ def _time_left(elapsed: float, done: int, total: int) -> str:
     if done <= 0 or done >= total or elapsed < ESTIMATE_AFTER_S:
         return ""
     left = elapsed * (total - done) / done
+    if left < 0.5:
+        return ", under a second left"          # not "about 0 s"
     return f", about {left:.0f} s left" if left < 120 else f", about {left / 60:.0f} min left"
 
 
