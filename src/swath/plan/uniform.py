@@ -268,8 +268,7 @@ def _auto(make_context, *, overlap, seed, point_spacing, min_pass_length, max_pa
         groups = [[a] for a in angles]      # the working mesh is built in each spawned worker, not here
     else:
         groups = _same_seed_groups(make_context(), angles, seed)
-    # progress: LAYOUT_STEPS for each layout, one for each direction's ranking and one for the winner
-    steps = LAYOUT_STEPS * len(groups) + len(angles) + 1
+    steps = _progress_steps(groups)
     say(TRYING_STAGE, 0, steps)
     if in_workers:
         rows_of = _candidates_in_workers(context_args, groups, options, cost, min(n_workers, len(groups)), say,
@@ -507,6 +506,12 @@ def _warm_before_fork(ctx: _Context, cost) -> None:
     _prepare_candidates(ctx.tool, cost)
 
 
+def _progress_steps(groups: list[list[float]]) -> int:
+    """The progress steps of laying and ranking ``groups`` (directions with the same seed):
+    :data:`LAYOUT_STEPS` for each layout, one for each direction's ranking, one for the winner."""
+    return LAYOUT_STEPS * len(groups) + sum(len(g) for g in groups) + 1
+
+
 class _PoolProgress:
     """The steps of :func:`_run_pool` done: :data:`LAYOUT_STEPS` per layout back, one per
     direction ranked, and the layouts still running counted by how long they have run against the
@@ -563,7 +568,7 @@ def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say, c
     counts :data:`LAYOUT_STEPS` steps as a layout comes back and one per direction as a ranking
     does (``LAYOUT_STEPS * groups + directions + 1`` in all, the last for the winner), the layouts
     still running by their time so far (:class:`_PoolProgress`; ``clock()``: seconds)."""
-    total, top = sum(len(g) for g in groups), -math.inf
+    top = -math.inf
     rows_of: list = [None] * len(groups)
     with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp_context, initializer=_worker_init,
                              initargs=(context_args,)) as pool:
@@ -590,7 +595,7 @@ def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say, c
                 else:
                     rows_of[rows_task[f]] = f.result()
                     done = steps.back(ranked=len(groups[rows_task[f]]))
-                say(TRYING_STAGE, done, LAYOUT_STEPS * len(groups) + total + 1)
+                say(TRYING_STAGE, done, _progress_steps(groups))
     return rows_of
 
 
