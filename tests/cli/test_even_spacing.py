@@ -96,3 +96,22 @@ def test_other_passes_or_leads_must_cover_as_much_as_the_raster():
     assert not covers_as_much(0.9890, 0.9920)        # below the 99 % warning where the raster was above it
     assert covers_as_much(0.9650, 0.9640)            # a part the raster covers less: no less than it is fine
     assert not covers_as_much(0.9630, 0.9640)
+
+
+def test_the_comparison_goes_into_the_metrics_with_every_figure_naming_its_unit():
+    # what evener_passes leaves in the plan's metadata where the equidistant passes were tried
+    # (crs_part_5's default job), beside the planner's own entries
+    from swath.cli.jobwrap import plan_figures
+    from swath.report.metrics import keys_without_unit
+
+    meta = {"spacing_m": 0.0504, "n_passes": 34, "angle_rad": 0.0, "ripple_model": "curved",
+            "spacing_spread_ratio": 1.2546, "raster_interior_removal_cov": 0.193,
+            "equidistant_interior_removal_cov": 0.150, "equidistant_kept": True, "pulled_in": [],
+            "fill_gaps": False, "plan_s": 0.1}
+    figures = plan_figures(meta, taken={"plan_s": 0.2})
+    assert figures == {"spacing_m": 0.0504, "angle_rad": 0.0, "spacing_spread_ratio": 1.2546,
+                       "raster_interior_removal_cov": 0.193, "equidistant_interior_removal_cov": 0.150,
+                       "equidistant_kept": True}
+    assert figures["equidistant_kept"] is True                      # a flag, not the number 1.0
+    assert keys_without_unit(figures) == []                          # no W-METRIC-UNIT in the job's log
+    assert plan_figures({**meta, "equidistant_kept": False}, taken={})["equidistant_kept"] is False

@@ -58,7 +58,7 @@ SPREAD_RATIO = 1.1
 #: crs_part_5: 0.150 -> 0.127 at 15°, 99.71 -> 99.56 %).
 COVERAGE_SLACK = 0.005
 
-#: The figures of :func:`evener_passes` a job's ``metrics.json`` carries (``equidistant_kept`` as 1 or 0).
+#: The figures of :func:`evener_passes` a job's ``metrics.json`` carries (``equidistant_kept`` true or false).
 FIGURES = ("spacing_spread_ratio", "raster_interior_removal_cov", "equidistant_interior_removal_cov",
            "equidistant_kept")
 

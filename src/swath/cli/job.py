@@ -552,8 +552,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.evenness import evenness_metrics
 
     metrics.update(evenness_metrics(removal, trajectory, tool))    # where the interior CoV comes from
-    metrics.update({k: float(v) for k, v in toolpath.metadata.items() if isinstance(v, (int, float)) and k not in metrics
-                    and (k in even_spacing.FIGURES or not isinstance(v, bool) and k.endswith(("_m", "_rad", "_s")))})
+    metrics.update(jobwrap.plan_figures(toolpath.metadata, metrics))     # its evenness comparison, ...
     metrics.update(timings)
     metrics.update(part_info.get("metrics", {}))
     metrics.update(extra_metrics)
