@@ -50,3 +50,24 @@ def test_coverage_just_under_the_threshold_does_not_read_as_on_it(slow_job):
     assert w.startswith("coverage is 98.96 % (below 99 %): 1.04 % of the part is never touched")
     assert not [w for w in plan_warnings(surface, tp, None, {"coverage_fraction": 0.99}, 0.05, tool.pad_radius)
                 if w.startswith("coverage")]
+
+
+def test_a_short_target_is_put_down_to_the_tolerance_where_it_holds_more_nodes_than_the_slowest_feed(slow_job):
+    """crs_part_5's uniform job: the feed reached its 5 mm/s floor at 0.2 % of the nodes, while the
+    tolerance held 47 % at their fastest; the warning used to blame the slowest feed."""
+    surface, tp, _, tool = slow_job
+    base = {"feed_target_mean_m": 3.21e-6, "feed_removal_mean_m": 2.43e-6, "feed_v_min_m_per_s": 0.005,
+            "feed_speed_min_m_per_s": 0.005}
+
+    def short(extra):
+        (w,) = [w for w in plan_warnings(surface, tp, None, {**base, **extra}, 0.05, tool.pad_radius)
+                if "optimised feed" in w]
+        return w
+
+    w = short({"feed_nodes_held_by_cap_fraction": 0.473, "feed_nodes_at_slowest_fraction": 0.0022})
+    assert "76 % of the target" in w and "47 % of the feed nodes run at their fastest" in w
+    assert "0.2 % at the slowest feed (5 mm/s)" in w and "the tolerance holds it back, not the feed" in w
+    assert "the slowest feed holds it back" not in w and "raise --depth-tolerance" in w
+    # most nodes at the slowest feed: the feed range is the cause
+    w = short({"feed_nodes_held_by_cap_fraction": 0.05, "feed_nodes_at_slowest_fraction": 0.6})
+    assert "down to 5 mm/s where needed: the slowest feed holds it back" in w and "tolerance" not in w

@@ -174,7 +174,8 @@ CODES: dict[str, WarningCode] = dict([
     entry("W-TARGET-SHORT", r"the optimised feed removes",
           "The optimised feed removes clearly less than the target depth on average: the tolerance where the "
           "removal is highest (the feed may not slow there) or the slowest allowed feed holds it back; the "
-          "message gives the slowest feed the plan uses.",
+          "message says which, with the slowest feed the plan uses or the shares of the feed nodes held at "
+          "their fastest by the tolerance and at the slowest feed.",
           "Lower the target or raise the tolerance, raise the force, plan the passes closer, or run the job "
           "more than once.", "feed"),
     entry("W-TARGET-COV-MISSED", r"--target-cov: the chosen plan reached",
