@@ -139,6 +139,11 @@ def test_the_band_line_says_which_way_and_reads_null_figures():
          "evenness_band_oblique_area_fraction": 0.0, "evenness_band_oblique_variance_fraction": 0.0,
          "evenness_band_oblique_mean_over_core_mean_ratio": None}
     line = band_line(m)
-    assert "as evenly as or more evenly than the core (-7 points" in line
+    assert "more evenly than the core (it holds 7 points less of the interior's variance than a band removed " \
+        "like the core would)" in line
     assert "beside the outermost passes 37 % of the variance on 40 % of the interior (mean 0.999" in line
     assert "oblique" not in line                                  # an empty group is left out
+    worse = band_line({**m, "evenness_band_excess_variance_fraction": 0.14})
+    assert "less evenly than the core (it holds 14 points more of the interior's variance" in worse
+    same = band_line({**m, "evenness_band_excess_variance_fraction": 0.003})
+    assert "as evenly as the core (it holds the share of the variance a band removed like the core would)" in same

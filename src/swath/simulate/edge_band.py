@@ -203,6 +203,11 @@ def band_line(m: dict) -> str:
             parts.append(f"{name} {100 * value(f'evenness_band_{g}_variance_fraction'):.0f} % of the variance on "
                          f"{100 * area:.0f} % of the interior (mean "
                          f"{value(f'evenness_band_{g}_mean_over_core_mean_ratio'):.3f} of the core's)")
-    verdict = "less evenly than" if excess > 0 else "as evenly as or more evenly than"
-    return (f"  the band is removed {verdict} the core ({100 * excess:+.0f} points of the variance against a band "
-            f"like the core): " + "; ".join(parts))
+    points = 100 * excess                       # of the interior's variance, over a band removed like the core
+    if abs(points) < 0.5:
+        verdict, held = "as evenly as", "it holds the share of the variance a band removed like the core would"
+    else:
+        verdict = "less evenly than" if points > 0 else "more evenly than"
+        held = (f"it holds {abs(points):.0f} points {'more' if points > 0 else 'less'} of the interior's variance "
+                "than a band removed like the core would")
+    return f"  the band is removed {verdict} the core ({held}): " + "; ".join(parts)
