@@ -38,6 +38,25 @@ _KINDS: dict[str, dict[str, float]] = {
     "mass": {"kg": 1.0, "g": 1e-3, "lb": 0.45359237},
 }
 
+#: The unit a message states a quantity of each kind in when the user gave none (bare numbers are
+#: read in SI, angles in degrees).
+DISPLAY_UNITS: dict[str, str] = {"length": "mm", "force": "N", "speed": "mm/s", "acceleration": "m/s^2",
+                                 "angle": "deg", "angular_speed": "rad/s", "stiffness": "MPa/m", "fraction": "%",
+                                 "frequency": "Hz", "time": "s", "mass": "kg"}
+
+
+def display_unit(text, kind: str) -> tuple[str, float]:
+    """The unit to state a ``kind`` quantity in, next to a value the user typed as ``text``: the
+    unit they wrote (when it is one of ``kind``'s), otherwise :data:`DISPLAY_UNITS`'s; returns
+    ``(unit, SI per unit)``."""
+    table = _KINDS[kind]
+    match = _NUMBER.match(str(text))
+    unit = match.group(2) if match else ""
+    if not unit or unit not in table:
+        unit = DISPLAY_UNITS.get(kind, "")
+    return unit, table.get(unit, 1.0)
+
+
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 

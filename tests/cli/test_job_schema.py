@@ -24,8 +24,11 @@ def test_a_quoted_boolean_is_refused(key):
     ({"pad_radius": "38.1"}, "pad_radius = 38.1 has no unit"),
     ({"feed": "-5mm/s"}, "feed must be positive"),
     ({"max_accel": "0m/s2"}, "max_accel must be positive"),
-    ({"overlap": "150%"}, "overlap = '150%' is out of range: [0, 0.9]"),
-    ({"force": "1e9N"}, "force = '1e9N' is out of range: at most 10000"),
+    ({"overlap": "150%"}, "overlap = '150%' is out of range: [0, 90] %"),
+    ({"force": "1e9N"}, "force = '1e9N' is out of range: at most 10000 N"),
+    ({"lead_angle": "60deg"}, "lead_angle = '60deg' is out of range: [-45, 45] deg"),    # in the unit given,
+    ({"lead_angle": "1.2rad"}, "lead_angle = '1.2rad' is out of range: [-0.785398, 0.785398] rad"),  # not SI
+    ({"lead_angle": 60}, "lead_angle = 60 is out of range: [-45, 45] deg"),              # a bare angle: degrees
     ({"overlap": "10%"}, "the raster planner does not take 'overlap'; planners that do: uniform"),
     ({"planner_options": {"spacing": "abc"}}, "planner_options.spacing"),
     ({"planner_options": {"spcing": "20mm"}}, "the raster planner does not take 'spcing'"),

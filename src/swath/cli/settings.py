@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import InputError
-from ..units import canonical_length_unit, parse_quantity
+from ..units import canonical_length_unit, display_unit, parse_quantity
 from .jobsettings import DEFAULT_LIMITS, JobSettings, _orders, _planners  # noqa: F401  (DEFAULT_LIMITS, Key: re-exported)
 from .schema import Key, schema
 
@@ -170,9 +170,12 @@ def parse_value(key: str, value, spec: Key):
     if spec.positive and not si > 0:
         raise InputError(f"{key} must be positive, got {value!r}")
     if spec.lo is not None and si < spec.lo or spec.hi is not None and si > spec.hi:
-        bounds = (f"[{spec.lo:g}, {spec.hi:g}]" if spec.lo is not None and spec.hi is not None else
-                  f"at most {spec.hi:g}" if spec.hi is not None else f"at least {spec.lo:g}")
-        raise InputError(f"{key} = {value!r} is out of range: {bounds} (SI units)")
+        # the bounds in the unit the value was given in (a lead typed in degrees is not refused in radians)
+        unit, per = display_unit(text, spec.kind)
+        lo, hi = (None if b is None else float(f"{b / per:.6g}") for b in (spec.lo, spec.hi))
+        bounds = (f"[{lo:g}, {hi:g}]" if lo is not None and hi is not None else
+                  f"at most {hi:g}" if hi is not None else f"at least {lo:g}")
+        raise InputError(f"{key} = {value!r} is out of range: {bounds}{' ' + unit if unit else ''}")
     return si
 
 
