@@ -89,6 +89,8 @@ def read_npz_mesh(path: str, *, units: str = "m") -> tuple[np.ndarray, np.ndarra
     from ..units import length_unit_factor
 
     name = Path(path).stem
+    if not Path(path).is_file():
+        raise InputError(f"{path}: no such file; check the path")
     try:
         with np.load(path) as data:
             vertices, faces = np.asarray(data["vertices"], float), np.asarray(data["faces"])

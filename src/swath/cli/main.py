@@ -430,6 +430,8 @@ def _rework_settings_from_args(args):
     from .reworkjob import ReworkSettings
     from .settings import SCHEMA, settings_from_mapping
 
+    _no_example(args.cad, "rework", "the CAD from a file (STL, PLY or OBJ)")
+    _no_example(args.scan, "rework", "the scan after the run from a file (a point cloud PLY, XYZ or PCD, or a mesh)")
     values = {k: v for k, v in vars(args).items() if k in SCHEMA and v is not None}
     tolerance = values.pop("depth_tolerance", None)
     for key in ("target_depth", "target_map", "optimise_feed"):
