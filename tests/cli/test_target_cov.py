@@ -152,3 +152,16 @@ def test_the_candidate_with_the_lead_on_the_curvature_goes_through_the_default_j
     assert lead == pytest.approx(meta["ripple_lead_rad"]) and "°)" in chosen.label
     assert chosen.interior_removal_cov == pytest.approx(tried[round(math.degrees(lead), 1)], rel=1e-12)
     assert chosen.trajectory.duration == pytest.approx(chosen.cycle_time_s)
+
+
+def test_the_summary_says_what_was_asked_what_was_chosen_and_what_it_reaches():
+    from swath.cli.target_cov import summary_line
+
+    assert summary_line({"interior_removal_cov": 0.05}) == ""                     # no --target-cov
+    rows = [{"label": "a", "simulated": True, "reached": False}, {"label": "b", "simulated": True, "reached": True},
+            {"label": "c", "simulated": False, "reached": False}]
+    line = summary_line({"target_cov": 0.06, "target_cov_choice": "raster, least-ripple spacing within 1.5 L*, lead 11°",
+                         "target_cov_candidates": rows, "interior_removal_cov": 0.0532})
+    assert line == ("  --target-cov 6 %: raster, least-ripple spacing within 1.5 L*, lead 11°, interior CoV 5.3 %: of 3 "
+                    "distinct candidate plans, the one of shortest cycle time that reaches it (2 simulated, in order "
+                    "of cycle time)")

@@ -475,6 +475,7 @@ def _summary(settings, m: dict) -> str:
     from ..simulate.edge_band import band_line
     from ..simulate.evenness import split_line
     from .even_default import summary_line
+    from .target_cov import summary_line as target_line
 
     if "n_setups" in m:
         return (f"wrote {settings.out}/metrics.json and setup_1..{m['n_setups']}/trajectory.csv, report.html\n"
@@ -491,7 +492,8 @@ def _summary(settings, m: dict) -> str:
         f"cycle time {m['cycle_time_s']:.1f} s\n"
         f"  coverage {100 * m['coverage_fraction']:.2f} %, removal CoV {m['removal_cov']:.3f}{inside}, "
         f"L* {m['coverage_lower_bound_m']:.3f} m, efficiency {m['efficiency']:.3f}"
-    ) + ("\n" + even if (even := summary_line(m)) else "") + ("\n" + split if (split := split_line(m)) else "") + (
+    ) + ("\n" + even if (even := summary_line(m)) else "") + ("\n" + target if (target := target_line(m)) else "") + (
+        "\n" + split if (split := split_line(m)) else "") + (
         "\n" + band if (band := band_line(m)) else "")
 
 

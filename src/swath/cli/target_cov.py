@@ -101,6 +101,20 @@ class SearchResult:
                 "target_cov_candidates": [c.record(target) for c in self.candidates]}
 
 
+def summary_line(m: dict) -> str:
+    """The CLI's line on a ``--target-cov`` job (``metrics.json``'s ``target_cov*`` figures), or ``""``:
+    the evenness asked, the plan chosen, what the job's trajectory reaches and how many candidates
+    were simulated."""
+    target, rows = m.get("target_cov"), m.get("target_cov_candidates")
+    if target is None or not rows:
+        return ""
+    simulated = sum(1 for r in rows if r.get("simulated"))
+    inner = m.get("interior_removal_cov")
+    got = f"interior CoV {100 * inner:.1f} %" if inner is not None and math.isfinite(inner) else "interior CoV unknown"
+    return (f"  --target-cov {100 * target:.3g} %: {m.get('target_cov_choice')}, {got}: of {len(rows)} distinct candidate plans, "
+            f"the one of shortest cycle time that reaches it ({simulated} simulated, in order of cycle time)")
+
+
 def _lead_words(lead) -> str:
     return "lead auto" if lead is None else f"lead {math.degrees(lead):.0f}°"
 
