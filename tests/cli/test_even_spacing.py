@@ -115,3 +115,16 @@ def test_the_comparison_goes_into_the_metrics_with_every_figure_naming_its_unit(
     assert figures["equidistant_kept"] is True                      # a flag, not the number 1.0
     assert keys_without_unit(figures) == []                          # no W-METRIC-UNIT in the job's log
     assert plan_figures({**meta, "equidistant_kept": False}, taken={})["equidistant_kept"] is False
+
+
+def test_trying_equidistant_passes_is_a_stage_of_four_steps_that_ends_at_all_four():
+    # passes 65 mm apart at one side narrowing to 40 mm at the other: equidistant passes are tried
+    steps = np.array([0.0, 0.065, 0.125, 0.18, 0.23, 0.275, 0.315])
+    _, spread = _axial_passes((steps - steps.mean()) / RHO)
+    settings = JobSettings(part="example:plate", out="unused", sample_spacing=0.006)
+    calls = []
+    evener_passes(spread, spread.surface, TOOL, settings, progress=lambda stage, done, total: calls.append(
+        (stage, done, total)))
+    trying = [(done, total) for stage, done, total in calls if stage.endswith("trying equidistant passes")]
+    assert trying == [(0, 4), (2, 4), (3, 4), (4, 4)]       # the plan counts two steps, each simulation one
+    assert "equidistant_kept" in spread.metadata

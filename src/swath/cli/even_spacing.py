@@ -144,7 +144,10 @@ def evener_passes(toolpath, surface, tool, settings, *, part=None, progress=None
         return toolpath, _simulated_lead(toolpath, surface, tool, settings, lead, (trajectory, removal), say,
                                          flat=True)
     spacing = float(meta["spacing_m"])
-    say(f"the raster's passes spread ({ratio:.2f}x the ripple at {spacing * 1e3:.1f} mm): trying equidistant passes", 0, 1)
+    # four steps: the plan (about as long as the two simulations together, crs_part_5: 2.2 s and
+    # 2 x 1.5 s), then each simulation, so the stage can say how long it has left
+    stage = f"the raster's passes spread ({ratio:.2f}x the ripple at {spacing * 1e3:.1f} mm): trying equidistant passes"
+    say(stage, 0, 4)
     other_settings = replace(settings, planner="equidistant", spacing=spacing, optimise_spacing=None, overlap=None,
                              lead_angle=lead, planner_options={})
     try:
@@ -153,8 +156,11 @@ def evener_passes(toolpath, surface, tool, settings, *, part=None, progress=None
         log.info("equidistant passes could not be planned (%s); the raster's stay", exc)
         return toolpath
     run_settings = replace(settings, lead_angle=lead)
+    say(stage, 2, 4)
     _, raster_removal = _constant_run(toolpath, surface, tool, run_settings)
+    say(stage, 3, 4)
     _, other_removal = _constant_run(other, surface, tool, run_settings)
+    say(stage, 4, 4)
     cov_raster = float(raster_removal.metrics["interior_removal_cov"])
     cov_other = float(other_removal.metrics["interior_removal_cov"])
     figures = {"spacing_spread_ratio": float(ratio), "raster_interior_removal_cov": cov_raster,
