@@ -38,6 +38,8 @@ _KINDS: dict[str, dict[str, float]] = {
     "mass": {"kg": 1.0, "g": 1e-3, "lb": 0.45359237},
 }
 
+_NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+
 #: The unit a message states a quantity of each kind in when the user gave none (bare numbers are
 #: read in SI, angles in degrees).
 DISPLAY_UNITS: dict[str, str] = {"length": "mm", "force": "N", "speed": "mm/s", "acceleration": "m/s^2",
@@ -55,9 +57,6 @@ def display_unit(text, kind: str) -> tuple[str, float]:
     if not unit or unit not in table:
         unit = DISPLAY_UNITS.get(kind, "")
     return unit, table.get(unit, 1.0)
-
-
-_NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
 def parse_quantity(text: str | float | int, kind: str, *, default_unit: str | None = None) -> float:

@@ -552,7 +552,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.evenness import evenness_metrics
 
     metrics.update(evenness_metrics(removal, trajectory, tool))    # where the interior CoV comes from
-    metrics.update(jobwrap.plan_figures(toolpath.metadata, metrics))     # its evenness comparison, ...
+    metrics.update(jobwrap.plan_figures(toolpath.metadata, metrics))     # the plan's own figures
     metrics.update(timings)
     metrics.update(part_info.get("metrics", {}))
     metrics.update(extra_metrics)

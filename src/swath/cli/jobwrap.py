@@ -32,7 +32,6 @@ def in_place(figures: dict, drawn) -> dict:
     return out
 
 
-
 def plan_figures(metadata: dict, taken) -> dict:
     """The figures of a plan's ``metadata`` that go into the job's ``metrics.json``, leaving out
     the names in ``taken``: the even default's comparison of raster and equidistant passes
