@@ -449,7 +449,8 @@ def _feed_for_even(toolpath, tool, settings, trajectory, surface, even: dict, co
             f"even removal: the feed is not optimised: {100 * reach['feed_reachable_variance_fraction']:.0f} % of the "
             f"interior removal variance at constant feed (CoV {reach['feed_reach_interior_cov']:.3f}) lies between "
             f"and along the passes, where a feed along them reaches, under the {100 * FEED_REACH_MIN:.3g} % it needs; "
-            "the rest is the ripple across them, and the constant feed is written [W-EVEN-FEED-SKIPPED]")
+            "the rest is the ripple across them, and the constant feed is written (--target-depth runs the feed "
+            "programme all the same) [W-EVEN-FEED-SKIPPED]")
         even.update(constant_feed_kept=True, feed_optimisation_skipped=True, _simulated=(trajectory, constant))
         return replace(settings, target_depth=depth), trajectory, None, {}
     optimised, first = _default_target_feed(toolpath, tool, replace(settings, target_depth=depth), trajectory,
