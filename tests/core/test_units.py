@@ -36,3 +36,18 @@ def test_length_unit_factor():
     assert length_unit_factor("in") == 0.0254
     with pytest.raises(InputError, match="unknown length unit 'ft'"):
         length_unit_factor("ft")
+
+
+def test_a_message_states_a_quantity_in_the_unit_it_was_given_in_or_a_readable_one():
+    from swath.units import display_unit
+
+    assert display_unit("60deg", "angle") == ("deg", pytest.approx(math.pi / 180))
+    assert display_unit("1.2rad", "angle") == ("rad", 1.0)
+    assert display_unit("60", "angle") == ("deg", pytest.approx(math.pi / 180))     # a bare angle is in degrees
+    assert display_unit("2m", "length") == ("m", 1.0)
+    assert display_unit("0.5", "length") == ("mm", 1e-3)                            # bare: SI read, mm shown
+    assert display_unit("3 in", "length") == ("in", 0.0254)
+    assert display_unit("150%", "fraction") == ("%", 0.01)
+    assert display_unit("50 m/s2", "acceleration") == ("m/s2", 1.0)
+    assert display_unit("9", "acceleration") == ("m/s^2", 1.0)
+    assert display_unit("5 furlong", "length") == ("mm", 1e-3)                      # not a unit of the kind
