@@ -47,6 +47,7 @@ from ..errors import InfeasibleError, InputError
 from .common import feed_and_cross
 from .uniform_layout import _layout, _seed_curves, _toolpath
 from .uniform_model import DEFAULT_DISTANCE_METHOD, DISTANCE_METHODS, _Context, load_touch_kernel, shared_context
+from .uniform_progress import LAYOUT_STEPS, _PoolProgress, _progress_steps
 
 log = logging.getLogger("swath.plan")
 
@@ -64,13 +65,6 @@ AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 #: The progress stage of ``direction="auto"``'s candidate directions laid and ranked (after the
 #: working mesh's set-up, :data:`swath.plan.uniform_model.SETUP_STAGE`, where it is built here).
 TRYING_STAGE = "planning (uniform): trying pass directions"
-
-#: Progress steps a layout counts for (directions with the same seed share one), against one for
-#: each direction's ranking: the layout (the heat-method generations) is most of the work.  On
-#: crs_part_5 a layout took about 9.5 s and a ranking 0.5-1 s: counted as one step each, the
-#: rankings' steps all came in the plan's last 2-3 s and the time left measured before them was
-#: several times too long.
-LAYOUT_STEPS = 9
 
 
 def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="boundary",
@@ -504,56 +498,6 @@ def _warm_before_fork(ctx: _Context, cost) -> None:
     it costs nothing."""
     ctx.warm()
     _prepare_candidates(ctx.tool, cost)
-
-
-def _progress_steps(groups: list[list[float]]) -> int:
-    """The progress steps of laying and ranking ``groups`` (directions with the same seed):
-    :data:`LAYOUT_STEPS` for each layout, one for each direction's ranking, one for the winner."""
-    return LAYOUT_STEPS * len(groups) + sum(len(g) for g in groups) + 1
-
-
-class _PoolProgress:
-    """The steps of :func:`_run_pool` done: :data:`LAYOUT_STEPS` per layout back, one per
-    direction ranked, and the layouts still running counted by how long they have run against the
-    mean time of those back (at most 0.9 of theirs).  Layouts take about the same time, and with
-    two workers they come back in pairs: counted only once back, the first of a pair halved the
-    rate the time left is read from (crs_part_5's re-plan said "about 52 s left" 11 s before it
-    ended).
-
-    ``layouts``: how many layout tasks were submitted (numbered in that order).  The first
-    ``n_workers`` start at once and each later one as a task comes back (:func:`_run_pool` queues a
-    ranking only when no layout waits).  ``clock()``: seconds."""
-
-    def __init__(self, layouts: int, n_workers: int, clock=time.perf_counter):
-        self.layouts, self.clock = layouts, clock
-        now = clock()
-        self.started = {i: now for i in range(min(n_workers, layouts))}   # layouts running: start times
-        self.queued = len(self.started)                     # the next layout to start
-        self.took: list[float] = []                         # the layouts back: their times, s
-        self.early: set[int] = set()                        # layouts back before they were seen to start
-        self.done = self.told = 0
-
-    def back(self, layout: int | None = None, ranked: int = 0) -> int:
-        """A task came back (``layout``: its index, else a ranking of ``ranked`` directions): the
-        next queued layout starts now.  Returns the steps done, never fewer than said before."""
-        now = self.clock()
-        if layout is not None:
-            if layout in self.started:
-                self.took.append(now - self.started.pop(layout))
-            else:           # back in the same batch as the task whose worker it took: its time is unknown
-                self.early.add(layout)
-            self.done += LAYOUT_STEPS
-        self.done += ranked
-        while self.queued in self.early:
-            self.queued += 1
-        if self.queued < self.layouts:
-            self.started[self.queued] = now
-            self.queued += 1
-        typical = sum(self.took) / len(self.took) if self.took else 0.0
-        running = sum(LAYOUT_STEPS * min(0.9, (now - t) / typical) for t in self.started.values()) \
-            if typical > 0 else 0.0
-        self.told = max(self.told, int(self.done + running))
-        return self.told
 
 
 def _run_pool(mp_context, context_args, groups, options, cost, n_workers, say, clock=time.perf_counter) -> list:
