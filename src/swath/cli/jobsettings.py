@@ -139,7 +139,9 @@ class JobSettings:
                           help="feed along contact passes, e.g. 50mm/s, within 1–500 mm/s")
     spacing: float | None = setting(None, "length", stage="plan", bare_max=2.0, hint="mm, e.g. 60mm", positive=True,
                                     cli=True,
-                                    help="pass spacing, e.g. 60mm (default: full coverage from the contact model)")
+                                    help="pass spacing, e.g. 60mm (default: the least-ripple spacing within "
+                                         "--length-budget, for even removal; with --constant-feed, full coverage "
+                                         "from the contact model)")
     direction: float | None = setting(None, "angle", stage="plan", auto=True,
                                       cli=Option(flags=("--direction", "--angle"), default="auto"),
                                       help="pass direction: an angle from the part's principal axis, e.g. 30deg, or "
@@ -171,7 +173,9 @@ class JobSettings:
                                    help="what the tour minimises: link and step-over time, the shortest cycle "
                                         "(default), or air length (tool turns then may cost time)")
     overlap: float | None = setting(None, "fraction", stage="plan", lo=0.0, hi=0.9, cli=True,
-                                    help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default 10%%)")
+                                    help="uniform planner: overlap of neighbouring swaths, e.g. 10%% (default: the "
+                                         "least-ripple overlap within --length-budget, for even removal; 10%% with "
+                                         "--constant-feed)")
     max_centripetal: float | None = setting(DEFAULT_LIMITS["max_centripetal"], "acceleration", stage="trajectory",
                                             off=True, positive=True, cli=True,
                                             help="limit on centripetal acceleration along passes (default 2m/s2; "
@@ -235,8 +239,9 @@ class JobSettings:
                                             "edge lifted, e.g. 7deg; auto: the angle at which half the pad presses "
                                             "on a flat part (7.0 deg for the default pad), which turns each pass's "
                                             "removal profile from a semicircle into a parabola and halves the ripple "
-                                            "between passes (default: auto; 0, z along minus the normal, with "
-                                            "--constant-feed or --target-cov)")
+                                            "between passes (default: auto, and on a curved part the lead among auto, "
+                                            "11 and 15 deg that the passes simulate evenest at; 0, z along minus the "
+                                            "normal, with --constant-feed or --target-cov)")
     feed_simulate_check: bool = setting(True, "bool", stage="feed",
                                         cli=Option(action="boolean", group="even"),
                                         help="with --optimise-feed: simulate the optimised trajectory and tighten "
