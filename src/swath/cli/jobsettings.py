@@ -239,8 +239,8 @@ class JobSettings:
                                             "edge lifted, e.g. 7deg; auto: the angle at which half the pad presses "
                                             "on a flat part (7.0 deg for the default pad), which turns each pass's "
                                             "removal profile from a semicircle into a parabola and halves the ripple "
-                                            "between passes (default: auto, and on a curved part the lead among auto, "
-                                            "11 and 15 deg that the passes simulate evenest at; 0, z along minus the "
+                                            "between passes (default: auto, and on a curved part the lead the passes "
+                                            "simulate evenest at, among 0, auto, 11 and 15 deg; 0, z along minus the "
                                             "normal, with --constant-feed or --target-cov)")
     feed_simulate_check: bool = setting(True, "bool", stage="feed",
                                         cli=Option(action="boolean", group="even"),
