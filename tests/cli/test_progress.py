@@ -1,4 +1,4 @@
-"""Progress lines: percentages, and an estimate of the time left once a step runs over 5 s."""
+"""Progress lines: percentages, and an estimate of the time left on a step that runs over 5 s."""
 
 from __future__ import annotations
 
@@ -14,10 +14,18 @@ def test_time_left_extrapolates_the_rate_so_far():
     assert _time_left(20.0, 99, 100) == ", under a second left"        # 0.2 s: not "about 0 s"
 
 
-@pytest.mark.parametrize("elapsed, done, total", [(ESTIMATE_AFTER_S - 0.1, 10, 100), (20.0, 0, 100),
+@pytest.mark.parametrize("elapsed, done, total", [(0.4 * ESTIMATE_AFTER_S, 50, 100), (20.0, 0, 100),
                                                   (20.0, 100, 100)])
-def test_no_estimate_early_before_the_first_unit_or_when_done(elapsed, done, total):
+def test_no_estimate_for_a_short_step_before_the_first_unit_or_when_done(elapsed, done, total):
+    # half done in 2 s: the step takes 4 s, under the 5 s that earn an estimate
     assert _time_left(elapsed, done, total) == ""
+
+
+def test_a_step_of_few_units_is_estimated_by_where_its_rate_leads():
+    # two of four candidate directions compared in 3 s: 6 s in all, so the line says what is left,
+    # though the step has run for less than 5 s (its next line would be its last)
+    assert 3.0 < ESTIMATE_AFTER_S < 6.0
+    assert _time_left(3.0, 2, 4) == ", about 3 s left"
 
 
 def test_progress_lines_carry_the_estimate(capsys):

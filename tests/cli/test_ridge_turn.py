@@ -92,9 +92,14 @@ def test_on_a_small_blade_the_default_plans_with_the_uniform_planner_which_remov
     settings = even_default.resolve(settings_from_mapping({"part": "example:blade", "out": "unused"}))
     tool = job_tool(settings)
     surface = blade(chord=0.15, span=0.2, max_spacing=8e-3)
+    heard: list[str] = []
     planned = curved_spacing_plan(surface, tool, get_planner("raster"), settings, planner_arguments(settings),
-                                  choose_lead=True, ridge=True)
+                                  choose_lead=True, ridge=True, progress=lambda stage, done, total: heard.append(stage))
     meta = planned.metadata
+    # the user hears the turn and the uniform planner's own steps, not seconds of silence
+    assert heard[0].startswith("the raster's feed is held round a ridge")
+    assert any(stage.startswith("planning (uniform): trying pass directions") for stage in heard)
+    assert heard[-1] == "comparing the raster's and the uniform planner's passes by their removal"
     # the raster's passes run round the nose (radius 1.1019 t² c = 2.4 mm at the apex)
     assert meta["ridge_held_fraction"] >= ridge_turn.HOLD_SHARE
     assert meta["ridge_planner"] == "uniform"

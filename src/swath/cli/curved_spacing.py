@@ -306,7 +306,7 @@ def search_progress(progress, plan: int, most: int):
 
 
 def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False,
-                        ridge: bool = False):
+                        ridge: bool = False, progress=None):
     """The job's passes at the least-ripple spacing on the part's curvature, within
     ``settings.length_budget`` times the coverage bound (module notes).
 
@@ -329,6 +329,9 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
         speed limit holds its feed round a sharp ridge and the uniform plan removes more evenly
         (:func:`swath.cli.ridge_turn.uniform_if_evener`; the plan's ``metadata["ridge_planner"]``
         then says so).
+    progress : callable, optional
+        ``progress(stage, done, total)``: hears the uniform planner's steps when a raster turns to
+        it round a ridge (the uniform planner's own re-plans hear ``arguments["progress"]``).
 
     Returns
     -------
@@ -425,5 +428,5 @@ def curved_spacing_plan(surface, tool, planner, settings, arguments: dict, *, ch
     if held is not None:
         from .ridge_turn import uniform_if_evener
 
-        return uniform_if_evener(toolpath, surface, tool, settings, held, choose_lead=choose_lead)
+        return uniform_if_evener(toolpath, surface, tool, settings, held, choose_lead=choose_lead, progress=progress)
     return toolpath

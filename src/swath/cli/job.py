@@ -291,7 +291,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
         calls: list[float] = []
         t0 = time.perf_counter()
         toolpath = spacing_plan(surface, tool, jobwrap.timed(planner, calls), settings, arguments, choose_lead=choose_lead,
-                                ridge=ridge)
+                                ridge=ridge, progress=progress)
         if timings is not None:
             # the last plan is the one kept (a search ends with the plan at the spacing chosen)
             timings["spacing_s"] = time.perf_counter() - t0 - (calls[-1] if calls else 0.0)

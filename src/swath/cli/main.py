@@ -159,14 +159,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-#: A step running longer than this (s) gets an estimate of its time left on its percentage lines.
+#: A step that runs longer than this (s), or is on its way to (its rate so far says so), gets an
+#: estimate of its time left on its percentage lines.
 ESTIMATE_AFTER_S = 5.0
 
 
 def _time_left(elapsed: float, done: int, total: int) -> str:
     """``", about 12 s left"``: the rest of a step at the rate of its first ``done`` of ``total``
-    units (``elapsed`` s); ``""`` before the first unit, once done, or before :data:`ESTIMATE_AFTER_S`."""
-    if done <= 0 or done >= total or elapsed < ESTIMATE_AFTER_S:
+    units (``elapsed`` s); ``""`` before the first unit, once done, or for a step whose length at
+    that rate stays under :data:`ESTIMATE_AFTER_S`.  A step of few units (four candidate
+    directions) may pass 5 s between two of its lines: it is judged by where its rate leads, not
+    by the time it has run."""
+    if done <= 0 or done >= total or elapsed * total / done < ESTIMATE_AFTER_S:
         return ""
     left = elapsed * (total - done) / done
     if left < 0.5:

@@ -165,7 +165,7 @@ def constant_feed_cov(toolpath, surface, tool, settings) -> float:
     return float(removal.metrics["interior_removal_cov"])
 
 
-def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_lead: bool = False):
+def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_lead: bool = False, progress=None):
     """The raster plan ``toolpath``, or the uniform planner's least-ripple plan of the part when the
     angular speed limit holds the raster's feed round a ridge and the uniform plan removes more
     evenly (module notes).
@@ -183,6 +183,10 @@ def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_l
         :func:`held_share` of the raster's first plan.
     choose_lead : bool
         The default job chose the lead: the uniform plan chooses it on the part's curvature too.
+    progress : callable, optional
+        ``progress(stage, done, total)``: a stage line when the uniform planner is tried, then the
+        uniform planner's steps (its working mesh, candidate directions and re-plans: 8 s of the
+        blade's 11 s spacing search), then the two plans' simulations.
 
     Returns
     -------
@@ -211,9 +215,12 @@ def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_l
              settings.max_angular, 1e3 * held["held_feed_m_per_s"], 100 * held["held_share"],
              1e3 * held["held_radius_m"])
     uniform = replace(settings, planner="uniform")
+    if progress is not None:
+        progress(f"the raster's feed is held round a ridge ({1e3 * held['held_radius_m']:.0f} mm radius): "
+                 "trying the uniform planner", 0, 1)
     try:
-        planned = curved_spacing_plan(surface, tool, get_planner("uniform"), uniform, planner_arguments(uniform),
-                                      choose_lead=choose_lead)
+        planned = curved_spacing_plan(surface, tool, get_planner("uniform"), uniform,
+                                      planner_arguments(uniform, progress=progress), choose_lead=choose_lead)
     except InputError as exc:           # raster options the uniform planner does not take: the raster stays
         log.info("the uniform planner cannot take this job (%s): the raster stays", exc)
         return toolpath
@@ -225,6 +232,8 @@ def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_l
         log.info("the uniform planner's passes are held over %.1f %% of their contact length: the raster stays",
                  100 * turned)
         return toolpath
+    if progress is not None:
+        progress("comparing the raster's and the uniform planner's passes by their removal", 0, 1)
     cov_raster = constant_feed_cov(toolpath, surface, tool, settings)
     cov_uniform = constant_feed_cov(planned, surface, tool, settings)
     figures.update(ridge_raster_cov_fraction=cov_raster, ridge_uniform_cov_fraction=cov_uniform)

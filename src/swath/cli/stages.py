@@ -228,7 +228,8 @@ def job_target(settings):
     return target, tolerance
 
 
-def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False, ridge: bool = False):
+def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_lead: bool = False, ridge: bool = False,
+                 progress=None):
     """Raster passes placed by ``settings.optimise_spacing``: ``ripple`` plans the raster at the
     spacing whose summed pad cross-profiles, on the part's representative curvature and at the
     job's lead, are flattest within the length budget, or the uniform planner at the overlap that
@@ -237,14 +238,16 @@ def spacing_plan(surface, tool, planner, settings, arguments: dict, *, choose_le
     ``greedy`` and ``joint`` place the planes against the
     job's target depth (:func:`swath.feed.greedy_offsets`, :func:`swath.feed.joint_spacing`) in the
     raster's direction (its automatic choice when none is given).  The feed stage then optimises
-    the feed along these passes."""
+    the feed along these passes.  ``progress(stage, done, total)`` hears the uniform planner's
+    steps where a raster turns to it round a ridge."""
     from ..feed import greedy_offsets, joint_spacing
 
     method = settings.optimise_spacing
     if method == "ripple":
         from .curved_spacing import curved_spacing_plan
 
-        return curved_spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead, ridge=ridge)
+        return curved_spacing_plan(surface, tool, planner, settings, arguments, choose_lead=choose_lead, ridge=ridge,
+                                   progress=progress)
     direction = arguments.get("direction")
     if direction is None:
         direction = planner(surface, tool, **arguments).metadata["angle_rad"]
