@@ -83,3 +83,20 @@ def test_the_metrics_name_their_units(plate):
     m = evenness_metrics(RemovalMap(samples, np.full(len(samples.vertices), 1e-6)), trajectory, tool)
     assert m and keys_without_unit(m) == []
     assert m["evenness_interior_cov"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_part_whose_interior_is_all_band_says_so_instead_of_splitting_nothing(plate):
+    # a band wider than the plate's half-width: no sample is farther than R + band from the edge,
+    # as on a scan full of holes (noether_raw_mesh), whose line used to read "nan % is the ripple"
+    from swath.simulate.evenness import split_line
+
+    tool, trajectory, samples, *_ = plate
+    rng = np.random.default_rng(3)
+    depth = 1e-6 * (1 + 0.05 * rng.standard_normal(len(samples.vertices)))
+    s = evenness_split(RemovalMap(samples, depth), trajectory, tool, spacing=SPACING, band_width=1.0)
+    assert s["band_area_fraction"] == 1.0 and np.isnan(s["core_cov"])
+    line = split_line({f"evenness_{k}": v for k, v in s.items()})
+    assert "nan" not in line
+    assert line.startswith(f"  interior CoV {s['interior_cov']:.3f}: every interior sample lies within one spacing (50 mm)")
+    # the job's metrics.json holds the missing figures as null: the same line
+    assert split_line({f"evenness_{k}": (None if isinstance(v, float) and np.isnan(v) else v) for k, v in s.items()}) == line

@@ -204,6 +204,12 @@ def split_line(m: dict) -> str:
     """The CLI's line on where the interior CoV comes from (``evenness_*`` metrics), or ``""``."""
     if not np.isfinite(m.get("evenness_interior_cov", float("nan"))):
         return ""
+    core = m.get("evenness_core_cov")
+    if core is None or not np.isfinite(core):
+        # no core: every interior sample lies in the band (a scan's holes and ragged edge, noether_raw_mesh)
+        return (f"  interior CoV {m['evenness_interior_cov']:.3f}: every interior sample lies within one spacing "
+                f"({1e3 * m['evenness_split_spacing_m']:.0f} mm) of the interior's edge (holes or a ragged boundary), "
+                "so there is no core to split into the ripple across the passes, along them and between them")
     share = {k: 100 * m[f"evenness_{k}_variance_fraction"] for k in
              ("within_cells", "along_passes", "between_passes", "band")}
     return (f"  interior CoV {m['evenness_interior_cov']:.3f}: of its variance {share['within_cells']:.0f} % is the ripple "
