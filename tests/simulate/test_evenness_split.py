@@ -85,18 +85,24 @@ def test_the_metrics_name_their_units(plate):
     assert m["evenness_interior_cov"] == pytest.approx(0.0, abs=1e-9)
 
 
-def test_a_part_whose_interior_is_all_band_says_so_instead_of_splitting_nothing(plate):
+def test_a_part_whose_interior_is_all_band_is_split_by_its_passes_as_a_whole(plate):
     # a band wider than the plate's half-width: no sample is farther than R + band from the edge,
-    # as on a scan full of holes (noether_raw_mesh), whose line used to read "nan % is the ripple"
+    # as on a part of holes and narrow strips (the hub, noether_raw_mesh), whose line used to read
+    # "nan % is the ripple across the passes"
     from swath.simulate.evenness import split_line
 
-    tool, trajectory, samples, *_ = plate
-    rng = np.random.default_rng(3)
-    depth = 1e-6 * (1 + 0.05 * rng.standard_normal(len(samples.vertices)))
+    tool, trajectory, samples, along, across, y0 = plate
+    y = samples.vertices @ across - y0
+    depth = 1e-6 * (1 + 0.1 * np.cos(2 * np.pi * y / SPACING))       # the ripple of the first test
     s = evenness_split(RemovalMap(samples, depth), trajectory, tool, spacing=SPACING, band_width=1.0)
-    assert s["band_area_fraction"] == 1.0 and np.isnan(s["core_cov"])
+    assert s["band_area_fraction"] == 1.0
+    assert np.isnan(s["core_cov"]) and np.isnan(s["band_variance_fraction"])
+    parts = [s[f"{k}_variance_fraction"] for k in ("between_passes", "along_passes", "within_cells")]
+    assert sum(parts) == pytest.approx(1.0, abs=1e-9)         # the passes split the whole interior
+    assert s["within_cells_variance_fraction"] > 0.88
     line = split_line({f"evenness_{k}": v for k, v in s.items()})
     assert "nan" not in line
     assert line.startswith(f"  interior CoV {s['interior_cov']:.3f}: every interior sample lies within one spacing (50 mm)")
+    assert f"{100 * s['within_cells_variance_fraction']:.0f} % is the ripple across the passes" in line
     # the job's metrics.json holds the missing figures as null: the same line
     assert split_line({f"evenness_{k}": (None if isinstance(v, float) and np.isnan(v) else v) for k, v in s.items()}) == line

@@ -113,7 +113,10 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
         ``within_cells_variance_fraction`` (the four fractions add to 1), the same as CoVs
         (``band_cov``, ``between_passes_cov``, ``along_passes_cov``, ``within_cells_cov``:
         ``sqrt(part of V) / μ``), ``across_profile_cov``, ``band_mean_over_core_mean_ratio`` and
-        ``split_spacing_m``.  NaN figures when the interior is empty.
+        ``split_spacing_m``.  NaN figures when the interior is empty.  When no interior sample
+        lies beyond the band (``band_area_fraction`` 1), the passes split the whole interior: the
+        three pass figures add to 1, and ``band_variance_fraction``, ``band_cov``, ``core_cov``
+        and ``band_mean_over_core_mean_ratio`` are NaN.
     """
     from .ripple import pass_period
 
@@ -147,14 +150,17 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
     ab, zb = a[~in_core], z[~in_core]
     out["band_area_fraction"] = float(ab.sum() / total_w)
     vb = float(np.sum(ab * (zb - mu) ** 2) / total_w)
-    ac, zc = a[in_core], z[in_core]
-    if not ac.sum() > 0:
-        return out
-    cidx = idx[in_core]
+    # no core (every interior sample within the band: a part of holes and narrow strips, the hub,
+    # noether_raw_mesh): the passes split the whole interior, and the band's figures stay NaN
+    no_core = not a[in_core].sum() > 0
+    split = np.ones(len(idx), bool) if no_core else in_core
+    ac, zc = a[split], z[split]
+    cidx = idx[split]
     kpass, travel, offset = _label_samples(samples.vertices[cidx], samples.normals[cidx], trajectory)
     mu_c = float(np.average(zc, weights=ac))
-    out["core_cov"] = float(np.sqrt(_weighted_var(zc, ac, mu_c)) / mu_c)
-    out["band_mean_over_core_mean_ratio"] = float(np.average(zb, weights=ab) / mu_c) if ab.sum() > 0 else nan
+    if not no_core:
+        out["core_cov"] = float(np.sqrt(_weighted_var(zc, ac, mu_c)) / mu_c)
+        out["band_mean_over_core_mean_ratio"] = float(np.average(zb, weights=ab) / mu_c) if ab.sum() > 0 else nan
     # the core's share of V (about the interior mean), split by the law of total variance
 
     def group_means(key):
@@ -173,7 +179,8 @@ def evenness_split(removal, trajectory, tool, *, spacing: float | None = None,
     along = float(np.sum(ac * (cell_mean - pass_mean) ** 2) / total_w)
     within = float(np.sum(ac * (zc - cell_mean) ** 2) / total_w)
     # between + along + within = core_share exactly (nested groups); the band's share is vb
-    for name, part in (("band", vb), ("between_passes", between), ("along_passes", along), ("within_cells", within)):
+    parts = (("between_passes", between), ("along_passes", along), ("within_cells", within))
+    for name, part in parts if no_core else (("band", vb),) + parts:
         out[f"{name}_variance_fraction"] = part / V if V > 0 else nan
         out[f"{name}_cov"] = float(np.sqrt(max(part, 0.0)) / mu)
     lateral = np.clip(np.floor((offset / d + 0.5) * bins), 0, bins - 1).astype(np.int64)
@@ -202,17 +209,21 @@ def evenness_metrics(removal, trajectory, tool) -> dict:
 
 def split_line(m: dict) -> str:
     """The CLI's line on where the interior CoV comes from (``evenness_*`` metrics), or ``""``."""
-    if not np.isfinite(m.get("evenness_interior_cov", float("nan"))):
+
+    def share(key: str) -> float:                  # per cent of the variance; NaN where not split
+        value = m.get(f"evenness_{key}_variance_fraction")
+        return float("nan") if value is None else 100 * value
+
+    cov = m.get("evenness_interior_cov")
+    if cov is None or not np.isfinite(cov) or not np.isfinite(share("within_cells")):
         return ""
+    passes = (f"{share('within_cells'):.0f} % is the ripple across the passes, {share('along_passes'):.0f} % along "
+              f"them, {share('between_passes'):.0f} % between passes")
     core = m.get("evenness_core_cov")
     if core is None or not np.isfinite(core):
-        # no core: every interior sample lies in the band (a scan's holes and ragged edge, noether_raw_mesh)
-        return (f"  interior CoV {m['evenness_interior_cov']:.3f}: every interior sample lies within one spacing "
-                f"({1e3 * m['evenness_split_spacing_m']:.0f} mm) of the interior's edge (holes or a ragged boundary), "
-                "so there is no core to split into the ripple across the passes, along them and between them")
-    share = {k: 100 * m[f"evenness_{k}_variance_fraction"] for k in
-             ("within_cells", "along_passes", "between_passes", "band")}
-    return (f"  interior CoV {m['evenness_interior_cov']:.3f}: of its variance {share['within_cells']:.0f} % is the ripple "
-            f"across the passes, {share['along_passes']:.0f} % along them, {share['between_passes']:.0f} % between "
-            f"passes, {share['band']:.0f} % the band one spacing inside the edge (CoV without it "
-            f"{m['evenness_core_cov']:.3f})")
+        # no core: every interior sample lies in the band (the hub's holes, noether_raw_mesh's ragged scan)
+        return (f"  interior CoV {cov:.3f}: every interior sample lies within one spacing "
+                f"({1e3 * m['evenness_split_spacing_m']:.0f} mm) of the interior's edge (holes or a ragged "
+                f"boundary); of its variance {passes}")
+    return (f"  interior CoV {cov:.3f}: of its variance {passes}, {share('band'):.0f} % the band one spacing inside "
+            f"the edge (CoV without it {core:.3f})")
