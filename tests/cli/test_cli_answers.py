@@ -254,7 +254,9 @@ def test_the_report_summary_shows_the_headline_and_folds_the_rest():
     metrics = dict(coverage_fraction=0.995, interior_removal_cov=0.134, removal_cov=0.151, cycle_time_s=85.21,
                    contact_length_m=3.341, air_length_m=0.5413, coverage_lower_bound_m=2.944, efficiency=0.8812,
                    n_passes=6, plan_s=27.9, simulate_s=1.6, softer_pad_removal_cov=0.14,
-                   ripple_pv_m=1.42e-6, ripple_rms_m=5.3e-7, warnings=["a warning"])
+                   ripple_pv_m=1.42e-6, ripple_rms_m=5.3e-7, warnings=["a warning"],
+                   evenness_within_cells_variance_fraction=0.484, evenness_along_passes_variance_fraction=0.012,
+                   evenness_between_passes_variance_fraction=0.003, evenness_band_variance_fraction=0.501)
     settings = {"part": "example:plate", "plan": {"candidates": [{"direction_deg": float(d), "cost": 100.0 + d}
                                                                  for d in range(0, 180, 30)]}}
     text = report_html_text(surface=flat_plate(spacing=0.02), metrics=metrics, settings=settings)
@@ -267,12 +269,25 @@ def test_the_report_summary_shows_the_headline_and_folds_the_rest():
     assert re.search(r"warnings</td><td class='num'><b>1</b>", headline)
     # the mid-spatial ripple across the passes, peak to valley and rms, next to the interior CoV
     assert re.search(r"ripple across the passes</td><td class='num'><b>1\.42 µm</b> \(rms 530 nm\)", headline)
+    # and where the interior CoV comes from, as the CLI's line says it
+    assert re.search(r"where it comes from</td><td class='num'>across 48 % · along 1 % · between 0 % · band 50 %<",
+                     headline)
     # internal timings and the rest are folded, with the settings
     assert "plan_s" not in headline and "plan_s" in folded and "softer_pad_removal_cov" in folded
-    assert folded.startswith("<summary>All metrics (14) and settings</summary>") and "example:plate" in folded
+    assert folded.startswith("<summary>All metrics (18) and settings</summary>") and "example:plate" in folded
     # long values wrap inside their box instead of widening the page
     assert "overflow-wrap:anywhere" in text and "white-space:nowrap}" not in text.replace(
         "table.headline td.num{white-space:nowrap}", "")
+
+
+def test_the_report_states_the_split_without_a_band_where_a_part_has_no_core_and_nothing_without_a_split():
+    from swath.report.html import _split_text
+
+    no_core = dict(evenness_within_cells_variance_fraction=0.69, evenness_along_passes_variance_fraction=0.13,
+                   evenness_between_passes_variance_fraction=0.18, evenness_band_variance_fraction=None)
+    assert _split_text(no_core) == "across 69 % · along 13 % · between 18 %"        # the hub's
+    assert _split_text({**no_core, "evenness_within_cells_variance_fraction": None}) == ""
+    assert _split_text({}) == ""
 
 
 def test_an_option_of_swath_itself_after_the_subcommand_says_where_it_goes(capsys):

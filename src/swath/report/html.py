@@ -13,6 +13,7 @@ import datetime as _dt
 import html as _html
 import json
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -323,6 +324,21 @@ HEADLINE = (
 )
 
 
+def _split_text(metrics: dict) -> str:
+    """The shares of the interior variance by cause (``evenness_*_variance_fraction``, as the CLI's
+    line states them), e.g. ``"across 48 % · along 1 % · between 0 % · band 51 %"``; ``""`` where
+    the job has no split.  A part with no core (every interior sample in the band) has no band share."""
+    def share(key: str) -> float:
+        value = metrics.get(f"evenness_{key}_variance_fraction")
+        return float("nan") if value is None else 100.0 * float(value)
+
+    parts = [("across", share("within_cells")), ("along", share("along_passes")),
+             ("between", share("between_passes")), ("band", share("band"))]
+    if not all(math.isfinite(v) for _, v in parts[:3]):
+        return ""
+    return " · ".join(f"{name} {v:.0f} %" for name, v in parts if math.isfinite(v))
+
+
 def _headline_html(metrics: dict) -> str:
     """The figures a user reads first, one row each, with the warnings count."""
     esc = _html.escape
@@ -337,6 +353,11 @@ def _headline_html(metrics: dict) -> str:
             rows.append(f"<tr><td>ripple across the passes</td><td class='num'><b>{esc(pv)}</b> "
                         f"(rms {esc(rms)})</td><td class='why'>mid-spatial ripple: the removal's rise and fall "
                         "from pass to pass, peak to valley (median over lines across the passes)</td></tr>")
+        if key == "interior_removal_cov" and (split := _split_text(metrics)):
+            rows.append(f"<tr><td>where it comes from</td><td class='num'>{esc(split)}</td><td class='why'>the "
+                        "interior's variance by cause: the spacing and the lead set the ripple across the passes, "
+                        "the feed what varies along and between them, the edge passes the band within one "
+                        "spacing of the interior's edge</td></tr>")
         if key == "contact_length_m" and metrics.get("coverage_lower_bound_m"):
             ratio = float(metrics[key]) / float(metrics["coverage_lower_bound_m"])
             rows.append(f"<tr><td>L / L*</td><td class='num'><b>{ratio:.3f}</b></td>"
