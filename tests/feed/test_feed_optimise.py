@@ -173,6 +173,34 @@ def test_accel_sweep_makes_a_sharp_cap_feasible():
     assert p[49] > p_ref and p[51] > p_ref
 
 
+def test_acceleration_rows_linearised_at_the_fastest_profile_let_it_run_as_the_timing_does():
+    """A pass accelerating from rest at 0.05 m/s² under a 0.4 m/s feed limit: v² = v0² + 2 a s.
+    The rows linearised at 1 / v_max (p³'s tangent there) lie far below p³ at the paces of the
+    ramp, and the sweep held it under 50 mm/s; linearised at the ramp's own paces they let it
+    reach 90 % of its speed, and they still never allow a faster change than p³ does."""
+    from types import SimpleNamespace
+
+    from swath.feed.caps import accel_feasible_pace, row_reference_pace
+
+    a_t, v_max, step = 0.05, 0.4, 5e-3
+    s = np.arange(0.0, 0.2, step) + 0.5 * step
+    ramp = np.sqrt(0.02**2 + 2 * a_t * s)                             # 20 mm/s at the start, 141 mm/s at 0.2 m
+    nodes = SimpleNamespace(pass_index=np.zeros(len(s), int), s_mid=s)
+    at_limit = 1 / accel_feasible_pace(1 / ramp, nodes, a_t, 1 / v_max)
+    at_ramp = 1 / accel_feasible_pace(1 / ramp, nodes, a_t, 1 / ramp)
+    assert at_limit.max() < 0.05
+    assert at_ramp.min() >= 0.9 * ramp.min() and (at_ramp >= 0.9 * ramp).mean() > 0.5
+    assert (at_ramp <= ramp * (1 + 1e-12)).all()                     # never faster than the caps
+    # a row holds at both nodes; at the faster one (pace p_f >= its reference p0) it allows
+    # a_t Δs p0² (3 p_f - 2 p0), the tangent, at most a_t Δs p_f³: never more than p³ there allows
+    p = 1 / at_ramp
+    p0 = row_reference_pace(1 / ramp, len(s))
+    assert (np.abs(np.diff(p)) <= a_t * step * np.minimum(p[:-1], p[1:]) ** 3 * (1 + 1e-9)).all()
+    assert p0 == pytest.approx(np.minimum(1 / ramp[:-1], 1 / ramp[1:]))
+    with pytest.raises(InputError, match="one pace or one per node"):
+        row_reference_pace(np.ones(3), len(s))
+
+
 def test_thin_rows_keeps_each_cells_peak_when_scored(plate):
     """With a score, the row kept in each grid cell is the cell's highest-scoring sample; the
     weights (cell areas) add up to the region's area either way."""

@@ -77,10 +77,11 @@ def node_speed_caps(toolpath: ToolPath, nodes, constraints, *, heading_scale: fl
     return caps
 
 
-def accel_feasible_pace(p_min: np.ndarray, nodes, a_t: float, p_ref: float) -> np.ndarray:
+def accel_feasible_pace(p_min: np.ndarray, nodes, a_t: float, p_ref) -> np.ndarray:
     """The smallest pace ``(n,)`` (s/m) at or above ``p_min`` that meets the linearised acceleration
     rows of the feed programme between neighbouring nodes of a pass,
-    ``|p_j − p_i| <= c (3 p_k − 2 p_ref)`` for ``k`` in ``{i, j}``, ``c = a_t Δc p_ref²``.
+    ``|p_j − p_i| <= c (3 p_k − 2 p0)`` for ``k`` in ``{i, j}``, ``c = a_t Δc p0²``, ``p0`` the
+    row's reference pace (:func:`row_reference_pace` of ``p_ref``: a scalar, or one per node).
 
     A forward and a backward sweep raise the pace ahead of (and behind) every node where a cap
     forces a slow-down, as :func:`swath.trajectory.timing.speed_profile` does for ``v²``; without it
@@ -88,16 +89,37 @@ def accel_feasible_pace(p_min: np.ndarray, nodes, a_t: float, p_ref: float) -> n
     """
     p = np.asarray(p_min, float).copy()
     same = nodes.pass_index[1:] == nodes.pass_index[:-1]
-    c = a_t * np.diff(nodes.s_mid) * p_ref**2
+    p0 = row_reference_pace(p_ref, len(p))
+    c = a_t * np.diff(nodes.s_mid) * p0**2
 
-    def need(prev, ci):
+    def need(prev, ci, ri):
         # lower bound on the neighbour's pace from both forms of the row
-        return max((prev + 2 * ci * p_ref) / (1 + 3 * ci), prev * (1 - 3 * ci) + 2 * ci * p_ref)
+        return max((prev + 2 * ci * ri) / (1 + 3 * ci), prev * (1 - 3 * ci) + 2 * ci * ri)
 
     for i in range(len(p) - 1):                       # forward: slow down after a slow node
         if same[i]:
-            p[i + 1] = max(p[i + 1], need(p[i], c[i]))
+            p[i + 1] = max(p[i + 1], need(p[i], c[i], p0[i]))
     for i in range(len(p) - 2, -1, -1):               # backward: slow down before a slow node
         if same[i]:
-            p[i] = max(p[i], need(p[i + 1], c[i]))
+            p[i] = max(p[i], need(p[i + 1], c[i], p0[i]))
     return p
+
+
+def row_reference_pace(p_ref, n: int) -> np.ndarray:
+    """The pace ``(n - 1,)`` (s/m) each acceleration row between nodes ``i`` and ``i + 1`` is
+    linearised at: ``p_ref`` where it is one number, else the smaller (faster) of the two nodes'
+    ``p_ref[i]`` and ``p_ref[i + 1]`` (one per node, ``(n,)``).
+
+    ``p³`` lies above every tangent of it, so a row is safe whatever its reference; it is exact at
+    the reference and looser the nearer the reference lies to the paces the programme runs at.  The
+    programme never runs a node faster than its fastest pace, so the fastest feasible profile is the
+    tightest reference it can use: at ``1 / v_max`` for all rows, a slow acceleration limit under a
+    high feed limit (``--feed 400mm/s --max-accel 0.05m/s2`` on the plate) held every node at 47 mm/s
+    or less where the timing reaches 140 mm/s, and the programme then removed a third more than the
+    target."""
+    ref = np.asarray(p_ref, float)
+    if ref.ndim == 0:
+        return np.full(max(n - 1, 0), float(ref))
+    if ref.shape != (n,):
+        raise InputError(f"p_ref must be one pace or one per node ({n}), got shape {ref.shape}")
+    return np.minimum(ref[:-1], ref[1:])

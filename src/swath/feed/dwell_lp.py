@@ -25,8 +25,12 @@ MODES = ("match", "max_removal")
 OBJECTIVES = ("l1", "minimax")
 
 
-def _accel_rows(nodes, a_t: float, p_ref: float):
-    """Rows ``G t <= h`` of the linearised tangential-acceleration limit between neighbouring nodes."""
+def _accel_rows(nodes, a_t: float, p_ref):
+    """Rows ``G t <= h`` of the linearised tangential-acceleration limit between neighbouring nodes,
+    each linearised at its reference pace (:func:`swath.feed.caps.row_reference_pace` of ``p_ref``,
+    s/m: one number or one per node)."""
+    from .caps import row_reference_pace
+
     same = nodes.pass_index[1:] == nodes.pass_index[:-1]
     i = np.flatnonzero(same)
     if len(i) == 0:
@@ -34,6 +38,7 @@ def _accel_rows(nodes, a_t: float, p_ref: float):
     j = i + 1
     L = nodes.length
     dc = nodes.s_mid[j] - nodes.s_mid[i]
+    p_ref = row_reference_pace(p_ref, len(nodes))[i]
     c = a_t * dc * p_ref**2                       # |p_j - p_i| <= c (3 p_k - 2 p_ref), k in {i, j}
     rows, cols, vals, rhs = [], [], [], []
     r = 0
@@ -53,13 +58,14 @@ def _accel_rows(nodes, a_t: float, p_ref: float):
             rhs.append(-2 * c * p_ref)
             r += n
     G = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r, len(nodes)))
-    # scale each row to pace units of the reference pace
-    return G / p_ref, np.concatenate(rhs) / p_ref
+    # scale each row to pace units of its reference pace
+    scale = 1.0 / np.tile(p_ref, 4)
+    return sp.diags(scale) @ G, np.concatenate(rhs) * scale
 
 
 def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: np.ndarray,
                 t_max: np.ndarray, region: np.ndarray, mode: str = "match", objective: str = "l1",
-                a_t: float | None = None, v_max: float | None = None, time_limit: float = 600.0,
+                a_t: float | None = None, v_max: float | None = None, accel_ref=None, time_limit: float = 600.0,
                 smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6,
                 time_weight: float = 1e-3, cap_rows: np.ndarray | None = None, found: dict | None = None,
                 slack=0.0, on_solve=None):
@@ -79,6 +85,9 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     solve: a later solve of the same kernel with other caps (the simulated rounds of
     :func:`~swath.feed.optimise.optimise_feed`) given them back skips the rounds that would find
     them again (crs_part_5: six solves of 5-8 s each per call).
+
+    ``accel_ref`` (s/m, one per node ``(n,)``): the paces the acceleration rows are linearised at
+    (:func:`swath.feed.caps.row_reference_pace`; default ``1 / v_max`` for every row).
 
     ``slack`` (m, a scalar or one per kernel sample ``(S,)``): the rounds stop once no thinned-out
     sample is over its cap by more than this (never less than a thousandth of the largest
@@ -114,7 +123,8 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
         if on_solve is not None:
             on_solve()
         dwell, status = _solve(kernel, target, tolerance=tolerance, t_min=t_min, t_max=t_max, region=region,
-                               mode=mode, objective=objective, a_t=a_t, v_max=v_max, time_limit=time_limit,
+                               mode=mode, objective=objective, a_t=a_t, v_max=v_max, accel_ref=accel_ref,
+                               time_limit=time_limit,
                                smoothing=smoothing, method=method, max_rows=max_rows, cap_rows=full[extra],
                                time_weight=time_weight)
         over = K_full @ dwell - cap
@@ -138,6 +148,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
 
 def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, t_min: np.ndarray,
            t_max: np.ndarray, region: np.ndarray, mode: str, objective: str, a_t, v_max, time_limit: float,
+           accel_ref=None,
            smoothing: float, method, max_rows: int, cap_rows: np.ndarray, time_weight: float = 0.0):
     """One solve of the programme on the thinned region rows plus the extra ``cap_rows``: ``(dwell, status)``.
 
@@ -179,7 +190,7 @@ def _solve(kernel: RemovalKernel, target: np.ndarray, *, tolerance: np.ndarray, 
     G = sp.csr_matrix((0, n))
     h = np.zeros(0)
     if a_t is not None and v_max is not None:
-        G, h = _accel_rows(kernel.nodes, a_t, 1.0 / v_max)
+        G, h = _accel_rows(kernel.nodes, a_t, 1.0 / v_max if accel_ref is None else accel_ref)
     if len(cap_rows):
         G = sp.vstack([G, K[cap_rows] / _DEPTH_UNIT]).tocsr()
         h = np.concatenate([h, (target[cap_rows] + tolerance[cap_rows]) / _DEPTH_UNIT])

@@ -13,8 +13,10 @@ Constraints (all linear in ``t``)
   (touched samples at least ``boundary_margin`` from the open boundary);
 * tangential acceleration ``|dv/dt| <= a_t``: with the pace ``p = 1/v = t/Δs``, ``dv/dt = −p'/p³``, so
   ``|p_{i+1} − p_i| <= a_t Δc p³`` between neighbouring nodes ``Δc`` apart.  ``p³`` is replaced by its
-  tangent at ``p_ref = 1 / v_max`` (below ``p³`` for every ``p >= p_ref``), written at both nodes:
-  a conservative linearisation.
+  tangent at a reference pace ``p0`` (below ``p³`` for every ``p > 0``), written at both nodes: a
+  conservative linearisation.  Each row's ``p0`` is the faster of its two nodes' fastest paces
+  (the timed fastest profile; :func:`~swath.feed.caps.row_reference_pace`), so the rows are exact
+  where the programme runs fastest and hold it back little where it slows down.
 
 Objectives
 ----------
@@ -481,10 +483,13 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         caps = np.clip(np.minimum(caps, nodes.length / np.maximum(floor, 1e-12)), v_min, v_max)
     t_min, t_max = nodes.length / caps, nodes.length / v_min
     tl = cons.get(TangentialAccelLimit)
+    # the acceleration rows are linearised at the fastest pace each node can run at (the timing's
+    # own floor where it was timed): tangents of p³ there, exact at the fastest profile
+    accel_ref = np.maximum(1.0 / caps, 1.0 / v_max)
     if tl is not None:
         # the fastest profile that meets the linearised acceleration rows (else a sharp cap next to
         # a free node leaves the programme infeasible)
-        pace = np.minimum(accel_feasible_pace(1.0 / caps, nodes, tl.a_t, 1.0 / v_max), 1.0 / v_min)
+        pace = np.minimum(accel_feasible_pace(1.0 / caps, nodes, tl.a_t, accel_ref), 1.0 / v_min)
         t_min = nodes.length * pace
         caps = 1.0 / pace
     touched = np.diff(kernel.matrix.tocsr().indptr) > 0
@@ -521,8 +526,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     # from the first caps: the simulated rounds only tighten them, so it stays within the tolerance
     slack = round_slack * np.maximum(target_s + tolerance - cap, 0.0)
     solve_kw = dict(t_min=t_min, t_max=t_max, region=region, mode=mode, objective=objective,
-                    a_t=None if tl is None else tl.a_t, v_max=v_max, time_limit=time_limit, smoothing=smoothing,
-                    max_rows=max_rows, time_weight=time_weight, slack=slack, on_solve=on_solve)
+                    a_t=None if tl is None else tl.a_t, v_max=v_max, accel_ref=accel_ref, time_limit=time_limit,
+                    smoothing=smoothing, max_rows=max_rows, time_weight=time_weight, slack=slack, on_solve=on_solve)
     held: dict = {}                 # the samples the programme held at its cap, for the re-solves
     dwell, status = solve_dwell(kernel, lp_target, tolerance=cap - lp_target, found=held, **solve_kw)
     t_solve = time.perf_counter() - t1
