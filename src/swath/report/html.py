@@ -325,15 +325,15 @@ HEADLINE = (
 
 
 def _split_text(metrics: dict) -> str:
-    """The shares of the interior variance by cause (``evenness_*_variance_fraction``, as the CLI's
-    line states them), e.g. ``"across 48 % · along 1 % · between 0 % · band 51 %"``; ``""`` where
-    the job has no split.  A part with no core (every interior sample in the band) has no band share."""
-    def share(key: str) -> float:
-        value = metrics.get(f"evenness_{key}_variance_fraction")
-        return float("nan") if value is None else 100.0 * float(value)
+    """The shares of the interior variance by cause (:func:`swath.simulate.evenness.variance_shares`,
+    as the CLI's line states them), e.g. ``"across 48 % · along 1 % · between 0 % · band 51 %"``;
+    ``""`` where the job has no split.  A part with no core (every interior sample in the band) has
+    no band share."""
+    from ..simulate.evenness import variance_shares
 
-    parts = [("across", share("within_cells")), ("along", share("along_passes")),
-             ("between", share("between_passes")), ("band", share("band"))]
+    share = variance_shares(metrics)
+    parts = [("across", share["within_cells"]), ("along", share["along_passes"]),
+             ("between", share["between_passes"]), ("band", share["band"])]
     if not all(math.isfinite(v) for _, v in parts[:3]):
         return ""
     return " · ".join(f"{name} {v:.0f} %" for name, v in parts if math.isfinite(v))

@@ -207,23 +207,30 @@ def evenness_metrics(removal, trajectory, tool) -> dict:
     return out
 
 
+def variance_shares(m: dict) -> dict[str, float]:
+    """The shares (per cent) of the interior variance in ``m``'s ``evenness_*_variance_fraction``
+    metrics, keyed ``within_cells``, ``along_passes``, ``between_passes`` and ``band``: NaN where a
+    figure is missing or null (``band`` on a part with no core)."""
+    def share(key: str) -> float:
+        value = m.get(f"evenness_{key}_variance_fraction")
+        return float("nan") if value is None else 100.0 * float(value)
+
+    return {key: share(key) for key in ("within_cells", "along_passes", "between_passes", "band")}
+
+
 def split_line(m: dict) -> str:
     """The CLI's line on where the interior CoV comes from (``evenness_*`` metrics), or ``""``."""
-
-    def share(key: str) -> float:                  # per cent of the variance; NaN where not split
-        value = m.get(f"evenness_{key}_variance_fraction")
-        return float("nan") if value is None else 100 * value
-
+    share = variance_shares(m)
     cov = m.get("evenness_interior_cov")
-    if cov is None or not np.isfinite(cov) or not np.isfinite(share("within_cells")):
+    if cov is None or not np.isfinite(cov) or not np.isfinite(share["within_cells"]):
         return ""
-    passes = (f"{share('within_cells'):.0f} % is the ripple across the passes, {share('along_passes'):.0f} % along "
-              f"them, {share('between_passes'):.0f} % between passes")
+    passes = (f"{share['within_cells']:.0f} % is the ripple across the passes, {share['along_passes']:.0f} % along "
+              f"them, {share['between_passes']:.0f} % between passes")
     core = m.get("evenness_core_cov")
     if core is None or not np.isfinite(core):
         # no core: every interior sample lies in the band (the hub's holes, noether_raw_mesh's ragged scan)
         return (f"  interior CoV {cov:.3f}: every interior sample lies within one spacing "
                 f"({1e3 * m['evenness_split_spacing_m']:.0f} mm) of the interior's edge (holes or a ragged "
                 f"boundary); of its variance {passes}")
-    return (f"  interior CoV {cov:.3f}: of its variance {passes}, {share('band'):.0f} % the band one spacing inside "
+    return (f"  interior CoV {cov:.3f}: of its variance {passes}, {share['band']:.0f} % the band one spacing inside "
             f"the edge (CoV without it {core:.3f})")
