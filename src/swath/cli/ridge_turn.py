@@ -185,8 +185,8 @@ def uniform_if_evener(toolpath, surface, tool, settings, held: dict, *, choose_l
         The default job chose the lead: the uniform plan chooses it on the part's curvature too.
     progress : callable, optional
         ``progress(stage, done, total)``: a stage line when the uniform planner is tried, then the
-        uniform planner's steps (its working mesh, candidate directions and re-plans: 8 s of the
-        blade's 11 s spacing search), then the two plans' simulations.
+        uniform planner's steps (its working mesh, candidate directions and re-plans: about 6 s of
+        the blade's 8 s spacing search), then the two plans' simulations.
 
     Returns
     -------
