@@ -110,10 +110,10 @@ def row_reference_pace(p_ref, n: int) -> np.ndarray:
     linearised at: ``p_ref`` where it is one number, else the smaller (faster) of the two nodes'
     ``p_ref[i]`` and ``p_ref[i + 1]`` (one per node, ``(n,)``).
 
-    ``p³`` lies above every tangent of it, so a row is safe whatever its reference; it is exact at
-    the reference and looser the nearer the reference lies to the paces the programme runs at.  The
-    programme never runs a node faster than its fastest pace, so the fastest feasible profile is the
-    tightest reference it can use: at ``1 / v_max`` for all rows, a slow acceleration limit under a
+    ``p³`` lies above every tangent of it, so a row never allows more than the limit, whatever its
+    reference; it is exact at the reference and comes closer to the limit the nearer the reference
+    lies to the paces the programme runs at.  The programme never runs a node faster than its
+    fastest pace, so the fastest feasible profile is the best reference it can use: at ``1 / v_max`` for all rows, a slow acceleration limit under a
     high feed limit (``--feed 400mm/s --max-accel 0.05m/s2`` on the plate) held every node at 47 mm/s
     or less where the timing reaches 140 mm/s, and the programme then removed a third more than the
     target."""
