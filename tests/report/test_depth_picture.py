@@ -81,3 +81,41 @@ def test_budgets_hold_and_the_3d_view_and_map_use_the_part_mesh(one_pass_removal
     fig = figure_3d(part, toolpath=tp, removal=removal, max_faces=20_000)
     assert len(fig.data[0].i) == len(f)
     assert len(removal_map_figure(removal, tp, max_faces=20_000).axes) == 3
+
+
+def test_a_few_deep_spots_do_not_squeeze_the_depth_colours():
+    from swath.report.plots import DEEP_OUTLIER_RATIO, depth_scale
+
+    # 1000 samples at 2 µm and three at 8 µm (crs_part_5's facet corners: median 2.1 µm, peak 8.8 µm)
+    deep = depth_scale(np.r_[np.full(1000, 2.0), 8.0, 8.0, 8.0])
+    assert deep.top == pytest.approx(2.0) and deep.peak == 8.0 and deep.clipped
+    assert deep.none_below == pytest.approx(0.08)              # grey stays 1 % of the peak
+    assert "red = over 2" in deep.label() and "peak 8" in deep.label()
+    # a spread without outliers keeps the scale to its peak, and the plain caption
+    even = depth_scale(np.linspace(1.0, 3.0, 1000))
+    assert even.top == even.peak == 3.0 and not even.clipped and "red" not in even.label()
+    # just under the ratio: still to the peak
+    near = depth_scale(np.r_[np.full(1000, 2.0), np.full(3, 2.0 * DEEP_OUTLIER_RATIO * 0.99)])
+    assert not near.clipped
+    assert depth_scale(np.zeros(4)).top == 1.0                 # nothing removed: a unit scale, no division by 0
+
+
+def test_the_3d_view_and_the_map_draw_deep_spots_red():
+    from swath.report.plots import DEEPER_THAN_SCALE
+    from swath.simulate.removal import RemovalMap
+
+    part = shapes.grooved_plate(depth=0.0, n=61)               # a flat 0.3 m plate, 5 mm grid
+    v = part.vertices
+    depth = 2e-6 * (1.0 + 0.1 * np.sin(v[:, 0] / 0.02))        # 2 µm with a 10 % ripple
+    spot = np.linalg.norm(v[:, :2] - [0.15, 0.15], axis=1) < 6e-3
+    assert 0 < spot.sum() < 0.005 * len(v)
+    spiked = RemovalMap(part, np.where(spot, 4.0 * depth, depth))
+    mesh = figure_3d(part, removal=spiked, max_faces=20_000).data[0]
+    assert mesh.colorscale[-1][1] == DEEPER_THAN_SCALE and "red" in mesh.colorbar.title.text
+    assert mesh.cmax == pytest.approx(2.2 / (1 - 0.03), rel=0.02)   # the scale ends near 2.2 µm, the ripple's top
+    cbar = removal_map_figure(spiked, max_faces=20_000).axes[-1]
+    assert "red = over 2.2 (peak 8.8)" in cbar.get_ylabel()
+    # the same ripple without the spot: a scale to its peak, no red
+    plain = figure_3d(part, removal=RemovalMap(part, depth), max_faces=20_000).data[0]
+    assert plain.colorscale[-1][1] != DEEPER_THAN_SCALE and plain.cmax == pytest.approx(2.2, rel=1e-3)
+    assert "red" not in removal_map_figure(RemovalMap(part, depth), max_faces=20_000).axes[-1].get_ylabel()

@@ -35,10 +35,16 @@ MAX_LINE_POINTS = 20_000
 _PASS_COLORSCALE = [[0.0, "rgb(0,255,255)"], [1.0, "rgb(255,0,255)"]]
 _NO_REMOVAL_GREY = "rgb(208,208,208)"
 
+#: The share of the 3D view's depth colour bar drawn red, for depths beyond the scale's end
+#: (:func:`swath.report.plots.depth_scale`).
+_DEEPER_BAND = 0.03
+
 _EXPLAIN = {
     "view3d": (
         "The part coloured by the predicted depth of material removed (µm), read off the removal "
-        "simulation's samples; grey means the pad did not touch that spot (or removed under 1 % of the peak depth). Coloured lines are the contact "
+        "simulation's samples; grey means the pad did not touch that spot (or removed under 1 % of the peak depth). "
+        "Where a few spots lie far deeper than the rest, the colour scale ends short of the peak (at the 99.5th "
+        "percentile) and those spots are red, so that the rest keeps its colours. Coloured lines are the contact "
         "passes, from cyan (first) to magenta (last), drawn slightly above the surface; thin grey "
         "lines are the moves in the air between passes (retract, travel, approach); the white dot is "
         "where the job starts. Drag to rotate, scroll to zoom, hover for values."
@@ -203,15 +209,23 @@ def figure_3d(surface, *, toolpath=None, trajectory=None, removal=None, max_face
                 showlegend=False)
     if depth is not None:
         d_um = depth * 1e6
-        top = float(d_um.max()) if len(d_um) and d_um.max() > 0 else 1.0
+        ds = plots.depth_scale(d_um)
         # plotly samples a colorscale on a ~256-step texture: a grey band narrower than two steps is
-        # lost, so depths under 1 % of the peak are shown grey ("no removal").
-        eps = plots.NO_REMOVAL_FRACTION
+        # lost, so depths under 1 % of the peak are shown grey ("no removal").  Plotly has no
+        # colour for values beyond ``cmax``: where the scale ends short of the peak, ``cmax`` lies
+        # a little beyond its end and the last stretch of the bar is red, so deeper spots are red
+        # (their hover still says their depth).
+        red = _DEEPER_BAND if ds.clipped else 0.0
+        cmax = ds.top / (1.0 - red)
+        eps = min(ds.none_below / cmax, 0.5)
         scale = [[0.0, _NO_REMOVAL_GREY], [eps, _NO_REMOVAL_GREY]] + [
-            [eps + (1 - eps) * s, c] for s, c in get_colorscale("Viridis")]
+            [eps + (1 - red - eps) * s, c] for s, c in get_colorscale("Viridis")]
+        if red:
+            scale += [[1 - red, plots.DEEPER_THAN_SCALE], [1.0, plots.DEEPER_THAN_SCALE]]
         traces.append(go.Mesh3d(**mesh, intensity=d_um.astype(np.float32), intensitymode="vertex",
-                                colorscale=scale, cmin=0.0, cmax=top,
-                                colorbar=dict(title=dict(text="removal depth (µm)", side="right"), x=1.0,
+                                colorscale=scale, cmin=0.0, cmax=cmax,
+                                colorbar=dict(title=dict(text="removal depth (µm)" + (
+                                    f"; red: over {ds.top:.3g}" if ds.clipped else ""), side="right"), x=1.0,
                                               len=0.8),
                                 hovertemplate="removal %{intensity:.3g} µm<extra></extra>"))
     else:
