@@ -16,7 +16,15 @@ from ..surface.geometry import normalize
 from .common import feed_and_cross
 from .slicing import level_sets, resample, slice_mesh
 from .uniform_model import _Context
-from .uniform_passes import _area, _finished, _insert_near, _on_surface_pass, _touch_up, _touched_by
+from .uniform_passes import (
+    _area,
+    _chord_if_small_loop,
+    _finished,
+    _insert_near,
+    _on_surface_pass,
+    _touch_up,
+    _touched_by,
+)
 
 log = logging.getLogger("swath.plan")
 
@@ -140,8 +148,9 @@ def _kept_pieces(ctx: _Context, pieces, step, min_pass_length, covered, generati
     if not (gained & ~covered).any():
         # Cutting at sharp turns left nothing that reaches new area (a short seed stretch gives a
         # first level set curled round it; a pocket's level set is a small loop): a pass that
-        # makes the tool slow down beats none.
-        whole = _finished(ctx, pieces, step, min_pass_length, cut=False)
+        # makes the tool slow down beats none.  A small loop is crossed straight instead.
+        whole = [_chord_if_small_loop(ctx, p, step, min_pass_length)
+                 for p in _finished(ctx, pieces, step, min_pass_length, cut=False)]
         gained_whole = _touched_by(ctx, whole)
         log.debug("uniform generation %d: cut pieces gain nothing; whole pieces gain %.4f m2",
                   generation, _area(ctx.work, gained_whole & ~covered))

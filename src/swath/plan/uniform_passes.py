@@ -90,6 +90,37 @@ def _cut_sharp_turns(pts, normals, max_curvature: float, arm: float) -> list[np.
     return [pts[a:b] for a, b in zip(edges[::2], edges[1::2])]
 
 
+#: A closed loop a generation keeps whole (no part of it turns gently enough to keep) is laid as a
+#: straight pass across its middle instead when it fits within this many pad radii across: the pad
+#: there covers what the loop encloses, and a straight pass does not turn the tool.  Run as a loop,
+#: the tool turns a full circle about its axis: at 1 rad/s that takes 6.3 s however small the
+#: loop, and it dwells on one spot the while.  On noether_wavy_mesh_with_hole six such loops (2 to
+#: 17 mm across, 10 to 38 mm long) held the tool at 2 mm/s for about 4 s each and removed 20 times
+#: the median depth beside them (interior removal CoV 1.65 at constant feed).
+LOOP_CHORD_EXTENT = 1.0
+
+
+def _chord_if_small_loop(ctx, pts: np.ndarray, step: float, min_length: float) -> np.ndarray:
+    """``pts`` ``(k, 3)``, or, where it is a closed loop at most :data:`LOOP_CHORD_EXTENT` pad radii
+    across, the straight pass across its middle along its longest extent (at least ``min_length``
+    long, points ``step`` apart, dropped onto the surface)."""
+    if len(pts) < 4 or not _is_closed(pts):
+        return pts
+    centre = pts.mean(axis=0)
+    axis = np.linalg.svd(pts - centre, full_matrices=False)[2][0]
+    along = (pts - centre) @ axis
+    R = ctx.tool.pad_radius
+    # its spread along the longest axis first (cheap), then the widest pair of points
+    if np.ptp(along) > LOOP_CHORD_EXTENT * R or \
+            np.max(np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)) > LOOP_CHORD_EXTENT * R:
+        return pts
+    lo, hi = float(along.min()), float(along.max())
+    mid, half = 0.5 * (lo + hi), max(0.5 * (hi - lo), 0.5 * min_length)
+    n = max(3, int(math.ceil(2.0 * half / step)) + 1)
+    line = centre + (mid + np.linspace(-half, half, n))[:, None] * axis
+    return ctx.project(line)[0]
+
+
 def _is_closed(pts) -> bool:
     """Whether the polyline ``pts`` ``(k, 3)`` is a loop: its ends within two median steps."""
     steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
