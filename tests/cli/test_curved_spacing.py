@@ -226,3 +226,25 @@ def test_each_plan_of_the_search_is_a_step_of_its_own_numbered():
     assert heard[0] == (setup, 0, 1)
     stage = TRYING_STAGE + " (plan {}, at most 4)"
     assert heard[1:] == [(stage.format(p), done, 13) for p in (1, 2, 3) for done in (0, 6, 13)]
+
+
+def test_a_plan_of_one_given_direction_is_said_with_the_time_the_plan_before_took():
+    from swath.cli.curved_spacing import search_progress
+    from swath.plan.uniform import LAYING_STAGE, uniform
+
+    heard = []
+    told = search_progress(lambda *a: heard.append(a), 2, 4, expected_s=6.8)
+    told(LAYING_STAGE, 0, 1)
+    told(LAYING_STAGE, 1, 1)
+    stage = LAYING_STAGE + " (plan 2, at most 4), about 7 s as the plan before"
+    assert heard == [(stage, 0, 1), (stage, 1, 1)]          # one stage line, its estimate in it
+    heard.clear()
+    search_progress(lambda *a: heard.append(a), 2, 4)(LAYING_STAGE, 0, 1)   # no time known: no estimate
+    assert heard == [(LAYING_STAGE + " (plan 2, at most 4)", 0, 1)]
+    # the planner says the step, before and after, for a given direction
+    heard.clear()
+    from swath.examples import flat_plate
+
+    uniform(flat_plate(size_x=0.3, size_y=0.2), TOOL, direction=0.0, progress=lambda *a: heard.append(a), workers=1)
+    laid = [h for h in heard if h[0] == LAYING_STAGE]
+    assert laid == [(LAYING_STAGE, 0, 1), (LAYING_STAGE, 1, 1)]

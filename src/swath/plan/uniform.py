@@ -66,6 +66,9 @@ AUTO_DIRECTIONS = tuple(np.radians([0.0, 30.0, 60.0, 90.0, 120.0, 150.0]))
 #: working mesh's set-up, :data:`swath.plan.uniform_model.SETUP_STAGE`, where it is built here).
 TRYING_STAGE = "planning (uniform): trying pass directions"
 
+#: The progress stage of one given direction's passes laid (``done`` 0 before, 1 after).
+LAYING_STAGE = "planning (uniform): laying the passes"
+
 
 def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="boundary",
             point_spacing: float = 1e-3, min_pass_length: float | None = None, max_passes: int = 400,
@@ -185,16 +188,19 @@ def uniform(surface, tool, *, overlap: float = 0.1, direction=None, seed="bounda
                      candidate_paths=candidate_paths)
     if isinstance(direction, str):
         raise InputError(f"direction must be None (auto), an angle in radians or a 3-vector, got {direction!r}")
-    ctx = shared_context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1,
-                         distance_method=distance_method)
-    if isinstance(direction, (int, float)) and math.isfinite(direction):
-        return _plan(ctx, float(direction), overlap=overlap, seed=seed, point_spacing=point_spacing,
-                     min_pass_length=min_pass_length, max_passes=max_passes, rule="given angle")
+    given = float(direction) if isinstance(direction, (int, float)) and math.isfinite(direction) else None
     vec = np.asarray(direction, float).reshape(-1) if not isinstance(direction, (int, float)) else None
-    if vec is None or vec.shape != (3,) or not np.isfinite(vec).all():
+    if given is None and (vec is None or vec.shape != (3,) or not np.isfinite(vec).all()):
         raise InputError(f"direction must be None (auto), a finite angle in radians or a 3-vector, got {direction!r}")
-    return _plan(ctx, vec, overlap=overlap, seed=seed, point_spacing=point_spacing,
-                 min_pass_length=min_pass_length, max_passes=max_passes, rule="given vector")
+    ctx = shared_context(*context_args[:3], max_turn_curvature=context_args[3], beside=workers != 1,
+                         distance_method=distance_method, progress=progress)
+    say = progress or (lambda stage, done, total: None)
+    say(LAYING_STAGE, 0, 1)
+    toolpath = _plan(ctx, vec if given is None else given, overlap=overlap, seed=seed, point_spacing=point_spacing,
+                     min_pass_length=min_pass_length, max_passes=max_passes,
+                     rule="given vector" if given is None else "given angle")
+    say(LAYING_STAGE, 1, 1)
+    return toolpath
 
 
 def _plan(ctx: _Context, angle, *, overlap, seed, point_spacing, min_pass_length, max_passes, rule,
