@@ -15,13 +15,23 @@ R = TOOL.pad_radius
 STEP = 1e-3
 
 
-def flat_ctx():
-    """The little of a working-mesh context the chord needs: the pad, and dropping points onto z = 0."""
+def flat_ctx(hole: float = 0.0):
+    """The little of a working-mesh context the chord needs: the pad, a plate z = 0 meshed 2 mm apart
+    round (0.1, 0.2) (its vertices' tree), with a hole of radius ``hole`` there, and dropping points
+    onto it."""
+    from scipy.spatial import cKDTree
+
+    spacing = 2e-3
+    g = np.arange(-0.1, 0.1 + 1e-9, spacing)
+    xy = np.stack(np.meshgrid(0.1 + g, 0.2 + g, indexing="ij"), -1).reshape(-1, 2)
+    xy = xy[np.linalg.norm(xy - [0.1, 0.2], axis=1) >= hole]
+
     def project(points):
         out = np.array(points, float)
         out[:, 2] = 0.0
         return out, np.tile([0.0, 0.0, 1.0], (len(out), 1))
-    return SimpleNamespace(tool=TOOL, project=project)
+    return SimpleNamespace(tool=TOOL, project=project, work_spacing=spacing,
+                           tree=cKDTree(np.column_stack([xy, np.zeros(len(xy))])))
 
 
 def ellipse(a, b, centre=(0.1, 0.2), n=None):
@@ -59,6 +69,13 @@ def test_wide_loops_and_open_pieces_are_kept_as_they_are():
     assert _chord_if_small_loop(ctx, wide, STEP, 0.25 * R) is wide
     arc = ellipse(8e-3, 3e-3)[:-10]                            # an open arc of the small loop
     assert _chord_if_small_loop(ctx, arc, STEP, 0.25 * R) is arc
+
+
+def test_a_loop_round_a_hole_is_kept():
+    # a 16 mm x 12 mm loop round a 10 mm hole: its chord would run over the hole
+    loop = ellipse(8e-3, 6e-3)
+    assert _chord_if_small_loop(flat_ctx(hole=5e-3), loop, STEP, 0.25 * R) is loop
+    assert _chord_if_small_loop(flat_ctx(hole=0.0), loop, STEP, 0.25 * R) is not loop
 
 
 def test_the_scan_with_a_hole_is_planned_without_loops_that_hold_the_tool():

@@ -103,7 +103,8 @@ LOOP_CHORD_EXTENT = 1.0
 def _chord_if_small_loop(ctx, pts: np.ndarray, step: float, min_length: float) -> np.ndarray:
     """``pts`` ``(k, 3)``, or, where it is a closed loop at most :data:`LOOP_CHORD_EXTENT` pad radii
     across, the straight pass across its middle along its longest extent (at least ``min_length``
-    long, points ``step`` apart, dropped onto the surface)."""
+    long, points ``step`` apart, dropped onto the surface).  A loop round a hole is kept: the chord
+    would cross it (a point of the chord farther than two working-mesh edges from the mesh)."""
     if len(pts) < 4 or not _is_closed(pts):
         return pts
     centre = pts.mean(axis=0)
@@ -118,6 +119,11 @@ def _chord_if_small_loop(ctx, pts: np.ndarray, step: float, min_length: float) -
     mid, half = 0.5 * (lo + hi), max(0.5 * (hi - lo), 0.5 * min_length)
     n = max(3, int(math.ceil(2.0 * half / step)) + 1)
     line = centre + (mid + np.linspace(-half, half, n))[:, None] * axis
+    # a loop round a hole smaller than the pad: its chord would cross the hole (its points no
+    # nearer the surface than the hole's rim); the loop is kept
+    gap, _ = ctx.tree.query(line)
+    if np.max(gap) > 2.0 * ctx.work_spacing:
+        return pts
     return ctx.project(line)[0]
 
 
