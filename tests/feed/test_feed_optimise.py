@@ -408,3 +408,33 @@ def test_fractions_out_of_range_are_refused_by_name_before_the_kernel(plate, bad
     tp = ToolPath(plate, [_line(0.02, 0.22, 0.1)], "test")
     with pytest.raises(InputError, match=next(iter(bad))):
         optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=1e-6, tolerance=1e-7, timing_rounds=0, **bad)
+
+
+def test_the_feed_does_not_slow_until_it_gouges_the_samples_beside_the_region():
+    """A pass along y = 20 mm whose region is only the pad's rim beyond y = 38.5 mm, mid-pass:
+    matching a target there asks the feed to crawl, and the pass's own centre line (outside the
+    region) would take many times the target.  Those samples stay under EDGE_CAP_RATIO times the
+    region's cap, or under what the fastest feed removes there where that is more."""
+    from swath.feed.optimise import EDGE_CAP_RATIO
+
+    fine = flat_plate(size_x=0.24, size_y=0.2, spacing=1e-3)
+    tp = ToolPath(fine, [_line(0.02, 0.22, 0.02)], "test")
+    k = build_kernel(tp, TOOL)
+    x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
+    touched = np.diff(k.matrix.tocsr().indptr) > 0
+    region = touched & (y > 0.0385) & (np.abs(x - 0.12) < 0.06)
+    fastest = k.removal(k.dwell_at_speed(V_MAX))
+    target = np.full(len(y), 0.9 * fastest[touched].max())
+    tol = 0.1 * target[0]
+    edge = touched & ~region
+    cap = np.maximum(EDGE_CAP_RATIO * (target + tol), fastest)
+    assert region.sum() > 50 and edge.sum() > 1000
+    held = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=tol, kernel=k, region=region,
+                         v_min=0.002)
+    assert np.all(held.predicted[edge] <= cap[edge] * (1 + 1e-3))
+    assert held.predicted[edge].max() > 0.99 * cap[edge].max()          # it binds: the centre line is at it
+    # not held, the feed crawls further for the rim and the centre line takes half as much again
+    free = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=tol, kernel=k, region=region,
+                         v_min=0.002, edge_cap_ratio=math.inf)
+    assert free.predicted[edge].max() > 1.3 * cap[edge].max()
+    assert free.predicted[region].mean() > held.predicted[region].mean()

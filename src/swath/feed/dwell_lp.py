@@ -68,7 +68,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
                 a_t: float | None = None, v_max: float | None = None, accel_ref=None, time_limit: float = 600.0,
                 smoothing: float = 2e-2, method: str | None = None, max_rows: int = 5000, max_rounds: int = 6,
                 time_weight: float = 1e-3, cap_rows: np.ndarray | None = None, found: dict | None = None,
-                slack=0.0, on_solve=None):
+                slack=0.0, on_solve=None, capped: np.ndarray | None = None):
     """Solve for the dwell ``(n,)`` (s); returns ``(dwell, status_text)``.
 
     ``time_weight``: a cost on every second of dwell, as a fraction of what a second of a typical
@@ -86,6 +86,11 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
     :func:`~swath.feed.optimise.optimise_feed`) given them back skips the rounds that would find
     them again (crs_part_5: six solves of 5-8 s each per call).
 
+    ``capped`` ((S,) bool, default ``region``): the samples held under ``target + tolerance``, the
+    region's and others (the touched samples near the edges, whose removal the objective does not
+    read: :func:`~swath.feed.optimise.optimise_feed` holds them under what the fastest feed removes
+    there or the region's cap, whichever is more).
+
     ``accel_ref`` (s/m, one per node ``(n,)``): the paces the acceleration rows are linearised at
     (:func:`swath.feed.caps.row_reference_pace`; default ``1 / v_max`` for every row).
 
@@ -102,7 +107,8 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
         When the fastest feed already removes more than ``target + tolerance`` somewhere in the
         region, or HiGHS reports the programme infeasible.
     """
-    full = np.flatnonzero(region)
+    capped = region if capped is None else np.asarray(capped, bool) | region
+    full = np.flatnonzero(capped)
     K_full = kernel.matrix[full].tocsr()
     tolerance = np.broadcast_to(np.asarray(tolerance, float), target.shape)
     tiny = 1e-3 * max(float(tolerance.max(initial=0.0)), 1e-9)
@@ -116,7 +122,7 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
         extra = np.searchsorted(full, peaks)
         if cap_rows is not None and len(cap_rows):
             given = np.asarray(cap_rows, dtype=int)
-            given = given[region[given]]                       # (outside the region: no cap)
+            given = given[capped[given]]                       # (not capped: no cap)
             extra = np.union1d(extra, np.searchsorted(full, given))
     status = ""
     for _ in range(max(1, max_rounds)):
