@@ -91,7 +91,7 @@ def band_feed(settings, surface, tool, toolpath, lead, spacing, cap=0.03):
     from scipy.optimize import linprog
 
     from swath.feed.kernel import build_kernel, trajectory_node_dwell
-    from swath.feed.optimise import dwell_to_profile
+    from swath.feed.timed import dwell_to_profile
 
     constant, _ = run(settings, surface, tool, toolpath, lead)
     kernel = build_kernel(toolpath, tool, trajectory=constant)

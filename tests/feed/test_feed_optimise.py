@@ -303,7 +303,7 @@ def test_timed_spread_reproduces_the_simulator_where_the_feed_steps(plate, monke
     each node's dwell evenly along it misses single samples by over 15 %; shared as the trajectory
     spends it (``respread``), the kernel matches the simulator integrated every 0.1 mm."""
     import swath.simulate.removal as removal
-    from swath.feed.optimise import dwell_to_profile
+    from swath.feed.timed import dwell_to_profile
 
     tp = ToolPath(plate, [_line(0.04, 0.2, 0.1)], "steps")
     nodes = build_kernel(tp, TOOL).nodes

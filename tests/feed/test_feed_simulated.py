@@ -67,7 +67,7 @@ def test_real_simulator_never_over_grinds_after_correction(curved):
 def test_simulated_depth_maps_to_the_nearest_kernel_sample(curved):
     """A simulator sampling the part differently: each kernel sample gets the largest simulated depth
     of the simulator samples nearest to it."""
-    from swath.feed.optimise import _simulated_on_kernel
+    from swath.feed.timed import simulated_on_kernel
 
     k = curved[2]
     v = k.samples.vertices
@@ -76,9 +76,9 @@ def test_simulated_depth_maps_to_the_nearest_kernel_sample(curved):
     # every kernel sample twice, moved 10 µm off: the second copy 0.5 µm deeper
     moved = np.vstack([v + 1e-5, v - 1e-5])
     sim = SimpleNamespace(surface=SimpleNamespace(vertices=moved), depth=np.concatenate([depth, depth + 5e-7]))
-    np.testing.assert_allclose(_simulated_on_kernel(sim, k.samples), depth + 5e-7)
+    np.testing.assert_allclose(simulated_on_kernel(sim, k.samples), depth + 5e-7)
     same = SimpleNamespace(surface=k.samples, depth=depth)
-    assert _simulated_on_kernel(same, k.samples) is depth
+    assert simulated_on_kernel(same, k.samples) is depth
 
 
 def test_loop_stops_when_no_cap_can_be_tightened(curved, caplog):
@@ -146,7 +146,7 @@ def test_spread_check_trims_what_the_simulator_misses(curved):
     """A 'simulator' that under-reads (0.9 times the kernel) finds nothing over, while the programme's
     cap sits at target + tolerance (no hold-back): the timed-spread kernel then reads samples over
     the tolerance, and the spread check trims them; without it they stay over."""
-    from swath.feed.optimise import _timed_spread_removal
+    from swath.feed.timed import timed_spread_removal
 
     surface, tp, k, D, _ = curved
     tol = 0.1 * D
@@ -156,11 +156,11 @@ def test_spread_check_trims_what_the_simulator_misses(curved):
 
     kw = dict(target=D, tolerance=tol, kernel=k, simulate=simulate, cap_margin=0.0, model_error=0.0)
     unchecked = optimise_feed(tp, TOOL, CONS, spread_check=False, **kw)
-    spread_before = _timed_spread_removal(k, time_path(tp, CONS + [unchecked.profile]))
+    spread_before = timed_spread_removal(k, time_path(tp, CONS + [unchecked.profile]))
     assert (spread_before - D)[unchecked.region].max() > tol
     res = optimise_feed(tp, TOOL, CONS, spread_check=True, **kw)
     rounds = res.metrics["simulated_rounds"]
     assert rounds[0]["samples_over"] == 0 and rounds[0]["spread_samples_over"] > 0
     assert rounds[-1]["kind"] == "trim" and rounds[-1]["samples_over"] == 0
-    spread_after = _timed_spread_removal(k, time_path(tp, CONS + [res.profile]))
+    spread_after = timed_spread_removal(k, time_path(tp, CONS + [res.profile]))
     assert (spread_after - D)[res.region].max() <= tol
