@@ -88,8 +88,8 @@ def solve_dwell(kernel: RemovalKernel, target: np.ndarray, *, tolerance, t_min: 
 
     ``capped`` ((S,) bool, default ``region``): the samples held under ``target + tolerance``, the
     region's and others (the touched samples near the edges, whose removal the objective does not
-    read: :func:`~swath.feed.optimise.optimise_feed` holds them under what the fastest feed removes
-    there or the region's cap, whichever is more).
+    read: :func:`~swath.feed.optimise.optimise_feed` holds them under twice the region's cap, or
+    under what the fastest feed removes there where that is more).
 
     ``accel_ref`` (s/m, one per node ``(n,)``): the paces the acceleration rows are linearised at
     (:func:`swath.feed.caps.row_reference_pace`; default ``1 / v_max`` for every row).
