@@ -153,3 +153,15 @@ def test_a_job_waiting_for_the_plain_plan_says_how_far_it_is(monkeypatch):
     stage = "the plain plan (covering spacing, flat pad, constant feed) to compare"
     assert heard == [(stage, 200, 1000), (stage, 500, 1000), (stage, 900, 1000)]
     assert not wins and even["plain_interior_removal_cov"] == 0.5
+
+
+def test_the_closest_point_tree_is_built_once_before_the_child_is_forked(two_cpus, monkeypatch):
+    # Both plans route air moves round the part; built before the fork, the child inherits the
+    # tree and this process's own plan stage does not build it again.
+    surface, tool, plain, part = _plain_of("raster")
+    surface.__dict__.pop("_closest_point_tree", None)
+    wait = even_default.plain_beside(surface, tool, plain, part=part)
+    built_here = "_closest_point_tree" in surface.__dict__
+    answer = wait()
+    assert len(answer[0].passes) > 0
+    assert built_here == beside.can_fork()

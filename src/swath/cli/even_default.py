@@ -408,6 +408,10 @@ def plain_beside(surface, tool, plain, *, part=None):
         elif done is not None and total > 0 and stage == PLAIN_SIMULATING:
             done.value = PLAN_SHARE + (1.0 - PLAN_SHARE) * steps / total
 
+    if can_fork():
+        # both plans route their air moves round the part: its closest-point tree is built once,
+        # here, and the child inherits it (else each process builds it, this one in its plan stage)
+        surface.build_closest_point_tree()
     beside = Beside(plain_run, surface, tool, plain, part, told, workers=True)
     if beside.forked:
         surface.forget()

@@ -264,7 +264,7 @@ class _Context:
         first = np.zeros(1, np.int64)
         # the part's closest-point tree: every candidate's resampling on the surface queries it,
         # and so does this process's resampling of the winner afterwards
-        _ = self.surface._closest_point_tree
+        self.surface.build_closest_point_tree()
         self.touched_at(self.work.vertices[:1])
         self.widths.across(first, np.asarray(self.widths.curvature.d1[:1], float))
         self.gradient_directions(np.zeros(len(self.work.vertices)), first)

@@ -223,6 +223,12 @@ class Surface:
         tree.init(V, F)
         return origin, V, F, tree
 
+    def build_closest_point_tree(self) -> None:
+        """Build the tree :meth:`closest_points` searches now, if not built yet.  Called before
+        forking worker processes that will query the surface: they inherit it instead of each
+        building it, and so does this process's own later query."""
+        _ = self._closest_point_tree
+
     def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Closest points on the surface to ``points`` ``(k, 3)``.
 
