@@ -230,3 +230,26 @@ def test_the_candidate_paths_are_the_plans_their_directions_give():
         for p, q in zip(alone.passes, paths[angle].passes):
             np.testing.assert_array_equal(p.points, q.points)
         assert paths[angle].metadata["direction_rad"] == pytest.approx(angle)
+
+
+def test_a_large_cad_part_is_planned_on_a_working_mesh_within_the_budget():
+    # crs_part_5: 2.96 m² of long CAD triangles; halved at the spacing its area asks for (4.4 mm) it
+    # would have 837,279 vertices, every distance solve paying for them
+    from conftest import SHARED_MESH_UNITS, shared_mesh
+    from swath.io import load_mesh
+    from swath.plan import uniform_model as M
+
+    surface = load_mesh(shared_mesh("crs_part_5.stl"), units=SHARED_MESH_UNITS["crs_part_5.stl"])
+    R = Tool().pad_radius
+    work, spacing = M.working_mesh(surface, R)
+    assert len(work.vertices) <= 1.3 * M.MAX_WORK_VERTICES or spacing == pytest.approx(R / 4)
+    assert len(work.vertices) < 200_000                # (169,820 at R/4: a heat-method solve about 0.07 s)
+    assert spacing <= R / 4 + 1e-12
+    assert work.edge_lengths.max() <= spacing * (1 + 1e-9)
+    assert work.area == pytest.approx(surface.area, rel=1e-9)        # the same surface, finer
+    # a given spacing is kept, and a small part is not coarsened (the plate: R/12 from its area)
+    assert M.working_mesh(surface, R, 0.02)[1] == 0.02
+    from swath.examples import flat_plate
+
+    plate = flat_plate(spacing=0.01)
+    assert M.working_mesh(plate, R)[1] == pytest.approx(R / 12)

@@ -24,8 +24,13 @@ from ..surface.topology import mesh_edges
 log = logging.getLogger(__name__)
 
 
-#: About this many working-mesh vertices at most (the default working edge is coarsened to stay near it).
-MAX_WORK_VERTICES = 350_000
+#: About this many working-mesh vertices at most (the default working edge is coarsened to stay near
+#: it, never past R/4).  Every distance solve of the heat method costs time in proportion to the
+#: vertices (0.13 s a solve at 308,365, about 50 solves a direction).  Of the built-in and shared
+#: parts only crs_part_5 (2.96 m², its CAD triangles halved to 308,365 vertices at 6.8 mm) is over
+#: it: at 169,820 vertices (R/4, 9.5 mm) its uniform job planned in 27 s instead of 37 s, and its
+#: passes removed with an interior CoV of 0.207 at constant feed instead of 0.206.
+MAX_WORK_VERTICES = 150_000
 
 #: The progress stage of a working mesh's set-up (:class:`_Context`), said with its vertex count and
 #: an estimate of its time (:func:`setup_estimate_s`).
@@ -103,6 +108,29 @@ class WidthModel:
         return widths_across(self.patch, self.inverse[idx], psi)
 
 
+def working_mesh(surface, pad_radius: float, work_spacing: float | None = None):
+    """The mesh the uniform planner's distance fields are solved on: ``surface`` with its long
+    edges halved down to ``work_spacing`` (m); ``(Surface, spacing m)``.
+
+    By default the spacing follows the part's area (about 150,000 vertices of an even mesh),
+    between R/12 and R/4 of the pad radius ``pad_radius`` (m).  Halving long thin CAD triangles
+    makes far more vertices than an even mesh of the same edge length, so the spacing is then
+    coarsened until the mesh is within 1.3 times :data:`MAX_WORK_VERTICES` (never past R/4,
+    where the swath widths would blur).  A given ``work_spacing`` is used as it is."""
+    R = float(pad_radius)
+    given = work_spacing is not None
+    if not given:
+        work_spacing = float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
+    work = surface.subdivided(work_spacing, method="halving")
+    while not given and len(work.vertices) > 1.3 * MAX_WORK_VERTICES and work_spacing < R / 4.0:
+        work_spacing = min(work_spacing * math.sqrt(len(work.vertices) / MAX_WORK_VERTICES), R / 4.0)
+        work = surface.subdivided(work_spacing, method="halving")
+    if len(np.unique(work.faces)) < len(work.vertices):
+        # vertices no face uses (a hole cut out of a grid): the distance solver refuses them
+        work = work.sub_surface(np.arange(len(work.faces)))
+    return work, float(work_spacing)
+
+
 def _normals_and_widths(surface, W, tool) -> tuple[np.ndarray, WidthModel]:
     """The smooth normals ``(n, 3)`` of the working mesh ``W`` and its :class:`WidthModel`, with
     curvature from the part's own vertices (the nearest one to each working vertex): vertices
@@ -148,24 +176,10 @@ class _Context:
         if distance_method not in DISTANCE_METHODS:
             raise InputError(f"distance_method must be one of {', '.join(DISTANCE_METHODS)}, got {distance_method!r}")
         t0 = time.perf_counter()
-        R = tool.pad_radius
-        given = work_spacing is not None
-        if not given:
-            work_spacing = float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
         self.surface = surface
         self.tool = tool
         self.max_turn_curvature = float(max_turn_curvature)   # 1/m, in the tangent plane
-        self.work = surface.subdivided(work_spacing, method="halving")
-        # Halving long thin CAD triangles makes far more vertices than an even mesh of the same edge
-        # length; the distance solver's set-up grows faster than linearly with them, so coarsen to
-        # stay near the budget (never past R/4, where the widths would blur).
-        while not given and len(self.work.vertices) > 1.3 * MAX_WORK_VERTICES and work_spacing < R / 4.0:
-            work_spacing = min(work_spacing * math.sqrt(len(self.work.vertices) / MAX_WORK_VERTICES), R / 4.0)
-            self.work = surface.subdivided(work_spacing, method="halving")
-        if len(np.unique(self.work.faces)) < len(self.work.vertices):
-            # vertices no face uses (a hole cut out of a grid): the distance solver refuses them
-            self.work = self.work.sub_surface(np.arange(len(self.work.faces)))
-        self.work_spacing = float(work_spacing)
+        self.work, self.work_spacing = working_mesh(surface, tool.pad_radius, work_spacing)
         W = self.work
         if progress is not None:
             progress(f"{SETUP_STAGE} ({len(W.vertices):,} vertices, about {setup_estimate_s(len(W.vertices)):.0f} s)",
