@@ -438,3 +438,29 @@ def test_the_feed_does_not_slow_until_it_gouges_the_samples_beside_the_region():
                          v_min=0.002, edge_cap_ratio=math.inf)
     assert free.predicted[edge].max() > 1.3 * cap[edge].max()
     assert free.predicted[region].mean() > held.predicted[region].mean()
+
+
+def test_the_edge_cap_reads_the_given_target_where_the_target_is_raised_to_the_fastest_feed():
+    """With ``target_floor="fastest"`` a sample's target is raised to what the fastest feed removes
+    there; beside the region that must not raise its cap too (twice the raised target let the
+    feed slow down over a convex fold at the edge of bezier_dac_scan: 124 um where the fastest feed
+    removes 84 um).  The same pass and rim region as above, a target a third of the centre line's
+    fastest removal: the centre line may take what the fastest feed removes, not twice that."""
+    from swath.feed.optimise import EDGE_CAP_RATIO
+
+    fine = flat_plate(size_x=0.24, size_y=0.2, spacing=1e-3)
+    tp = ToolPath(fine, [_line(0.02, 0.22, 0.02)], "test")
+    k = build_kernel(tp, TOOL)
+    x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
+    touched = np.diff(k.matrix.tocsr().indptr) > 0
+    region = touched & (y > 0.0385) & (np.abs(x - 0.12) < 0.06)
+    fastest = k.removal(k.dwell_at_speed(V_MAX))
+    target = np.full(len(y), fastest[touched].max() / 3)
+    tol = 0.1 * target[0]
+    edge = touched & ~region
+    cap = np.maximum(EDGE_CAP_RATIO * (target + tol), fastest)
+    assert (fastest[edge] > EDGE_CAP_RATIO * (target[edge] + tol)).sum() > 100     # the centre line's band
+    held = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=tol, kernel=k, region=region,
+                         v_min=0.002, target_floor="fastest")
+    assert np.all(held.predicted[edge] <= cap[edge] * (1 + 1e-3))
+    assert held.predicted[edge].max() > 0.99 * fastest[edge].max()

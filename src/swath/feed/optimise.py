@@ -227,7 +227,8 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
         Kernel samples to match (instead of every touched sample ``boundary_margin`` in).
     edge_cap_ratio : float
         The touched samples outside the region are held under this many times ``target +
-        tolerance``, or under what the fastest feed removes there where that is more
+        tolerance`` (the target as given, before ``target_floor`` raises it), or under what the
+        fastest feed removes there where that is more
         (:data:`EDGE_CAP_RATIO`; ``inf``: not held).
     cap_margin : float
         Fraction of ``tolerance`` held back for the difference between the kernel and the timed
@@ -410,6 +411,7 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     if target_floor not in ("none", "fastest"):
         raise InputError(f"target_floor must be 'none' or 'fastest', got {target_floor!r}")
     raised = 0.0
+    given_target = target_s              # before the floor: the edge cap reads it (below)
     if target_floor == "fastest":
         at_fastest = kernel.removal(t_min)
         raised = float(np.max(np.maximum(at_fastest - target_s, 0.0)[region], initial=0.0))
@@ -425,9 +427,10 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     # them, but the feed must not slow down to gouge them either; they stay under EDGE_CAP_RATIO
     # times the region's cap, or under what the fastest feed removes there where that is more (a
     # convex fold at the edge of bezier_dac_scan: 73 um at the fastest feed, 156 um with the feed
-    # slowed beside it)
+    # slowed beside it).  The given target, not the one raised to the fastest feed's removal: raised,
+    # twice it let the feed slow down over that fold again (124 um where the fastest feed removes 84 um)
     edge = touched & ~region if np.isfinite(edge_cap_ratio) else np.zeros_like(region)
-    cap[edge] = np.maximum(edge_cap_ratio * (target_s + tolerance), fastest)[edge]
+    cap[edge] = np.maximum(edge_cap_ratio * (given_target + tolerance), fastest)[edge]
     lp_target = np.minimum(target_s, cap)
     # from the first caps: the simulated rounds only tighten them, so it stays within the tolerance
     slack = round_slack * np.maximum(target_s + tolerance - cap, 0.0)
