@@ -390,6 +390,7 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..io.facing import facing_warning
 
     t0 = time.perf_counter()
+    jobwrap.first_run_notice(say)                   # a fresh install compiles the kernels as it goes
     say("loading part", 0, 1)
     surface, part_info = load_part_info(settings, progress=say)
     log.info("part %s", surface)

@@ -44,3 +44,35 @@ def plan_figures(metadata: dict, taken) -> dict:
     return {k: v if isinstance(v, bool) else float(v) for k, v in metadata.items()
             if isinstance(v, (int, float)) and k not in taken
             and (k in FIGURES or not isinstance(v, bool) and k.endswith(("_m", "_rad", "_s")))}
+
+
+#: The module of the kernels every plan job runs (the removal simulation's): when numba's disk cache
+#: holds none of them, this is the first run after installing or upgrading swath.
+SIMULATION_KERNELS = "swath.contact.kernels"
+
+#: About how many seconds more a job takes while numba compiles the kernels it uses (a fresh
+#: install of swath 0.2.0 on the 2-CPU reference machine: `swath demo` 27 s against 14 s the next
+#: time, `swath plan example:plate` 8.6-14 s against 5.5-6 s).
+FIRST_RUN_EXTRA_S = 15
+FIRST_RUN_STAGE = "compiling swath's kernels as they are first used"
+
+
+def first_run_notice(say) -> bool:
+    """Tell ``say(stage, done, total)`` (once, before the job's first stage) when numba's disk cache
+    holds none of the removal simulation's kernels, which every plan job runs: numba compiles each
+    kernel on its first use, so this run takes up to :data:`FIRST_RUN_EXTRA_S` s longer than the
+    stages' estimates say (the first run after installing or upgrading; the next ones load them).
+    True when said."""
+    import importlib
+    import logging
+
+    importlib.import_module(SIMULATION_KERNELS)
+    from ..surface import cells
+
+    ours = [k for k in cells._KERNELS if getattr(k, "py_func", k).__module__ == SIMULATION_KERNELS]
+    cold = cells.kernels_to_compile(SIMULATION_KERNELS)
+    if not ours or len(cold) < len(ours):
+        return False
+    logging.getLogger(__name__).info("numba's cache holds none of the %d simulation kernels: compiling them", len(ours))
+    say(f"{FIRST_RUN_STAGE} (this run only: up to about {FIRST_RUN_EXTRA_S} s more)", 0, 1)
+    return True

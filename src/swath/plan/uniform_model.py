@@ -119,16 +119,16 @@ def working_mesh(surface, pad_radius: float, work_spacing: float | None = None):
     where the swath widths would blur).  A given ``work_spacing`` is used as it is."""
     R = float(pad_radius)
     given = work_spacing is not None
-    if not given:
-        work_spacing = float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
-    work = surface.subdivided(work_spacing, method="halving")
-    while not given and len(work.vertices) > 1.3 * MAX_WORK_VERTICES and work_spacing < R / 4.0:
-        work_spacing = min(work_spacing * math.sqrt(len(work.vertices) / MAX_WORK_VERTICES), R / 4.0)
-        work = surface.subdivided(work_spacing, method="halving")
+    spacing = float(work_spacing) if work_spacing is not None else \
+        float(np.clip(np.sqrt(surface.area / 150_000.0), R / 12.0, R / 4.0))
+    work = surface.subdivided(spacing, method="halving")
+    while not given and len(work.vertices) > 1.3 * MAX_WORK_VERTICES and spacing < R / 4.0:
+        spacing = min(spacing * math.sqrt(len(work.vertices) / MAX_WORK_VERTICES), R / 4.0)
+        work = surface.subdivided(spacing, method="halving")
     if len(np.unique(work.faces)) < len(work.vertices):
         # vertices no face uses (a hole cut out of a grid): the distance solver refuses them
         work = work.sub_surface(np.arange(len(work.faces)))
-    return work, float(work_spacing)
+    return work, spacing
 
 
 def _normals_and_widths(surface, W, tool) -> tuple[np.ndarray, WidthModel]:

@@ -28,6 +28,10 @@ except ImportError:                                            # pragma: no cove
 #: True when numba is importable and the compiled kernels can be used.
 AVAILABLE = numba is not None
 
+#: Every kernel :func:`jit` has made in this process (those of the modules imported so far).
+_KERNELS: list = []
+
+
 def jit():
     """``numba.njit(cache=True, nogil=True)``, without the disk cache where no cache directory is
     writable (numba refuses ``cache=True`` at decoration time then)."""
@@ -35,11 +39,34 @@ def jit():
         if numba is None:                                      # pragma: no cover
             return fn
         try:
-            return numba.njit(cache=True, nogil=True)(fn)
+            kernel = numba.njit(cache=True, nogil=True)(fn)
         except RuntimeError as exc:                            # no writable cache locator
             log.info("numba cache unavailable (%s); compiling %s in memory", exc, fn.__name__)
-            return numba.njit(cache=False, nogil=True)(fn)
+            kernel = numba.njit(cache=False, nogil=True)(fn)
+        _KERNELS.append(kernel)
+        return kernel
     return wrap
+
+
+def kernels_to_compile(module: str | None = None) -> list[str]:
+    """Names of the kernels made so far (:func:`jit`, in the modules imported; only those of
+    ``module`` if given) that numba's disk cache holds nothing for, for their source as it is now:
+    numba compiles them on first use, a fraction of a second to a few seconds each (a fresh
+    install, or after an upgrade).  A kernel without a disk cache counts; where numba's cache
+    cannot be read the answer is empty (nothing is claimed)."""
+    names = []
+    for kernel in _KERNELS:
+        if module is not None and getattr(kernel, "py_func", kernel).__module__ != module:
+            continue
+        cache = getattr(kernel, "_cache", None)
+        try:
+            held = bool(cache._cache_file._load_index()) if cache is not None and hasattr(cache, "_cache_file") \
+                else False
+        except Exception:                                      # numba's private layout changed: no claim
+            return []
+        if not held:
+            names.append(kernel.__name__)
+    return names
 
 
 @dataclass(frozen=True, eq=False)
