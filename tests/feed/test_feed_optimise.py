@@ -410,23 +410,29 @@ def test_fractions_out_of_range_are_refused_by_name_before_the_kernel(plate, bad
         optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=1e-6, tolerance=1e-7, timing_rounds=0, **bad)
 
 
-def test_the_feed_does_not_slow_until_it_gouges_the_samples_beside_the_region():
-    """A pass along y = 20 mm whose region is only the pad's rim beyond y = 38.5 mm, mid-pass:
-    matching a target there asks the feed to crawl, and the pass's own centre line (outside the
-    region) would take many times the target.  Those samples stay under EDGE_CAP_RATIO times the
-    region's cap, or under what the fastest feed removes there where that is more."""
-    from swath.feed.optimise import EDGE_CAP_RATIO
-
+@pytest.fixture(scope="module")
+def rim_pass():
+    """A pass along y = 20 mm on a 1 mm plate whose region is only the pad's rim beyond y = 38.5 mm,
+    mid-pass: ``(toolpath, kernel, region, edge, fastest)``, ``edge`` the touched samples outside
+    the region, ``fastest`` the removal at the fastest feed."""
     fine = flat_plate(size_x=0.24, size_y=0.2, spacing=1e-3)
     tp = ToolPath(fine, [_line(0.02, 0.22, 0.02)], "test")
     k = build_kernel(tp, TOOL)
     x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
     touched = np.diff(k.matrix.tocsr().indptr) > 0
     region = touched & (y > 0.0385) & (np.abs(x - 0.12) < 0.06)
-    fastest = k.removal(k.dwell_at_speed(V_MAX))
-    target = np.full(len(y), 0.9 * fastest[touched].max())
+    return tp, k, region, touched & ~region, k.removal(k.dwell_at_speed(V_MAX))
+
+
+def test_the_feed_does_not_slow_until_it_gouges_the_samples_beside_the_region(rim_pass):
+    """Matching a target on the rim asks the feed to crawl, and the pass's own centre line (outside
+    the region) would take many times the target.  Those samples stay under EDGE_CAP_RATIO times the
+    region's cap, or under what the fastest feed removes there where that is more."""
+    from swath.feed.optimise import EDGE_CAP_RATIO
+
+    tp, k, region, edge, fastest = rim_pass
+    target = np.full(len(fastest), 0.9 * fastest[region | edge].max())
     tol = 0.1 * target[0]
-    edge = touched & ~region
     cap = np.maximum(EDGE_CAP_RATIO * (target + tol), fastest)
     assert region.sum() > 50 and edge.sum() > 1000
     held = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=tol, kernel=k, region=region,
@@ -440,24 +446,17 @@ def test_the_feed_does_not_slow_until_it_gouges_the_samples_beside_the_region():
     assert free.predicted[region].mean() > held.predicted[region].mean()
 
 
-def test_the_edge_cap_reads_the_given_target_where_the_target_is_raised_to_the_fastest_feed():
+def test_the_edge_cap_reads_the_given_target_where_the_target_is_raised_to_the_fastest_feed(rim_pass):
     """With ``target_floor="fastest"`` a sample's target is raised to what the fastest feed removes
     there; beside the region that must not raise its cap too (twice the raised target let the
     feed slow down over a convex fold at the edge of bezier_dac_scan: 124 um where the fastest feed
-    removes 84 um).  The same pass and rim region as above, a target a third of the centre line's
-    fastest removal: the centre line may take what the fastest feed removes, not twice that."""
+    removes 84 um).  A target a third of the centre line's fastest removal: the centre line may take
+    what the fastest feed removes, not twice that."""
     from swath.feed.optimise import EDGE_CAP_RATIO
 
-    fine = flat_plate(size_x=0.24, size_y=0.2, spacing=1e-3)
-    tp = ToolPath(fine, [_line(0.02, 0.22, 0.02)], "test")
-    k = build_kernel(tp, TOOL)
-    x, y = k.samples.vertices[:, 0], k.samples.vertices[:, 1]
-    touched = np.diff(k.matrix.tocsr().indptr) > 0
-    region = touched & (y > 0.0385) & (np.abs(x - 0.12) < 0.06)
-    fastest = k.removal(k.dwell_at_speed(V_MAX))
-    target = np.full(len(y), fastest[touched].max() / 3)
+    tp, k, region, edge, fastest = rim_pass
+    target = np.full(len(fastest), fastest[region | edge].max() / 3)
     tol = 0.1 * target[0]
-    edge = touched & ~region
     cap = np.maximum(EDGE_CAP_RATIO * (target + tol), fastest)
     assert (fastest[edge] > EDGE_CAP_RATIO * (target[edge] + tol)).sum() > 100     # the centre line's band
     held = optimise_feed(tp, TOOL, [FeedLimit(V_MAX)], target=target, tolerance=tol, kernel=k, region=region,
