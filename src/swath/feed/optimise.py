@@ -426,9 +426,9 @@ def optimise_feed(toolpath: ToolPath, tool, constraints, *, target, tolerance: f
     # the touched samples outside the region (near the open edges): the objective does not read
     # them, but the feed must not slow down to gouge them either; they stay under EDGE_CAP_RATIO
     # times the region's cap, or under what the fastest feed removes there where that is more (a
-    # convex fold at the edge of bezier_dac_scan: 73 um at the fastest feed, 156 um with the feed
-    # slowed beside it).  The given target, not the one raised to the fastest feed's removal: raised,
-    # twice it let the feed slow down over that fold again (124 um where the fastest feed removes 84 um)
+    # convex fold at the edge of bezier_dac_scan: 156 um with the feed slowed beside it).  The given
+    # target, not the one raised to the fastest feed's removal: twice the raised one let the feed slow
+    # down over that fold again (124 um by the kernel where the fastest feed removes 84 um)
     edge = touched & ~region if np.isfinite(edge_cap_ratio) else np.zeros_like(region)
     cap[edge] = np.maximum(edge_cap_ratio * (given_target + tolerance), fastest)[edge]
     lp_target = np.minimum(target_s, cap)
