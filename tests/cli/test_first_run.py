@@ -3,6 +3,7 @@ first used (the stages' estimates are for compiled kernels); later jobs say noth
 
 from types import SimpleNamespace
 
+import swath.contact.kernels  # noqa: F401  (registered before any test swaps the registry)
 from swath.cli import jobwrap
 from swath.surface import cells
 
@@ -46,3 +47,10 @@ def test_the_real_kernels_are_registered_with_their_modules():
     ours = [k for k in cells._KERNELS if k.py_func.__module__ == jobwrap.SIMULATION_KERNELS]
     assert len(ours) >= 5
     assert set(cells.kernels_to_compile(jobwrap.SIMULATION_KERNELS)) <= {k.__name__ for k in ours}
+
+
+def test_without_a_writable_cache_every_run_compiles_and_the_line_says_how_to_fix_it(monkeypatch):
+    sim = jobwrap.SIMULATION_KERNELS
+    in_memory = SimpleNamespace(__name__="k", py_func=SimpleNamespace(__module__=sim), _cache=SimpleNamespace())
+    heard = _heard(monkeypatch, [in_memory, in_memory])
+    assert len(heard) == 1 and "every run" in heard[0][0] and "NUMBA_CACHE_DIR" in heard[0][0]

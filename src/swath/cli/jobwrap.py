@@ -74,5 +74,10 @@ def first_run_notice(say) -> bool:
     if not ours or len(cold) < len(ours):
         return False
     logging.getLogger(__name__).info("numba's cache holds none of the %d simulation kernels: compiling them", len(ours))
-    say(f"{FIRST_RUN_STAGE} (this run only: up to about {FIRST_RUN_EXTRA_S} s more)", 0, 1)
+    if not any(hasattr(getattr(k, "_cache", None), "_cache_file") for k in ours):
+        # no writable cache directory (swath.surface.cells.jit compiled them without one): every run
+        say(f"{FIRST_RUN_STAGE} (up to about {FIRST_RUN_EXTRA_S} s more at every run: numba has no writable "
+            "cache directory; set NUMBA_CACHE_DIR to one)", 0, 1)
+    else:
+        say(f"{FIRST_RUN_STAGE} (this run only: up to about {FIRST_RUN_EXTRA_S} s more)", 0, 1)
     return True
