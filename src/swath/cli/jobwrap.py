@@ -69,12 +69,12 @@ def first_run_notice(say) -> bool:
     importlib.import_module(SIMULATION_KERNELS)
     from ..surface import cells
 
-    ours = [k for k in cells._KERNELS if getattr(k, "py_func", k).__module__ == SIMULATION_KERNELS]
+    ours = cells.kernels_of(SIMULATION_KERNELS)
     cold = cells.kernels_to_compile(SIMULATION_KERNELS)
     if not ours or len(cold) < len(ours):
         return False
     logging.getLogger(__name__).info("numba's cache holds none of the %d simulation kernels: compiling them", len(ours))
-    if not any(hasattr(getattr(k, "_cache", None), "_cache_file") for k in ours):
+    if not any(cells.disk_cached(k) for k in ours):
         # no writable cache directory (swath.surface.cells.jit compiled them without one): every run
         say(f"{FIRST_RUN_STAGE} (up to about {FIRST_RUN_EXTRA_S} s more at every run: numba has no writable "
             "cache directory; set NUMBA_CACHE_DIR to one)", 0, 1)

@@ -48,13 +48,13 @@ from .timed import dwell_to_profile, simulated_on_kernel, timed_spread_removal, 
 log = logging.getLogger(__name__)
 
 #: Touched samples outside the optimised region (near the open edges) are held under this many times
-#: the region's ``target + tolerance``, or what the fastest feed removes there where that is more:
+#: the given ``target + tolerance``, or what the fastest feed removes there where that is more:
 #: the feed may not slow down beside an edge until it gouges it.  Without it, the default job's
-#: deepest spot on bezier_dac_scan was 156 µm against a 4.7 µm median (73 µm there at the fastest
-#: feed), on bezier_complex_shape 27 µm, on the hub 29 µm.  Held at 2 times, those are 127, 13.5 and
-#: 23 µm, and every interior CoV moves by 0.003 or less.  Held at 1 time (the region's own cap),
-#: the interiors paid for it: the plate 0.052 -> 0.068, the hub 0.422 -> 0.509 (their bands need
-#: the passes slowed near the ends).
+#: deepest spot on bezier_dac_scan was 156 µm against a 4.7 µm median (84 µm there at the fastest
+#: feed, by the kernel), on bezier_complex_shape 27 µm, on the hub 29 µm.  Held at 2 times, those are
+#: 91, 13.4 and 14.3 µm; the interior CoVs move by 0.003 or less, but for the hub's (0.422 -> 0.439).
+#: Held at 1 time (the region's own cap), the interiors paid for it: the plate 0.052 -> 0.068, the
+#: hub 0.422 -> 0.509 (their bands need the passes slowed near the ends).
 EDGE_CAP_RATIO = 2.0
 
 

@@ -48,6 +48,17 @@ def jit():
     return wrap
 
 
+def kernels_of(module: str) -> list:
+    """The kernels :func:`jit` has made for ``module`` (a module name), once it is imported."""
+    return [k for k in _KERNELS if getattr(k, "py_func", k).__module__ == module]
+
+
+def disk_cached(kernel) -> bool:
+    """Whether numba keeps ``kernel`` in its disk cache (False: compiled in memory at every run,
+    where no cache directory was writable when :func:`jit` made it)."""
+    return hasattr(getattr(kernel, "_cache", None), "_cache_file")
+
+
 def kernels_to_compile(module: str | None = None) -> list[str]:
     """Names of the kernels made so far (:func:`jit`, in the modules imported; only those of
     ``module`` if given) that numba's disk cache holds nothing for, for their source as it is now:
@@ -55,13 +66,9 @@ def kernels_to_compile(module: str | None = None) -> list[str]:
     install, or after an upgrade).  A kernel without a disk cache counts; where numba's cache
     cannot be read the answer is empty (nothing is claimed)."""
     names = []
-    for kernel in _KERNELS:
-        if module is not None and getattr(kernel, "py_func", kernel).__module__ != module:
-            continue
-        cache = getattr(kernel, "_cache", None)
+    for kernel in _KERNELS if module is None else kernels_of(module):
         try:
-            held = bool(cache._cache_file._load_index()) if cache is not None and hasattr(cache, "_cache_file") \
-                else False
+            held = disk_cached(kernel) and bool(kernel._cache._cache_file._load_index())
         except Exception:                                      # numba's private layout changed: no claim
             return []
         if not held:
