@@ -307,6 +307,15 @@ CODES: dict[str, WarningCode] = dict([
           "The efficiency η = L\\* / L exceeds 1, which no plan can reach: the lower bound counts area the "
           "passes never cover.",
           "Read it together with `coverage_fraction`.", "simulate"),
+    entry("W-HOT-SPOT", r"^hot spot: ",
+          "A patch of the part (at least a quarter of the pad's face) is removed more than three times as deep as "
+          "the interior's mean; the message gives its area, the deepest removal, where it is, and what the "
+          "simulation finds there (the tool slowing while the pad is over it, the surface turning under the pad). "
+          "The interior CoV leaves out a pad radius along the edges, so a plan can be even inside and still grind "
+          "such a spot at an edge.",
+          "Look at the spot in the report's removal map before running. Keep the pad off it (`--keep-out` with a "
+          "box round it, or `--edge-margin` at an edge), or relax `--max-angular` where the tool slows to turn "
+          "over a fold. `hot_spot_*` in `metrics.json` hold the figures.", "simulate"),
     entry("W-PAD-TOO-STIFF", r"is too stiff to follow",
           "The removal is uneven because the pad is too stiff for the surface's curvature or waviness; a "
           "softer pad would remove clearly more evenly (simulated).",
