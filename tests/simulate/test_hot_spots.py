@@ -38,7 +38,7 @@ def test_an_even_raster_has_no_hot_spot(plate):
     assert m["hot_spot_area_m2"] == 0.0
     assert 1.0 < m["hot_spot_depth_ratio"] < HOT_SPOT_FACTOR
     assert m["hot_spot_normal_turn_rad"] < math.radians(0.5)          # a plane
-    assert hot_spot_warnings(m, 0.05, tool.pad_radius) == []
+    assert hot_spot_warnings(m, 0.05) == []
 
 
 def test_a_crawled_stretch_is_found_with_its_speed(plate):
@@ -53,7 +53,7 @@ def test_a_crawled_stretch_is_found_with_its_speed(plate):
     assert not m["hot_spot_at_edge"]
     assert m["hot_spot_slowest_speed_m_per_s"] == pytest.approx(feed / CRAWL, rel=0.1)
     assert m["hot_spot_area_m2"] >= HOT_SPOT_MIN_PAD_SHARE * math.pi * tool.pad_radius**2
-    [text] = hot_spot_warnings(m, feed, tool.pad_radius)
+    [text] = hot_spot_warnings(m, feed)
     assert text.startswith("hot spot: ")
     assert f"slows to {1e3 * feed / CRAWL:.0f} mm/s" in text and "inside the part" in text
     assert "angular speed limit" not in text                          # slowed, not turning
@@ -68,7 +68,8 @@ def test_the_job_warns_only_over_a_quarter_pad(plate):
     warned = [w for w in plan_warnings(surface, _plan(surface), crawled, m, 0.05, tool.pad_radius)
               if w.startswith("hot spot")]
     assert len(warned) == 1
-    small = dict(m, hot_spot_area_m2=0.9 * HOT_SPOT_MIN_PAD_SHARE * pad)
+    assert m["hot_spot_area_over_pad_ratio"] == pytest.approx(m["hot_spot_area_m2"] / pad, rel=1e-12)
+    small = dict(m, hot_spot_area_over_pad_ratio=0.9 * HOT_SPOT_MIN_PAD_SHARE)
     assert not [w for w in plan_warnings(surface, _plan(surface), crawled, small, 0.05, tool.pad_radius)
                 if w.startswith("hot spot")]
 
@@ -77,3 +78,18 @@ def _plan(surface):
     from swath.core import ToolPath
 
     return ToolPath(surface, [], "raster", {})
+
+
+def test_the_removal_map_circles_a_hot_spot_worth_a_warning(plate):
+    from swath.report.plots import removal_map_figure
+
+    surface, tool, _, crawled, _ = plate
+    removal = simulate_removal(crawled, surface, tool)
+    m = hot_spot_metrics(removal, crawled, tool)
+
+    def labels(metrics):
+        fig = removal_map_figure(removal, metrics=metrics)
+        return [t.get_text() for t in fig.axes[0].texts if t.get_text().startswith("hot spot")]
+
+    assert labels(m) == [f"hot spot {1e6 * m['hot_spot_depth_m']:.3g} µm ({m['hot_spot_depth_ratio']:.0f}x the interior)"]
+    assert labels(dict(m, hot_spot_area_over_pad_ratio=0.5 * HOT_SPOT_MIN_PAD_SHARE)) == [] and labels(None) == []

@@ -69,7 +69,7 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
     paths = {"metrics": write_metrics_json(out_dir / "metrics.json", metrics, settings)}
     # The removal map and histogram are drawn by a forked child while this process draws the feed
     # figure and the 3D view (the same files; drawn here where no child can be forked).
-    drawn = Beside(_draw, out_dir, toolpath, trajectory, removal, BESIDE_PLOTS)
+    drawn = Beside(_draw, out_dir, toolpath, trajectory, removal, BESIDE_PLOTS, metrics)
     here = write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal,
                        names=[n for n in PNG_NAMES if n not in BESIDE_PLOTS])
     pngs: dict[str, Path] = {}
@@ -90,5 +90,5 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
 BESIDE_PLOTS = ("removal_map", "depth_histogram")
 
 
-def _draw(out_dir, toolpath, trajectory, removal, names) -> dict[str, Path]:
-    return write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal, names=names)
+def _draw(out_dir, toolpath, trajectory, removal, names, metrics=None) -> dict[str, Path]:
+    return write_plots(out_dir, toolpath=toolpath, trajectory=trajectory, removal=removal, names=names, metrics=metrics)

@@ -327,7 +327,7 @@ def _new_figure(width_in: float, height_in: float):
     return fig
 
 
-def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACES):
+def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACES, metrics: dict | None = None):
     """The removal depth map seen along the surface's principal normal axis.
 
     Parameters
@@ -338,6 +338,9 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
         Passes to draw on top, coloured by processing order.
     max_faces : int
         Faces drawn at most (see :func:`depth_mesh`).
+    metrics : dict, optional
+        The job's metrics: where their hot spot is worth a warning
+        (:func:`swath.simulate.hot_spots.worth_warning`), its deepest spot is circled and labelled.
 
     Returns
     -------
@@ -390,6 +393,7 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
         if n_pass <= 12:
             cb2.set_ticks(np.arange(1, n_pass + 1))
 
+    _mark_hot_spot(ax, frame, metrics or {})
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("along 1st principal axis (m)")
@@ -397,6 +401,21 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
     name = getattr(surf, "name", "") or "part"
     ax.set_title(f"Removal depth on {name}, seen along the surface normal axis")
     return fig
+
+
+def _mark_hot_spot(ax, frame, metrics: dict) -> None:
+    """Circle the hot spot's deepest removal in ``metrics`` on the map ``ax`` (view ``frame``), with
+    its depth, where the job warns of it."""
+    from ..simulate.hot_spots import worth_warning
+
+    if not worth_warning(metrics) or metrics.get("hot_spot_position_m") is None:
+        return
+    at = frame.project(np.asarray(metrics["hot_spot_position_m"], float)[None, :])[0]
+    ax.plot(at[0], at[1], "o", ms=14, mfc="none", mec="black", mew=1.6, zorder=6)
+    ax.annotate(f"hot spot {1e6 * float(metrics['hot_spot_depth_m']):.3g} µm "
+                f"({float(metrics['hot_spot_depth_ratio']):.0f}x the interior)", (at[0], at[1]),
+                xytext=(9, -12), textcoords="offset points", fontsize=8, zorder=6,
+                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.8})
 
 
 def feed_contact_figure(trajectory):
@@ -497,7 +516,7 @@ def save_png(fig, path, *, dpi: int = 110) -> Path:
 
 
 def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: int = 110,
-                names=None) -> dict[str, Path]:
+                names=None, metrics: dict | None = None) -> dict[str, Path]:
     """Write the PNG figures whose inputs are given into ``out_dir``.
 
     Parameters
@@ -514,6 +533,8 @@ def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: i
         Resolution, dots per inch.
     names : collection of str, optional
         Draw only these figures (keys of :data:`PNG_NAMES`); default all whose inputs are given.
+    metrics : dict, optional
+        The job's metrics: the removal map marks their hot spot (:func:`removal_map_figure`).
 
     Returns
     -------
@@ -523,7 +544,7 @@ def write_plots(out_dir, *, toolpath=None, trajectory=None, removal=None, dpi: i
     out_dir = Path(out_dir)
     figs = {}
     if removal is not None:
-        figs["removal_map"] = lambda: removal_map_figure(removal, toolpath)
+        figs["removal_map"] = lambda: removal_map_figure(removal, toolpath, metrics=metrics)
         figs["depth_histogram"] = lambda: depth_histogram_figure(removal)
     if trajectory is not None and len(trajectory):
         figs["feed_contact"] = lambda: feed_contact_figure(trajectory)

@@ -94,7 +94,7 @@ def plan_warnings(surface, toolpath, trajectory, metrics: dict, feed: float, pad
                    f"{_depth(e_soft)} would remove with {which} {soft:.2f} (simulated). Use a softer interface pad "
                    f"(--depression {1e3 * e_soft:.3g}mm), or, if the waviness is scanner noise, plan on a smooth fit of "
                    "the scan (swath fit)")
-    out += hot_spot_warnings(metrics, feed, pad_radius)     # a patch ground far deeper than the inside
+    out += hot_spot_warnings(metrics, feed)     # a patch ground far deeper than the inside
     if trajectory is not None and len(trajectory) > 1:
         dt = np.diff(trajectory.t)
         both = trajectory.contact[1:] & trajectory.contact[:-1]

@@ -51,7 +51,8 @@ def hot_spot_metrics(removal, trajectory, tool) -> dict:
     dict
         ``hot_spot_reference_m`` (the interior's area-weighted mean depth, or the touched area's on
         a part with no interior), ``hot_spot_area_m2`` (removed deeper than :data:`HOT_SPOT_FACTOR`
-        times it), ``hot_spot_depth_m`` (the deepest removal), ``hot_spot_depth_ratio`` (over the
+        times it), ``hot_spot_area_over_pad_ratio`` (that area over the pad's face, pi R^2: the job warns from
+        :data:`HOT_SPOT_MIN_PAD_SHARE`), ``hot_spot_depth_m`` (the deepest removal), ``hot_spot_depth_ratio`` (over the
         reference), ``hot_spot_position_m`` (the deepest sample, part frame), ``hot_spot_at_edge``
         (it lies within a pad radius of the open edge), ``hot_spot_slowest_speed_m_per_s`` (the TCP's
         slowest in-contact speed while the pad is over it, its centre within a pad radius: the 5th
@@ -75,6 +76,7 @@ def hot_spot_metrics(removal, trajectory, tool) -> dict:
     p = np.asarray(samples.vertices[i], float)
     out = {"hot_spot_reference_m": reference,
            "hot_spot_area_m2": float(a[d > HOT_SPOT_FACTOR * reference].sum()),
+           "hot_spot_area_over_pad_ratio": float(a[d > HOT_SPOT_FACTOR * reference].sum()) / (math.pi * R**2),
            "hot_spot_depth_m": float(d[i]), "hot_spot_depth_ratio": float(d[i] / reference),
            "hot_spot_position_m": [float(x) for x in p], "hot_spot_at_edge": bool(not inner[i])}
     near = np.flatnonzero(np.linalg.norm(samples.vertices - p, axis=1) <= R)
@@ -116,13 +118,19 @@ def _angular_limit(trajectory) -> float:
     return float("nan")
 
 
-def hot_spot_warnings(metrics: dict, feed: float, pad_radius: float) -> list[str]:
-    """The job's warning about its hot spot (:func:`hot_spot_metrics`'s keys in ``metrics``): none
-    when the area removed deeper than :data:`HOT_SPOT_FACTOR` times the interior's mean is under
-    :data:`HOT_SPOT_MIN_PAD_SHARE` of the pad's face.  ``feed`` m/s, ``pad_radius`` m."""
-    area = metrics.get("hot_spot_area_m2")
-    if area is None or not area >= HOT_SPOT_MIN_PAD_SHARE * math.pi * float(pad_radius) ** 2:
+def worth_warning(metrics: dict) -> bool:
+    """Whether the hot spot in ``metrics`` (:func:`hot_spot_metrics`'s keys) is worth the job's
+    warning: its area at least :data:`HOT_SPOT_MIN_PAD_SHARE` of the pad's face."""
+    share = metrics.get("hot_spot_area_over_pad_ratio")
+    return share is not None and bool(share >= HOT_SPOT_MIN_PAD_SHARE)
+
+
+def hot_spot_warnings(metrics: dict, feed: float) -> list[str]:
+    """The job's warning about its hot spot (:func:`hot_spot_metrics`'s keys in ``metrics``), where
+    :func:`worth_warning`; else none.  ``feed`` m/s."""
+    if not worth_warning(metrics):
         return []
+    area = float(metrics["hot_spot_area_m2"])
     ref, depth = float(metrics["hot_spot_reference_m"]), float(metrics["hot_spot_depth_m"])
     where = ", ".join(f"{1e3 * x:.0f}" for x in metrics["hot_spot_position_m"])
     edge = "within a pad radius of the edge" if metrics.get("hot_spot_at_edge") else "inside the part"
