@@ -276,6 +276,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
     where its feed is held round a ridge (:mod:`swath.cli.ridge_turn`; ``metadata["ridge_planner"]``)."""
     from ..order import order_toolpath, route_links
     from ..plan import get_planner, planner_options
+    from . import stages
     from .stages import job_tool
 
     tool = job_tool(settings) if tool is None else tool
@@ -301,10 +302,7 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
         toolpath = segmented_plan(surface, tool, planner, settings, arguments)
     else:
         toolpath = planner(surface, tool, **arguments)
-    if part is not None and (part.keep_out.any() or part.edge_margin > 0):
-        from ..segment.select import keep_clear
-
-        toolpath = keep_clear(toolpath, part, settings.pad_radius)
+    toolpath = stages.kept_clear(toolpath, surface, part, settings)     # keep-outs, edge margin, folds at the rim
     ordered = order_toolpath(toolpath, method=order_method(toolpath, settings), **order_options(toolpath, settings))
     return route_links(ordered, clearance=settings.clearance, pad_radius=settings.pad_radius, units=settings.units)
 

@@ -30,10 +30,10 @@ import logging
 
 import numpy as np
 
-log = logging.getLogger(__name__)
+# (the held stretches are measured as swath.plan.folds measures them at a part's rim)
+from ..plan.folds import HOLD_FRACTION, RIDGE_NET_TURN, ridge_runs, rotation_per_metre  # noqa: F401
 
-#: The feed counts as held where the angular speed limit allows less than this fraction of it.
-HOLD_FRACTION = 0.5
+log = logging.getLogger(__name__)
 
 #: The uniform planner is tried when the raster's feed is held over at least this share of the
 #: contact length (the blade across its nose: 3.9 %; ``example:hub`` 4.8 %; crs_part_5 0.08 %; the
@@ -47,56 +47,6 @@ TIGHT_SHARE = 0.05
 #: The uniform plan replaces the raster only where its own held share is below this fraction of the
 #: raster's (the uniform planner chooses its own direction, and may cross the ridge too).
 RELIEF = 0.5
-
-
-def rotation_per_metre(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The rate at which the surface normal turns along a pass, rad/m, per segment, and the
-    segments' lengths, m.
-
-    Parameters
-    ----------
-    points : (k, 3) float
-        The pass's points, m.
-    normals : (k, 3) float
-        Unit surface normals there.
-
-    Returns
-    -------
-    rate : (k - 1,) float
-        The angle between neighbouring normals over the segment's length, rad/m (0 on a segment of
-        no length).
-    length : (k - 1,) float
-        m.
-    """
-    p = np.asarray(points, float)
-    n = np.asarray(normals, float)
-    length = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    cos = np.clip(np.einsum("ij,ij->i", n[1:], n[:-1]), -1.0, 1.0)
-    angle = np.arccos(cos)
-    rate = np.divide(angle, length, out=np.zeros_like(angle), where=length > 1e-12)
-    return rate, length
-
-
-#: A held stretch counts as a ridge only where the normal turns at least this much from its start to
-#: its end, rad: a pass crossing the blade's nose turns by about 3 rad there, while on a scan
-#: (bezier_dac_scan) the normals' noise holds the feed over 4.8 % of the raster's length in stretches
-#: that turn back and forth, which no other planner's passes avoid.
-RIDGE_NET_TURN = 1.0
-
-
-def ridge_runs(normals: np.ndarray, held: np.ndarray) -> np.ndarray:
-    """``held`` (a pass's (k - 1,) segments where the limit holds the feed) kept only on the runs of
-    held segments over which the unit ``normals`` ((k, 3)) turn by :data:`RIDGE_NET_TURN` or more
-    from the run's first point to its last."""
-    out = np.asarray(held, bool).copy()
-    if not out.any():
-        return out
-    n = np.asarray(normals, float)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], out.astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2]):      # segments a..b-1: points a..b
-        if np.arccos(np.clip(float(n[a] @ n[b]), -1.0, 1.0)) < RIDGE_NET_TURN:
-            out[a:b] = False
-    return out
 
 
 def held_share(toolpath, feed: float, omega_max: float | None) -> dict:

@@ -522,3 +522,18 @@ def efficiency_after_gaps(metrics: dict, n_gaps: int, pad_radius: float) -> dict
     return {"covered_lower_bound_m": bound, "gap_end_allowance_m": allowance,
             "efficiency": bound / length if length > 0 else float("nan")}
 
+
+
+def kept_clear(toolpath, surface, part, settings):
+    """The planner's ``toolpath`` cut where the pad would touch a keep-out or cross the edge margin of
+    ``part`` (its selection, or None: :func:`swath.segment.select.keep_clear`), and where its passes
+    would crawl over a fold at the rim of ``surface`` under the job's angular speed limit
+    (:func:`swath.plan.folds.cut_rim_folds`)."""
+    from ..plan.folds import cut_rim_folds
+
+    if part is not None and (part.keep_out.any() or part.edge_margin > 0):
+        from ..segment.select import keep_clear
+
+        toolpath = keep_clear(toolpath, part, settings.pad_radius)
+    return cut_rim_folds(toolpath, surface, feed=settings.feed, omega_max=settings.max_angular,
+                         pad_radius=settings.pad_radius)
