@@ -3,9 +3,10 @@
 The interior removal CoV (:func:`swath.simulate.removal.plan_metrics`) leaves out a pad radius along
 the open edges, and a CoV says nothing of where the deepest removal is.  A plan can be even inside
 and still grind a spot many times deeper near an edge: on bezier_dac_scan the default job's passes
-cross a fold at the scan's rim (the surface turns by about 85 degrees under the pad, 2 mm from the
-edge), the angular speed limit holds the tool to about 3 mm/s there, and the pad removes 91 um on a
-part whose inside loses 4.6 um.
+crossed a fold at the scan's rim (the surface turns by about 85 degrees under the pad, 2 mm from the
+edge), the angular speed limit held the tool to about 3 mm/s there, and the pad removed 91 um on a
+part whose inside loses 4.6 um (72 um once the passes stop short of the fold, :mod:`swath.plan.folds`:
+the flat pad still presses on the fold's crest).
 
 :func:`hot_spot_metrics` measures the area removed deeper than :data:`HOT_SPOT_FACTOR` times the
 interior's mean depth and, at the deepest sample, the facts a process engineer checks: where it is,
@@ -25,8 +26,8 @@ HOT_SPOT_FACTOR = 3.0
 
 #: A hot spot warns once its area is at least this share of the pad's face (pi R^2).  Of the default
 #: jobs on the shared and built-in parts (raster and uniform), two parts have such a patch:
-#: bezier_dac_scan's fold at its rim (2.4 pads' area over 3x, its deepest 20x) and the hub's rim
-#: (0.8 pad, 4.6x); the next, bezier_complex_shape's edge (0.18 pad, 5x) and crs_part_5's (0.11 pad,
+#: bezier_dac_scan's fold at its rim (1.6 pads' area over 3x, its deepest 16x) and the hub's rim
+#: (0.8 pad, 4.7x); the next, bezier_complex_shape's edge (0.18 pad, 5x) and crs_part_5's (0.11 pad,
 #: 4x), are a few passes' slowing at the edge.
 HOT_SPOT_MIN_PAD_SHARE = 0.25
 
@@ -51,15 +52,15 @@ def hot_spot_metrics(removal, trajectory, tool) -> dict:
     dict
         ``hot_spot_reference_m`` (the interior's area-weighted mean depth, or the touched area's on
         a part with no interior), ``hot_spot_area_m2`` (removed deeper than :data:`HOT_SPOT_FACTOR`
-        times it), ``hot_spot_area_over_pad_ratio`` (that area over the pad's face, pi R^2: the job warns from
-        :data:`HOT_SPOT_MIN_PAD_SHARE`), ``hot_spot_depth_m`` (the deepest removal), ``hot_spot_depth_ratio`` (over the
-        reference), ``hot_spot_position_m`` (the deepest sample, part frame), ``hot_spot_at_edge``
+        times it), ``hot_spot_area_over_pad_ratio`` (that area over the pad's face, pi R^2: the job
+        warns from :data:`HOT_SPOT_MIN_PAD_SHARE`), ``hot_spot_depth_m`` (the deepest removal),
+        ``hot_spot_depth_ratio`` (over the reference), ``hot_spot_position_m`` (the deepest sample, part frame), ``hot_spot_at_edge``
         (it lies within a pad radius of the open edge), ``hot_spot_slowest_speed_m_per_s`` (the TCP's
         slowest in-contact speed while the pad is over it, its centre within a pad radius: the 5th
         percentile by time, the pass ends' stops left out), ``hot_spot_angular_speed_rad_per_s`` (the
         tool's angular speed there) and ``hot_spot_angular_limit_rad_per_s`` (the limit the
-        trajectory was timed under, NaN if none), ``hot_spot_normal_turn_rad`` (the largest angle between the surface
-        normal there and the normals within a pad radius).  Empty when nothing was removed.
+        trajectory was timed under, NaN if none), ``hot_spot_normal_turn_rad`` (the largest angle
+        between the surface normal there and the normals within a pad radius).  Empty when nothing was removed.
     """
     d = np.asarray(removal.depth, float)
     samples = removal.surface
@@ -74,9 +75,9 @@ def hot_spot_metrics(removal, trajectory, tool) -> dict:
         return {}
     i = int(np.argmax(d))
     p = np.asarray(samples.vertices[i], float)
-    out = {"hot_spot_reference_m": reference,
-           "hot_spot_area_m2": float(a[d > HOT_SPOT_FACTOR * reference].sum()),
-           "hot_spot_area_over_pad_ratio": float(a[d > HOT_SPOT_FACTOR * reference].sum()) / (math.pi * R**2),
+    area = float(a[d > HOT_SPOT_FACTOR * reference].sum())
+    out = {"hot_spot_reference_m": reference, "hot_spot_area_m2": area,
+           "hot_spot_area_over_pad_ratio": area / (math.pi * R**2),
            "hot_spot_depth_m": float(d[i]), "hot_spot_depth_ratio": float(d[i] / reference),
            "hot_spot_position_m": [float(x) for x in p], "hot_spot_at_edge": bool(not inner[i])}
     near = np.flatnonzero(np.linalg.norm(samples.vertices - p, axis=1) <= R)
