@@ -551,7 +551,8 @@ def run_job(settings: JobSettings, *, progress=None) -> dict:
     from ..simulate.evenness import evenness_metrics
     from ..simulate.hot_spots import hot_spot_metrics
     metrics.update(evenness_metrics(removal, trajectory, tool))    # where the interior CoV comes from
-    metrics.update(hot_spot_metrics(removal, trajectory, tool))    # where it runs deepest, and why
+    if settings.target_map is None:        # (a target map varies the depth on purpose: rework says its own residual)
+        metrics.update(hot_spot_metrics(removal, trajectory, tool))    # where it runs deepest, and why
     metrics.update(jobwrap.plan_figures(toolpath.metadata, metrics))     # the plan's own figures
     metrics.update(timings)
     metrics.update(part_info.get("metrics", {}))
