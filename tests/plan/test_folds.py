@@ -55,13 +55,14 @@ def test_passes_along_the_lip_are_not_cut(lip):
     assert "rim_fold_cuts" not in plan.metadata
 
 
-def _pass_with_turn(y: float, *, jitter: bool = False) -> Pass:
-    """A pass along x at height 0 and ``y`` (m), its normals turning by 90 degrees about y over
-    x = 0.50..0.52 m (or, with ``jitter``, by 20 degrees there and back every 2 mm)."""
-    x = np.arange(0.3, 0.7, 1e-3)
-    a = np.clip((x - 0.50) / 0.02, 0.0, 1.0) * math.pi / 2
+def _pass_with_turn(y: float, at: float = 0.5, *, jitter: bool = False) -> Pass:
+    """A pass along x from 0.3 m to 0.995 m at height 0 and ``y`` (m), its normals turning by 90
+    degrees about y over ``at``..``at`` + 0.02 m (or, with ``jitter``, by 20 degrees there and back
+    every 2 mm)."""
+    x = np.arange(0.3, 0.995, 1e-3)
+    a = np.clip((x - at) / 0.02, 0.0, 1.0) * math.pi / 2
     if jitter:
-        a = np.where((x > 0.50) & (x < 0.52), math.radians(20) * (np.round((x - 0.5) / 1e-3) % 2), 0.0)
+        a = np.where((x > at) & (x < at + 0.02), math.radians(20) * (np.round((x - at) / 1e-3) % 2), 0.0)
     normals = np.column_stack([np.sin(a), np.zeros_like(a), np.cos(a)])
     return Pass(np.column_stack([x, np.full_like(x, y), np.zeros_like(x)]), normals, level=0)
 
@@ -69,19 +70,31 @@ def _pass_with_turn(y: float, *, jitter: bool = False) -> Pass:
 def test_only_a_turning_run_at_the_rim_is_cut():
     plate = flat_plate(size_x=1.0, size_y=1.0, spacing=0.02)
     R = 0.0381
-    rim, inside, noisy = _pass_with_turn(0.01), _pass_with_turn(0.5), _pass_with_turn(0.01, jitter=True)
-    cut = cut_rim_folds(ToolPath(plate, [rim, inside, noisy], "raster", {}), plate, feed=0.05, omega_max=1.0,
-                        pad_radius=R)
-    # the rim pass is split round its turn (0.50..0.52 m); the one inside and the noisy one are kept whole
-    assert cut.metadata["rim_fold_cuts"] == 1
-    assert cut.metadata["rim_fold_length_m"] == pytest.approx(0.02, abs=2e-3)
-    first, second, kept_inside, kept_noisy = cut.passes
-    assert first.points[-1, 0] < 0.5 + 1e-9 and second.points[0, 0] > 0.52 - 1e-9
-    assert kept_inside is inside and kept_noisy is noisy
+    # toward the edge x = 1 m, the turn 10..30 mm before it; hugging the edge y = 0 (5 mm off it)
+    ahead, hugging = _pass_with_turn(0.5, at=0.97), _pass_with_turn(0.005)
+    # a ridge inside; one crossed 20 mm from the edge y = 0, which lies beside it (the blade's nose
+    # near its tip); a scan's noise, turning back and forth, toward the edge
+    inside, beside, noisy = _pass_with_turn(0.5), _pass_with_turn(0.02), _pass_with_turn(0.5, at=0.97, jitter=True)
+    cut = cut_rim_folds(ToolPath(plate, [ahead, hugging, inside, beside, noisy], "raster", {}), plate, feed=0.05,
+                        omega_max=1.0, pad_radius=R)
+    assert cut.metadata["rim_fold_cuts"] == 2
+    assert cut.metadata["rim_fold_length_m"] == pytest.approx(0.04, abs=4e-3)
+    before_edge, hug_first, hug_second, kept_inside, kept_beside, kept_noisy = cut.passes
+    # toward the edge only the piece before the turn is left (the 5 mm beyond it is a stub under R/4)
+    assert before_edge.points[-1, 0] < 0.97 + 1e-9
+    assert hug_first.points[-1, 0] < 0.5 + 1e-9 and hug_second.points[0, 0] > 0.52 - 1e-9
+    assert kept_inside is inside and kept_beside is beside and kept_noisy is noisy
     # no limit, or a limit fast enough for the turn at the feed: nothing is cut
-    plan = ToolPath(plate, [rim], "raster", {})
+    plan = ToolPath(plate, [ahead], "raster", {})
     assert cut_rim_folds(plan, plate, feed=0.05, omega_max=None, pad_radius=R) is plan
     assert cut_rim_folds(plan, plate, feed=0.05, omega_max=10.0, pad_radius=R) is plan
+    # a closed part has no rim
+    import trimesh
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.3)
+    closed = Surface(ball.vertices, ball.faces, name="ball")
+    on_ball = ToolPath(closed, [hugging], "raster", {})
+    assert cut_rim_folds(on_ball, closed, feed=0.05, omega_max=1.0, pad_radius=R) is on_ball
 
 
 def test_stubs_under_a_quarter_pad_radius_are_dropped():
@@ -89,7 +102,7 @@ def test_stubs_under_a_quarter_pad_radius_are_dropped():
     R = 0.0381
     x = np.arange(0.3, 0.49 + 0.5 * MIN_PIECE_FRACTION * R, 1e-3)        # ends half a stub's length past the turn
     a = np.clip((x - 0.47) / 0.02, 0.0, 1.0) * math.pi / 2
-    p = Pass(np.column_stack([x, np.full_like(x, 0.01), 0 * x]), np.column_stack([np.sin(a), 0 * a, np.cos(a)]),
-             level=0)
+    p = Pass(np.column_stack([x, np.full_like(x, 0.005), 0 * x]), np.column_stack([np.sin(a), 0 * a, np.cos(a)]),
+             level=0)                                                      # hugging the edge y = 0
     [kept] = cut_rim_folds(ToolPath(plate, [p], "raster", {}), plate, feed=0.05, omega_max=1.0, pad_radius=R).passes
     assert kept.points[-1, 0] < 0.47 + 1e-9

@@ -13,8 +13,12 @@ of these hold:
 * the limit holds the feed below :data:`HOLD_FRACTION` of it (``ω_max / ρ < HOLD_FRACTION · v``);
 * over the run of such segments the normal turns by :data:`RIDGE_NET_TURN` or more from its start
   to its end (a scan's noise holds the feed in short runs that turn back and forth: those stay);
-* the run comes within a pad radius of the part's open edge (a fold at the rim; a ridge inside the
-  part, the blade's nose, is the planners' matter: :mod:`swath.cli.ridge_turn`).
+* the run lies at the rim (:func:`at_rim`): the part's open edge nearest to it is within a pad
+  radius ahead of it or behind it along the pass (the pass crosses the fold toward the edge), or
+  within a quarter of a pad radius in any direction (the fold hugs the edge).  A ridge inside the
+  part is the planners' matter (:mod:`swath.cli.ridge_turn`), also where a pass crosses it near the
+  part's end: the raster across the blade's nose, 33 mm from its tip, has the tip beside it, not
+  ahead.
 """
 
 from __future__ import annotations
@@ -33,6 +37,17 @@ HOLD_FRACTION = 0.5
 #: (bezier_dac_scan) the normals' noise holds the feed over 4.8 % of the raster's length in stretches
 #: that turn back and forth, which no other planner's passes avoid.
 RIDGE_NET_TURN = 1.0
+
+#: The open edge nearest a held run counts as ahead of it (or behind) within this angle of the
+#: pass's travel, as the cosine: 60 degrees.
+AHEAD_COS = 0.5
+
+#: A held run this close to the open edge (as a fraction of the pad radius), in any direction, is at
+#: the rim.
+HUGGING_FRACTION = 0.25
+
+#: The open edge is sampled this fraction of the pad radius apart for :func:`at_rim`.
+EDGE_STEP_FRACTION = 0.05
 
 #: Pieces of a cut pass shorter than this fraction of the pad radius are dropped (as the uniform
 #: planner drops its pieces under R/4): a stub left on a rim's flange beyond the fold is not a pass.
@@ -108,21 +123,30 @@ def cut_rim_folds(toolpath, surface, *, feed: float, omega_max: float | None, pa
     """
     if omega_max is None or not omega_max > 0 or not toolpath.passes:
         return toolpath
-    from ..core import Pass
-    from ..surface.surface import farther_from_boundary
+    from scipy.spatial import cKDTree
 
-    passes, cuts, cut_length = [], 0, 0.0
+    from ..core import Pass
+    from ..surface.polyline import densify
+
+    passes, cuts, cut_length, edge = [], 0, 0.0, None
     for p in toolpath.passes:
         rate, length = rotation_per_metre(p.points, p.normals)
         runs = ridge_runs(p.normals, omega_max / np.maximum(rate, 1e-12) < HOLD_FRACTION * feed)
         if not runs.any():
             passes.append(p)
             continue
-        at_rim = ~farther_from_boundary(p.points, surface, pad_radius)
+        if edge is None:
+            loops = surface.boundary_loops
+            if not loops:                                   # a closed part has no rim
+                return toolpath
+            # the edge sampled densely enough that its nearest point lies square to it, not at a
+            # vertex of a long boundary edge off to one side
+            edge = cKDTree(np.vstack([densify(surface.vertices[np.append(loop, loop[0])], EDGE_STEP_FRACTION * pad_radius)[0]
+                                      for loop in loops]))
         keep = np.ones(len(p.points), bool)
         edges = np.flatnonzero(np.diff(np.concatenate([[0], runs.astype(np.int8), [0]])))
         for a, b in zip(edges[::2], edges[1::2]):          # segments a..b-1: points a..b
-            if at_rim[a:b + 1].any():
+            if at_rim(p.points[a:b + 1], edge, pad_radius):
                 keep[a:b + 1] = False
                 cuts += 1
                 cut_length += float(length[a:b].sum())
@@ -139,3 +163,21 @@ def cut_rim_folds(toolpath, surface, *, feed: float, omega_max: float | None, pa
              cuts, 1e3 * cut_length)
     return toolpath.replace(passes=tuple(passes), metadata=dict(toolpath.metadata, rim_fold_cuts=cuts,
                                                                 rim_fold_length_m=cut_length))
+
+
+def at_rim(run: np.ndarray, edge, pad_radius: float) -> bool:
+    """Whether the held run ``run`` ((k, 3) points, m, in travel order) lies at the part's rim: the
+    nearest of the open edge's points (``edge``, a :class:`scipy.spatial.cKDTree` of them) to the
+    run's middle is within ``pad_radius`` (m) and within the angle :data:`AHEAD_COS` of the run's
+    travel, either way, or within :data:`HUGGING_FRACTION` of ``pad_radius`` whatever its direction."""
+    middle = run[len(run) // 2]
+    distance, k = edge.query(middle)
+    if distance <= HUGGING_FRACTION * pad_radius:
+        return True
+    if distance > pad_radius:
+        return False
+    travel = run[-1] - run[0]
+    norm = float(np.linalg.norm(travel))
+    if norm <= 0:
+        return False
+    return abs(float(travel @ (edge.data[k] - middle))) >= AHEAD_COS * norm * distance

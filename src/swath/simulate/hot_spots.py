@@ -5,7 +5,7 @@ the open edges, and a CoV says nothing of where the deepest removal is.  A plan 
 and still grind a spot many times deeper near an edge: on bezier_dac_scan the default job's passes
 crossed a fold at the scan's rim (the surface turns by about 85 degrees under the pad, 2 mm from the
 edge), the angular speed limit held the tool to about 3 mm/s there, and the pad removed 91 um on a
-part whose inside loses 4.6 um (72 um once the passes stop short of the fold, :mod:`swath.plan.folds`:
+part whose inside loses 4.6 um (70 um once the passes stop short of the fold, :mod:`swath.plan.folds`:
 the flat pad still presses on the fold's crest).
 
 :func:`hot_spot_metrics` measures the area removed deeper than :data:`HOT_SPOT_FACTOR` times the
@@ -26,8 +26,8 @@ HOT_SPOT_FACTOR = 3.0
 
 #: A hot spot warns once its area is at least this share of the pad's face (pi R^2).  Of the default
 #: jobs on the shared and built-in parts (raster and uniform), two parts have such a patch:
-#: bezier_dac_scan's fold at its rim (1.6 pads' area over 3x, its deepest 16x) and the hub's rim
-#: (0.8 pad, 4.7x); the next, bezier_complex_shape's edge (0.18 pad, 5x) and crs_part_5's (0.11 pad,
+#: bezier_dac_scan's fold at its rim (1.8 pads' area over 3x, its deepest 15x) and the hub's rim
+#: (0.8 pad, 4.7x); the next, bezier_complex_shape's edge (0.19 pad, 5x) and crs_part_5's (0.11 pad,
 #: 4x), are a few passes' slowing at the edge.
 HOT_SPOT_MIN_PAD_SHARE = 0.25
 
