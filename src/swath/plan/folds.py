@@ -112,14 +112,15 @@ def cut_rim_folds(toolpath, surface, *, feed: float, omega_max: float | None, pa
     omega_max : float or None
         The angular speed limit, rad/s (None: no limit, nothing is cut).
     pad_radius : float
-        m: a run within it of the open edge is a fold at the rim.
+        m: it sets how near the open edge a fold is at the rim (:func:`at_rim`) and the shortest
+        piece kept.
 
     Returns
     -------
     ToolPath
         The same object where nothing is cut; else the cut passes (pieces shorter than
-        :data:`MIN_PIECE_FRACTION` of the pad radius dropped), ``metadata`` gaining ``rim_fold_cuts`` (stretches
-        cut) and ``rim_fold_length_m`` (their contact length).
+        :data:`MIN_PIECE_FRACTION` of the pad radius dropped), ``metadata`` gaining
+        ``rim_fold_cuts`` (stretches cut) and ``rim_fold_length_m`` (their contact length).
     """
     if omega_max is None or not omega_max > 0 or not toolpath.passes:
         return toolpath
@@ -141,8 +142,8 @@ def cut_rim_folds(toolpath, surface, *, feed: float, omega_max: float | None, pa
                 return toolpath
             # the edge sampled densely enough that its nearest point lies square to it, not at a
             # vertex of a long boundary edge off to one side
-            edge = cKDTree(np.vstack([densify(surface.vertices[np.append(loop, loop[0])], EDGE_STEP_FRACTION * pad_radius)[0]
-                                      for loop in loops]))
+            step = EDGE_STEP_FRACTION * pad_radius
+            edge = cKDTree(np.vstack([densify(surface.vertices[np.append(loop, loop[0])], step)[0] for loop in loops]))
         keep = np.ones(len(p.points), bool)
         edges = np.flatnonzero(np.diff(np.concatenate([[0], runs.astype(np.int8), [0]])))
         for a, b in zip(edges[::2], edges[1::2]):          # segments a..b-1: points a..b
