@@ -74,6 +74,8 @@ def test_serial_sweep_writes_one_sorted_row_per_job(serial):
         assert float(r["pad_radius_m"]) == pytest.approx(0.05) and float(r["feed_m_per_s"]) == pytest.approx(0.1)
         assert float(r["coverage_fraction"]) > 0.99
         assert 0.0 < float(r["removal_cov"]) < 1.0 and float(r["cycle_time_s"]) > 0.0
+        # the deepest removal and the hot spot's area (none on these even parts) are columns too
+        assert float(r["removal_max_m"]) > float(r["removal_p95_m"]) and float(r["hot_spot_area_m2"]) >= 0.0
         folder = path.parent / "serial" / r["job_id"]
         assert (folder / "metrics.json").is_file() and (folder / "trajectory.csv").is_file()
     # The plate is 0.4 m x 0.3 m: a full-coverage path is at least its area over the pad diameter.

@@ -78,7 +78,7 @@ log = logging.getLogger(__name__)
 #: Metric columns of the results table, in order (empty for a failed job).
 METRIC_COLUMNS = (
     "n_passes", "coverage_fraction", "effective_coverage_fraction", "removal_cov", "interior_removal_cov", "removal_mean_m",
-    "removal_p5_m", "removal_p95_m", "contact_length_m", "air_length_m", "cycle_time_s",
+    "removal_p5_m", "removal_p95_m", "removal_max_m", "hot_spot_area_m2", "contact_length_m", "air_length_m", "cycle_time_s",
     "coverage_lower_bound_m", "efficiency", "load_s", "plan_s", "trajectory_s", "simulate_s", "job_s", "job_cpu_s",
 )
 #: Short prefixes of grid values in job ids (other keys use their own name).
