@@ -1,5 +1,6 @@
 """Hot spots (swath.simulate.hot_spots): a plate's raster run evenly, and with one stretch crawled."""
 
+import json
 import math
 from dataclasses import replace
 
@@ -93,3 +94,21 @@ def test_the_removal_map_circles_a_hot_spot_worth_a_warning(plate):
 
     assert labels(m) == [f"hot spot {1e6 * m['hot_spot_depth_m']:.3g} µm ({m['hot_spot_depth_ratio']:.0f}x the interior)"]
     assert labels(dict(m, hot_spot_area_over_pad_ratio=0.5 * HOT_SPOT_MIN_PAD_SHARE)) == [] and labels(None) == []
+
+
+def test_the_report_marks_a_hot_spot_in_its_3d_view(plate, tmp_path):
+    from swath.report import write_report
+
+    surface, tool, _, crawled, _ = plate
+    removal = simulate_removal(crawled, surface, tool)
+    m = dict(removal.metrics, **hot_spot_metrics(removal, crawled, tool))
+    label = f"hot spot {1e6 * m['hot_spot_depth_m']:.3g} µm ({m['hot_spot_depth_ratio']:.0f}x)"
+    # (the 3D view's figure is JSON in the page: its "µ" is written as it is or escaped, as the encoder chooses)
+    written = (label, json.dumps(label)[1:-1])
+    html = write_report(tmp_path, surface=surface, trajectory=crawled, removal=removal, metrics=m)["html"]
+    assert any(w in html.read_text(encoding="utf-8") for w in written)
+    quiet = tmp_path / "quiet"
+    quiet.mkdir()
+    small = dict(m, hot_spot_area_over_pad_ratio=0.5 * HOT_SPOT_MIN_PAD_SHARE)
+    html = write_report(quiet, surface=surface, trajectory=crawled, removal=removal, metrics=small)["html"]
+    assert not any(w in html.read_text(encoding="utf-8") for w in written)

@@ -82,8 +82,24 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
 
     html = write_report_html(out_dir / "report.html", surface=surface, toolpath=toolpath, trajectory=trajectory,
                              removal=removal, metrics=metrics, settings=settings, title=title, images=images,
-                             scene_traces=scene_traces)
+                             scene_traces=list(scene_traces or []) + _hot_spot_traces(metrics))
     return {**paths, **pngs, "html": html}
+
+
+def _hot_spot_traces(metrics: dict) -> list:
+    """The 3D view's mark of the hot spot in ``metrics`` where the job warns of it
+    (:func:`swath.simulate.hot_spots.worth_warning`): a ring at its deepest removal, labelled."""
+    from ..simulate.hot_spots import worth_warning
+
+    if not worth_warning(metrics) or metrics.get("hot_spot_position_m") is None:
+        return []
+    import plotly.graph_objects as go
+
+    x, y, z = (float(c) for c in metrics["hot_spot_position_m"])
+    label = f"hot spot {1e6 * float(metrics['hot_spot_depth_m']):.3g} µm ({float(metrics['hot_spot_depth_ratio']):.0f}x)"
+    return [go.Scatter3d(x=[x], y=[y], z=[z], mode="markers+text", name="hot spot", text=[label],
+                         textposition="top center", marker=dict(size=10, symbol="circle-open", color="black"),
+                         hovertemplate=f"{label}<extra></extra>")]
 
 
 #: The standard figures drawn beside the rest of the report (the slowest two of three).
