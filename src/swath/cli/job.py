@@ -277,9 +277,8 @@ def make_plan(surface, settings: JobSettings, *, progress=None, tool=None, part=
     from ..order import order_toolpath, route_links
     from ..plan import get_planner, planner_options
     from . import stages
-    from .stages import job_tool
 
-    tool = job_tool(settings) if tool is None else tool
+    tool = stages.job_tool(settings) if tool is None else tool
     planner = get_planner(settings.planner)
     arguments = planner_arguments(settings, progress=progress)
     if part is not None and "around" in planner_options(settings.planner):

@@ -523,7 +523,6 @@ def efficiency_after_gaps(metrics: dict, n_gaps: int, pad_radius: float) -> dict
             "efficiency": bound / length if length > 0 else float("nan")}
 
 
-
 def kept_clear(toolpath, surface, part, settings):
     """The planner's ``toolpath`` cut where the pad would touch a keep-out or cross the edge margin of
     ``part`` (its selection, or None: :func:`swath.segment.select.keep_clear`), and where its passes

@@ -88,14 +88,15 @@ def write_report(out_dir, *, surface, toolpath=None, trajectory=None, removal=No
 
 def _hot_spot_traces(metrics: dict) -> list:
     """The 3D view's mark of the hot spot in ``metrics`` where the job warns of it
-    (:func:`swath.simulate.hot_spots.worth_warning`): a ring at its deepest removal, labelled."""
-    from ..simulate.hot_spots import worth_warning
+    (:func:`swath.simulate.hot_spots.warned_position`): a ring at its deepest removal, labelled."""
+    from ..simulate.hot_spots import warned_position
 
-    if not worth_warning(metrics) or metrics.get("hot_spot_position_m") is None:
+    spot = warned_position(metrics)
+    if spot is None:
         return []
     import plotly.graph_objects as go
 
-    x, y, z = (float(c) for c in metrics["hot_spot_position_m"])
+    x, y, z = (float(c) for c in spot)
     label = f"hot spot {1e6 * float(metrics['hot_spot_depth_m']):.3g} µm ({float(metrics['hot_spot_depth_ratio']):.0f}x)"
     return [go.Scatter3d(x=[x], y=[y], z=[z], mode="markers+text", name="hot spot", text=[label],
                          textposition="top center", marker=dict(size=10, symbol="circle-open", color="black"),

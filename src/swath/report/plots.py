@@ -339,8 +339,8 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
     max_faces : int
         Faces drawn at most (see :func:`depth_mesh`).
     metrics : dict, optional
-        The job's metrics: where their hot spot is worth a warning
-        (:func:`swath.simulate.hot_spots.worth_warning`), its deepest spot is circled and labelled.
+        The job's metrics: where the job warns of their hot spot
+        (:func:`swath.simulate.hot_spots.warned_position`), its deepest spot is circled and labelled.
 
     Returns
     -------
@@ -406,11 +406,12 @@ def removal_map_figure(removal, toolpath=None, *, max_faces: int = MAX_PLOT_FACE
 def _mark_hot_spot(ax, frame, metrics: dict) -> None:
     """Circle the hot spot's deepest removal in ``metrics`` on the map ``ax`` (view ``frame``), with
     its depth, where the job warns of it."""
-    from ..simulate.hot_spots import worth_warning
+    from ..simulate.hot_spots import warned_position
 
-    if not worth_warning(metrics) or metrics.get("hot_spot_position_m") is None:
+    spot = warned_position(metrics)
+    if spot is None:
         return
-    at = frame.project(np.asarray(metrics["hot_spot_position_m"], float)[None, :])[0]
+    at = frame.project(spot[None, :])[0]
     ax.plot(at[0], at[1], "o", ms=14, mfc="none", mec="black", mew=1.6, zorder=6)
     ax.annotate(f"hot spot {1e6 * float(metrics['hot_spot_depth_m']):.3g} µm "
                 f"({float(metrics['hot_spot_depth_ratio']):.0f}x the interior)", (at[0], at[1]),

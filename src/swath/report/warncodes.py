@@ -314,8 +314,9 @@ CODES: dict[str, WarningCode] = dict([
           "The interior CoV leaves out a pad radius along the edges, so a plan can be even inside and still grind "
           "such a spot at an edge.",
           "Look at the spot in the report's removal map before running. Keep the pad off it (`--keep-out` with a "
-          "box round it, or `--edge-margin` at an edge), or relax `--max-angular` where the tool slows to turn "
-          "over a fold. `hot_spot_*` in `metrics.json` hold the figures.", "simulate"),
+          "box round it, or `--edge-margin` at an edge); relax `--max-angular` where the tool slows to turn "
+          "at the limit; lower the target depth or use `--constant-feed` where the feed programme slows it. "
+          "`hot_spot_*` in `metrics.json` hold the figures.", "simulate"),
     entry("W-PAD-TOO-STIFF", r"is too stiff to follow",
           "The removal is uneven because the pad is too stiff for the surface's curvature or waviness; a "
           "softer pad would remove clearly more evenly (simulated).",

@@ -126,6 +126,13 @@ def worth_warning(metrics: dict) -> bool:
     return share is not None and bool(share >= HOT_SPOT_MIN_PAD_SHARE)
 
 
+def warned_position(metrics: dict) -> np.ndarray | None:
+    """The deepest spot ``(3,)`` (m, part frame) of the hot spot in ``metrics`` where
+    :func:`worth_warning`, for the report's pictures to mark; else None."""
+    at = metrics.get("hot_spot_position_m")
+    return np.asarray(at, float) if at is not None and worth_warning(metrics) else None
+
+
 def hot_spot_warnings(metrics: dict, feed: float) -> list[str]:
     """The job's warning about its hot spot (:func:`hot_spot_metrics`'s keys in ``metrics``), where
     :func:`worth_warning`; else none.  ``feed`` m/s."""
