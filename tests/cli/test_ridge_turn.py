@@ -9,6 +9,7 @@ import pytest
 
 from swath.cli import ridge_turn
 from swath.core import Pass, ToolPath
+from swath.plan.folds import rotation_per_metre
 
 
 def _arc_pass(radius: float, angle: float, flat: float, step: float = 1e-4) -> Pass:
@@ -26,7 +27,7 @@ def _arc_pass(radius: float, angle: float, flat: float, step: float = 1e-4) -> P
 
 def test_the_normal_turns_at_one_over_the_radius_round_an_arc():
     p = _arc_pass(6.35e-3, math.pi, 0.0)
-    rate, length = ridge_turn.rotation_per_metre(p.points, p.normals)
+    rate, length = rotation_per_metre(p.points, p.normals)
     assert length.sum() == pytest.approx(6.35e-3 * math.pi, rel=1e-3)     # chords of a fine arc
     np.testing.assert_allclose(rate, 1.0 / 6.35e-3, rtol=1e-3)
 
@@ -130,7 +131,7 @@ def test_the_note_says_where_the_feed_is_held_which_plan_is_written_and_what_lim
 
 
 def test_only_stretches_that_turn_round_a_ridge_count_not_a_scans_jitter():
-    from swath.cli.ridge_turn import RIDGE_NET_TURN, ridge_runs
+    from swath.plan.folds import RIDGE_NET_TURN, ridge_runs
 
     # a pass over a 6 mm half cylinder: its normals turn by pi along one held run
     phi = np.linspace(0.0, np.pi, 31)

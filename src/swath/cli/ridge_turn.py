@@ -16,7 +16,7 @@ interior CoV 0.373 at 1.43 L* against the raster's 0.573).
 
 So when the even-removal default plans a raster whose direction it chose itself, it measures from
 the first plan's passes alone the share of the contact length where the limit holds the feed
-below :data:`HOLD_FRACTION` of it (:func:`held_share`).  From :data:`HOLD_SHARE` up,
+below :data:`~swath.plan.folds.HOLD_FRACTION` of it (:func:`held_share`).  From :data:`HOLD_SHARE` up,
 :func:`uniform_if_evener` plans the part with the uniform planner too and keeps the plan that
 removes more evenly at constant feed in the simulation (the blade: 0.512 against the raster's
 0.733; ``example:hub``, whose rim holds the raster's feed at 22 mm/s over 4.8 % of its passes,
@@ -31,7 +31,7 @@ import logging
 import numpy as np
 
 # (the held stretches are measured as swath.plan.folds measures them at a part's rim)
-from ..plan.folds import HOLD_FRACTION, RIDGE_NET_TURN, ridge_runs, rotation_per_metre  # noqa: F401
+from ..plan.folds import HOLD_FRACTION, ridge_runs, rotation_per_metre
 
 log = logging.getLogger(__name__)
 
@@ -64,8 +64,8 @@ def held_share(toolpath, feed: float, omega_max: float | None) -> dict:
     -------
     dict
         ``held_share`` (the share of the contact length where ``omega_max / ρ`` is below
-        :data:`HOLD_FRACTION` times ``feed``, ρ the normal's rotation per metre, on the stretches
-        that turn round a ridge: :func:`ridge_runs`), ``held_feed_m_per_s``
+        :data:`~swath.plan.folds.HOLD_FRACTION` times ``feed``, ρ the normal's rotation per metre, on the stretches
+        that turn round a ridge: :func:`~swath.plan.folds.ridge_runs`), ``held_feed_m_per_s``
         (the feed the limit allows there, length-weighted median; NaN when nowhere held) and
         ``held_radius_m`` (``1 / ρ`` there, the same median), ``tightest_radius_m`` (``1 / ρ`` where
         :data:`TIGHT_SHARE` of the held length turns tighter) and ``extra_dwell`` (the contact time
